@@ -1,0 +1,1 @@
+"""Catalogue data: PNUs, objects, PDOs, faults, abort and error texts (loaded lazily)."""

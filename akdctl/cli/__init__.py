@@ -1,0 +1,1 @@
+"""The click command-line front end: thin commands over akdctl.drive operations."""

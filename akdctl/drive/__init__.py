@@ -1,0 +1,1 @@
+"""Drive profiles and operations: the meaning of parameters, objects, control and status words."""

@@ -1,0 +1,1 @@
+"""The simulated AKD: a drive model with PNU and SDO servers speaking the real wire formats."""

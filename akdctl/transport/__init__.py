@@ -1,0 +1,1 @@
+"""Transports: move request/response bytes to a drive (simulated, PROFINET, EtherCAT, CANopen)."""

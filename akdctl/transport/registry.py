@@ -1,0 +1,168 @@
+"""Scheme -> transport registry (the way python-can maps interface names to buses).
+
+Built-in schemes are listed here as *specs* (module and class names as strings),
+so parsing a target and listing transports never imports a transport module.
+Third-party transports register under the ``akdctl.transports`` entry-point
+group (``scheme = "package.module:ClassName"``); they are looked up only for a
+scheme that is not built in.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from akdctl.errors import UsageError
+from akdctl.transport.target import Target, split_target
+
+if TYPE_CHECKING:
+    from akdctl.transport.base import Transport
+
+ENTRY_POINT_GROUP = "akdctl.transports"
+
+
+def _need_host(target: Target) -> None:
+    if not target.host:
+        raise UsageError(f"malformed target {target.raw!r}: {target.scheme}:// needs a host, e.g. {target.scheme}://192.168.0.10")
+
+
+def _check_ecat_udp(target: Target) -> None:
+    _need_host(target)
+    parts = target.path_parts
+    if len(parts) != 1 or not _is_int(parts[0]):
+        raise UsageError(f"malformed target {target.raw!r}: expected ecat-udp://HOST[:PORT]/STATION (station address, e.g. 1001)")
+
+
+def _check_ecat_raw(target: Target) -> None:
+    if not target.host:
+        raise UsageError(f"malformed target {target.raw!r}: expected {target.scheme}://IFNAME[/POSITION]")
+    parts = target.path_parts
+    if len(parts) > 1 or (parts and not _is_int(parts[0])):
+        raise UsageError(f"malformed target {target.raw!r}: POSITION must be a number (0 = first slave)")
+
+
+def _check_can(target: Target) -> None:
+    parts = target.path_parts
+    if not target.host or len(parts) != 2 or not _is_int(parts[1]):
+        raise UsageError(f"malformed target {target.raw!r}: expected can://INTERFACE/CHANNEL/NODE, e.g. can://socketcan/can0/1")
+    node = int(parts[1], 0)
+    if not 1 <= node <= 127:
+        raise UsageError(f"malformed target {target.raw!r}: CANopen node id {node} is outside 1..127")
+
+
+def _check_sim(target: Target) -> None:
+    drive = target.query.get("drive")
+    if drive is not None and drive not in ("profidrive", "cia402"):
+        raise UsageError(f"malformed target {target.raw!r}: drive={drive!r}; use drive=profidrive or drive=cia402")
+    name = target.host or "default"
+    if not name.replace("-", "").replace("_", "").isalnum():
+        raise UsageError(f"malformed target {target.raw!r}: simulator name {name!r} may use letters, digits, - and _")
+
+
+def _is_int(text: str) -> bool:
+    try:
+        int(text, 0)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class TransportSpec:
+    """What the registry knows about a scheme without importing its transport."""
+
+    scheme: str
+    module: str
+    cls: str
+    summary: str
+    syntax: str
+    channels: str
+    requires: tuple[str, ...] = ()
+    check: Callable[[Target], None] | None = None
+    extra: str = ""
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+BUILTIN: dict[str, TransportSpec] = {
+    spec.scheme: spec
+    for spec in (
+        TransportSpec("sim", "akdctl.transport.sim", "SimTransport",
+                      "built-in simulated AKD (state kept between invocations)",
+                      "sim | sim://NAME[?drive=profidrive|cia402]", "parameters, objects",
+                      check=_check_sim),
+        TransportSpec("pn", "akdctl.transport.profinet", "ProfinetTransport",
+                      "PROFINET record data: PROFIdrive base-mode parameter access over PNIO DCE/RPC/UDP",
+                      "pn://HOST[:34964][?slot=1&subslot=1&api=0x3A00&index=47]", "parameters",
+                      check=_need_host),
+        TransportSpec("ecat-udp", "akdctl.transport.ethercat_udp", "EthercatUdpTransport",
+                      "EtherCAT mailbox (CoE SDO) through a master's ETG.8200 mailbox gateway",
+                      "ecat-udp://HOST[:34980]/STATION", "objects", check=_check_ecat_udp),
+        TransportSpec("ecat", "akdctl.transport.ethercat_raw", "EthercatRawTransport",
+                      "EtherCAT: akdctl as master on a raw interface (needs CAP_NET_RAW)",
+                      "ecat://IFNAME[/POSITION]", "objects", check=_check_ecat_raw),
+        TransportSpec("ecat+soem", "akdctl.transport.ethercat_soem", "EthercatSoemTransport",
+                      "EtherCAT through pysoem (optional extra akdctl[soem])",
+                      "ecat+soem://IFNAME[/POSITION]", "objects", requires=("pysoem",),
+                      check=_check_ecat_raw, extra="soem"),
+        TransportSpec("can", "akdctl.transport.canopen_bus", "CanopenTransport",
+                      "CANopen over any python-can interface (socketcan, slcan, pcan, kvaser, virtual, ...)",
+                      "can://INTERFACE/CHANNEL/NODE[?bitrate=500000]", "objects",
+                      requires=("can", "canopen"), check=_check_can),
+    )
+}
+
+
+def known_schemes() -> list[str]:
+    return sorted(BUILTIN) + sorted(set(_entry_points()) - set(BUILTIN))
+
+
+def _entry_points() -> dict[str, str]:
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def parse_target(text: str, source: str = "--target") -> Target:
+    """Parse and check a target string; unknown schemes list the known ones."""
+    target = split_target(text, source)
+    spec = BUILTIN.get(target.scheme)
+    if spec is None:
+        if target.scheme not in _entry_points():
+            raise UsageError(
+                f"unknown target scheme {target.scheme!r} in {target.raw!r} (from {source}); "
+                f"known schemes: {', '.join(known_schemes())}"
+            )
+        return target
+    if spec.check is not None:
+        spec.check(target)
+    return target
+
+
+def module_available(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def transport_class(target: Target) -> "type[Transport]":
+    """Import and return the transport class for a parsed target."""
+    spec = BUILTIN.get(target.scheme)
+    if spec is None:
+        value = _entry_points().get(target.scheme)
+        if value is None:
+            raise UsageError(f"unknown target scheme {target.scheme!r}; known schemes: {', '.join(known_schemes())}")
+        module_name, _, cls_name = value.partition(":")
+    else:
+        missing = [m for m in spec.requires if not module_available(m)]
+        if missing:
+            hint = f" (pip install 'akdctl[{spec.extra}]')" if spec.extra else ""
+            raise UsageError(f"{spec.scheme}:// needs the Python module(s) {', '.join(missing)}{hint}")
+        if not module_available(spec.module):
+            raise UsageError(f"{spec.scheme}:// is reserved but its transport is not part of this version of akdctl")
+        module_name, cls_name = spec.module, spec.cls
+    module = importlib.import_module(module_name)
+    return getattr(module, cls_name)
