@@ -1,0 +1,225 @@
+"""DCE/RPC version 4 (connectionless) packet header, as PROFINET IO uses it on UDP.
+
+PNIO speaks DCE/RPC CL over UDP port 34964. Every datagram is an 80-byte
+header followed by the body (the NDR-encoded PNIO arguments). The header's
+integers and the three leading groups of each UUID follow the *data
+representation* (``drep``) the sender announces, so a decoder must honour
+both byte orders even though akdctl itself always sends big-endian: a device
+may answer little-endian (many PLC stacks do).
+
+Pure codec: bytes in, dataclasses out; only :class:`DceRpcError` escapes.
+"""
+
+from __future__ import annotations
+
+import struct
+import uuid
+from dataclasses import dataclass, field, replace
+
+from akdctl.protocol.errors import CodecError
+
+HEADER_SIZE = 80
+RPC_VERSION = 4
+
+# packet types (DCE 1.1 RPC, chapter 12)
+PT_REQUEST = 0
+PT_PING = 1
+PT_RESPONSE = 2
+PT_FAULT = 3
+PT_WORKING = 4
+PT_NOCALL = 5
+PT_REJECT = 6
+PT_ACK = 7
+PT_CL_CANCEL = 8
+PT_FACK = 9
+PT_CANCEL_ACK = 10
+
+PACKET_TYPE_NAMES = {
+    PT_REQUEST: "request", PT_PING: "ping", PT_RESPONSE: "response", PT_FAULT: "fault",
+    PT_WORKING: "working", PT_NOCALL: "nocall", PT_REJECT: "reject", PT_ACK: "ack",
+    PT_CL_CANCEL: "cancel", PT_FACK: "fack", PT_CANCEL_ACK: "cancel-ack",
+}
+
+# flags1 bits (DCE 1.1: the "last fragment" bit is 0x02, "fragment" 0x04, "no fack" 0x08)
+FLAG_LASTFRAG = 0x02
+FLAG_FRAG = 0x04
+FLAG_NOFACK = 0x08
+FLAG_MAYBE = 0x10
+FLAG_IDEMPOTENT = 0x20
+FLAG_BROADCAST = 0x40
+
+DREP_BIG = b"\x00\x00\x00"      # big-endian integers, ASCII, IEEE floats
+DREP_LITTLE = b"\x10\x00\x00"   # little-endian integers, ASCII, IEEE floats
+
+class DceRpcError(CodecError):
+    """A datagram that is not a valid DCE/RPC v4 connectionless packet."""
+
+
+def uuid_to_wire(value: uuid.UUID, little: bool) -> bytes:
+    """UUID bytes in the order the data representation announces."""
+    return value.bytes_le if little else value.bytes
+
+
+def uuid_from_wire(data: bytes, little: bool) -> uuid.UUID:
+    if len(data) != 16:
+        raise DceRpcError(f"UUID needs 16 bytes, got {len(data)}")
+    return uuid.UUID(bytes_le=bytes(data)) if little else uuid.UUID(bytes=bytes(data))
+
+
+@dataclass(frozen=True)
+class RpcHeader:
+    """The 80-byte DCE/RPC CL header. ``body_length`` is filled by :func:`encode_packet`."""
+
+    ptype: int
+    object_uuid: uuid.UUID
+    interface_uuid: uuid.UUID
+    activity_uuid: uuid.UUID
+    sequence: int
+    opnum: int
+    flags1: int = 0
+    flags2: int = 0
+    drep: bytes = DREP_BIG
+    server_boot: int = 0
+    interface_version: int = 1
+    interface_hint: int = 0xFFFF
+    activity_hint: int = 0xFFFF
+    fragment: int = 0
+    body_length: int = 0
+    auth_protocol: int = 0
+    serial: int = 0
+    version: int = field(default=RPC_VERSION)
+
+    @property
+    def little_endian(self) -> bool:
+        return (self.drep[0] >> 4) == 1
+
+    @property
+    def is_fragment(self) -> bool:
+        return bool(self.flags1 & FLAG_FRAG)
+
+    @property
+    def is_last_fragment(self) -> bool:
+        return not self.is_fragment or bool(self.flags1 & FLAG_LASTFRAG)
+
+    @property
+    def type_name(self) -> str:
+        return PACKET_TYPE_NAMES.get(self.ptype, f"type {self.ptype}")
+
+
+@dataclass(frozen=True)
+class RpcPacket:
+    header: RpcHeader
+    body: bytes
+
+
+def encode_packet(header: RpcHeader, body: bytes = b"") -> bytes:
+    """Header + body; ``body_length`` is set from ``body``."""
+    try:
+        if len(header.drep) != 3 or (header.drep[0] >> 4) not in (0, 1):
+            raise DceRpcError(f"unsupported data representation {header.drep.hex()}")
+        if len(body) > 0xFFFF:
+            raise DceRpcError(f"body of {len(body)} bytes does not fit one datagram; fragment it")
+        little = header.little_endian
+        order = "<" if little else ">"
+        head = struct.pack(
+            ">BBBB3sB", header.version, header.ptype, header.flags1, header.flags2,
+            header.drep, (header.serial >> 8) & 0xFF,
+        )
+        head += uuid_to_wire(header.object_uuid, little)
+        head += uuid_to_wire(header.interface_uuid, little)
+        head += uuid_to_wire(header.activity_uuid, little)
+        head += struct.pack(
+            order + "IIIHHHHH", header.server_boot, header.interface_version, header.sequence,
+            header.opnum, header.interface_hint, header.activity_hint, len(body), header.fragment,
+        )
+        head += struct.pack(">BB", header.auth_protocol, header.serial & 0xFF)
+    except struct.error as exc:
+        raise DceRpcError(f"header field out of range: {exc}") from None
+    return head + bytes(body)
+
+
+def decode_packet(data: bytes) -> RpcPacket:
+    """Parse one datagram; the body is cut to the announced length."""
+    data = bytes(data)
+    if len(data) < HEADER_SIZE:
+        raise DceRpcError(f"datagram of {len(data)} bytes is shorter than the 80-byte DCE/RPC header")
+    version, ptype, flags1, flags2, drep, serial_hi = struct.unpack_from(">BBBB3sB", data, 0)
+    if version != RPC_VERSION:
+        raise DceRpcError(f"DCE/RPC version {version}, expected 4 (connectionless)")
+    if (drep[0] >> 4) not in (0, 1):
+        raise DceRpcError(f"unsupported integer representation in drep {drep.hex()}")
+    little = (drep[0] >> 4) == 1
+    order = "<" if little else ">"
+    obj = uuid_from_wire(data[8:24], little)
+    iface = uuid_from_wire(data[24:40], little)
+    act = uuid_from_wire(data[40:56], little)
+    boot, if_vers, seq, opnum, ihint, ahint, length, frag = struct.unpack_from(order + "IIIHHHHH", data, 56)
+    auth, serial_lo = data[78], data[79]
+    if HEADER_SIZE + length > len(data):
+        raise DceRpcError(f"body length {length} exceeds the {len(data) - HEADER_SIZE} bytes received")
+    header = RpcHeader(
+        ptype=ptype, object_uuid=obj, interface_uuid=iface, activity_uuid=act, sequence=seq,
+        opnum=opnum, flags1=flags1, flags2=flags2, drep=drep, server_boot=boot,
+        interface_version=if_vers, interface_hint=ihint, activity_hint=ahint, fragment=frag,
+        body_length=length, auth_protocol=auth, serial=(serial_hi << 8) | serial_lo, version=version,
+    )
+    return RpcPacket(header, data[HEADER_SIZE:HEADER_SIZE + length])
+
+
+def fragment_body(header: RpcHeader, body: bytes, max_body: int) -> list[bytes]:
+    """Split one call's body into datagrams of at most ``max_body`` body bytes.
+
+    A body that fits is sent unfragmented (no FRAG flag) so ordinary peers see
+    ordinary packets. Fragments carry FRAG, the last one LASTFRAG, and NOFACK
+    so the receiver need not acknowledge each one.
+    """
+    if max_body < 8:
+        raise DceRpcError("fragment size must be at least 8 bytes")
+    if len(body) <= max_body:
+        return [encode_packet(replace(header, fragment=0), body)]
+    pieces = [body[i:i + max_body] for i in range(0, len(body), max_body)]
+    out = []
+    for number, piece in enumerate(pieces):
+        flags = (header.flags1 | FLAG_FRAG | FLAG_NOFACK) & ~FLAG_LASTFRAG
+        if number == len(pieces) - 1:
+            flags |= FLAG_LASTFRAG
+        out.append(encode_packet(replace(header, flags1=flags, fragment=number), piece))
+    return out
+
+
+class Reassembler:
+    """Collects the fragments of one call (one activity + sequence number).
+
+    Fragments may arrive out of order or twice (UDP); the body is complete
+    once every number up to the one flagged LASTFRAG has been seen.
+    """
+
+    def __init__(self) -> None:
+        self._parts: dict[int, bytes] = {}
+        self._last: int | None = None
+        self.first: RpcHeader | None = None
+
+    def add(self, packet: RpcPacket) -> bytes | None:
+        """Feed one packet; returns the whole body once complete, else ``None``."""
+        head = packet.header
+        if not head.is_fragment:
+            self.first = head
+            return packet.body
+        if head.fragment > 0x3FFF:
+            raise DceRpcError(f"fragment number {head.fragment} is implausibly high")
+        if self.first is None or head.fragment == 0:
+            self.first = head if head.fragment == 0 or self.first is None else self.first
+        self._parts[head.fragment] = packet.body
+        if head.flags1 & FLAG_LASTFRAG:
+            self._last = head.fragment
+        if self._last is None or any(n not in self._parts for n in range(self._last + 1)):
+            return None
+        return b"".join(self._parts[n] for n in range(self._last + 1))
+
+    @property
+    def highest_contiguous(self) -> int:
+        """Highest fragment number received with no gap before it (-1 if none)."""
+        n = -1
+        while n + 1 in self._parts:
+            n += 1
+        return n

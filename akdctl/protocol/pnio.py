@@ -1,0 +1,551 @@
+"""PROFINET IO context management (CM) bodies carried by DCE/RPC: NDR arguments,
+the blocks a Device Access AR needs, PNIOStatus in words, and the I&M0 record.
+
+akdctl only ever needs a small part of PNIO: connect a Device Access AR, write
+and read record 47 (the PROFIdrive parameter channel), read I&M0 implicitly,
+and release. Each block here is a frozen dataclass with ``encode()`` and a
+``decode(data)`` classmethod. Block contents are always big-endian; only the
+NDR array header around them follows the DCE/RPC data representation.
+
+Pure codec: only :class:`PnioError` escapes.
+"""
+
+from __future__ import annotations
+
+import struct
+import uuid
+from dataclasses import dataclass
+
+from akdctl.protocol.errors import CodecError
+
+PNIO_PORT = 34964
+
+OP_CONNECT = 0
+OP_RELEASE = 1
+OP_READ = 2
+OP_WRITE = 3
+OP_CONTROL = 4
+OP_READ_IMPLICIT = 5
+OPNUM_NAMES = {OP_CONNECT: "Connect", OP_RELEASE: "Release", OP_READ: "Read", OP_WRITE: "Write",
+               OP_CONTROL: "Control", OP_READ_IMPLICIT: "ReadImplicit"}
+
+DEVICE_INTERFACE = uuid.UUID("dea00001-6c97-11d1-8271-00a02442df7d")
+CONTROLLER_INTERFACE = uuid.UUID("dea00002-6c97-11d1-8271-00a02442df7d")
+SUPERVISOR_INTERFACE = uuid.UUID("dea00003-6c97-11d1-8271-00a02442df7d")
+PARAMETER_SERVER_INTERFACE = uuid.UUID("dea00004-6c97-11d1-8271-00a02442df7d")
+NIL_UUID = uuid.UUID(int=0)
+
+BT_WRITE_REQ = 0x0008
+BT_READ_REQ = 0x0009
+BT_IM0 = 0x0020
+BT_AR_REQ = 0x0101
+BT_RELEASE_REQ = 0x0114
+BT_WRITE_RES = 0x8008
+BT_READ_RES = 0x8009
+BT_AR_RES = 0x8101
+BT_RELEASE_RES = 0x8114
+
+AR_TYPE_IOCAR = 0x0001
+AR_TYPE_IOSAR = 0x0006          # supervisor AR; with DeviceAccess set: "Device Access AR"
+AR_TYPE_NAMES = {0x0001: "IOCARSingle", 0x0006: "IOSAR (supervisor / device access)",
+                 0x0010: "IOCARSingle RT_CLASS_3", 0x0020: "IOCARSR"}
+AR_PROP_STATE_ACTIVE = 0x00000001
+AR_PROP_PRM_SERVER_CM_INITIATOR = 0x00000010
+AR_PROP_DEVICE_ACCESS = 0x00000100
+DEVICE_ACCESS_PROPERTIES = AR_PROP_STATE_ACTIVE | AR_PROP_PRM_SERVER_CM_INITIATOR | AR_PROP_DEVICE_ACCESS
+
+CONTROL_RELEASE = 0x0004
+CONTROL_DONE = 0x0008
+
+INDEX_PROFIDRIVE = 0x002F        # record 47, the AKD's documented parameter channel
+INDEX_PROFIDRIVE_ALT = 0xB02E    # same channel through the profile-specific index
+INDEX_IM0 = 0xAFF0
+INDEX_KEEPALIVE = 0xFBFF
+API_PROFIDRIVE = 0x3A00
+
+BLOCK_HEADER = struct.Struct(">HHBB")
+NDR_REQUEST = struct.Struct("IIIII")     # byte order prefix added per drep
+NDR_RESPONSE = struct.Struct("IIII")
+
+
+class PnioError(CodecError):
+    """Bytes that are not a valid PNIO CM body or block."""
+
+
+def object_uuid(vendor_id: int, device_id: int, instance: int = 1) -> uuid.UUID:
+    """The PNIO object UUID a device answers to: DEA00000-6C97-11D1-8271-{inst}{dev}{vendor}."""
+    for name, value in (("vendor", vendor_id), ("device", device_id), ("instance", instance)):
+        if not 0 <= value <= 0xFFFF:
+            raise PnioError(f"{name} id {value} does not fit 16 bits")
+    return uuid.UUID(f"dea00000-6c97-11d1-8271-{instance:04x}{device_id:04x}{vendor_id:04x}")
+
+
+# ---------------------------------------------------------------- PNIOStatus
+
+ERROR_CODE_NAMES = {0x00: "", 0x81: "PNIO", 0xCF: "RTA error", 0xDA: "alarm acknowledge", 0xDB: "connect",
+                    0xDC: "release", 0xDD: "control", 0xDE: "read", 0xDF: "write"}
+PNIORW_CODES = {
+    0xA0: "application: read error", 0xA1: "application: write error", 0xA2: "application: module failure",
+    0xA3: "application: not specified", 0xA4: "application: not specified", 0xA5: "application: not specified",
+    0xA6: "application: not specified", 0xA7: "application: busy", 0xA8: "application: version conflict",
+    0xA9: "application: feature not supported",
+    0xB0: "access: invalid index (no such record)", 0xB1: "access: write length error",
+    0xB2: "access: invalid slot/subslot", 0xB3: "access: type conflict", 0xB4: "access: invalid area/API",
+    0xB5: "access: state conflict (busy, parameter response not ready)", 0xB6: "access: access denied",
+    0xB7: "access: invalid range (bad base-mode request header)", 0xB8: "access: invalid parameter",
+    0xB9: "access: invalid type", 0xBA: "access: backup",
+    0xC0: "resource: read constraint conflict", 0xC1: "resource: write constraint conflict",
+    0xC2: "resource: resource busy", 0xC3: "resource: resource unavailable",
+}
+AR_BLOCK_FIELDS = {0: "block type", 1: "block length", 2: "block version high", 3: "block version low",
+                   4: "AR type", 5: "AR UUID", 7: "CM initiator MAC address", 8: "CM initiator object UUID",
+                   9: "AR properties", 10: "CM initiator activity timeout factor", 11: "initiator UDP RT port",
+                   12: "station name length", 13: "CM initiator station name"}
+PNIO_CODE1 = {0x01: "faulty ARBlockReq", 0x02: "faulty IOCRBlockReq", 0x03: "faulty ExpectedSubmoduleBlockReq",
+              0x04: "faulty AlarmCRBlockReq", 0x05: "faulty PrmServerBlockReq", 0x08: "faulty IODControlReq",
+              0x14: "faulty IODReleaseBlock", 0x3C: "RPC: faulty or unknown opnum", 0x3D: "CM: state conflict",
+              0x3F: "RMPM: argument length invalid", 0x40: "RMPM: unknown blocks", 0x41: "RMPM: invalid state",
+              0x3E: "RPC: out of AR resources"}
+
+#: ``DB 81 01 04``: the device does not accept this AR type.
+AR_TYPE_REFUSED = (0xDB, 0x81, 0x01, 0x04)
+AR_PROPERTIES_REFUSED = (0xDB, 0x81, 0x01, 0x09)
+
+
+@dataclass(frozen=True)
+class PnioStatus:
+    """PNIOStatus: ErrorCode, ErrorDecode, ErrorCode1, ErrorCode2 (a byte sequence, no byte order)."""
+
+    code: int = 0
+    decode: int = 0
+    code1: int = 0
+    code2: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return self.code == 0 and self.decode == 0 and self.code1 == 0 and self.code2 == 0
+
+    @property
+    def busy(self) -> bool:
+        """The device asks us to come back later (0xB5 state conflict, 0xC2/0xA7 busy)."""
+        return self.decode == 0x80 and self.code1 in (0xB5, 0xC2, 0xA7)
+
+    def encode(self) -> bytes:
+        return bytes((self.code, self.decode, self.code1, self.code2))
+
+    @classmethod
+    def decode_bytes(cls, data: bytes) -> "PnioStatus":
+        if len(data) != 4:
+            raise PnioError(f"PNIOStatus needs 4 bytes, got {len(data)}")
+        return cls(*data)
+
+    @property
+    def value(self) -> int:
+        return int.from_bytes(self.encode(), "big")
+
+    def hex(self) -> str:
+        return self.encode().hex(" ").upper()
+
+    def describe(self) -> str:
+        """The status in words, e.g. ``read error, PNIORW: access: invalid index (DE 80 B0 00)``."""
+        if self.ok:
+            return "OK (00 00 00 00)"
+        service = ERROR_CODE_NAMES.get(self.code, f"error code 0x{self.code:02X}")
+        if self.decode == 0x80:
+            what = PNIORW_CODES.get(self.code1, f"record error 0x{self.code1:02X}")
+            if self.code2:
+                what += f", vendor detail 0x{self.code2:02X}"
+        elif self.decode == 0x81:
+            what = PNIO_CODE1.get(self.code1, f"PNIO error 0x{self.code1:02X}")
+            if self.code1 == 0x01:
+                what += f" (field: {AR_BLOCK_FIELDS.get(self.code2, f'#{self.code2}')})"
+            elif self.code2:
+                what += f" (detail 0x{self.code2:02X})"
+        elif self.decode == 0x82:
+            what = f"manufacturer specific 0x{self.code1:02X}{self.code2:02X}"
+        else:
+            what = f"decode 0x{self.decode:02X}, codes 0x{self.code1:02X}/0x{self.code2:02X}"
+        return f"{service} error: {what} ({self.hex()})" if service else f"{what} ({self.hex()})"
+
+
+OK = PnioStatus()
+
+
+def rw_error(write: bool, code1: int, code2: int = 0) -> PnioStatus:
+    """A record-layer (PNIORW) refusal for a read or write."""
+    return PnioStatus(0xDF if write else 0xDE, 0x80, code1, code2)
+
+
+# ---------------------------------------------------------------- NDR arguments
+
+def _order(little: bool) -> str:
+    return "<" if little else ">"
+
+
+def encode_request_args(blocks: bytes, args_maximum: int = 1024, little: bool = False) -> bytes:
+    """NDR request: ArgsMaximum, ArgsLength, MaximumCount, Offset, ActualCount, blocks."""
+    n = len(blocks)
+    return struct.pack(_order(little) + "IIIII", max(args_maximum, n), n, max(args_maximum, n), 0, n) + blocks
+
+
+def decode_request_args(body: bytes, little: bool = False) -> tuple[int, bytes]:
+    """(ArgsMaximum, block bytes) of a request body."""
+    if len(body) < 20:
+        raise PnioError(f"request body of {len(body)} bytes is shorter than the 20-byte NDR header")
+    args_max, length, maximum, offset, actual = struct.unpack_from(_order(little) + "IIIII", body, 0)
+    if offset != 0 or actual > maximum or length > len(body) - 20 or actual > len(body) - 20:
+        raise PnioError(f"inconsistent NDR header (length {length}, max {maximum}, offset {offset}, "
+                        f"actual {actual}, {len(body) - 20} bytes present)")
+    return args_max, body[20:20 + length]
+
+
+def encode_response_args(status: PnioStatus, blocks: bytes, args_maximum: int | None = None,
+                         little: bool = False) -> bytes:
+    """NDR response: PNIOStatus, ArgsLength, MaximumCount, Offset, ActualCount, blocks."""
+    n = len(blocks)
+    maximum = n if args_maximum is None else max(args_maximum, n)
+    return status.encode() + struct.pack(_order(little) + "IIII", n, maximum, 0, n) + blocks
+
+
+def decode_response_args(body: bytes, little: bool = False) -> tuple[PnioStatus, bytes]:
+    """(PNIOStatus, block bytes) of a response body."""
+    if len(body) < 20:
+        raise PnioError(f"response body of {len(body)} bytes is shorter than the 20-byte NDR header")
+    status = PnioStatus.decode_bytes(body[:4])
+    length, maximum, offset, actual = struct.unpack_from(_order(little) + "IIII", body, 4)
+    if offset != 0 or actual > maximum or length > len(body) - 20:
+        raise PnioError(f"inconsistent NDR header (length {length}, max {maximum}, offset {offset}, "
+                        f"actual {actual}, {len(body) - 20} bytes present)")
+    return status, body[20:20 + length]
+
+
+# ---------------------------------------------------------------- blocks
+
+def block_header(block_type: int, length_after: int, version: tuple[int, int] = (1, 0)) -> bytes:
+    """BlockHeader; ``length_after`` counts bytes after the version bytes."""
+    if not 0 <= length_after + 2 <= 0xFFFF:
+        raise PnioError(f"block of {length_after} bytes is too long")
+    return BLOCK_HEADER.pack(block_type, length_after + 2, *version)
+
+
+@dataclass(frozen=True)
+class RawBlock:
+    """One block as found in a body: type, version, content after the header, trailing data.
+
+    ``data`` holds what follows a read/write header block (the record bytes),
+    which the block length does not count.
+    """
+
+    type: int
+    version: tuple[int, int]
+    content: bytes
+
+
+def split_blocks(data: bytes) -> list[RawBlock]:
+    """Cut a body into blocks. Record data after a read/write header is returned as
+    part of that block's content (see :func:`_record_tail`)."""
+    blocks: list[RawBlock] = []
+    pos = 0
+    while pos < len(data):
+        if len(data) - pos < 6:
+            raise PnioError(f"{len(data) - pos} stray bytes after the last block")
+        btype, length, vhi, vlo = BLOCK_HEADER.unpack_from(data, pos)
+        if length < 2 or pos + 4 + length > len(data):
+            raise PnioError(f"block 0x{btype:04X} announces {length} bytes, {len(data) - pos - 4} present")
+        end = pos + 4 + length
+        if btype in (BT_WRITE_REQ, BT_READ_RES):
+            # the record data follows the header block, outside its length
+            if length != 60:
+                raise PnioError(f"block 0x{btype:04X} must be 60 bytes long, not {length}")
+            record_length = struct.unpack_from(">I", data, pos + 36)[0]
+            if end + record_length > len(data):
+                raise PnioError(f"record data of {record_length} bytes announced, {len(data) - end} present")
+            end += record_length
+        blocks.append(RawBlock(btype, (vhi, vlo), data[pos + 6:end]))
+        pos = end
+    return blocks
+
+
+def _expect(block: RawBlock, btype: int, minimum: int) -> None:
+    if block.type != btype:
+        raise PnioError(f"expected block 0x{btype:04X}, found 0x{block.type:04X}")
+    if len(block.content) < minimum:
+        raise PnioError(f"block 0x{btype:04X} has {len(block.content)} bytes, needs {minimum}")
+
+
+def _mac(value: bytes) -> bytes:
+    if len(value) != 6:
+        raise PnioError(f"MAC address needs 6 bytes, got {len(value)}")
+    return bytes(value)
+
+
+def _one_block(data: bytes, btype: int) -> RawBlock:
+    blocks = split_blocks(data)
+    if not blocks:
+        raise PnioError(f"no block found where 0x{btype:04X} was expected")
+    for block in blocks:
+        if block.type == btype:
+            return block
+    raise PnioError(f"block 0x{btype:04X} missing (found {', '.join(f'0x{b.type:04X}' for b in blocks)})")
+
+
+@dataclass(frozen=True)
+class ARBlockReq:
+    ar_type: int
+    ar_uuid: uuid.UUID
+    session_key: int
+    initiator_mac: bytes
+    initiator_object_uuid: uuid.UUID
+    properties: int
+    timeout_factor: int
+    station_name: bytes
+    udp_rt_port: int = 0x8892
+
+    _FMT = struct.Struct(">H16sH6s16sIHHH")
+
+    @property
+    def device_access(self) -> bool:
+        return bool(self.properties & AR_PROP_DEVICE_ACCESS)
+
+    def encode(self) -> bytes:
+        try:
+            body = self._FMT.pack(self.ar_type, self.ar_uuid.bytes, self.session_key, _mac(self.initiator_mac),
+                                  self.initiator_object_uuid.bytes, self.properties, self.timeout_factor,
+                                  self.udp_rt_port, len(self.station_name)) + self.station_name
+        except struct.error as exc:
+            raise PnioError(f"ARBlockReq field out of range: {exc}") from None
+        return block_header(BT_AR_REQ, len(body)) + body
+
+    @classmethod
+    def from_block(cls, block: RawBlock) -> "ARBlockReq":
+        _expect(block, BT_AR_REQ, cls._FMT.size)
+        ar_type, ar_uuid, key, mac, obj, props, factor, port, nlen = cls._FMT.unpack_from(block.content, 0)
+        name = block.content[cls._FMT.size:]
+        if len(name) != nlen:
+            raise PnioError(f"station name length {nlen} but {len(name)} bytes present")
+        return cls(ar_type, uuid.UUID(bytes=ar_uuid), key, mac, uuid.UUID(bytes=obj), props, factor, name, port)
+
+    @classmethod
+    def decode(cls, data: bytes) -> "ARBlockReq":
+        return cls.from_block(_one_block(data, BT_AR_REQ))
+
+
+@dataclass(frozen=True)
+class ARBlockRes:
+    ar_type: int
+    ar_uuid: uuid.UUID
+    session_key: int
+    responder_mac: bytes
+    udp_rt_port: int = 0x8892
+
+    _FMT = struct.Struct(">H16sH6sH")
+
+    def encode(self) -> bytes:
+        try:
+            body = self._FMT.pack(self.ar_type, self.ar_uuid.bytes, self.session_key, _mac(self.responder_mac),
+                                  self.udp_rt_port)
+        except struct.error as exc:
+            raise PnioError(f"ARBlockRes field out of range: {exc}") from None
+        return block_header(BT_AR_RES, len(body)) + body
+
+    @classmethod
+    def decode(cls, data: bytes) -> "ARBlockRes":
+        block = _one_block(data, BT_AR_RES)
+        _expect(block, BT_AR_RES, cls._FMT.size)
+        ar_type, ar_uuid, key, mac, port = cls._FMT.unpack_from(block.content, 0)
+        return cls(ar_type, uuid.UUID(bytes=ar_uuid), key, mac, port)
+
+
+_RW_HEAD = struct.Struct(">H16sIHH2sHI")   # seq, AR UUID, API, slot, subslot, padding, index, length: 34 bytes
+
+
+@dataclass(frozen=True)
+class RecordAddress:
+    api: int = API_PROFIDRIVE
+    slot: int = 1
+    subslot: int = 1
+    index: int = INDEX_PROFIDRIVE
+
+    def describe(self) -> str:
+        return f"API 0x{self.api:X} slot {self.slot} subslot 0x{self.subslot:X} index 0x{self.index:X}"
+
+
+def _rw_head(seq: int, ar_uuid: uuid.UUID, addr: RecordAddress, length: int) -> bytes:
+    try:
+        return _RW_HEAD.pack(seq, ar_uuid.bytes, addr.api, addr.slot, addr.subslot, b"\0\0", addr.index, length)
+    except struct.error as exc:
+        raise PnioError(f"record header field out of range: {exc}") from None
+
+
+def _rw_parse(content: bytes) -> tuple[int, uuid.UUID, RecordAddress, int]:
+    seq, ar, api, slot, subslot, _pad, index, length = _RW_HEAD.unpack_from(content, 0)
+    return seq, uuid.UUID(bytes=ar), RecordAddress(api, slot, subslot, index), length
+
+
+@dataclass(frozen=True)
+class IODWriteReq:
+    seq_number: int
+    ar_uuid: uuid.UUID
+    address: RecordAddress
+    data: bytes
+
+    def encode(self) -> bytes:
+        body = _rw_head(self.seq_number, self.ar_uuid, self.address, len(self.data)) + bytes(24)
+        return block_header(BT_WRITE_REQ, len(body)) + body + bytes(self.data)
+
+    @classmethod
+    def decode(cls, data: bytes) -> "IODWriteReq":
+        block = _one_block(data, BT_WRITE_REQ)
+        _expect(block, BT_WRITE_REQ, 58)
+        seq, ar, addr, length = _rw_parse(block.content)
+        return cls(seq, ar, addr, block.content[58:58 + length])
+
+
+@dataclass(frozen=True)
+class IODWriteRes:
+    seq_number: int
+    ar_uuid: uuid.UUID
+    address: RecordAddress
+    record_length: int
+    status: PnioStatus = OK
+    additional1: int = 0
+    additional2: int = 0
+
+    def encode(self) -> bytes:
+        body = (_rw_head(self.seq_number, self.ar_uuid, self.address, self.record_length)
+                + struct.pack(">HH", self.additional1 & 0xFFFF, self.additional2 & 0xFFFF)
+                + self.status.encode() + bytes(16))
+        return block_header(BT_WRITE_RES, len(body)) + body
+
+    @classmethod
+    def decode(cls, data: bytes) -> "IODWriteRes":
+        block = _one_block(data, BT_WRITE_RES)
+        _expect(block, BT_WRITE_RES, 58)
+        seq, ar, addr, length = _rw_parse(block.content)
+        add1, add2 = struct.unpack_from(">HH", block.content, 34)
+        return cls(seq, ar, addr, length, PnioStatus.decode_bytes(block.content[38:42]), add1, add2)
+
+
+@dataclass(frozen=True)
+class IODReadReq:
+    """Read request header. ``target_ar_uuid`` is used by ReadImplicit (nil AR UUID)."""
+
+    seq_number: int
+    ar_uuid: uuid.UUID
+    address: RecordAddress
+    max_length: int
+    target_ar_uuid: uuid.UUID = NIL_UUID
+
+    def encode(self) -> bytes:
+        body = _rw_head(self.seq_number, self.ar_uuid, self.address, self.max_length) + self.target_ar_uuid.bytes + bytes(8)
+        return block_header(BT_READ_REQ, len(body)) + body
+
+    @classmethod
+    def decode(cls, data: bytes) -> "IODReadReq":
+        block = _one_block(data, BT_READ_REQ)
+        _expect(block, BT_READ_REQ, 34)
+        seq, ar, addr, length = _rw_parse(block.content)
+        target = block.content[34:50]
+        target_uuid = uuid.UUID(bytes=target) if len(target) == 16 else NIL_UUID
+        return cls(seq, ar, addr, length, target_uuid)
+
+
+@dataclass(frozen=True)
+class IODReadRes:
+    seq_number: int
+    ar_uuid: uuid.UUID
+    address: RecordAddress
+    data: bytes
+    additional1: int = 0
+    additional2: int = 0
+
+    def encode(self) -> bytes:
+        body = (_rw_head(self.seq_number, self.ar_uuid, self.address, len(self.data))
+                + struct.pack(">HH", self.additional1 & 0xFFFF, self.additional2 & 0xFFFF) + bytes(20))
+        return block_header(BT_READ_RES, len(body)) + body + bytes(self.data)
+
+    @classmethod
+    def decode(cls, data: bytes) -> "IODReadRes":
+        block = _one_block(data, BT_READ_RES)
+        _expect(block, BT_READ_RES, 58)
+        seq, ar, addr, length = _rw_parse(block.content)
+        add1, add2 = struct.unpack_from(">HH", block.content, 34)
+        return cls(seq, ar, addr, block.content[58:58 + length], add1, add2)
+
+
+@dataclass(frozen=True)
+class ReleaseBlock:
+    """IODReleaseBlock (0x0114 request / 0x8114 response)."""
+
+    ar_uuid: uuid.UUID
+    session_key: int
+    command: int = CONTROL_RELEASE
+    properties: int = 0
+    response: bool = False
+
+    _FMT = struct.Struct(">2s16sH2sHH")
+
+    def encode(self) -> bytes:
+        try:
+            body = self._FMT.pack(b"\0\0", self.ar_uuid.bytes, self.session_key, b"\0\0", self.command, self.properties)
+        except struct.error as exc:
+            raise PnioError(f"release block field out of range: {exc}") from None
+        return block_header(BT_RELEASE_RES if self.response else BT_RELEASE_REQ, len(body)) + body
+
+    @classmethod
+    def decode(cls, data: bytes) -> "ReleaseBlock":
+        blocks = split_blocks(data)
+        if not blocks or blocks[0].type not in (BT_RELEASE_REQ, BT_RELEASE_RES):
+            raise PnioError("release block (0x0114/0x8114) missing")
+        block = blocks[0]
+        _expect(block, block.type, cls._FMT.size)
+        _p, ar, key, _p2, command, props = cls._FMT.unpack_from(block.content, 0)
+        return cls(uuid.UUID(bytes=ar), key, command, props, block.type == BT_RELEASE_RES)
+
+
+# ---------------------------------------------------------------- I&M0
+
+@dataclass(frozen=True)
+class IM0:
+    """Identification & Maintenance 0 (record 0xAFF0): who made the device and what it runs."""
+
+    vendor_id: int
+    order_id: str
+    serial_number: str
+    hardware_revision: int
+    sw_revision: tuple[str, int, int, int]   # prefix ('V', 'R', 'P', 'U', 'T'), functional, bugfix, internal
+    revision_counter: int = 0
+    profile_id: int = API_PROFIDRIVE
+    profile_specific_type: int = 0
+    im_version: tuple[int, int] = (1, 1)
+    im_supported: int = 0
+
+    _FMT = struct.Struct(">H20s16sHcBBBHHHBBH")
+
+    def encode(self) -> bytes:
+        try:
+            body = self._FMT.pack(
+                self.vendor_id, self.order_id.encode("ascii").ljust(20), self.serial_number.encode("ascii").ljust(16),
+                self.hardware_revision, self.sw_revision[0].encode("ascii"), *self.sw_revision[1:],
+                self.revision_counter, self.profile_id, self.profile_specific_type, *self.im_version, self.im_supported)
+        except (struct.error, UnicodeEncodeError, TypeError) as exc:
+            raise PnioError(f"I&M0 field not encodable: {exc}") from None
+        return block_header(BT_IM0, len(body)) + body
+
+    @classmethod
+    def decode(cls, data: bytes) -> "IM0":
+        block = _one_block(data, BT_IM0)
+        _expect(block, BT_IM0, cls._FMT.size)
+        (vendor, order, serial, hw, prefix, f, b, i, counter, profile, ptype, vhi, vlo,
+         supported) = cls._FMT.unpack_from(block.content, 0)
+        return cls(vendor, _text(order), _text(serial), hw, (_text(prefix), f, b, i), counter, profile, ptype,
+                   (vhi, vlo), supported)
+
+    @property
+    def software(self) -> str:
+        p, f, b, i = self.sw_revision
+        return f"{p}{f}.{b}.{i}"
+
+
+def _text(raw: bytes) -> str:
+    return raw.decode("latin-1").rstrip(" \0")
