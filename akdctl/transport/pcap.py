@@ -1,0 +1,148 @@
+"""``--pcap FILE``: write every traced frame as a classic pcap capture (LINKTYPE_ETHERNET).
+
+Transports trace the bytes they put on the wire *above* the socket (a UDP
+payload, an EtherCAT frame body); Wireshark and tshark need whole Ethernet
+frames. So this sink synthesises the lower headers from the record's ``meta``:
+
+* ``{"proto": "udp", "src": (ip, port), "dst": (ip, port)}``: Ethernet + IPv4
+  (or IPv6) + UDP with correct checksums around ``data``;
+* ``{"proto": "ethernet", "ethertype": T[, "src_mac": b6, "dst_mac": b6]}``: an
+  Ethernet header in front of ``data``;
+* ``{"proto": "ethernet"}`` without an EtherType: ``data`` is already a whole frame.
+
+Records without usable meta (an in-process simulated drive has no wire) are
+counted in ``skipped`` and left out. Every frame is flushed at once, so a
+capture cut short by a crash or Ctrl-C still opens.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import socket
+import struct
+import threading
+from typing import BinaryIO
+
+from akdctl.errors import UsageError
+from akdctl.transport.trace import TraceRecord
+
+PCAP_MAGIC = 0xA1B2C3D4
+LINKTYPE_ETHERNET = 1
+SNAPLEN = 262144
+ETHERTYPE_IPV4 = 0x0800
+ETHERTYPE_IPV6 = 0x86DD
+
+
+def internet_checksum(data: bytes) -> int:
+    """RFC 1071 ones'-complement sum, as IPv4 and UDP use it."""
+    if len(data) % 2:
+        data += b"\0"
+    total = sum(struct.unpack(f"!{len(data) // 2}H", data))
+    while total >> 16:
+        total = (total & 0xFFFF) + (total >> 16)
+    return ~total & 0xFFFF
+
+
+def _address(value: object) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
+    text = str(value)
+    try:
+        return ipaddress.ip_address(text.split("%")[0])
+    except ValueError:
+        pass
+    try:
+        return ipaddress.ip_address(socket.gethostbyname(text))
+    except (OSError, UnicodeError):
+        return ipaddress.IPv4Address("0.0.0.0")
+
+
+def _mac_for(ip: ipaddress.IPv4Address | ipaddress.IPv6Address) -> bytes:
+    """A stable, locally administered MAC per IP, so conversations look right in Wireshark."""
+    return b"\x02\x00" + ip.packed[-4:]
+
+
+def udp_frame(src: tuple[object, int], dst: tuple[object, int], payload: bytes, ident: int = 0) -> bytes:
+    """Ethernet/IP/UDP around ``payload`` with valid IP and UDP checksums."""
+    sip, dip = _address(src[0]), _address(dst[0])
+    sport, dport = int(src[1]) & 0xFFFF, int(dst[1]) & 0xFFFF
+    if sip.version != dip.version:   # mixed families cannot share one IP header; map both to v6
+        sip = ipaddress.IPv6Address(f"::ffff:{sip}") if sip.version == 4 else sip
+        dip = ipaddress.IPv6Address(f"::ffff:{dip}") if dip.version == 4 else dip
+    ulen = 8 + len(payload)
+    if sip.version == 4:
+        pseudo = sip.packed + dip.packed + struct.pack("!BBH", 0, socket.IPPROTO_UDP, ulen)
+    else:
+        pseudo = sip.packed + dip.packed + struct.pack("!I3xB", ulen, socket.IPPROTO_UDP)
+    udp_sum = internet_checksum(pseudo + struct.pack("!HHHH", sport, dport, ulen, 0) + payload) or 0xFFFF
+    udp = struct.pack("!HHHH", sport, dport, ulen, udp_sum) + payload
+    if sip.version == 4:
+        head = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), ident & 0xFFFF, 0x4000, 64,
+                           socket.IPPROTO_UDP, 0, sip.packed, dip.packed)
+        head = head[:10] + struct.pack("!H", internet_checksum(head)) + head[12:]
+        ethertype = ETHERTYPE_IPV4
+    else:
+        head = struct.pack("!IHBB16s16s", 0x60000000, len(udp), socket.IPPROTO_UDP, 64, sip.packed, dip.packed)
+        ethertype = ETHERTYPE_IPV6
+    return _mac_for(dip) + _mac_for(sip) + struct.pack("!H", ethertype) + head + udp
+
+
+class PcapWriter:
+    """A pcap file that grows one flushed frame at a time. Use ``write`` as a tracer sink."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        try:
+            self._file: BinaryIO | None = open(path, "wb")
+        except OSError as exc:
+            raise UsageError(f"cannot write the capture file {os.fspath(path)!r}: {exc.strerror}") from None
+        self.path = os.fspath(path)
+        self.frames = 0
+        self.skipped = 0
+        self._ident = 0
+        self._lock = threading.Lock()
+        self._file.write(struct.pack("<IHHiIII", PCAP_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_ETHERNET))
+        self._file.flush()
+
+    def frame_bytes(self, record: TraceRecord) -> bytes | None:
+        """The Ethernet frame for a record, or ``None`` if it has no wire form."""
+        meta = record.meta
+        proto = meta.get("proto")
+        if proto == "udp" and isinstance(meta.get("src"), (tuple, list)) and isinstance(meta.get("dst"), (tuple, list)):
+            self._ident = (self._ident + 1) & 0xFFFF
+            return udp_frame(meta["src"], meta["dst"], record.data, self._ident)  # type: ignore[arg-type]
+        if proto == "ethernet":
+            ethertype = meta.get("ethertype")
+            if ethertype is None:
+                return record.data if len(record.data) >= 14 else None
+            dst = bytes(meta.get("dst_mac") or b"\xff" * 6)  # type: ignore[arg-type]
+            src = bytes(meta.get("src_mac") or b"\x02\x00\x00\x00\x00\x01")  # type: ignore[arg-type]
+            return dst[:6].ljust(6, b"\0") + src[:6].ljust(6, b"\0") + struct.pack("!H", int(ethertype)) + record.data  # type: ignore[call-overload]
+        return None
+
+    def write(self, record: TraceRecord) -> None:
+        frame = self.frame_bytes(record)
+        with self._lock:
+            if self._file is None:
+                return
+            if frame is None:
+                self.skipped += 1
+                return
+            seconds = int(record.time)
+            micros = int(round((record.time - seconds) * 1e6))
+            if micros >= 1_000_000:
+                seconds, micros = seconds + 1, micros - 1_000_000
+            kept = frame[:SNAPLEN]
+            self._file.write(struct.pack("<IIII", seconds, micros, len(kept), len(frame)) + kept)
+            self._file.flush()
+            self.frames += 1
+
+    def close(self) -> None:
+        with self._lock:
+            if self._file is not None:
+                self._file.close()
+                self._file = None
+
+    def __enter__(self) -> "PcapWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
