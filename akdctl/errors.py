@@ -53,6 +53,9 @@ class AkdError(Exception):
 
     exit_code = EXIT_DRIVE
     kind = "error"
+    #: True when the command already printed its result (--json included);
+    #: the handler then only writes the one-line message to stderr.
+    reported = False
 
     def __init__(
         self,

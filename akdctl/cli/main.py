@@ -1,0 +1,184 @@
+"""The ``akdctl`` root command: global options, the lazy command table, the one error handler.
+
+Subcommands live in their own modules and are imported only when invoked, so
+``akdctl --help`` imports neither transports nor rich nor canopen. The short
+help shown in the command list is kept here for the same reason.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from typing import Any
+
+import click
+
+from akdctl import __version__
+from akdctl.cli.context import AppContext
+from akdctl.errors import EXIT_INTERRUPTED, EXIT_USAGE, AkdError
+
+# name -> (module, attribute, short help). Order is the order of `akdctl --help`.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "status": ("akdctl.cli.motion", "status", "Show drive state, mode, status-word bits, position, velocity, faults."),
+    "enable": ("akdctl.cli.motion", "enable", "Bring the drive to operation enabled."),
+    "disable": ("akdctl.cli.motion", "disable", "Disable the power stage (ramp to standstill first)."),
+    "stop": ("akdctl.cli.motion", "stop", "Stop the axis (ramp; --quick for quick stop)."),
+    "jog": ("akdctl.cli.motion", "jog", "Jog at a velocity for a bounded time or distance."),
+    "home": ("akdctl.cli.motion", "home", "Run the homing procedure."),
+    "move": ("akdctl.cli.motion", "move", "Move to a position (absolute or relative) and wait for target reached."),
+    "pnu": ("akdctl.cli.pnu", "pnu", "Read, write, describe and list PROFIdrive parameters (PNUs)."),
+    "sdo": ("akdctl.cli.sdo", "sdo", "Read and write CANopen/CoE objects by SDO."),
+    "pdo": ("akdctl.cli.pdo", "pdo", "Show, plan and apply process-data (PDO) mapping."),
+    "telegram": ("akdctl.cli.telegram", "telegram", "Show and select the PROFIdrive telegram."),
+    "fault": ("akdctl.cli.fault", "fault", "Fault buffer dump, acknowledge, history and explanations."),
+    "support": ("akdctl.cli.support", "support", "Write or show a support bundle."),
+    "params": ("akdctl.cli.params", "params", "Back up, restore and compare drive parameters."),
+    "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
+    "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
+    "targets": ("akdctl.cli.targets", "targets", "List the transports and whether their dependencies are present."),
+    "pn": ("akdctl.cli.pn", "pn", "PROFINET: discover (DCP), name, address and blink devices."),
+    "ecat": ("akdctl.cli.ecat", "ecat", "EtherCAT: scan slaves, change AL state, read the SII."),
+    "can": ("akdctl.cli.can", "can", "CANopen: scan nodes, send NMT commands."),
+    "sim": ("akdctl.cli.sim", "sim", "The simulated AKD: reset, show, inject faults, serve on the network."),
+}
+
+
+def _module_present(module: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(module) is not None
+
+
+class LazyGroup(click.Group):
+    """A group whose subcommands are imported on first use."""
+
+    def __init__(self, *args: Any, lazy: dict[str, tuple[str, str, str]] | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.lazy = dict(lazy or {})
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        present = [name for name, (module, _, _) in self.lazy.items() if _module_present(module)]
+        return present + sorted(set(self.commands) - set(present))
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name in self.commands:
+            return self.commands[name]
+        entry = self.lazy.get(name)
+        if entry is None or not _module_present(entry[0]):
+            return None
+        module = importlib.import_module(entry[0])
+        command = getattr(module, entry[1])
+        self.commands[name] = command
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = []
+        for name in self.list_commands(ctx):
+            if name in self.lazy:
+                rows.append((name, self.lazy[name][2]))
+            else:
+                rows.append((name, self.commands[name].get_short_help_str(limit=60)))
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
+
+EPILOG = (
+    "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
+    "can://INTERFACE/CHANNEL/NODE. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
+    "4 safety refusal, 5 check failed, 130 interrupted."
+)
+
+
+@click.group(cls=LazyGroup, lazy=COMMANDS, epilog=EPILOG, context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("-T", "--target", "target", metavar="TARGET", help="Drive to talk to (default: $AKDCTL_TARGET, config profile, sim).")
+@click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
+@click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
+@click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
+@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS", help="Bound on every wait for the drive (default 2).")
+@click.option("-y", "--yes", is_flag=True, help="Consent to motion without a prompt (scripts, CI).")
+@click.option("-v", "--verbose", count=True, help="More detail on stderr (repeatable).")
+@click.option("--trace", is_flag=True, help="Hex dump of every request and response frame on stderr.")
+@click.option("--pcap", metavar="FILE", type=click.Path(dir_okay=False), help="Capture every frame to a pcap file (Wireshark/tshark).")
+@click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
+@click.version_option(__version__, "--version", prog_name="akdctl")
+@click.pass_context
+def cli(ctx: click.Context, target: str | None, config_path: str | None, profile_name: str | None,
+        json_output: bool, timeout: float | None, yes: bool, verbose: int, trace: bool, pcap: str | None,
+        debug: bool) -> None:
+    """Commission and diagnose Kollmorgen AKD servo drives.
+
+    Reads and writes PROFIdrive parameters and CANopen objects, runs the drive
+    through its state machine and moves the axis safely, over PROFINET,
+    EtherCAT, CANopen or the built-in simulated AKD (the default target).
+    """
+    app = ctx.ensure_object(AppContext)
+    app.target_text = target
+    app.config_path = config_path
+    app.profile_name = profile_name
+    app.json = json_output
+    app.timeout = timeout
+    app.yes = yes
+    app.verbose = verbose
+    app.trace = trace
+    app.pcap = pcap
+    app.debug = debug
+    ctx.call_on_close(app.close)
+
+
+def _print_error(app: AppContext | None, exc: AkdError) -> None:
+    target = exc.target
+    prefix = f"akdctl: error: {exc.message}"
+    if target and target not in exc.message:
+        prefix += f" [target {target}]"
+    sys.stderr.write(prefix + "\n")
+    if app is not None and app.json and not exc.reported:
+        from akdctl.cli.output import emit_json
+
+        emit_json({"error": exc.to_json()})
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the CLI and map every error to its documented exit code."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args or os.environ.get("AKDCTL_DEBUG") == "1"
+    app: AppContext | None = None
+    try:
+        with cli.make_context("akdctl", args) as ctx:
+            app = ctx.find_object(AppContext)
+            cli.invoke(ctx)
+        code = 0
+    except click.exceptions.Exit as exc:
+        code = exc.exit_code
+    except click.exceptions.Abort:
+        sys.stderr.write("akdctl: aborted\n")
+        code = EXIT_INTERRUPTED
+    except click.ClickException as exc:
+        exc.show()
+        code = EXIT_USAGE if isinstance(exc, click.UsageError) else exc.exit_code
+        if code == 1 and not isinstance(exc, click.UsageError):
+            code = EXIT_USAGE  # file/parameter errors raised by click are input errors
+    except AkdError as exc:
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        _print_error(app, exc)
+        code = exc.exit_code
+    except KeyboardInterrupt:
+        sys.stderr.write("akdctl: interrupted\n")
+        code = EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # stdout closed early (e.g. piped into `head`): not an error worth a message.
+        try:
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
+        except OSError:
+            pass
+        code = 0
+    except Exception as exc:  # a bug: one line unless --debug
+        if debug:
+            raise
+        sys.stderr.write(f"akdctl: internal error: {type(exc).__name__}: {exc} (run with --debug for a traceback)\n")
+        code = 70
+    sys.exit(code)

@@ -1,0 +1,182 @@
+"""``akdctl pnu get|set|describe|list``: PROFIdrive parameters by number."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.cli.output import Doc
+from akdctl.errors import CheckFailed, ParameterRefused
+
+
+@click.group()
+def pnu() -> None:
+    """Read, write, describe and list PROFIdrive parameters (PNUs).
+
+    Addresses: 930, 964[0..4], 947[3], or a signal name such as STW1.
+    """
+
+
+def _hex(value: int, bits: int) -> str:
+    return f"0x{value & ((1 << bits) - 1):0{bits // 4}X}"
+
+
+def _rows(readings: list[Any]) -> list[list[Any]]:
+    from akdctl.drive.units import describe_scaled
+
+    rows = []
+    for reading in readings:
+        spec, info = reading.spec, reading.spec.info
+        name = info.name if info else "?"
+        if not reading.ok:
+            rows.append([spec.label, name, "ERROR", f"0x{reading.error:02X}", reading.error_text])
+            continue
+        bits = info.bits if info else {0x41: 8, 0x42: 16, 0x43: 32}.get(reading.format or 0, 16)
+        for offset, value in enumerate(reading.values or []):
+            label = spec.label if len(reading.values or []) == 1 else f"{spec.pnu}[{spec.subindex + offset}]"
+            if isinstance(value, int):
+                rows.append([label, name, value, _hex(value, bits), describe_scaled(info.unit, value) if info else ""])
+            else:
+                rows.append([label, name, value, "", ""])
+    return rows
+
+
+def _report_failures(readings: list[Any], verb: str) -> None:
+    failed = [r for r in readings if not r.ok]
+    if not failed:
+        return
+    first = failed[0]
+    more = f" (and {len(failed) - 1} more)" if len(failed) > 1 else ""
+    exc = ParameterRefused(
+        f"drive refused to {verb} PNU {first.spec.label}: {first.error_text} (error 0x{first.error:02X}){more}",
+        code=first.error,
+    )
+    exc.reported = True  # type: ignore[attr-defined]
+    raise exc
+
+
+@pnu.command("get")
+@click.argument("addresses", nargs=-1, required=True, metavar="PNU[SUB|FROM..TO]...")
+def get(addresses: tuple[str, ...]) -> None:
+    """Read one or more PNUs in as few requests as the protocol allows (39 per request)."""
+    from akdctl.drive.params import parse_pnu_spec, read_pnus
+
+    app = get_app()
+    specs = [parse_pnu_spec(text) for text in addresses]
+    readings = read_pnus(app.parameters(), specs)
+    app.emit(
+        {"target": app.target.display, "parameters": [r.to_json() for r in readings]},
+        lambda: Doc("PNU values", app.target.display).table(["PNU", "name", "value", "hex", "scaled"], _rows(readings)),
+    )
+    _report_failures(readings, "read")
+
+
+@pnu.command("set")
+@click.argument("assignments", nargs=-1, required=True, metavar="PNU[SUB]=VALUE[,VALUE...]...")
+@click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
+def set_(assignments: tuple[str, ...], verify: bool) -> None:
+    """Change one or more PNUs (all are checked before anything is sent)."""
+    from akdctl.drive.params import parse_assignment, read_pnus, write_pnus
+
+    app = get_app()
+    parsed = [parse_assignment(text) for text in assignments]
+    channel = app.parameters()
+    results = write_pnus(channel, parsed)
+    mismatches: list[str] = []
+    if verify and all(r.ok for r in results):
+        for (spec, values), back in zip(parsed, read_pnus(channel, [spec for spec, _ in parsed])):
+            if not back.ok or back.values != values:
+                mismatches.append(f"PNU {spec.label}: wrote {values}, read back {back.values if back.ok else back.error_text}")
+    app.emit(
+        {"target": app.target.display, "written": [r.to_json() for r in results], "verified": verify and not mismatches},
+        lambda: Doc("PNU written", app.target.display).table(
+            ["PNU", "name", "value", "result"],
+            [[r.spec.label, r.spec.info.name if r.spec.info else "?",
+              ",".join(str(v) for v in (r.values or [])), "ok" if r.ok else f"refused: {r.error_text}"]
+             for r in results],
+        ),
+    )
+    _report_failures(results, "change")
+    if mismatches:
+        raise CheckFailed("read-back differs: " + "; ".join(mismatches))
+
+
+@pnu.command("describe")
+@click.argument("address", metavar="PNU")
+def describe(address: str) -> None:
+    """Show the catalogue entry and the drive's own description (attribute 0x20)."""
+    from akdctl.drive.params import parse_pnu_spec
+
+    app = get_app()
+    spec = parse_pnu_spec(address)
+    channel = app.parameters()
+    description = channel.describe(spec.pnu)
+    info = spec.info
+    data: dict[str, Any] = {"target": app.target.display, "pnu": spec.pnu, "drive": description.to_json()}
+    if info is not None:
+        data["catalogue"] = {
+            "name": info.name, "type": info.type, "access": info.access, "elements": info.elements,
+            "limits": list(info.limits()), "unit": info.unit, "description": info.description,
+            "akd_parameter": info.akd_parameter, "note": info.note,
+        }
+
+    def human() -> Doc:
+        doc = Doc(f"PNU {spec.pnu}", app.target.display)
+        if info is not None:
+            doc.kv("name", info.name).kv("type", info.type).kv("access", info.access)
+            if info.is_array:
+                doc.kv("elements", info.length)
+            lo, hi = info.limits()
+            doc.kv("limits", f"{lo} .. {hi}").kv("description", info.description)
+            if info.akd_parameter:
+                doc.kv("AKD parameter", info.akd_parameter)
+            if info.unit:
+                doc.kv("unit", info.unit)
+            if info.note:
+                doc.kv("note", info.note)
+        for key, value in description.to_json().items():
+            doc.kv(f"drive: {key}", value)
+        return doc
+
+    app.emit(data, human)
+
+
+@pnu.command("list")
+@click.option("--group", type=click.Choice(["signal", "profidrive", "telegram", "fault", "identity", "jog"]),
+              help="Only this group.")
+@click.option("--drive", "from_drive", is_flag=True, help="Ask the drive which PNUs it has (PNU 980..989).")
+def list_(group: str | None, from_drive: bool) -> None:
+    """List the catalogue's PNUs (name, type, access, elements)."""
+    from akdctl.catalog.pnus import pnu_table
+
+    app = get_app()
+    table = pnu_table()
+    numbers = sorted(table)
+    source = "catalogue"
+    if from_drive:
+        from akdctl.drive.params import PnuSpec, read_pnus
+
+        reading = read_pnus(app.parameters(), [PnuSpec(980, 0, table[980].length, table[980])])[0]
+        _report_failures([reading], "read")
+        listed = []
+        for value in reading.values or []:
+            if value == 0:
+                break
+            listed.append(value)
+        numbers = listed
+        source = app.target.display
+    infos = [table.get(n) for n in numbers]
+    rows = [
+        [n, i.name if i else "?", i.type if i else "", i.access if i else "", i.length if i and i.is_array else "",
+         i.description if i else "not in the catalogue"]
+        for n, i in zip(numbers, infos)
+        if group is None or (i is not None and i.group == group)
+    ]
+    app.emit(
+        {"source": source, "parameters": [
+            {"pnu": r[0], "name": r[1], "type": r[2], "access": r[3], "elements": r[4] or None, "description": r[5]}
+            for r in rows]},
+        lambda: Doc("PNUs", source).table(["PNU", "name", "type", "access", "elements", "description"], rows),
+    )

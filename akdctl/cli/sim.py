@@ -1,0 +1,159 @@
+"""``akdctl sim``: the simulated AKD — reset, show, inject faults, serve it on the network."""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import signal
+import sys
+import threading
+from typing import Any
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.cli.main import LazyGroup
+from akdctl.cli.output import Doc
+from akdctl.errors import UsageError
+
+# Network faces of `sim serve`, one module each (see docs/internals.md).
+FACES = (
+    "akdctl.sim.face_profinet",
+    "akdctl.sim.face_ethercat_udp",
+    "akdctl.sim.face_ethercat_raw",
+    "akdctl.sim.face_can",
+)
+
+SIM_COMMANDS = {
+    "fault": ("akdctl.cli.sim_fault", "fault", "Inject a fault (e.g. F501) into the simulated drive."),
+    "clear": ("akdctl.cli.sim_fault", "clear", "Remove the cause of injected faults (they still need acknowledging)."),
+    "speed": ("akdctl.cli.sim_fault", "speed", "Set how fast virtual time runs (1 = real time)."),
+}
+
+
+def _sim_drive(name: str | None) -> Any:
+    from akdctl.sim.drive import SimDrive
+
+    if name is None:
+        app = get_app()
+        target = app.target
+        if target.scheme != "sim":
+            raise UsageError(f"'akdctl sim' works on simulated drives; the target is {target.display}")
+        name = target.host or "default"
+    return SimDrive(name)
+
+
+@click.group(cls=LazyGroup, lazy=SIM_COMMANDS)
+def sim() -> None:
+    """The simulated AKD (the default target): its state persists between invocations."""
+
+
+@sim.command("reset")
+@click.option("--name", help="Simulated drive name (default: the target's, i.e. 'default').")
+def reset(name: str | None) -> None:
+    """Restore factory state (also recovers from a corrupt state file)."""
+    drive = _sim_drive(name)
+    drive.reset()
+    get_app().emit({"drive": drive.name, "reset": True}, f"simulated drive {drive.name!r} reset to factory state")
+
+
+@sim.command("show")
+@click.option("--name", help="Simulated drive name (default: the target's).")
+def show(name: str | None) -> None:
+    """Print the simulated drive's state: clock, changed PNUs and objects, components."""
+    from akdctl.catalog.pnus import lookup
+
+    drive = _sim_drive(name)
+    state = drive.snapshot()
+
+    def human() -> Doc:
+        meta = state.get("sim", {})
+        doc = Doc(f"simulated drive {drive.name!r}", f"sim://{drive.name}")
+        doc.kv("state file", str(drive.path)).kv("virtual time", f"{state['clock']:.3f} s")
+        doc.kv("time scale", meta.get("time_scale")).kv("accepted writes", state.get("writes", 0))
+        for comp, comp_state in state.get("components", {}).items():
+            for key, value in comp_state.items():
+                if isinstance(value, (int, float, str, bool)) or value is None:
+                    doc.kv(f"{comp}.{key}", value)
+        pnu_rows = []
+        for key, values in state.get("pnus", {}).items():
+            info = lookup(int(key))
+            if info is not None and values != info.default_values():
+                pnu_rows.append([key, info.name, ",".join(str(v) for v in values)])
+        if pnu_rows:
+            doc.table(["PNU", "name", "value"], pnu_rows, title="PNUs changed from factory values")
+        obj_rows = [[key, value] for key, value in state.get("objects", {}).items()]
+        if obj_rows:
+            doc.table(["object", "bytes (hex, LE)"], obj_rows, title="objects written")
+        return doc
+
+    get_app().emit(state, human)
+
+
+def _face_modules() -> list[Any]:
+    modules = []
+    for name in FACES:
+        if importlib.util.find_spec(name) is not None:
+            modules.append(importlib.import_module(name))
+    return modules
+
+
+def _serve_callback(**kwargs: Any) -> None:
+    from akdctl.cli.output import message
+    from akdctl.sim.drive import SimDrive
+
+    name = kwargs.pop("name")
+    duration = kwargs.pop("duration")
+    drive = SimDrive(name)
+    faces = []
+    for module in _face_modules():
+        face = module.from_options(drive, **kwargs)
+        if face is not None:
+            faces.append(face)
+    if not faces:
+        flags = ", ".join(opt.opts[0] for module in _face_modules() for opt in module.click_options()[:1])
+        raise UsageError(f"choose at least one face to serve: {flags or 'no faces are installed'}")
+    stop = threading.Event()
+
+    def _stop(signum: int, frame: Any) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    started = []
+    try:
+        for face in faces:
+            face.start()
+            started.append(face)
+            sys.stdout.write(f"listening: {face.describe()}\n")
+        sys.stdout.flush()
+        message(f"serving simulated drive {name!r}; Ctrl-C to stop")
+        stop.wait(timeout=duration)
+    finally:
+        for face in reversed(started):
+            try:
+                face.stop()
+            except Exception as exc:  # keep stopping the others
+                message(f"akdctl: warning: stopping {face.describe()} failed: {exc}")
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _build_serve() -> click.Command:
+    params: list[click.Parameter] = [
+        click.Option(["--name"], default="default", show_default=True, help="Simulated drive to serve."),
+        click.Option(["--duration"], type=click.FloatRange(min=0), default=None,
+                     help="Stop after this many seconds (default: until Ctrl-C/SIGTERM)."),
+    ]
+    for module in _face_modules():
+        params.extend(module.click_options())
+    return click.Command(
+        "serve",
+        callback=_serve_callback,
+        params=params,
+        help="Serve the simulated drive on the network (PROFINET, EtherCAT, CANopen faces).\n\n"
+        "Each face prints one 'listening: ...' line on stdout when ready.",
+        short_help="Serve the simulated drive on the network.",
+    )
+
+
+sim.add_command(_build_serve())

@@ -1,0 +1,35 @@
+"""``akdctl targets``: which transports exist and whether they can run here."""
+
+from __future__ import annotations
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.cli.output import Doc
+
+
+@click.command()
+def targets() -> None:
+    """List the transports, their target syntax and whether their dependencies are present."""
+    from akdctl.transport.registry import BUILTIN, module_available
+
+    app = get_app()
+    rows = []
+    for spec in BUILTIN.values():
+        implemented = module_available(spec.module)
+        missing = [m for m in spec.requires if not module_available(m)]
+        if not implemented:
+            state = "not in this version"
+        elif missing:
+            state = f"missing {', '.join(missing)}" + (f" (pip install 'akdctl[{spec.extra}]')" if spec.extra else "")
+        else:
+            state = "available"
+        rows.append({"scheme": spec.scheme, "syntax": spec.syntax, "channels": spec.channels,
+                     "state": state, "available": implemented and not missing, "summary": spec.summary})
+    app.emit(
+        {"transports": rows},
+        lambda: Doc("transports").table(
+            ["scheme", "target syntax", "channels", "state", "what"],
+            [[r["scheme"], r["syntax"], r["channels"], r["state"], r["summary"]] for r in rows],
+        ),
+    )

@@ -1,0 +1,196 @@
+"""PNU access with meaning: parse what the user typed, read/write in batches, sign and scale.
+
+``964[0..4]`` is PNU 964 elements 0 to 4; ``947[3]`` one element; ``964`` a
+whole array; names work too (``STW1``). Assignments are ``PNU[SUB]=V[,V…]``
+with decimal or 0x-hex values, checked against the catalogue before anything
+is sent. Reads and writes go through one :class:`ParameterChannel` call each,
+so the channel can batch them into the fewest requests.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from akdctl.catalog.pnus import PnuInfo, by_name, lookup
+from akdctl.errors import UsageError
+
+_SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
+
+
+@dataclass(frozen=True)
+class PnuSpec:
+    """An address the user asked for: PNU, first element, number of elements."""
+
+    pnu: int
+    subindex: int
+    count: int
+    info: PnuInfo | None
+
+    @property
+    def label(self) -> str:
+        if self.info is not None and not self.info.is_array:
+            return str(self.pnu)
+        if self.count == 1:
+            return f"{self.pnu}[{self.subindex}]"
+        return f"{self.pnu}[{self.subindex}..{self.subindex + self.count - 1}]"
+
+
+@dataclass
+class PnuReading:
+    """One requested address and what came back: values (signed per type) or a failure."""
+
+    spec: PnuSpec
+    values: list[int] | None = None
+    raw: list[Any] | None = None
+    format: int | None = None
+    error: int | None = None
+    error_text: str = ""
+    additional: int | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    def to_json(self) -> dict[str, Any]:
+        info = self.spec.info
+        data: dict[str, Any] = {
+            "pnu": self.spec.pnu,
+            "name": info.name if info else None,
+            "subindex": self.spec.subindex,
+            "count": self.spec.count,
+        }
+        if self.ok:
+            data["values"] = self.values
+            data["format"] = self.format
+            if info and info.unit:
+                data["unit"] = info.unit
+        else:
+            data["error"] = {"code": self.error, "text": self.error_text, "additional": self.additional}
+        return data
+
+
+def _int(text: str, what: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise UsageError(f"{what}: {text!r} is not a number (use decimal or 0x-hex)") from None
+
+
+def parse_pnu_spec(text: str) -> PnuSpec:
+    """Parse ``930``, ``964[0..4]``, ``947[3]``, ``STW1``; checks against the catalogue when known."""
+    match = _SPEC.match(text)
+    if not match:
+        raise UsageError(f"cannot parse PNU address {text!r}: expected PNU, PNU[SUB] or PNU[FROM..TO], e.g. 964[0..4]")
+    name = match.group("pnu")
+    if name[0].isalpha() and not name.lower().startswith("0x"):
+        info = by_name(name)
+        if info is None:
+            raise UsageError(f"unknown PNU name {name!r} (see 'akdctl pnu list')")
+        pnu = info.pnu
+    else:
+        pnu = _int(name, "PNU")
+        info = lookup(pnu)
+    if not 1 <= pnu <= 0xFFFF:
+        raise UsageError(f"PNU {pnu} is outside 1..65535")
+    a, b = match.group("a"), match.group("b")
+    if a is None and b is None:
+        if "[" in text:
+            raise UsageError(f"cannot parse PNU address {text!r}: empty subindex")
+        sub, count = 0, (info.length if info is not None and info.is_array else 1)
+    else:
+        sub = _int(a, f"subindex of PNU {pnu}") if a is not None else 0
+        last = _int(b, f"subindex of PNU {pnu}") if b is not None else sub
+        if last < sub:
+            raise UsageError(f"PNU address {text!r}: range end {last} is before its start {sub}")
+        count = last - sub + 1
+    if not 0 <= sub <= 0xFFFE:
+        raise UsageError(f"PNU address {text!r}: subindex {sub} is outside 0..65534")
+    if not 1 <= count <= 234:
+        raise UsageError(f"PNU address {text!r}: {count} elements; one request carries 1..234 elements")
+    if info is not None:
+        if not info.is_array and (sub != 0 or count != 1):
+            raise UsageError(f"PNU {pnu} ({info.name}) is not an array; no subindex allowed")
+        if info.is_array and sub + count > info.length:
+            raise UsageError(
+                f"PNU {pnu} ({info.name}) has elements 0..{info.length - 1}; {text!r} asks beyond them"
+            )
+    return PnuSpec(pnu, sub, count, info)
+
+
+def parse_assignment(text: str) -> tuple[PnuSpec, list[int]]:
+    """Parse ``930=2``, ``1004=-500``, ``915[0..2]=1,5,6``; values range-checked by the catalogue."""
+    left, sep, right = text.partition("=")
+    if not sep or not right.strip():
+        raise UsageError(f"cannot parse {text!r}: expected PNU=VALUE, e.g. 930=2")
+    spec = parse_pnu_spec(left)
+    info = spec.info
+    if info is None:
+        raise UsageError(f"PNU {spec.pnu} is not in the catalogue, so its data type is unknown; cannot write it")
+    if not info.writable:
+        raise UsageError(f"PNU {spec.pnu} ({info.name}) is read-only")
+    values = [_int(v.strip(), f"value for PNU {spec.pnu}") for v in right.split(",")]
+    if "[" not in left and info.is_array:
+        spec = PnuSpec(spec.pnu, 0, len(values), info)
+    elif "[" in left and ".." not in left:
+        spec = PnuSpec(spec.pnu, spec.subindex, len(values), info)
+    if len(values) != spec.count:
+        raise UsageError(f"PNU {spec.label}: {spec.count} element(s) addressed but {len(values)} value(s) given")
+    if spec.subindex + spec.count > info.length:
+        raise UsageError(f"PNU {spec.pnu} ({info.name}) has elements 0..{info.length - 1}; too many values")
+    lo, hi = info.limits()
+    for value in values:
+        if not lo <= value <= hi:
+            raise UsageError(f"value {value} for PNU {spec.pnu} ({info.name}) is outside {lo}..{hi}")
+    return spec, values
+
+
+def _to_signed(value: int, bits: int) -> int:
+    return value - (1 << bits) if value >= 1 << (bits - 1) else value
+
+
+def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
+    """Read every spec in one batched channel call; values signed per the catalogue type."""
+    from akdctl.protocol.profidrive import ParameterAddress, ParameterFailure
+
+    addresses = [ParameterAddress(s.pnu, s.subindex, s.count) for s in specs]
+    results = channel.read(addresses)
+    readings = []
+    for spec, result in zip(specs, results):
+        if isinstance(result, ParameterFailure):
+            readings.append(PnuReading(spec, error=result.error, error_text=result.text, additional=result.additional))
+            continue
+        raw = list(result.values)
+        values = raw
+        info = spec.info
+        if info is not None and all(isinstance(v, int) for v in raw):
+            values = [_to_signed(v, info.bits) if info.signed else v for v in raw]
+        elif result.format in (0x41, 0x42, 0x43):
+            values = raw
+        readings.append(PnuReading(spec, values=values, raw=raw, format=result.format))
+    return readings
+
+
+def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -> list[PnuReading]:
+    """Write every assignment in one batched channel call; one reading per assignment (values = written)."""
+    from akdctl.protocol.profidrive import ParameterAddress, ParameterValue
+
+    items = []
+    for spec, values in assignments:
+        info = spec.info
+        assert info is not None
+        mask = (1 << info.bits) - 1
+        items.append(
+            (ParameterAddress(spec.pnu, spec.subindex, spec.count),
+             ParameterValue(info.wire_format, tuple(v & mask for v in values)))
+        )
+    failures = channel.write(items)
+    out = []
+    for (spec, values), failure in zip(assignments, failures):
+        if failure is None:
+            out.append(PnuReading(spec, values=list(values), format=spec.info.wire_format if spec.info else None))
+        else:
+            out.append(PnuReading(spec, error=failure.error, error_text=failure.text, additional=failure.additional))
+    return out

@@ -1,0 +1,392 @@
+"""The simulated AKD's state: PNU values, object values, and live quantities.
+
+``DriveModel`` stores plain values for every catalogued PNU and object and
+checks every access the way the drive does (PROFIdrive error values for PNUs,
+CiA 301 abort codes for objects). Live quantities (status words, positions,
+the fault buffer, PDO mapping rules) are supplied by *components*: small
+classes that register read/write bindings for the PNUs and objects they own
+and advance with the virtual clock. The PNU server and SDO server only ever
+call :meth:`pnu_read`/:meth:`pnu_write` and :meth:`object_read`/:meth:`object_write`.
+
+State round-trips through :meth:`to_state`/:meth:`from_state` as JSON-able
+data so :class:`akdctl.sim.drive.SimDrive` can persist it between CLI
+invocations.
+"""
+
+from __future__ import annotations
+
+import importlib
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from akdctl.catalog import pnus as pnu_catalog
+from akdctl.sim.pnu_server import PnuAccessError
+from akdctl.sim.sdo_server import SdoAccessError
+
+STATE_VERSION = 1
+
+# PROFIdrive error values the model raises (profidrive_reference.md).
+PE_IMPERMISSIBLE_PNU = 0x00
+PE_READ_ONLY = 0x01
+PE_LIMIT = 0x02
+PE_BAD_SUBINDEX = 0x03
+PE_NO_ARRAY = 0x04
+PE_WRONG_TYPE = 0x05
+PE_NO_DESCRIPTION = 0x09
+PE_OPERATING_STATE = 0x11
+PE_VALUE_IMPERMISSIBLE = 0x14
+PE_ILLEGAL_FORMAT = 0x17
+PE_VALUE_COUNT = 0x18
+
+# CiA 301 / ETG.1000.6 abort codes the model raises.
+ABORT_UNSUPPORTED_ACCESS = 0x06010000
+ABORT_WRITE_ONLY = 0x06010001
+ABORT_READ_ONLY = 0x06010002
+ABORT_NO_OBJECT = 0x06020000
+ABORT_TYPE_LENGTH = 0x06070010
+ABORT_TOO_LONG = 0x06070012
+ABORT_TOO_SHORT = 0x06070013
+ABORT_NO_SUBINDEX = 0x06090011
+ABORT_VALUE_RANGE = 0x06090030
+ABORT_VALUE_HIGH = 0x06090031
+ABORT_VALUE_LOW = 0x06090032
+ABORT_DEVICE_STATE = 0x08000022
+
+# Formats a PNU write may use for each element size (typed formats of the same size included).
+_FORMATS_BY_BITS = {8: {0x41, 0x02, 0x05, 0x0A}, 16: {0x42, 0x03, 0x06}, 32: {0x43, 0x04, 0x07}}
+
+PnuReader = Callable[[int, int], list[int]]
+PnuWriter = Callable[[int, list[int]], None]
+ObjectReader = Callable[[int], bytes]
+ObjectWriter = Callable[[int, bytes], None]
+
+
+@dataclass
+class _PnuBinding:
+    read: PnuReader | None
+    write: PnuWriter | None
+
+
+@dataclass
+class _ObjectBinding:
+    read: ObjectReader | None
+    write: ObjectWriter | None
+
+
+class Component:
+    """Base for a model component: owns some PNUs/objects and some state.
+
+    Subclasses set ``name`` (the key of their state), register bindings in
+    ``__init__`` and may override :meth:`tick`, :meth:`to_state`, :meth:`load_state`.
+    """
+
+    name = "component"
+
+    def __init__(self, model: "DriveModel") -> None:
+        self.model = model
+
+    def tick(self, dt: float) -> None:
+        """Advance by ``dt`` seconds of virtual time."""
+
+    def to_state(self) -> dict[str, Any]:
+        return {}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore what :meth:`to_state` returned (may be missing keys after an upgrade)."""
+
+
+# Components are listed by import path so that each lives in its own module.
+# A missing module is skipped, which keeps the model usable while features land.
+COMPONENT_PATHS: tuple[str, ...] = (
+    "akdctl.sim.motion:MotionComponent",
+    "akdctl.sim.faults:FaultComponent",
+    "akdctl.sim.pdo:PdoComponent",
+)
+
+
+def _load_components() -> list[type[Component]]:
+    classes = []
+    for path in COMPONENT_PATHS:
+        module_name, _, cls_name = path.partition(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:
+                continue
+            raise
+        classes.append(getattr(module, cls_name))
+    return classes
+
+
+class DriveModel:
+    """One simulated AKD: every PNU and object, with the drive's access checks."""
+
+    def __init__(self) -> None:
+        self.clock = 0.0
+        self.pnu_values: dict[int, list[int]] = {}
+        self.object_values: dict[tuple[int, int], bytes] = {}
+        self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
+        self._pnu_bindings: dict[int, _PnuBinding] = {}
+        self._object_bindings: dict[int, _ObjectBinding] = {}
+        self.components: list[Component] = [cls(self) for cls in _load_components()]
+
+    # ------------------------------------------------------------------ bindings
+    def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:
+        """Let a component compute a PNU on read (``read(sub, count)``) and/or act on write
+        (``write(sub, values)``); stored values are used for the side left ``None``."""
+        self._pnu_bindings[pnu] = _PnuBinding(read, write)
+
+    def bind_object(self, index: int, read: ObjectReader | None = None, write: ObjectWriter | None = None) -> None:
+        """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
+        self._object_bindings[index] = _ObjectBinding(read, write)
+
+    def component(self, name: str) -> Component | None:
+        for comp in self.components:
+            if comp.name == name:
+                return comp
+        return None
+
+    # ------------------------------------------------------------------ time
+    def advance(self, dt: float) -> None:
+        """Advance virtual time; components integrate motion, timers, watchdogs."""
+        if dt <= 0:
+            return
+        self.clock += dt
+        for comp in self.components:
+            comp.tick(dt)
+
+    # ------------------------------------------------------------------ PNUs
+    def pnu_info(self, pnu: int) -> pnu_catalog.PnuInfo:
+        info = pnu_catalog.lookup(pnu)
+        if info is None:
+            raise PnuAccessError(PE_IMPERMISSIBLE_PNU)
+        return info
+
+    def stored_pnu(self, pnu: int) -> list[int]:
+        """The stored element values of a PNU (defaults until first written)."""
+        values = self.pnu_values.get(pnu)
+        if values is None:
+            values = self.pnu_info(pnu).default_values()
+            self.pnu_values[pnu] = values
+        return values
+
+    def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
+        """Store element values without access checks (components use this)."""
+        stored = self.stored_pnu(pnu)
+        stored[subindex : subindex + len(values)] = values
+
+    def _check_range(self, info: pnu_catalog.PnuInfo, subindex: int, count: int) -> None:
+        if count < 1:
+            raise PnuAccessError(PE_BAD_SUBINDEX, subindex)
+        if not info.is_array and (subindex != 0 or count != 1):
+            raise PnuAccessError(PE_NO_ARRAY if count != 1 else PE_BAD_SUBINDEX, subindex)
+        if subindex + count > info.length:
+            raise PnuAccessError(PE_BAD_SUBINDEX, subindex)
+
+    def pnu_read(self, pnu: int, subindex: int, count: int) -> Any:
+        """ParameterAccess: read ``count`` elements from ``subindex`` as a BMP ParameterValue."""
+        from akdctl.protocol.profidrive import ParameterValue
+
+        fmt, values = self.pnu_read_raw(pnu, subindex, count)
+        return ParameterValue(fmt, tuple(values))
+
+    def pnu_write(self, pnu: int, subindex: int, value: Any) -> None:
+        """ParameterAccess: change elements from ``subindex`` with a BMP ParameterValue."""
+        values = list(value.values)
+        if not all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+            raise PnuAccessError(PE_WRONG_TYPE)
+        self.pnu_write_raw(pnu, subindex, value.format, values)
+
+    def pnu_describe(self, pnu: int) -> Any:
+        """ParameterAccess: the PROFIdrive description (attribute 0x20) built from the catalogue."""
+        from akdctl.protocol import profidrive as bmp
+
+        info = self.pnu_info(pnu)
+        dtype = pnu_catalog.DATATYPE_CODES[info.type]
+        identifier = dtype | (bmp.ID_ARRAY if info.is_array else 0) | (0 if info.writable else bmp.ID_READ_ONLY)
+        identifier |= bmp.ID_NO_STANDARDISATION
+        lo, hi = info.limits()
+        if info.type == "OS":
+            low, high = bytes(4), bytes(4)
+        else:
+            low, high = bmp.ParameterDescription.limit_bytes(dtype, lo), bmp.ParameterDescription.limit_bytes(dtype, hi)
+        return bmp.ParameterDescription(
+            identifier=identifier,
+            elements=info.length if info.is_array else 0,
+            name=info.name[:16],
+            low_limit=low,
+            high_limit=high,
+        )
+
+    def pnu_read_raw(self, pnu: int, subindex: int, count: int) -> tuple[int, list[int]]:
+        """Read ``count`` elements from ``subindex``: returns (BMP format, unsigned element values)."""
+        info = self.pnu_info(pnu)
+        self._check_range(info, subindex, count)
+        binding = self._pnu_bindings.get(pnu)
+        if binding and binding.read:
+            values = list(binding.read(subindex, count))
+        else:
+            values = list(self.stored_pnu(pnu)[subindex : subindex + count])
+        mask = (1 << info.bits) - 1
+        return info.wire_format, [v & mask for v in values]
+
+    def pnu_write_raw(self, pnu: int, subindex: int, fmt: int, raw_values: list[int]) -> None:
+        """Change elements from ``subindex`` with unsigned wire values in format ``fmt``."""
+        info = self.pnu_info(pnu)
+        if not info.writable:
+            raise PnuAccessError(PE_READ_ONLY, subindex)
+        self._check_range(info, subindex, len(raw_values))
+        if fmt not in _FORMATS_BY_BITS[info.bits]:
+            raise PnuAccessError(PE_ILLEGAL_FORMAT)
+        lo, hi = info.limits()
+        values = []
+        for offset, raw in enumerate(raw_values):
+            value = raw - (1 << info.bits) if info.signed and raw >= 1 << (info.bits - 1) else raw
+            if not lo <= value <= hi:
+                raise PnuAccessError(PE_LIMIT, subindex + offset)
+            values.append(value)
+        binding = self._pnu_bindings.get(pnu)
+        if binding and binding.write:
+            binding.write(subindex, values)
+        else:
+            self.set_stored_pnu(pnu, values, subindex)
+        self.writes += 1
+
+    def signed_pnu(self, pnu: int) -> list[int]:
+        """Current element values of a PNU as signed/unsigned per its type (for components and tests)."""
+        info = self.pnu_info(pnu)
+        _, raw = self.pnu_read_raw(pnu, 0, info.length) if info.length else (0, [])
+        if info.signed:
+            return [r - (1 << info.bits) if r >= 1 << (info.bits - 1) else r for r in raw]
+        return raw
+
+    # ------------------------------------------------------------------ objects
+    def object_entry(self, index: int, subindex: int) -> Any:
+        from akdctl.catalog import objects as object_catalog
+
+        entry = object_catalog.lookup(index, subindex)
+        if entry is None:
+            if not object_catalog.subentries(index):
+                raise SdoAccessError(ABORT_NO_OBJECT)
+            raise SdoAccessError(ABORT_NO_SUBINDEX)
+        return entry
+
+    def stored_object(self, index: int, subindex: int) -> bytes:
+        data = self.object_values.get((index, subindex))
+        if data is None:
+            entry = self.object_entry(index, subindex)
+            data = _default_bytes(entry)
+        return data
+
+    def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
+        self.object_values[(index, subindex)] = bytes(data)
+
+    def object_read(self, index: int, subindex: int) -> bytes:
+        binding = self._object_bindings.get(index)
+        entry = self.object_entry(index, subindex) if not (binding and binding.read) else None
+        if binding and binding.read:
+            return binding.read(subindex)
+        if entry.access == "wo":
+            raise SdoAccessError(ABORT_WRITE_ONLY)
+        return self.stored_object(index, subindex)
+
+    def object_write(self, index: int, subindex: int, data: bytes) -> None:
+        entry = self.object_entry(index, subindex)
+        if entry.access == "ro":
+            raise SdoAccessError(ABORT_READ_ONLY)
+        size = _entry_size(entry)
+        if size is not None and len(data) != size:
+            raise SdoAccessError(ABORT_TOO_LONG if len(data) > size else ABORT_TOO_SHORT)
+        binding = self._object_bindings.get(index)
+        if binding and binding.write:
+            binding.write(subindex, bytes(data))
+        else:
+            self.set_stored_object(index, subindex, data)
+        self.writes += 1
+
+    def object_value(self, index: int, subindex: int) -> int:
+        """An integer object's current value (signed per its type), for components and tests."""
+        entry = self.object_entry(index, subindex)
+        data = self.object_read(index, subindex)
+        return int.from_bytes(data, "little", signed=_entry_signed(entry))
+
+    # ------------------------------------------------------------------ persistence
+    def to_state(self) -> dict[str, Any]:
+        return {
+            "version": STATE_VERSION,
+            "clock": self.clock,
+            "writes": self.writes,
+            "pnus": {str(k): v for k, v in sorted(self.pnu_values.items())},
+            "objects": {f"{i:04X}:{s:02X}": d.hex() for (i, s), d in sorted(self.object_values.items())},
+            "components": {c.name: c.to_state() for c in self.components},
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> "DriveModel":
+        """Rebuild a model; raises ``ValueError`` when the state is not ours or is damaged."""
+        if not isinstance(state, dict) or state.get("version") != STATE_VERSION:
+            raise ValueError("not an akdctl simulator state (unknown version)")
+        model = cls()
+        try:
+            model.clock = float(state.get("clock", 0.0))
+            model.writes = int(state.get("writes", 0))
+            for key, values in dict(state.get("pnus", {})).items():
+                if not isinstance(values, list) or not all(isinstance(v, int) for v in values):
+                    raise ValueError(f"PNU {key}: values must be a list of integers")
+                model.pnu_values[int(key)] = list(values)
+            for key, hexdata in dict(state.get("objects", {})).items():
+                index, _, sub = str(key).partition(":")
+                model.object_values[(int(index, 16), int(sub, 16))] = bytes.fromhex(hexdata)
+            comp_states = dict(state.get("components", {}))
+            for comp in model.components:
+                comp.load_state(dict(comp_states.get(comp.name, {})))
+        except (TypeError, AttributeError, KeyError) as exc:
+            raise ValueError(f"damaged simulator state: {exc}") from exc
+        return model
+
+
+# Identity of the simulated drive where the ESI gives no default (a real drive reports its own).
+SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
+    (0x1008, 0): b"AKD",
+    (0x1009, 0): b"E",
+    (0x100A, 0): b"M_01-20-00-001",
+    (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
+    (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
+    (0x1018, 3): (0x00260000).to_bytes(4, "little"),  # newest ESI revision
+    (0x1018, 4): (0x00001234).to_bytes(4, "little"),  # the simulator's serial number
+}
+
+
+def _entry_size(entry: Any) -> int | None:
+    """Byte size of a fixed-size object entry; None for strings and octet strings."""
+    if entry.short_type in ("vs", "os"):
+        return None
+    return entry.nbytes
+
+
+def _entry_signed(entry: Any) -> bool:
+    return entry.short_type.startswith("i")
+
+
+def _default_bytes(entry: Any) -> bytes:
+    preset = SIM_OBJECT_DEFAULTS.get((entry.index, entry.subindex))
+    if preset is not None:
+        return preset
+    size = _entry_size(entry)
+    default = entry.default
+    if size is None:
+        return b""
+    if default is None and entry.subindex == 0:
+        from akdctl.catalog import objects as object_catalog
+
+        subs = object_catalog.subentries(entry.index)
+        if len(subs) > 1:  # a record/array: sub 0 holds the highest sub-index
+            default = max(e.subindex for e in subs)
+    if entry.short_type == "r32":
+        return struct.pack("<f", float(default or 0))
+    if entry.short_type == "r64":
+        return struct.pack("<d", float(default or 0))
+    value = int(default or 0)
+    return (value & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
