@@ -1,6 +1,6 @@
-"""EtherCAT frame/datagram codec, ETG.8200 gateway header and SII codec.
+"""EtherCAT frame/datagram codec and SII codec.
 
-Seed vectors first: the ETG.8200 worked example (reference notes, ethercat-mailbox.md) and a real AKD's SII EEPROM
+Seed vectors first: a real AKD's SII EEPROM
 dump (tests/data/ecat_akd_sii_dump.bin, 2048 bytes). Then hypothesis round trips and fuzz: only CodecError escapes.
 """
 
@@ -17,27 +17,6 @@ from akdctl.protocol import sii
 from akdctl.protocol.errors import CodecError
 
 DUMP = (Path(__file__).parent / "data" / "ecat_akd_sii_dump.bin").read_bytes()
-
-GW_REQUEST = bytes.fromhex("10 50 0a 00 04 00 00 03 00 20 40 18 10 01 00 00 00 00")
-GW_REPLY = bytes.fromhex("10 50 0a 00 04 00 00 23 00 30 43 18 10 01 02 00 00 00")
-
-
-def test_gateway_worked_example_decodes() -> None:
-    mbx = ec.decode_gateway(GW_REQUEST)
-    assert mbx == GW_REQUEST[2:]
-    assert mbx[2:4] == b"\x04\x00"  # station 4
-    assert ec.encode_gateway(mbx) == GW_REQUEST
-    reply = ec.decode_gateway(GW_REPLY)
-    assert reply[5] & 0x0F == 3 and reply[5] >> 4 == 2  # CoE, counter 2
-    assert ec.encode_gateway(reply) == GW_REPLY
-
-
-@pytest.mark.parametrize("bad", [b"", b"\x10\x50", GW_REQUEST[:10], b"\x10\x10" + GW_REQUEST[2:],
-                                 b"\x05\x50" + GW_REQUEST[2:], b"\x10\x50\xff\x00" + GW_REQUEST[4:]])
-def test_gateway_rejects_malformed(bad: bytes) -> None:
-    with pytest.raises(CodecError):
-        ec.decode_gateway(bad)
-
 
 def test_datagram_frame_layout() -> None:
     # BRD 0x0000, 2 bytes: what a master sends to count slaves
@@ -157,16 +136,10 @@ def test_datagrams_round_trip(ds: list[ec.Datagram]) -> None:
     assert ec.decode_frame(ec.encode_frame(ds, src=b"\x02\0\0\0\0\1"))[2] == ds
 
 
-@given(st.binary(min_size=6, max_size=600))
-def test_gateway_round_trip(mbx: bytes) -> None:
-    mbx = len(mbx[6:]).to_bytes(2, "little") + mbx[2:]
-    assert ec.decode_gateway(ec.encode_gateway(mbx)) == mbx
-
-
 @settings(max_examples=300)
 @given(st.binary(max_size=200))
 def test_fuzz_frame_decoders(blob: bytes) -> None:
-    for fn in (ec.decode_frame, ec.decode_datagrams, ec.decode_gateway, ec.decode_ethernet, sii.parse_sii,
+    for fn in (ec.decode_frame, ec.decode_datagrams, ec.decode_ethernet, sii.parse_sii,
                sii.decode_strings, sii.decode_pdos, ec.SyncManager.decode):
         try:
             fn(blob)

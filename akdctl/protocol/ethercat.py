@@ -1,5 +1,7 @@
 """EtherCAT frames and datagrams (ETG.1000.4), the ESC registers a master uses,
-and the ETG.8200 mailbox-gateway header.
+and the AL state texts. (The ETG.8200 gateway header, an EtherCAT header of
+type 5 in front of a mailbox, lives with the mailbox codec in
+:mod:`akdctl.protocol.mailbox`.)
 
 The raw master and the simulated slave both speak through this module, so a
 frame the master builds is exactly what the slave parses (and what Wireshark
@@ -25,7 +27,6 @@ from enum import IntEnum
 from akdctl.protocol.errors import CodecError
 
 ETHERTYPE_ECAT = 0x88A4
-GATEWAY_PORT = 34980
 FRAME_TYPE_DATAGRAMS = 1
 FRAME_TYPE_MAILBOX = 5
 BROADCAST_MAC = b"\xff" * 6
@@ -307,35 +308,6 @@ def decode_frame(frame: bytes) -> tuple[bytes, bytes, list[Datagram]]:
     if ethertype != ETHERTYPE_ECAT:
         raise CodecError(f"EtherType 0x{ethertype:04X} is not EtherCAT (0x88A4)")
     return dst, src, decode_datagrams(payload)
-
-
-# --- ETG.8200 mailbox gateway ---------------------------------------------------------------------------
-
-def encode_gateway(mailbox: bytes) -> bytes:
-    """Wrap a complete mailbox (6-byte header + data) for the UDP gateway:
-    EtherCAT header with type 5 and length = len(mailbox)."""
-    if len(mailbox) < 6:
-        raise CodecError("a mailbox is at least its 6-byte header")
-    if len(mailbox) > 0x7FF:
-        raise CodecError(f"mailbox of {len(mailbox)} bytes exceeds the 2047-byte EtherCAT length field")
-    return struct.pack("<H", len(mailbox) | (FRAME_TYPE_MAILBOX << 12)) + bytes(mailbox)
-
-
-def decode_gateway(datagram: bytes) -> bytes:
-    """The mailbox inside a gateway datagram (checked against both length fields)."""
-    if len(datagram) < 8:
-        raise CodecError(f"gateway datagram of {len(datagram)} bytes is shorter than 8")
-    (header,) = struct.unpack_from("<H", datagram)
-    length, ftype = header & 0x7FF, header >> 12
-    if ftype != FRAME_TYPE_MAILBOX:
-        raise CodecError(f"gateway datagram type {ftype} is not 5 (mailbox)")
-    if length < 6 or length + 2 > len(datagram):
-        raise CodecError(f"gateway header length {length} does not fit a datagram of {len(datagram)} bytes")
-    mailbox = bytes(datagram[2 : 2 + length])
-    (mbx_len,) = struct.unpack_from("<H", mailbox)
-    if 6 + mbx_len > len(mailbox):
-        raise CodecError(f"mailbox length {mbx_len} exceeds the {length - 6} bytes the gateway header carries")
-    return mailbox
 
 
 # --- SyncManager and FMMU register blocks --------------------------------------------------------------
