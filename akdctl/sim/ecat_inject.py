@@ -1,0 +1,101 @@
+"""Fault injection shared by the simulator's EtherCAT faces.
+
+A technician's real failures are a reply lost on the wire, a slave refusing a
+whole mailbox (mailbox error reply, type 0) and an SDO abort. ``drop=N`` loses
+the reply to every N-th mailbox request, ``mbxerr=N`` answers every N-th with a
+mailbox error, ``abort=N`` answers every N-th SDO request with abort
+0x08000000. Counting every N-th (rather than "the first N") keeps a retrying
+client able to recover, which is the behaviour the tests prove.
+"""
+
+from __future__ import annotations
+
+import struct
+import threading
+from dataclasses import dataclass, field
+
+from akdctl.errors import UsageError
+
+KINDS = ("drop", "mbxerr", "abort")
+ABORT_GENERAL = 0x08000000
+MBX_ERR_SERVICE_NOT_SUPPORTED = 4
+
+
+@dataclass
+class Injector:
+    """Decides, per mailbox request, which fault (if any) to inject."""
+
+    every: dict[str, int] = field(default_factory=dict)
+    _count: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @classmethod
+    def parse(cls, text: str | None, option: str = "--ecat-inject") -> "Injector":
+        """``drop=3,abort=5`` -> Injector; empty/None -> no faults."""
+        every: dict[str, int] = {}
+        for part in (text or "").split(","):
+            part = part.strip()
+            if not part:
+                continue
+            kind, _, num = part.partition("=")
+            kind = kind.strip().lower()
+            if kind not in KINDS:
+                raise UsageError(f"{option}: unknown fault {kind!r}; use {', '.join(k + '=N' for k in KINDS)}")
+            try:
+                n = int(num or "1", 0)
+            except ValueError:
+                raise UsageError(f"{option}: {part!r} needs a number, e.g. {kind}=3") from None
+            if n < 1:
+                raise UsageError(f"{option}: {kind}={n} must be at least 1")
+            every[kind] = n
+        return cls(every)
+
+    def decide(self) -> str | None:
+        """Count one request; the fault to inject into its reply, or None."""
+        with self._lock:
+            self._count += 1
+            count = self._count
+        for kind in KINDS:
+            n = self.every.get(kind)
+            if n and count % n == 0:
+                return kind
+        return None
+
+    def describe(self) -> str:
+        return ",".join(f"{k}={v}" for k, v in self.every.items()) or "none"
+
+
+def mailbox_error_reply(request: bytes, code: int = MBX_ERR_SERVICE_NOT_SUPPORTED) -> bytes:
+    """A type-0 mailbox error reply to ``request`` (same address, counter kept)."""
+    from akdctl.protocol.mailbox import (
+        Mailbox,
+        MailboxErrorReply,
+        decode_mailbox,
+        encode_error_reply,
+        encode_mailbox,
+    )
+
+    mbx = decode_mailbox(request)
+    return encode_mailbox(Mailbox(0, encode_error_reply(MailboxErrorReply(code)), mbx.address,
+                                  counter=mbx.counter))
+
+
+def sdo_abort_reply(request: bytes, code: int = ABORT_GENERAL) -> bytes | None:
+    """An SDO abort answering the SDO request in ``request``; None if it is no SDO request."""
+    from akdctl.protocol.coe import CoeService, SdoAbort, decode_coe, encode_coe, encode_sdo
+    from akdctl.protocol.errors import CodecError
+    from akdctl.protocol.mailbox import Mailbox, MailboxType, decode_mailbox, encode_mailbox
+
+    try:
+        mbx = decode_mailbox(request)
+        if mbx.type != MailboxType.COE:
+            return None
+        service, _number, payload = decode_coe(mbx.data)
+        if service != CoeService.SDO_REQUEST or len(payload) < 4:
+            return None
+        index, sub = struct.unpack_from("<HB", payload, 1)
+        abort = encode_sdo(SdoAbort(index, sub, code))
+        return encode_mailbox(Mailbox(MailboxType.COE, encode_coe(CoeService.SDO_RESPONSE, abort), mbx.address,
+                                      counter=mbx.counter))
+    except CodecError:
+        return None

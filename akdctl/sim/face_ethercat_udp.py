@@ -1,0 +1,174 @@
+"""`akdctl sim serve --ethercat-udp [ADDR]`: an ETG.8200 mailbox gateway in
+front of one or more simulated AKDs.
+
+It behaves like the gateway of a running master (TwinCAT, IgH): a UDP datagram
+carrying an EtherCAT header of type 5 and a mailbox addressed to a station is
+forwarded to that slave, and every mailbox the slave answers with (emergencies
+included) goes back to the sender with the station's address. Requests for an
+unknown station, malformed datagrams and injected "drops" get no answer at all,
+because that is what real gateways do - the client must time out and retry.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+from dataclasses import replace
+
+import click
+
+from akdctl.errors import UsageError
+from akdctl.sim.drive import SimDrive
+from akdctl.sim.ecat_inject import Injector, mailbox_error_reply, sdo_abort_reply
+
+DEFAULT_ADDR = "127.0.0.1:34980"
+DEFAULT_STATION = 1001
+
+
+def click_options() -> list[click.Option]:
+    return [
+        click.Option(["--ethercat-udp", "ethercat_udp"], is_flag=False, flag_value=DEFAULT_ADDR, default=None,
+                     metavar="[HOST:PORT]",
+                     help=f"Serve an ETG.8200 EtherCAT mailbox gateway on UDP (default {DEFAULT_ADDR})."),
+        click.Option(["--ecat-stations", "ecat_stations"], default=None, metavar="ADDR=NAME,...",
+                     help="Gateway station addresses -> simulated drives, e.g. 1001=default,1002=axis2 "
+                          f"(default: {DEFAULT_STATION}=the served drive)."),
+        click.Option(["--ecat-inject", "ecat_inject"], default=None, metavar="drop=N,mbxerr=N,abort=N",
+                     help="Gateway fault injection: lose every N-th reply, answer with a mailbox error or an SDO abort."),
+    ]
+
+
+def parse_stations(text: str | None, drive: SimDrive) -> dict[int, SimDrive]:
+    """``1001=default,1002=axis2`` -> {1001: SimDrive('default'), 1002: SimDrive('axis2')}."""
+    if not text:
+        return {DEFAULT_STATION: drive}
+    stations: dict[int, SimDrive] = {}
+    for part in text.split(","):
+        addr_text, sep, name = part.strip().partition("=")
+        try:
+            addr = int(addr_text, 0)
+        except ValueError:
+            addr = -1
+        if not sep or not 1 <= addr <= 0xFFFF or not name.replace("-", "").replace("_", "").isalnum():
+            raise UsageError(f"--ecat-stations: {part!r} is not STATION=NAME (station 1..65535, e.g. 1001=default)")
+        stations[addr] = drive if name == drive.name else SimDrive(name, drive.directory)
+    return stations
+
+
+def parse_addr(text: str, default_port: int) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host, port = text, str(default_port)
+    try:
+        return host or "127.0.0.1", int(port)
+    except ValueError:
+        raise UsageError(f"bad address {text!r}: expected HOST:PORT") from None
+
+
+class GatewayHandler:
+    """The pure part of the gateway: one datagram in, the datagrams to send back out.
+
+    Kept apart from the socket so tests and benchmarks can drive it directly.
+    """
+
+    def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
+        self.stations = stations
+        self.injector = injector or Injector()
+
+    def handle(self, datagram: bytes) -> list[bytes]:
+        from akdctl.protocol.errors import CodecError
+        from akdctl.protocol.mailbox import decode_gateway, decode_mailbox, encode_gateway, encode_mailbox
+
+        try:
+            request = decode_gateway(datagram)
+        except CodecError:
+            return []  # a gateway drops what it cannot parse
+        drive = self.stations.get(request.address)
+        if drive is None:
+            return []
+        fault = self.injector.decide()
+        if fault == "drop":
+            return []
+        raw = encode_mailbox(request)
+        if fault == "mbxerr":
+            replies = [mailbox_error_reply(raw)]
+        elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
+            replies = [abort]
+        else:
+            try:
+                replies = drive.handle_mailbox(raw)
+            except CodecError:
+                replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
+        out = []
+        for reply in replies:
+            try:
+                out.append(encode_gateway(replace(decode_mailbox(reply), address=request.address)))
+            except CodecError:
+                continue
+        return out
+
+
+class EthercatUdpFace:
+    """A UDP socket served by one thread; ``stop`` closes it and joins."""
+
+    def __init__(self, host: str, port: int, handler: GatewayHandler) -> None:
+        self.host, self.port = host, port
+        self.handler = handler
+        self._sock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def start(self) -> None:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.bind((self.host, self.port))
+        except OSError as exc:
+            sock.close()
+            raise UsageError(f"--ethercat-udp: cannot listen on {self.host}:{self.port}: {exc.strerror}") from None
+        sock.settimeout(0.2)
+        self.port = sock.getsockname()[1]
+        self._sock = sock
+        self._thread = threading.Thread(target=self._serve, name="ecat-udp-face", daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        assert self._sock is not None
+        while not self._stop.is_set():
+            try:
+                data, peer = self._sock.recvfrom(2048)
+            except socket.timeout:
+                continue
+            except OSError:
+                break
+            try:
+                replies = self.handler.handle(data)
+            except Exception:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
+                replies = []
+            for reply in replies:
+                with contextlib.suppress(OSError):
+                    self._sock.sendto(reply, peer)
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def describe(self) -> str:
+        stations = ",".join(f"{a}={d.name}" for a, d in sorted(self.handler.stations.items()))
+        inject = self.handler.injector.describe()
+        extra = f" inject {inject}" if inject != "none" else ""
+        return f"ethercat-udp udp {self.host}:{self.port} stations {stations}{extra}"
+
+
+def from_options(drive: SimDrive, **kwargs: object) -> EthercatUdpFace | None:
+    addr = kwargs.get("ethercat_udp")
+    if not addr:
+        return None
+    host, port = parse_addr(str(addr), 34980)
+    stations = parse_stations(kwargs.get("ecat_stations") or None, drive)  # type: ignore[arg-type]
+    injector = Injector.parse(kwargs.get("ecat_inject") or None, "--ecat-inject")  # type: ignore[arg-type]
+    return EthercatUdpFace(host, port, GatewayHandler(stations, injector))

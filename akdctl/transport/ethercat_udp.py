@@ -1,0 +1,159 @@
+"""``ecat-udp://HOST[:34980]/STATION``: CoE through a running master's ETG.8200
+mailbox gateway.
+
+The gateway forwards a mailbox (wrapped in an EtherCAT header of type 5) to the
+slave with the given station address and sends the slave's reply back to us.
+Gateways answer nothing when a request fails or times out inside the master,
+so every wait here is bounded and the SDO client above retries; replies are
+matched by the SDO client on service/index/subindex, never on the mailbox
+counter, because masters rewrite the counter.
+
+Target query options: ``mailbox=N`` the slave's mailbox size in bytes
+(default 512, the AKD ESI default; a real AKD reports 1024 - larger objects are
+then segmented, never refused).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import socket
+import time
+from dataclasses import replace
+
+from akdctl.errors import CommError, UsageError
+from akdctl.transport.base import LinkOptions, MailboxLink, Transport
+from akdctl.transport.target import Target
+from akdctl.transport.trace import Tracer
+
+DEFAULT_PORT = 34980
+DEFAULT_MAILBOX = 512
+
+
+class GatewayMailboxLink(MailboxLink):
+    """A :class:`MailboxLink` over one connected UDP socket to a gateway."""
+
+    def __init__(self, host: str, port: int, station: int, tracer: Tracer, mailbox_size: int = DEFAULT_MAILBOX) -> None:
+        self.host, self.port, self.station = host, port, station
+        self.tracer = tracer
+        self.mailbox_size = mailbox_size
+        self.sent = 0
+        self.received = 0
+        self.refused = False  # an ICMP port-unreachable came back: nothing listens there
+        try:
+            infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+        except socket.gaierror as exc:
+            raise CommError(f"cannot resolve EtherCAT gateway host {host!r}: {exc.strerror}") from None
+        family, _, _, _, addr = infos[0]
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.connect(addr)
+        except OSError as exc:
+            sock.close()
+            raise CommError(f"cannot reach EtherCAT gateway {host}:{port}: {exc.strerror}") from None
+        self.sock: socket.socket | None = sock
+        self._local = sock.getsockname()[:2]
+        self._remote = addr[:2]
+
+    def _meta(self, direction: str) -> dict[str, object]:
+        src, dst = (self._local, self._remote) if direction == "tx" else (self._remote, self._local)
+        return {"proto": "udp", "src": src, "dst": dst}
+
+    def send(self, mailbox: bytes) -> None:
+        from akdctl.protocol.mailbox import decode_mailbox, encode_gateway
+
+        sock = self._socket()
+        datagram = encode_gateway(replace(decode_mailbox(mailbox), address=self.station))
+        self.tracer.frame("tx", "ecat-gw", datagram, note=f"gateway -> station {self.station}",
+                          meta=self._meta("tx"))
+        try:
+            sock.send(datagram)
+        except ConnectionRefusedError:
+            self.refused = True  # an earlier datagram bounced; this one may still get through later
+        except OSError as exc:
+            raise CommError(f"cannot send to EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+        self.sent += 1
+
+    def receive(self, timeout: float) -> bytes | None:
+        from akdctl.protocol.errors import CodecError
+        from akdctl.protocol.mailbox import decode_gateway, encode_mailbox
+
+        sock = self._socket()
+        deadline = time.monotonic() + max(0.0, timeout)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            ready, _, _ = select.select([sock], [], [], remaining)
+            if not ready:
+                return None
+            try:
+                data = sock.recv(4096)
+            except ConnectionRefusedError:
+                self.refused = True
+                continue
+            except OSError as exc:
+                raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+            try:
+                mbx = decode_gateway(data)
+            except CodecError as exc:
+                self.tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
+                continue
+            if mbx.address not in (self.station, 0):
+                self.tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {mbx.address}",
+                                  meta=self._meta("rx"))
+                continue
+            self.tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {mbx.address}", meta=self._meta("rx"))
+            self.received += 1
+            return encode_mailbox(mbx)
+
+    def _socket(self) -> socket.socket:
+        if self.sock is None:
+            raise CommError("the EtherCAT gateway link is closed")
+        return self.sock
+
+    def close(self) -> None:
+        if self.sock is not None:
+            with contextlib.suppress(OSError):
+                self.sock.close()
+            self.sock = None
+
+
+class EthercatUdpTransport(Transport):
+    """Object channel (CoE SDO) to one slave behind an ETG.8200 gateway."""
+
+    scheme = "ecat-udp"
+
+    def __init__(self, target: Target, options: LinkOptions) -> None:
+        super().__init__(target, options)
+        self.link: GatewayMailboxLink | None = None
+
+    @property
+    def station(self) -> int:
+        parts = self.target.path_parts
+        try:
+            station = int(parts[0], 0)
+        except (IndexError, ValueError):
+            raise UsageError(f"malformed target {self.target.raw!r}: expected ecat-udp://HOST[:PORT]/STATION") from None
+        if not 0 <= station <= 0xFFFF:
+            raise UsageError(f"target {self.target.raw!r}: station address {station} is outside 0..65535")
+        return station
+
+    def open(self) -> None:
+        from akdctl.channels.coe_sdo import CoeObjectChannel
+
+        mailbox = self.target.query_int("mailbox", DEFAULT_MAILBOX)
+        if not 16 <= mailbox <= 2040:
+            raise UsageError(f"target {self.target.raw!r}: mailbox={mailbox} is outside 16..2040 bytes")
+        self.link = GatewayMailboxLink(self.target.host, self.target.port or DEFAULT_PORT, self.station,
+                                       self.options.tracer, mailbox)
+        self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
+                                        tracer=self.options.tracer, station=self.station)
+
+    def close(self) -> None:
+        if self.link is not None:
+            self.link.close()
+            self.link = None
+
+    def describe(self) -> str:
+        return self.target.display
