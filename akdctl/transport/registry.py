@@ -45,10 +45,13 @@ def _check_ecat_raw(target: Target) -> None:
 
 
 def _check_can(target: Target) -> None:
+    # CHANNEL is everything between the first and last "/" (a device path follows "//": can://slcan//dev/ttyACM0/1);
+    # can://config/NODE takes interface and channel from python-can's configuration.
     parts = target.path_parts
-    if not target.host or len(parts) != 2 or not _is_int(parts[1]):
+    need = 1 if target.host in ("config", "default") else 2
+    if not target.host or len(parts) < need or not _is_int(parts[-1]):
         raise UsageError(f"malformed target {target.raw!r}: expected can://INTERFACE/CHANNEL/NODE, e.g. can://socketcan/can0/1")
-    node = int(parts[1], 0)
+    node = int(parts[-1], 0)
     if not 1 <= node <= 127:
         raise UsageError(f"malformed target {target.raw!r}: CANopen node id {node} is outside 1..127")
 
