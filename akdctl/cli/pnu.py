@@ -107,14 +107,14 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
 @click.argument("address", metavar="PNU")
 def describe(address: str) -> None:
     """Show the catalogue entry and the drive's own description (attribute 0x20)."""
-    from akdctl.drive.params import parse_pnu_spec
+    from akdctl.drive.params import description_json, parse_pnu_spec
 
     app = get_app()
     spec = parse_pnu_spec(address)
     channel = app.parameters()
-    description = channel.describe(spec.pnu)
+    description = description_json(channel.describe(spec.pnu))
     info = spec.info
-    data: dict[str, Any] = {"target": app.target.display, "pnu": spec.pnu, "drive": description.to_json()}
+    data: dict[str, Any] = {"target": app.target.display, "pnu": spec.pnu, "drive": description}
     if info is not None:
         data["catalogue"] = {
             "name": info.name, "type": info.type, "access": info.access, "elements": info.elements,
@@ -136,7 +136,7 @@ def describe(address: str) -> None:
                 doc.kv("unit", info.unit)
             if info.note:
                 doc.kv("note", info.note)
-        for key, value in description.to_json().items():
+        for key, value in description.items():
             doc.kv(f"drive: {key}", value)
         return doc
 

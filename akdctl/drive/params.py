@@ -31,7 +31,7 @@ class PnuSpec:
 
     @property
     def label(self) -> str:
-        if self.info is not None and not self.info.is_array:
+        if (self.info is None or not self.info.is_array) and self.subindex == 0 and self.count == 1:
             return str(self.pnu)
         if self.count == 1:
             return f"{self.pnu}[{self.subindex}]"
@@ -194,3 +194,20 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
         else:
             out.append(PnuReading(spec, error=failure.error, error_text=failure.text, additional=failure.additional))
     return out
+
+
+def description_json(description: Any) -> dict[str, Any]:
+    """A PROFIdrive parameter description (attribute 0x20) in words, for output."""
+    from akdctl.protocol.profidrive import format_name
+
+    limits = description.limits()
+    return {
+        "name": description.name,
+        "data_type": format_name(description.data_type),
+        "array": description.is_array,
+        "elements": description.elements,
+        "read_only": description.read_only,
+        "limits": list(limits) if limits is not None else None,
+        "standardisation_factor": description.standardisation_factor,
+        "identifier": f"0x{description.identifier:04X}",
+    }
