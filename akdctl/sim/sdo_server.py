@@ -1,0 +1,373 @@
+"""SdoServer: CoE mailbox bytes in, response mailbox bytes out, over an ObjectAccess.
+
+This is the simulated AKD's mailbox handler. It answers exactly what a slave
+answers, so every client path (expedited, normal, segmented, aborts, mailbox
+errors, SDO information, emergencies) can be exercised without hardware, and
+the same bytes can be served to an independent master (pysoem, a gateway).
+
+Behaviour, following ETG.1000.6 and SOEM/the Beckhoff slave stack:
+
+* the response echoes the request's mailbox counter and address;
+* values of 1..4 bytes are uploaded expedited, larger ones "normal" (size +
+  data in one mailbox) and segmented once they exceed the mailbox;
+* downloads: expedited, normal, or normal + segments, with toggle checks
+  (0x05030000) and length checks (0x06070012/13) before anything is written;
+* unknown command specifiers (block transfer) abort with 0x05040001, complete
+  access with 0x06010000 (the AKD's ESI does not declare it);
+* a mailbox that is not CoE, or whose header/size is broken, gets a mailbox
+  error reply (type 0) instead of an SDO answer;
+* queued emergencies go out as CoE service-1 mailboxes ahead of the next reply.
+
+It never raises on hostile input: whatever the access object raises becomes
+an abort code, and undecodable bytes become mailbox error replies.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+from akdctl.protocol import coe, mailbox as mbx
+from akdctl.protocol.coe import CoeError, CoeService
+from akdctl.protocol.emcy import Emergency, encode_emcy
+from akdctl.protocol.errors import CodecError
+
+log = logging.getLogger("akdctl")
+
+MAX_TRANSFER = 1 << 20  # larger announced downloads abort with "out of memory"
+
+
+class SdoAccessError(Exception):
+    """Raised by an ObjectAccess to refuse an access with an SDO abort code."""
+
+    def __init__(self, code: int, message: str = "") -> None:
+        super().__init__(message or coe.abort_text(code))
+        self.code = code
+
+
+class ObjectAccess(Protocol):
+    """What SdoServer needs from the drive model (docs/internals.md)."""
+
+    def object_read(self, index: int, subindex: int) -> bytes:
+        """Raw little-endian value; raises SdoAccessError(abort code)."""
+        ...
+
+    def object_write(self, index: int, subindex: int, data: bytes) -> None:
+        """Store a raw value; raises SdoAccessError(abort code)."""
+        ...
+
+
+@dataclass(frozen=True)
+class EntryInfo:
+    """Description of one subindex for the SDO information service."""
+
+    name: str
+    data_type: int  # CANopen data type code (0x0007 UNSIGNED32 ...)
+    bit_length: int
+    access: int  # ETG.1000.6 object access bits (0x07 read, 0x38 write, 0x40 RxPDO, 0x80 TxPDO)
+
+
+@dataclass(frozen=True)
+class ObjectInfo:
+    """Description of one object (object code 7 VAR, 8 ARRAY, 9 RECORD)."""
+
+    index: int
+    name: str
+    object_code: int
+    data_type: int
+    max_subindex: int
+    entries: dict[int, EntryInfo] = field(default_factory=dict)
+
+
+@runtime_checkable
+class ObjectInfoAccess(Protocol):
+    """Optional extension of ObjectAccess: the model can describe its dictionary."""
+
+    def object_indices(self) -> Sequence[int]:
+        """All object indices, ascending."""
+        ...
+
+    def object_info(self, index: int) -> ObjectInfo:
+        """Describe one object; raises SdoAccessError(0x06020000) for unknown ones."""
+        ...
+
+
+# Object access bits behind the SDO information list types 2..5.
+_LIST_FILTER = {2: 0x0040, 3: 0x0080, 4: 0x0100, 5: 0x0200}
+
+
+@dataclass
+class _Download:
+    index: int
+    subindex: int
+    size: int
+    buffer: bytearray
+    toggle: int = 0
+
+
+@dataclass
+class _Upload:
+    index: int
+    subindex: int
+    remaining: bytes
+    toggle: int = 0
+
+
+class SdoServer:
+    """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
+
+    def __init__(self, access: ObjectAccess, mailbox_size: int = 512) -> None:
+        if mailbox_size < 32:
+            raise ValueError("mailbox_size must be at least 32 bytes")
+        self.access = access
+        self.mailbox_size = mailbox_size
+        self._download: _Download | None = None
+        self._upload: _Upload | None = None
+        self._emergencies: list[Emergency] = []
+        self._emcy_counter = 0
+
+    # --- public -----------------------------------------------------------------------------
+
+    def queue_emergency(self, emergency: Emergency) -> None:
+        """Deliver ``emergency`` (as a CoE service-1 mailbox) before the next response."""
+        self._emergencies.append(emergency)
+
+    def take_pending(self) -> list[bytes]:
+        """Queued emergencies as mailboxes, for faces that can push without a request."""
+        out: list[bytes] = []
+        for emergency in self._emergencies:
+            self._emcy_counter = mbx.next_counter(self._emcy_counter)
+            data = coe.encode_coe(CoeService.EMERGENCY, encode_emcy(emergency))
+            out.append(mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.COE, data, counter=self._emcy_counter)))
+        self._emergencies.clear()
+        return out
+
+    def handle(self, mailbox: bytes) -> list[bytes]:
+        """Answer one request mailbox; returns the mailboxes the slave puts in SM1, in order."""
+        try:
+            replies = self._handle(bytes(mailbox))
+        except Exception:  # the simulator must never die on a request; log and refuse
+            log.exception("SDO server failed on a mailbox request")
+            replies = [self._error_reply(None, mbx.ERR_SYNTAX)]
+        try:
+            pending = self.take_pending()
+        except CodecError:
+            log.warning("dropped an emergency that cannot be encoded")
+            self._emergencies.clear()
+            pending = []
+        return pending + replies
+
+    # --- mailbox level ----------------------------------------------------------------------
+
+    def _error_reply(self, request: mbx.Mailbox | None, code: int) -> bytes:
+        data = mbx.encode_error_reply(mbx.MailboxErrorReply(code))
+        address = request.address if request else 0
+        counter = request.counter if request else 0
+        return mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.ERROR, data, address=address, counter=counter))
+
+    def _reply(self, request: mbx.Mailbox, service: CoeService, payload: bytes) -> bytes:
+        data = coe.encode_coe(service, payload)
+        return mbx.encode_mailbox(
+            mbx.Mailbox(mbx.MailboxType.COE, data, address=request.address, counter=request.counter)
+        )
+
+    def _handle(self, raw: bytes) -> list[bytes]:
+        if len(raw) < mbx.HEADER_SIZE:
+            return [self._error_reply(None, mbx.ERR_SIZE_TOO_SHORT)]
+        try:
+            request = mbx.decode_mailbox(raw)
+        except CodecError:
+            return [self._error_reply(None, mbx.ERR_INVALID_SIZE)]
+        if mbx.HEADER_SIZE + len(request.data) > self.mailbox_size:
+            return [self._error_reply(request, mbx.ERR_INVALID_SIZE)]
+        if request.type != mbx.MailboxType.COE:
+            return [self._error_reply(request, mbx.ERR_UNSUPPORTED_PROTOCOL)]
+        if request.channel != 0:
+            return [self._error_reply(request, mbx.ERR_INVALID_CHANNEL)]
+        if len(request.data) < coe.COE_HEADER_SIZE:
+            return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
+        try:
+            service, _number, payload = coe.decode_coe(request.data)
+        except CoeError:
+            return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
+        if service == CoeService.SDO_REQUEST:
+            if len(payload) < coe.SDO_SIZE:
+                return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
+            answer = self._sdo(payload)
+            return [self._reply(request, CoeService.SDO_RESPONSE, coe.encode_sdo(answer))] if answer else []
+        if service == CoeService.SDO_INFO:
+            return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
+        return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
+
+    # --- SDO --------------------------------------------------------------------------------
+
+    def _abort(self, index: int, subindex: int, code: int) -> coe.SdoAbort:
+        self._download = None
+        self._upload = None
+        return coe.SdoAbort(index, subindex, code)
+
+    def _sdo(self, payload: bytes) -> coe.SdoMessage | None:
+        try:
+            msg = coe.decode_sdo(payload, from_server=False)
+        except CoeError:
+            index = payload[1] | payload[2] << 8
+            return self._abort(index, payload[3], coe.ABORT_UNKNOWN_COMMAND)
+        if isinstance(msg, coe.SdoAbort):
+            self._download = None
+            self._upload = None
+            return None
+        if isinstance(msg, coe.SdoUploadInitiate):
+            return self._upload_initiate(msg)
+        if isinstance(msg, coe.SdoUploadSegment):
+            return self._upload_segment(msg)
+        if isinstance(msg, coe.SdoDownloadInitiate):
+            return self._download_initiate(msg)
+        if isinstance(msg, coe.SdoDownloadSegment):
+            return self._download_segment(msg)
+        return self._abort(0, 0, coe.ABORT_UNKNOWN_COMMAND)  # pragma: no cover - decode covers all
+
+    def _read(self, index: int, subindex: int) -> bytes | coe.SdoAbort:
+        try:
+            return bytes(self.access.object_read(index, subindex))
+        except SdoAccessError as exc:
+            return self._abort(index, subindex, exc.code)
+        except Exception:
+            log.exception("object_read(0x%04X, %d) failed", index, subindex)
+            return self._abort(index, subindex, coe.ABORT_GENERAL)
+
+    def _write(self, index: int, subindex: int, data: bytes) -> coe.SdoAbort | None:
+        try:
+            self.access.object_write(index, subindex, bytes(data))
+        except SdoAccessError as exc:
+            return self._abort(index, subindex, exc.code)
+        except Exception:
+            log.exception("object_write(0x%04X, %d) failed", index, subindex)
+            return self._abort(index, subindex, coe.ABORT_GENERAL)
+        return None
+
+    def _upload_initiate(self, msg: coe.SdoUploadInitiate) -> coe.SdoMessage:
+        self._download = None
+        self._upload = None
+        if msg.complete_access:
+            return self._abort(msg.index, msg.subindex, coe.ABORT_UNSUPPORTED_ACCESS)
+        value = self._read(msg.index, msg.subindex)
+        if isinstance(value, coe.SdoAbort):
+            return value
+        if 1 <= len(value) <= 4:
+            return coe.SdoUploadResponse(msg.index, msg.subindex, value, len(value), True)
+        room = self.mailbox_size - mbx.HEADER_SIZE - coe.NORMAL_OVERHEAD
+        if len(value) > room:
+            self._upload = _Upload(msg.index, msg.subindex, value[room:])
+        return coe.SdoUploadResponse(msg.index, msg.subindex, value[:room], len(value), False)
+
+    def _upload_segment(self, msg: coe.SdoUploadSegment) -> coe.SdoMessage:
+        state = self._upload
+        if state is None:
+            return self._abort(0, 0, coe.ABORT_UNKNOWN_COMMAND)
+        if msg.toggle != state.toggle:
+            return self._abort(state.index, state.subindex, coe.ABORT_TOGGLE)
+        room = self.mailbox_size - mbx.HEADER_SIZE - coe.SEGMENT_OVERHEAD
+        chunk, state.remaining = state.remaining[:room], state.remaining[room:]
+        last = not state.remaining
+        reply = coe.SdoUploadSegmentResponse(state.toggle, chunk, last)
+        state.toggle ^= 1
+        if last:
+            self._upload = None
+        return reply
+
+    def _download_initiate(self, msg: coe.SdoDownloadInitiate) -> coe.SdoMessage:
+        self._download = None
+        self._upload = None
+        if msg.complete_access:
+            return self._abort(msg.index, msg.subindex, coe.ABORT_UNSUPPORTED_ACCESS)
+        if msg.expedited or msg.size is None or len(msg.data) >= msg.size:
+            failed = self._write(msg.index, msg.subindex, msg.data)
+            return failed or coe.SdoDownloadResponse(msg.index, msg.subindex)
+        if msg.size > MAX_TRANSFER:
+            return self._abort(msg.index, msg.subindex, coe.ABORT_OUT_OF_MEMORY)
+        self._download = _Download(msg.index, msg.subindex, msg.size, bytearray(msg.data))
+        return coe.SdoDownloadResponse(msg.index, msg.subindex)
+
+    def _download_segment(self, msg: coe.SdoDownloadSegment) -> coe.SdoMessage:
+        state = self._download
+        if state is None:
+            return self._abort(0, 0, coe.ABORT_UNKNOWN_COMMAND)
+        if msg.toggle != state.toggle:
+            return self._abort(state.index, state.subindex, coe.ABORT_TOGGLE)
+        state.buffer += msg.data
+        if len(state.buffer) > state.size:
+            return self._abort(state.index, state.subindex, 0x06070012)
+        if not msg.last:
+            state.toggle ^= 1
+            return coe.SdoDownloadSegmentResponse(msg.toggle)
+        self._download = None
+        if len(state.buffer) < state.size:
+            return self._abort(state.index, state.subindex, 0x06070013)
+        failed = self._write(state.index, state.subindex, bytes(state.buffer))
+        return failed or coe.SdoDownloadSegmentResponse(msg.toggle)
+
+    # --- SDO information --------------------------------------------------------------------
+
+    def _info(self, payload: bytes) -> list[coe.SdoInfo]:
+        try:
+            frame = coe.decode_sdo_info(payload)
+            request = coe.unpack_info(frame)
+        except CoeError:
+            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND))]
+        access = self.access
+        if not isinstance(access, ObjectInfoAccess):
+            return [coe.pack_info(coe.SdoInfoError(0x08000023))]
+        try:
+            answer = self._info_answer(access, request)
+        except SdoAccessError as exc:
+            answer = coe.SdoInfoError(exc.code)
+        except CodecError:
+            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
+        except Exception:
+            log.exception("SDO information request %r failed", request)
+            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
+        room = self.mailbox_size - mbx.HEADER_SIZE - coe.COE_HEADER_SIZE - coe.SDO_INFO_HEADER_SIZE
+        try:
+            return coe.fragment_info(coe.pack_info(answer), room)
+        except CodecError:
+            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_GENERAL))]
+
+    def _info_answer(self, access: ObjectInfoAccess, request: coe.SdoInfoMessage) -> coe.SdoInfoMessage:
+        if isinstance(request, coe.OdListRequest):
+            indices = sorted(int(i) for i in access.object_indices())
+            if request.list_type == 0:
+                counts = [len(indices)] + [len(self._filtered(access, indices, t)) for t in (2, 3, 4, 5)]
+                return coe.OdListResponse(0, tuple(counts))
+            if request.list_type == coe.LIST_ALL:
+                return coe.OdListResponse(1, tuple(indices))
+            if request.list_type in _LIST_FILTER:
+                return coe.OdListResponse(request.list_type, tuple(self._filtered(access, indices, request.list_type)))
+            return coe.SdoInfoError(0x08000000)
+        if isinstance(request, coe.ObjectDescriptionRequest):
+            info = access.object_info(request.index)
+            return coe.ObjectDescription(info.index, info.data_type, info.max_subindex, info.object_code, info.name)
+        if isinstance(request, coe.EntryDescriptionRequest):
+            info = access.object_info(request.index)
+            entry = info.entries.get(request.subindex)
+            if entry is None:
+                raise SdoAccessError(coe.ABORT_NO_SUBINDEX)
+            return coe.EntryDescription(
+                request.index, request.subindex, 0, entry.data_type, entry.bit_length, entry.access, entry.name
+            )
+        # a response opcode sent to the slave
+        return coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND)
+
+    @staticmethod
+    def _filtered(access: ObjectInfoAccess, indices: list[int], list_type: int) -> list[int]:
+        bit = _LIST_FILTER[list_type]
+        out = []
+        for index in indices:
+            try:
+                info = access.object_info(index)
+            except SdoAccessError:
+                continue
+            if any(entry.access & bit for entry in info.entries.values()):
+                out.append(index)
+        return out
