@@ -1,0 +1,482 @@
+"""The simulator's PROFINET face: a PNIO CM responder on UDP in front of ``SimDrive.handle_bmp``.
+
+It answers what a supervisor tool needs from a PROFINET AKD: Connect of a
+Device Access AR (other AR types are refused with the status a real device
+sends), Write/Read record 47 (and 0xB02E) on the configured API/slot/subslot,
+Read Implicit of I&M0, Release, and the AR's activity timeout. A processing
+delay makes the device answer "busy" (0xB5) the way a real parameter manager
+does while it works, so clients must poll. Fault injection drops, duplicates
+or delays every Nth datagram so clients' retransmission and stale-reply
+handling are exercised over a real socket. Requests are recognised by activity
+UUID + sequence number: a repeated request gets the cached reply again and is
+never applied twice.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import os
+import select
+import socket
+import threading
+import time
+import uuid
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import click
+
+from akdctl.errors import UsageError
+from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol.errors import CodecError
+
+DEFAULT_ADDRESS = "127.0.0.1:34964"
+MAX_RECORD = 240
+MAX_ARS = 4
+REPLY_CACHE = 512
+
+
+class BmpHandler(Protocol):
+    def handle_bmp(self, request: bytes) -> bytes: ...
+
+
+# ---------------------------------------------------------------- options
+
+@dataclass(frozen=True)
+class Injection:
+    """Every ``drop``-th, ``dup``-th, ``delay``-th datagram the face sends is lost,
+    sent twice, or sent ``delay_s`` late; every ``rxdrop``-th datagram received is ignored."""
+
+    drop: int = 0
+    dup: int = 0
+    delay: int = 0
+    delay_s: float = 0.0
+    rxdrop: int = 0
+
+    @classmethod
+    def parse(cls, text: str | None) -> "Injection":
+        if not text:
+            return cls()
+        values: dict[str, Any] = {}
+        for item in text.split(","):
+            key, sep, value = item.strip().partition("=")
+            try:
+                if key in ("drop", "dup", "rxdrop") and sep:
+                    values[key] = int(value)
+                elif key == "delay" and sep:
+                    every, _, seconds = value.partition(":")
+                    values["delay"], values["delay_s"] = int(every), float(seconds or "0.5")
+                else:
+                    raise ValueError(item)
+            except ValueError:
+                raise UsageError(
+                    f"--pn-inject {text!r}: expected drop=N,dup=N,delay=N:SECONDS,rxdrop=N (every Nth datagram)"
+                ) from None
+        result = cls(**values)
+        if min(result.drop, result.dup, result.delay, result.rxdrop) < 0 or result.delay_s < 0:
+            raise UsageError(f"--pn-inject {text!r}: counts and seconds must not be negative")
+        return result
+
+
+def parse_address(text: str, default_port: int = pnio.PNIO_PORT) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host, port = text, str(default_port)
+    try:
+        number = int(port)
+        if not 0 <= number <= 65535:
+            raise ValueError
+    except ValueError:
+        raise UsageError(f"--profinet {text!r}: expected HOST:PORT, e.g. 127.0.0.1:34964") from None
+    return host.strip("[]") or "127.0.0.1", number
+
+
+def click_options() -> list[click.Option]:
+    return [
+        click.Option(["--profinet"], is_flag=False, flag_value=DEFAULT_ADDRESS, default=None, metavar="[ADDR]",
+                     help=f"Serve the drive over PROFINET record data (PNIO RPC on UDP), default {DEFAULT_ADDRESS}."),
+        click.Option(["--pn-delay"], type=float, default=0.0, show_default=True, metavar="SECONDS",
+                     help="Parameter manager processing time; reads answer 'busy' (0xB5) until it has passed."),
+        click.Option(["--pn-inject"], default=None, metavar="SPEC",
+                     help="Fault injection: drop=N,dup=N,delay=N:SECONDS,rxdrop=N acts on every Nth datagram."),
+        click.Option(["--pn-slot"], type=int, default=1, show_default=True, help="Slot of the parameter channel."),
+        click.Option(["--pn-subslot"], type=int, default=1, show_default=True,
+                     help="Subslot of the parameter channel."),
+        click.Option(["--pn-api"], type=str, default="0x3A00", show_default=True, help="API of the parameter channel."),
+        click.Option(["--pn-fragment"], type=int, default=0, metavar="BYTES",
+                     help="Split response bodies into DCE/RPC fragments of this many bytes (0: only when needed)."),
+        click.Option(["--pn-refuse-ar"], is_flag=True, default=False,
+                     help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
+        click.Option(["--pn-station"], default="akd-sim", show_default=True,
+                     help="PROFINET station name (NameOfStation) the simulated device reports."),
+        click.Option(["--dcp"], "dcp_iface", default=None, metavar="IFNAME",
+                     help="Also answer DCP identify/set/signal on this interface (raw socket, needs root)."),
+    ]
+
+
+def from_options(drive: Any, **kwargs: Any) -> "ProfinetFace | None":
+    address = kwargs.get("profinet")
+    if address is None:
+        return None
+    host, port = parse_address(address)
+    try:
+        api = int(str(kwargs.get("pn_api") or "0x3A00"), 0)
+    except ValueError:
+        raise UsageError(f"--pn-api {kwargs.get('pn_api')!r} is not a number") from None
+    return ProfinetFace(
+        drive, host, port,
+        delay=float(kwargs.get("pn_delay") or 0.0),
+        injection=Injection.parse(kwargs.get("pn_inject")),
+        slot=int(kwargs.get("pn_slot", 1)), subslot=int(kwargs.get("pn_subslot", 1)), api=api,
+        fragment=int(kwargs.get("pn_fragment") or 0), refuse_ar=bool(kwargs.get("pn_refuse_ar")),
+        station_name=str(kwargs.get("pn_station") or "akd-sim"), dcp_iface=kwargs.get("dcp_iface"),
+    )
+
+
+# ---------------------------------------------------------------- AR state
+
+@dataclass
+class _AR:
+    ar_uuid: uuid.UUID
+    session_key: int
+    timeout: float
+    peer: tuple[str, int]
+    last_activity: float
+    # the parameter manager's one response slot: (ready at monotonic time, response bytes)
+    pending: tuple[float, bytes] | None = None
+
+
+@dataclass
+class FaceStats:
+    received: int = 0
+    sent: int = 0
+    dropped: int = 0
+    duplicated: int = 0
+    delayed: int = 0
+    replayed: int = 0          # requests answered again from the cache
+    bmp_requests: int = 0      # requests handed to the parameter manager (each at most once)
+    busy_answers: int = 0      # reads/writes answered 0xB5 while the parameter manager worked
+    ars_timed_out: int = 0
+    log: list[str] = field(default_factory=list)
+
+
+def _read_identity(drive: BmpHandler) -> tuple[int, int]:
+    """Vendor and device ID from the drive's own PNU 964, so every face reports one identity."""
+    request = bytes.fromhex("01 01 00 01 10 02 03 C4 00 00")   # read PNU 964[0..1]
+    try:
+        response = drive.handle_bmp(request)
+        if len(response) >= 10 and response[1] == 0x01 and response[4] in (0x06, 0x42) and response[5] >= 2:
+            return int.from_bytes(response[6:8], "big"), int.from_bytes(response[8:10], "big")
+    except Exception:  # noqa: BLE001 - any failure of the simulated model falls back to defaults
+        pass
+    return 0x0100, 0x0001
+
+
+class ProfinetFace:
+    """PNIO CM responder (device side) on one UDP socket, run by one thread."""
+
+    def __init__(self, drive: BmpHandler, host: str = "127.0.0.1", port: int = pnio.PNIO_PORT, *,
+                 delay: float = 0.0, injection: Injection | None = None, slot: int = 1, subslot: int = 1,
+                 api: int = pnio.API_PROFIDRIVE, fragment: int = 0, refuse_ar: bool = False,
+                 station_name: str = "akd-sim", dcp_iface: str | None = None,
+                 mac: bytes = b"\x02\x00\x00\x00\xAD\x01") -> None:
+        self.drive = drive
+        self.host, self.port = host, port
+        self.delay = max(0.0, delay)
+        self.injection = injection or Injection()
+        self.slot, self.subslot, self.api = slot, subslot, api
+        self.fragment = fragment
+        self.refuse_ar = refuse_ar
+        self.station_name = station_name
+        self.dcp_iface = dcp_iface
+        self.mac = mac
+        self.stats = FaceStats()
+        self.vendor_id, self.device_id = 0x0100, 0x0001
+        self.boot_time = int(time.time()) & 0xFFFFFFFF
+        self._ars: dict[uuid.UUID, _AR] = {}
+        self._cache: OrderedDict[tuple[uuid.UUID, int], list[bytes]] = OrderedDict()
+        self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
+        self._tie = itertools.count()
+        self._tx_count = 0
+        self._rx_count = 0
+        self._sock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._wake_r, self._wake_w = -1, -1
+        self._dcp: Any = None
+
+    # ------------------------------------------------------------- lifecycle
+    def start(self) -> None:
+        self.vendor_id, self.device_id = _read_identity(self.drive)
+        family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.bind((self.host, self.port))
+        except OSError as exc:
+            sock.close()
+            raise UsageError(f"--profinet {self.host}:{self.port}: cannot listen there ({exc.strerror})") from None
+        self._sock = sock
+        self.port = sock.getsockname()[1]
+        self._wake_r, self._wake_w = os.pipe()
+        self._thread = threading.Thread(target=self._run, name="pn-face", daemon=True)
+        self._thread.start()
+        if self.dcp_iface:
+            from akdctl.sim.dcp_responder import DcpResponder
+
+            self._dcp = DcpResponder(self, self.dcp_iface)
+            self._dcp.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._wake_w >= 0:
+            os.write(self._wake_w, b"x")
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+            self._thread = None
+        if self._dcp is not None:
+            self._dcp.stop()
+            self._dcp = None
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+        for fd in (self._wake_r, self._wake_w):
+            if fd >= 0:
+                os.close(fd)
+        self._wake_r = self._wake_w = -1
+
+    def describe(self) -> str:
+        text = f"profinet udp {self.host}:{self.port}"
+        if self.dcp_iface:
+            text += f" (dcp on {self.dcp_iface})"
+        return text
+
+    # ------------------------------------------------------------- loop
+    def _run(self) -> None:
+        assert self._sock is not None
+        while not self._stop.is_set():
+            now = time.monotonic()
+            wait = 0.2
+            if self._scheduled:
+                wait = max(0.0, min(wait, self._scheduled[0][0] - now))
+            ready, _, _ = select.select([self._sock, self._wake_r], [], [], wait)
+            if self._stop.is_set():
+                break
+            self._send_due()
+            self._expire_ars()
+            if self._sock in ready:
+                try:
+                    data, peer = self._sock.recvfrom(65535)
+                except OSError:
+                    continue
+                self._datagram(data, peer[:2])
+
+    def _send_due(self) -> None:
+        now = time.monotonic()
+        while self._scheduled and self._scheduled[0][0] <= now:
+            _, _, data, peer = heapq.heappop(self._scheduled)
+            self._raw_send(data, peer)
+
+    def _expire_ars(self) -> None:
+        now = time.monotonic()
+        for key, ar in list(self._ars.items()):
+            if now - ar.last_activity > ar.timeout:
+                del self._ars[key]
+                self.stats.ars_timed_out += 1
+
+    def _raw_send(self, data: bytes, peer: tuple[str, int]) -> None:
+        if self._sock is None:
+            return
+        try:
+            self._sock.sendto(data, peer)
+            self.stats.sent += 1
+        except OSError:
+            pass
+
+    def _send(self, data: bytes, peer: tuple[str, int]) -> None:
+        """Send one datagram through the fault injector."""
+        self._tx_count += 1
+        n, inj = self._tx_count, self.injection
+        if inj.drop and n % inj.drop == 0:
+            self.stats.dropped += 1
+            return
+        if inj.delay and n % inj.delay == 0:
+            self.stats.delayed += 1
+            heapq.heappush(self._scheduled, (time.monotonic() + inj.delay_s, next(self._tie), data, peer))
+            return
+        self._raw_send(data, peer)
+        if inj.dup and n % inj.dup == 0:
+            self.stats.duplicated += 1
+            self._raw_send(data, peer)
+
+    # ------------------------------------------------------------- requests
+    def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
+        self.stats.received += 1
+        self._rx_count += 1
+        if self.injection.rxdrop and self._rx_count % self.injection.rxdrop == 0:
+            self.stats.dropped += 1
+            return
+        try:
+            packet = dcerpc.decode_packet(data)
+        except CodecError:
+            return      # not DCE/RPC: a real device ignores it too
+        head = packet.header
+        key = (head.activity_uuid, head.sequence)
+        if head.ptype == dcerpc.PT_PING:
+            cached = self._cache.get(key)
+            if cached:
+                for frame in cached:
+                    self._send(frame, peer)
+            else:
+                self._send(dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_NOCALL)), peer)
+            return
+        if head.ptype != dcerpc.PT_REQUEST:
+            return      # acks, facks, stray responses
+        cached = self._cache.get(key)
+        if cached is not None:
+            self.stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return
+        if head.is_fragment:
+            self._send(dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_REJECT), _nca(0x1C010003, head)), peer)
+            return      # our requests are small; fragmented requests are not needed by any client we serve
+        if head.interface_uuid != pnio.DEVICE_INTERFACE:
+            frames = [dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_REJECT), _nca(0x1C010003, head))]
+        else:
+            try:
+                status, blocks = self._call(head, packet.body, peer)
+            except CodecError:
+                status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+            body = pnio.encode_response_args(status, blocks, little=head.little_endian)
+            reply = self._reply_header(head, dcerpc.PT_RESPONSE)
+            frames = (dcerpc.fragment_body(reply, body, self.fragment) if self.fragment
+                      else [dcerpc.encode_packet(reply, body)])
+        self._cache[key] = frames
+        while len(self._cache) > REPLY_CACHE:
+            self._cache.popitem(last=False)
+        for frame in frames:
+            self._send(frame, peer)
+
+    def _reply_header(self, head: dcerpc.RpcHeader, ptype: int) -> dcerpc.RpcHeader:
+        return replace(head, ptype=ptype, flags1=dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0,
+                       flags2=0, server_boot=self.boot_time, fragment=0, body_length=0)
+
+    def _call(self, head: dcerpc.RpcHeader, body: bytes, peer: tuple[str, int]) -> tuple[pnio.PnioStatus, bytes]:
+        _args_max, blocks = pnio.decode_request_args(body, head.little_endian)
+        if head.opnum == pnio.OP_CONNECT:
+            return self._connect(blocks, peer)
+        if head.opnum == pnio.OP_RELEASE:
+            return self._release(blocks)
+        if head.opnum == pnio.OP_WRITE:
+            return self._write(pnio.IODWriteReq.decode(blocks))
+        if head.opnum in (pnio.OP_READ, pnio.OP_READ_IMPLICIT):
+            return self._read(pnio.IODReadReq.decode(blocks), implicit=head.opnum == pnio.OP_READ_IMPLICIT)
+        return pnio.PnioStatus(0x81, 0x81, 0x3C, 0x00), b""       # unknown opnum
+
+    def _connect(self, blocks: bytes, peer: tuple[str, int]) -> tuple[pnio.PnioStatus, bytes]:
+        found = pnio.split_blocks(blocks)
+        ar_blocks = [b for b in found if b.type == pnio.BT_AR_REQ]
+        if len(ar_blocks) != 1:
+            return pnio.PnioStatus(0xDB, 0x81, 0x40, 0x00), b""
+        req = pnio.ARBlockReq.from_block(ar_blocks[0])
+        if self.refuse_ar or req.ar_type != pnio.AR_TYPE_IOSAR or len(found) != 1:
+            return pnio.PnioStatus(*pnio.AR_TYPE_REFUSED), b""
+        if not req.device_access or not req.properties & pnio.AR_PROP_STATE_ACTIVE:
+            return pnio.PnioStatus(*pnio.AR_PROPERTIES_REFUSED), b""
+        if not 1 <= req.timeout_factor <= 1000:
+            return pnio.PnioStatus(0xDB, 0x81, 0x01, 0x0A), b""
+        if req.ar_uuid not in self._ars and len(self._ars) >= MAX_ARS:
+            return pnio.PnioStatus(0xDB, 0x81, 0x3E, 0x00), b""       # out of AR resources
+        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, req.timeout_factor * 0.1, peer, time.monotonic())
+        res = pnio.ARBlockRes(req.ar_type, req.ar_uuid, req.session_key, self.mac)
+        return pnio.OK, res.encode()
+
+    def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
+        rel = pnio.ReleaseBlock.decode(blocks)
+        ar = self._ars.get(rel.ar_uuid)
+        if ar is None or ar.session_key != rel.session_key:
+            return pnio.PnioStatus(0xDC, 0x81, 0x3D, 0x00), b""        # CM state conflict: no such AR
+        del self._ars[rel.ar_uuid]
+        return pnio.OK, replace(rel, command=pnio.CONTROL_DONE, response=True).encode()
+
+    def _address_error(self, addr: pnio.RecordAddress, write: bool) -> pnio.PnioStatus | None:
+        if addr.index in (pnio.INDEX_IM0, pnio.INDEX_KEEPALIVE) and not write:
+            return None
+        if addr.api != self.api:
+            return pnio.rw_error(write, 0xB4)
+        if addr.slot != self.slot or addr.subslot != self.subslot:
+            return pnio.rw_error(write, 0xB2)
+        if addr.index not in (pnio.INDEX_PROFIDRIVE, pnio.INDEX_PROFIDRIVE_ALT):
+            return pnio.rw_error(write, 0xB0)
+        return None
+
+    def _ar_for(self, ar_uuid: uuid.UUID) -> _AR | None:
+        ar = self._ars.get(ar_uuid)
+        if ar is not None:
+            ar.last_activity = time.monotonic()
+        return ar
+
+    def _write(self, req: pnio.IODWriteReq) -> tuple[pnio.PnioStatus, bytes]:
+        def answer(status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
+            res = pnio.IODWriteRes(req.seq_number, req.ar_uuid, req.address, len(req.data), status)
+            return status, res.encode()
+
+        ar = self._ar_for(req.ar_uuid)
+        if ar is None:
+            return answer(pnio.rw_error(True, 0xB6))                  # no such AR: access denied
+        error = self._address_error(req.address, write=True)
+        if error is not None:
+            return answer(error)
+        if not 0 < len(req.data) <= MAX_RECORD:
+            return answer(pnio.rw_error(True, 0xB1))
+        now = time.monotonic()
+        if ar.pending is not None and ar.pending[0] > now:
+            self.stats.busy_answers += 1
+            return answer(pnio.rw_error(True, 0xB5))                  # still working on the last request
+        self.stats.bmp_requests += 1
+        response = self.drive.handle_bmp(req.data)
+        ar.pending = (now + self.delay, response)
+        return answer(pnio.OK)
+
+    def _read(self, req: pnio.IODReadReq, implicit: bool) -> tuple[pnio.PnioStatus, bytes]:
+        def answer(data: bytes = b"", status: pnio.PnioStatus = pnio.OK) -> tuple[pnio.PnioStatus, bytes]:
+            res = pnio.IODReadRes(req.seq_number, req.ar_uuid, req.address, data)
+            return status, res.encode() if status.ok else b""
+
+        if req.address.index == pnio.INDEX_IM0:
+            if req.address.slot not in (0, self.slot):
+                return answer(status=pnio.rw_error(False, 0xB2))
+            if not implicit and self._ar_for(req.ar_uuid) is None:
+                return answer(status=pnio.rw_error(False, 0xB6))
+            return answer(self.im0().encode()[: max(0, req.max_length)])
+        if implicit:
+            # the parameter channel lives in the AR: Read Implicit cannot reach it
+            return answer(status=pnio.rw_error(False, 0xB6))
+        ar = self._ar_for(req.ar_uuid)
+        if ar is None:
+            return answer(status=pnio.rw_error(False, 0xB6))
+        if req.address.index == pnio.INDEX_KEEPALIVE:
+            return answer(b"")
+        error = self._address_error(req.address, write=False)
+        if error is not None:
+            return answer(status=error)
+        if ar.pending is None:
+            return answer(status=pnio.rw_error(False, 0xA0))          # nothing was asked: read error
+        ready_at, response = ar.pending
+        if ready_at > time.monotonic():
+            self.stats.busy_answers += 1
+            return answer(status=pnio.rw_error(False, 0xB5))          # busy: come back later
+        ar.pending = None
+        return answer(response[: max(0, req.max_length)])
+
+    def im0(self) -> pnio.IM0:
+        return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
+                        hardware_revision=4, sw_revision=("V", 1, 13, 0), revision_counter=0,
+                        profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)
+
+
+def _nca(status: int, head: dcerpc.RpcHeader) -> bytes:
+    """A reject body: one NCA status code in the sender's byte order."""
+    return status.to_bytes(4, "little" if head.little_endian else "big")

@@ -1,0 +1,407 @@
+"""``pn://HOST[:34964]``: PROFIdrive parameters over PROFINET record data (PNIO DCE/RPC on UDP).
+
+A supervisor tool needs no PLC configuration: it connects a *Device Access
+AR* (AR type 0x0006, DeviceAccess property), writes the PROFIdrive request to
+record 47 and reads the response from record 47, polling while the device
+answers "busy". The DCE/RPC client is ours, on a plain UDP socket, so that
+every failure can be reported in words and every wait is bounded:
+
+* a lost datagram is retransmitted with the same activity UUID and sequence
+  number (the device recognises the repeat and answers from its cache);
+* a reply is accepted only for our activity and the current sequence number,
+  so duplicated or late replies of an earlier call are dropped;
+* fragmented responses are reassembled;
+* an idle AR is kept alive by harmless reads (index 0xFBFF) before the device's
+  activity timeout ends it, and the AR is released on every way out.
+
+Query parameters: ``slot`` (1), ``subslot`` (1), ``api`` (0x3A00), ``index``
+(47), ``axis`` (0, the PROFIdrive DO), ``vendor``/``device`` (the PNIO object
+UUID's IDs), ``instance`` (1), ``ar_timeout`` (AR activity timeout factor in
+100 ms, default 100), ``iface`` (to resolve a station name through DCP).
+"""
+
+from __future__ import annotations
+
+import errno
+import ipaddress
+import socket
+import threading
+import time
+import uuid
+from typing import TYPE_CHECKING
+
+from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UsageError
+from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol.errors import CodecError
+from akdctl.transport.base import LinkOptions, RecordLink, Transport
+
+if TYPE_CHECKING:
+    from akdctl.transport.target import Target
+
+DEFAULT_VENDOR_ID = 0x0100       # the simulator's PNU 964[0]; a real AKD is addressed by its own IDs
+DEFAULT_DEVICE_ID = 0x0001
+MAX_RECORD = 240
+BUSY_BACKOFF = (0.01, 0.1)       # first and longest pause between polls of a busy device
+NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C010002: "operation out of range",
+             0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
+
+
+class RpcClient:
+    """DCE/RPC CL calls to one PNIO device: one activity, sequence numbers, retransmission."""
+
+    def __init__(self, host: str, port: int, options: LinkOptions, object_uuid: uuid.UUID, label: str) -> None:
+        self.options = options
+        self.object_uuid = object_uuid
+        self.label = label
+        self.activity = uuid.uuid4()
+        self.sequence = 0
+        self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
+        self.retransmissions = 0
+        try:
+            infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+        except (socket.gaierror, UnicodeError) as exc:
+            raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
+        family, _, _, _, address = infos[0]
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            self.sock.connect(address)
+        except OSError as exc:
+            self.sock.close()
+            raise CommError(f"{label}: cannot reach {host}:{port} ({exc.strerror})") from None
+        self.remote = address[:2]
+        self.local = self.sock.getsockname()[:2]
+
+    def close(self) -> None:
+        self.sock.close()
+
+    def _trace(self, direction: str, data: bytes, note: str) -> None:
+        src, dst = (self.local, self.remote) if direction == "tx" else (self.remote, self.local)
+        self.options.tracer.frame(direction, "pnio-rpc", data, note=note,  # type: ignore[arg-type]
+                                  meta={"proto": "udp", "src": src, "dst": dst})
+
+    def call(self, opnum: int, blocks: bytes, timeout: float | None = None) -> tuple[pnio.PnioStatus, bytes]:
+        """One PNIO call; returns the response's PNIOStatus and blocks. Raises NoAnswer / MalformedReply."""
+        total = self.options.timeout if timeout is None else timeout
+        self.sequence = (self.sequence + 1) & 0xFFFFFFFF
+        header = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=self.object_uuid,
+                                  interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=self.activity,
+                                  sequence=self.sequence, opnum=opnum, flags1=dcerpc.FLAG_IDEMPOTENT)
+        datagram = dcerpc.encode_packet(header, pnio.encode_request_args(blocks))
+        name = pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
+        interval = max(0.05, total / (max(0, self.options.retries) + 1))
+        deadline = time.monotonic() + total
+        reassembler = dcerpc.Reassembler()
+        sent = 0
+        refused = False
+        while True:
+            now = time.monotonic()
+            if now >= deadline:
+                hint = " (the host reports that nothing listens on that UDP port)" if refused else ""
+                raise NoAnswer(f"{self.label}: no answer to PNIO {name} within {total:g} s "
+                               f"({sent} datagram{'s' if sent != 1 else ''} sent){hint}")
+            self._trace("tx", datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""))
+            try:
+                self.sock.send(datagram)
+            except OSError as exc:
+                if exc.errno not in (errno.ECONNREFUSED, errno.EHOSTUNREACH, errno.ENETUNREACH):
+                    raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
+                refused = refused or exc.errno == errno.ECONNREFUSED
+            if sent:
+                self.retransmissions += 1
+            sent += 1
+            resend_at = min(deadline, time.monotonic() + interval)
+            while True:
+                wait = resend_at - time.monotonic()
+                if wait <= 0:
+                    break
+                self.sock.settimeout(wait)
+                try:
+                    data = self.sock.recv(65535)
+                except socket.timeout:
+                    break
+                except ConnectionRefusedError:
+                    refused = True
+                    continue
+                except OSError as exc:
+                    raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
+                result = self._accept(data, name, reassembler)
+                if result is not None:
+                    return result
+
+    def _accept(self, data: bytes, name: str,
+                reassembler: dcerpc.Reassembler) -> tuple[pnio.PnioStatus, bytes] | None:
+        try:
+            packet = dcerpc.decode_packet(data)
+        except CodecError as exc:
+            self._trace("rx", data, f"ignored: {exc}")
+            return None
+        head = packet.header
+        if head.activity_uuid != self.activity or head.sequence != self.sequence:
+            self.stale += 1
+            self._trace("rx", data, f"ignored stale/duplicate {head.type_name} seq {head.sequence}")
+            return None
+        self._trace("rx", data, f"{name} {head.type_name} seq {head.sequence}"
+                    + (f" fragment {head.fragment}" if head.is_fragment else ""))
+        if head.ptype in (dcerpc.PT_WORKING, dcerpc.PT_NOCALL, dcerpc.PT_FACK, dcerpc.PT_PING):
+            return None
+        if head.ptype in (dcerpc.PT_REJECT, dcerpc.PT_FAULT):
+            code = int.from_bytes(packet.body[:4], "little" if head.little_endian else "big") if len(packet.body) >= 4 else 0
+            text = NCA_TEXTS.get(code, f"status 0x{code:08X}")
+            raise MalformedReply(f"{self.label}: the device {head.type_name}s the PNIO {name} call: {text}", code=code)
+        if head.ptype != dcerpc.PT_RESPONSE:
+            return None
+        try:
+            body = reassembler.add(packet)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: bad fragment in the {name} response: {exc}") from None
+        if body is None:
+            return None
+        try:
+            return pnio.decode_response_args(body, head.little_endian)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: malformed {name} response: {exc}") from None
+
+
+class PnioRecordLink(RecordLink):
+    """PROFIdrive request bytes through write record + read record in one Device Access AR."""
+
+    max_record = MAX_RECORD
+
+    def __init__(self, transport: "ProfinetTransport") -> None:
+        self.t = transport
+
+    def exchange(self, request: bytes) -> bytes:
+        t = self.t
+        if len(request) > MAX_RECORD:
+            raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
+                             f"of {MAX_RECORD} bytes")
+        t.options.tracer.frame("tx", "bmp", request, note=t.address.describe())
+        with t.lock:
+            deadline = time.monotonic() + t.options.timeout
+            self._until_not_busy(deadline, lambda: t.write_record(request), "write")
+            response = self._until_not_busy(deadline, t.read_record, "read")
+        t.options.tracer.frame("rx", "bmp", response, note=t.address.describe())
+        return response
+
+    def _until_not_busy(self, deadline: float, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
+        pause = BUSY_BACKOFF[0]
+        while True:
+            status, data = action()
+            if not status.busy:
+                return data
+            if time.monotonic() + pause > deadline:
+                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {self.t.options.timeout:g} s "
+                               f"({what} record: {status.describe()})", code=status.value)
+            time.sleep(pause)
+            pause = min(BUSY_BACKOFF[1], pause * 2)
+
+
+class ProfinetTransport(Transport):
+    """``pn://HOST``: one Device Access AR to one PROFINET AKD."""
+
+    scheme = "pn"
+
+    def __init__(self, target: "Target", options: LinkOptions) -> None:
+        super().__init__(target, options)
+        q = target.query_int
+        self.address = pnio.RecordAddress(api=q("api", pnio.API_PROFIDRIVE), slot=q("slot", 1),
+                                          subslot=q("subslot", 1), index=q("index", pnio.INDEX_PROFIDRIVE))
+        self.axis = q("axis", 0)
+        self.vendor_id = q("vendor", DEFAULT_VENDOR_ID)
+        self.device_id = q("device", DEFAULT_DEVICE_ID)
+        self.instance = q("instance", 1)
+        self.timeout_factor = q("ar_timeout", 100)
+        for name, value, low, high in (("slot", self.address.slot, 0, 0x7FFF), ("subslot", self.address.subslot, 0, 0xFFFF),
+                                       ("api", self.address.api, 0, 0xFFFFFFFF), ("index", self.address.index, 0, 0xFFFF),
+                                       ("axis", self.axis, 0, 254), ("vendor", self.vendor_id, 0, 0xFFFF),
+                                       ("device", self.device_id, 0, 0xFFFF), ("instance", self.instance, 0, 0xFFFF),
+                                       ("ar_timeout", self.timeout_factor, 1, 1000)):
+            if not low <= value <= high:
+                raise UsageError(f"target {target.raw!r}: {name}={value} is outside {low}..{high}")
+        self.label = target.display
+        self.lock = threading.RLock()
+        self.rpc: RpcClient | None = None
+        self.ar_uuid: uuid.UUID | None = None
+        self.session_key = 1
+        self._rw_seq = 0
+        self._last_activity = 0.0
+        self._keepalive: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.record_link: PnioRecordLink | None = None
+
+    # ------------------------------------------------------------- connection
+    def _host(self) -> str:
+        host = self.target.host
+        try:
+            ipaddress.ip_address(host)
+            return host
+        except ValueError:
+            pass
+        iface = self.target.query.get("iface")
+        if iface:
+            from akdctl.transport.dcp import resolve_station
+
+            return resolve_station(host, iface, timeout=self.options.timeout)
+        return host
+
+    def _client(self) -> RpcClient:
+        if self.rpc is None:
+            obj = pnio.object_uuid(self.vendor_id, self.device_id, self.instance)
+            self.rpc = RpcClient(self._host(), self.target.port or pnio.PNIO_PORT, self.options, obj, self.label)
+        return self.rpc
+
+    def open(self) -> None:
+        try:
+            self.connect()
+            from akdctl.channels.bmp import BmpParameterChannel
+
+            self.record_link = PnioRecordLink(self)
+            self.parameters = BmpParameterChannel(self.record_link, axis=self.axis, tracer=self.options.tracer)
+        except BaseException:
+            self.close()
+            raise
+
+    def connect(self) -> None:
+        """Establish the Device Access AR."""
+        rpc = self._client()
+        ar_uuid = uuid.uuid4()
+        name = b"akdctl-" + socket.gethostname().encode("ascii", "replace")[:32].lower().replace(b"_", b"-")
+        req = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar_uuid, self.session_key, _local_mac(),
+                              pnio.object_uuid(0, 0, 0), pnio.DEVICE_ACCESS_PROPERTIES, self.timeout_factor,
+                              name.replace(b".", b"-"))
+        with self.lock:
+            status, blocks = rpc.call(pnio.OP_CONNECT, req.encode())
+            if not status.ok:
+                if status.code == 0xDB and status.decode == 0x81 and status.code1 == 0x01 and status.code2 in (4, 9):
+                    raise RecordError(
+                        f"{self.label}: device refuses device-access AR ({status.describe()}); the device does not "
+                        "allow a supervisor/device-access connection, which cannot be changed from akdctl",
+                        code=status.value)
+                raise RecordError(f"{self.label}: device refuses the connection: {status.describe()}",
+                                  code=status.value)
+            try:
+                res = pnio.ARBlockRes.decode(blocks)
+            except CodecError as exc:
+                raise MalformedReply(f"{self.label}: malformed Connect response: {exc}") from None
+            if res.ar_uuid != ar_uuid:
+                raise MalformedReply(f"{self.label}: Connect response names AR {res.ar_uuid}, we asked for {ar_uuid}")
+            self.ar_uuid = ar_uuid
+            self._last_activity = time.monotonic()
+        self._stop.clear()
+        self._keepalive = threading.Thread(target=self._keepalive_loop, name="pn-keepalive", daemon=True)
+        self._keepalive.start()
+
+    def _keepalive_loop(self) -> None:
+        """Read index 0xFBFF whenever the AR has been idle for a third of its activity timeout."""
+        period = self.timeout_factor * 0.1 / 3
+        while not self._stop.wait(min(period / 4, 1.0)):
+            if time.monotonic() - self._last_activity < period:
+                continue
+            if not self.lock.acquire(timeout=0.1):
+                continue
+            try:
+                if self.ar_uuid is not None and not self._stop.is_set():
+                    self._read(pnio.RecordAddress(self.address.api, self.address.slot, self.address.subslot,
+                                                  pnio.INDEX_KEEPALIVE), 0)
+            except (CommError, RecordError, OSError):
+                pass    # the next real request reports the problem in words
+            finally:
+                self.lock.release()
+
+    def close(self) -> None:
+        """Stop the keep-alive and release the AR (best effort, bounded wait); safe to call twice."""
+        self._stop.set()
+        if self._keepalive is not None and self._keepalive is not threading.current_thread():
+            self._keepalive.join(timeout=2)
+        self._keepalive = None
+        rpc, ar = self.rpc, self.ar_uuid
+        self.ar_uuid = None
+        if rpc is not None and ar is not None:
+            try:
+                rpc.call(pnio.OP_RELEASE, pnio.ReleaseBlock(ar, self.session_key).encode(),
+                         timeout=min(self.options.timeout, 1.0))
+            except (CommError, OSError):
+                pass    # the device ends the AR by its activity timeout anyway
+        if rpc is not None:
+            rpc.close()
+        self.rpc = None
+        self.parameters = None
+        self.record_link = None
+
+    # ------------------------------------------------------------- records
+    def _next_rw_seq(self) -> int:
+        self._rw_seq = (self._rw_seq + 1) & 0xFFFF
+        return self._rw_seq
+
+    def _need_ar(self) -> uuid.UUID:
+        if self.ar_uuid is None or self.rpc is None:
+            raise CommError(f"{self.label}: not connected (no application relation)")
+        return self.ar_uuid
+
+    def write_record(self, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
+        """Write ``data`` to the parameter record; returns (status, b'') and raises on refusals other than busy."""
+        ar = self._need_ar()
+        req = pnio.IODWriteReq(self._next_rw_seq(), ar, self.address, data)
+        status, blocks = self._need_rpc().call(pnio.OP_WRITE, req.encode())
+        self._last_activity = time.monotonic()
+        if status.ok and blocks:
+            try:
+                status = pnio.IODWriteRes.decode(blocks).status
+            except CodecError as exc:
+                raise MalformedReply(f"{self.label}: malformed Write response: {exc}") from None
+        if not status.ok and not status.busy:
+            raise RecordError(f"{self.label}: write record {self.address.describe()} refused: {status.describe()}",
+                              code=status.value)
+        return status, b""
+
+    def read_record(self) -> tuple[pnio.PnioStatus, bytes]:
+        return self._read(self.address, MAX_RECORD)
+
+    def _need_rpc(self) -> RpcClient:
+        if self.rpc is None:
+            raise CommError(f"{self.label}: not connected")
+        return self.rpc
+
+    def _read(self, address: pnio.RecordAddress, length: int, implicit: bool = False) -> tuple[pnio.PnioStatus, bytes]:
+        ar = pnio.NIL_UUID if implicit else self._need_ar()
+        req = pnio.IODReadReq(self._next_rw_seq(), ar, address, length)
+        status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ, req.encode())
+        if not implicit:
+            self._last_activity = time.monotonic()
+        if not status.ok:
+            if status.busy:
+                return status, b""
+            raise RecordError(f"{self.label}: read record {address.describe()} refused: {status.describe()}",
+                              code=status.value)
+        try:
+            res = pnio.IODReadRes.decode(blocks)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: malformed Read response: {exc}") from None
+        if res.address.index != address.index or res.seq_number != req.seq_number:
+            raise MalformedReply(f"{self.label}: Read response for index 0x{res.address.index:X} seq "
+                                 f"{res.seq_number}, asked index 0x{address.index:X} seq {req.seq_number}")
+        return status, res.data
+
+    def read_im0(self) -> pnio.IM0:
+        """I&M0 of the device (Read Implicit: works without, and beside, an AR)."""
+        with self.lock:
+            _, data = self._read(pnio.RecordAddress(0, 0, 1, pnio.INDEX_IM0), 0xFFFF, implicit=True)
+        try:
+            return pnio.IM0.decode(data)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: malformed I&M0 record: {exc}") from None
+
+    def describe(self) -> str:
+        return self.label
+
+
+def _local_mac() -> bytes:
+    """Our MAC for the ARBlockReq's CM initiator field (informational; zeros if unknown)."""
+    try:
+        node = uuid.getnode()
+    except Exception:  # noqa: BLE001
+        return bytes(6)
+    return node.to_bytes(6, "big") if not (node >> 40) & 1 else bytes(6)
+
+
+__all__ = ["ProfinetTransport", "PnioRecordLink", "RpcClient"]
