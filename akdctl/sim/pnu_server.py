@@ -1,0 +1,326 @@
+"""The drive side of PROFIdrive base-mode parameter access: request bytes in, response bytes out.
+
+:class:`PnuServer` answers like the AKD's parameter manager (PROFINET manual 3.6,
+PROFIdrive V4.1): it mirrors reference and axis, checks the request in the order
+a device does, and asks a :class:`ParameterAccess` (the drive model) for values.
+Front ends (the simulated record link, the PNIO RPC face) hand it the bytes of
+record 47 and send back what it returns; it never raises.
+
+How a request is refused:
+
+=====================================================  ===================================================
+request                                                answer
+=====================================================  ===================================================
+shorter than the 4-byte header, or longer than 240     ``0x16`` parameter address impermissible, whole
+request ID neither 0x01 nor 0x02                       response ID 0x80, ``0x21`` service not supported
+number of parameters 0                                 ``0x16``
+number of parameters above 39                          ``0x22`` too many parameters
+axis other than the served ones (AKD: 0)               ``0x19`` axis/DO nonexistent
+parameter addresses cut short                          ``0x16``
+change: value block with an unknown format             ``0x17`` illegal format, whole
+change: value blocks cut short / extra bytes;          ``0x18`` number of values inconsistent, whole
+read: any bytes after the addresses
+attribute not 0x10/0x20 (AKD has no texts), elements   ``0x16`` for that parameter
+0 or > 234, subindex 0xFFFF, PNU 0
+change: format 0x40/0x44 or 0x00                       ``0x17`` for that parameter
+change: number of values ≠ number of elements          ``0x18`` for that parameter
+change of a description                                ``0x07`` (additional info: subindex)
+description element beyond 12                          ``0x03`` faulty subindex (additional info: subindex)
+value larger than 234 bytes                            ``0x15`` response too long for that parameter
+whole response larger than 240 bytes                   ``0x15`` for every parameter
+the model raises :class:`PnuAccessError`               its error value and additional info
+the model fails otherwise (a bug)                      ``0x11`` request cannot be executed for that
+                                                       parameter (exception kept in ``last_exception``)
+=====================================================  ===================================================
+
+"Whole" errors answer every parameter with the same error block (header number of
+parameters mirrored when it is 1..39, else 1), so a strict client decodes them;
+with no readable header at all the reply is ``ref 0x80 axis 01 44 01 00 16`` from
+whatever header bytes there were (missing ones read as 0).
+
+Multi-parameter changes are applied in order, one by one, as PROFIdrive devices do:
+a refused parameter does not undo the accepted ones; the response is then 0x82
+with format 0x40 for the accepted parameters and 0x44 for the refused ones.
+A structurally broken change request writes nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from typing import Protocol
+
+from akdctl.protocol.profidrive import (
+    ADDRESS_SIZE,
+    ATTR_DESCRIPTION,
+    ATTR_VALUE,
+    DESCRIPTION_ELEMENTS,
+    ERR_ADDRESS,
+    ERR_AXIS,
+    ERR_DATA_TYPE,
+    ERR_DESCRIPTION_READ_ONLY,
+    ERR_FORMAT,
+    ERR_OPERATING_STATE,
+    ERR_RESPONSE_TOO_LONG,
+    ERR_SERVICE,
+    ERR_SUBINDEX,
+    ERR_TOO_MANY,
+    ERR_VALUE_COUNT,
+    HEADER_SIZE,
+    MAX_BLOCK,
+    MAX_ELEMENTS,
+    MAX_PARAMETERS,
+    MAX_SUBINDEX,
+    REQ_CHANGE,
+    REQ_READ,
+    RESP_CHANGE_NAK,
+    RESP_CHANGE_OK,
+    RESP_NOT_SUPPORTED,
+    RESP_READ_NAK,
+    RESP_READ_OK,
+    BmpError,
+    Format,
+    ParameterAddress,
+    ParameterDescription,
+    ParameterFailure,
+    ParameterResponse,
+    ParameterResult,
+    ParameterValue,
+    decode_address,
+    decode_value_block,
+    description_element,
+    encode_response,
+    encode_value_block,
+    format_size,
+    to_signed,
+    to_unsigned,
+)
+
+
+class PnuAccessError(Exception):
+    """The model refuses one parameter access with a PROFIdrive error value (and optional additional info)."""
+
+    def __init__(self, error: int, additional: int | None = None, message: str = "") -> None:
+        super().__init__(message or f"PROFIdrive error 0x{error:02X}")
+        self.error = error
+        self.additional = additional
+
+
+class ParameterAccess(Protocol):
+    """What :class:`PnuServer` needs from a drive model (``DriveModel`` implements it)."""
+
+    def pnu_read(self, pnu: int, subindex: int, count: int) -> ParameterValue:
+        """``count`` elements from ``subindex``; raises :class:`PnuAccessError`."""
+        ...
+
+    def pnu_write(self, pnu: int, subindex: int, value: ParameterValue) -> None:
+        """Store the elements of ``value`` from ``subindex`` on; raises :class:`PnuAccessError`."""
+        ...
+
+    def pnu_describe(self, pnu: int) -> ParameterDescription:
+        """The parameter's description; raises :class:`PnuAccessError` (0x00 for an unknown PNU)."""
+        ...
+
+
+# (bits, signed) of the integer formats, for format conversion on write.
+_INTEGERS: dict[int, tuple[int, bool]] = {
+    Format.INT8: (8, True), Format.INT16: (16, True), Format.INT32: (32, True), Format.INT64: (64, True),
+    Format.UINT8: (8, False), Format.UINT16: (16, False), Format.UINT32: (32, False), Format.UINT64: (64, False),
+    Format.BYTE: (8, False), Format.WORD: (16, False), Format.DWORD: (32, False),
+    Format.N2: (16, True), Format.X2: (16, True), Format.E2: (16, True),
+    Format.V2: (16, False), Format.L2: (16, False), Format.R2: (16, False), Format.T2: (16, False),
+    Format.D2: (16, False), Format.N4: (32, True), Format.X4: (32, True), Format.C4: (32, True),
+    Format.T4: (32, False),
+}
+_UNTYPED = frozenset({Format.BYTE, Format.WORD, Format.DWORD})
+_FORMATS = frozenset(int(f) for f in Format)
+
+
+def convert_value(value: ParameterValue, data_type: int) -> ParameterValue:
+    """Bring a written value into the parameter's data type, or refuse with 0x05 (incorrect data type).
+
+    PROFIdrive lets a client write a parameter in its own format or as Byte/Word/
+    DWord of the same width (the AKD documents only those three, SPEC-NOTES 5); a
+    model declared with Byte/Word/DWord likewise accepts a typed integer of its
+    width. Bits are kept, signedness follows ``data_type``.
+    """
+    if value.format == data_type:
+        return value
+    source, target = _INTEGERS.get(value.format), _INTEGERS.get(data_type)
+    if (source is not None and target is not None and source[0] == target[0]
+            and (value.format in _UNTYPED or data_type in _UNTYPED)):
+        bits, signed = target
+        converted = tuple(to_signed(int(v), bits) if signed else to_unsigned(int(v), bits)  # type: ignore[arg-type]
+                          for v in value.values)
+        return ParameterValue(data_type, converted)
+    raise PnuAccessError(ERR_DATA_TYPE, message=f"format 0x{value.format:02X} cannot be written to a parameter "
+                                                f"of type 0x{data_type:02X}")
+
+
+class _WholeRequest(Exception):
+    """A refusal of the entire request (header or structure), answered with one error for every parameter."""
+
+    def __init__(self, error: int) -> None:
+        super().__init__(error)
+        self.error = error
+
+
+class PnuServer:
+    """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
+
+    def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,)) -> None:
+        self.access = access
+        self.axes = frozenset(axes)
+        self.last_exception: BaseException | None = None
+
+    # -- entry point -----------------------------------------------------------------------------------------
+
+    def handle(self, request: bytes) -> bytes:
+        """Response bytes for ``request``; never raises."""
+        data = bytes(request)
+        try:
+            return self._handle(data)
+        except _WholeRequest as refusal:
+            return self._refuse(data, refusal.error)
+        except Exception as exc:  # noqa: BLE001 - a model bug must still produce an answer, as a device would
+            self.last_exception = exc
+            return self._refuse(data, ERR_OPERATING_STATE)
+
+    @staticmethod
+    def _refuse(data: bytes, error: int) -> bytes:
+        """One error block for every parameter of the request (see the module table)."""
+        ref = data[0] if len(data) > 0 else 0
+        rid = data[1] if len(data) > 1 else 0
+        axis = data[2] if len(data) > 2 else 0
+        n = data[3] if len(data) > 3 else 0
+        response_id = rid | 0x80 if rid in (REQ_READ, REQ_CHANGE) else RESP_NOT_SUPPORTED
+        count = n if 1 <= n <= MAX_PARAMETERS else 1
+        block = bytes((Format.ERROR, 1, error >> 8 & 0xFF, error & 0xFF))
+        return bytes((ref, response_id, axis, count)) + block * count
+
+    def _handle(self, data: bytes) -> bytes:
+        if not HEADER_SIZE <= len(data) <= MAX_BLOCK:
+            raise _WholeRequest(ERR_ADDRESS)
+        reference, request_id, axis, n = data[0], data[1], data[2], data[3]
+        if request_id not in (REQ_READ, REQ_CHANGE):
+            raise _WholeRequest(ERR_SERVICE)
+        if n == 0:
+            raise _WholeRequest(ERR_ADDRESS)
+        if n > MAX_PARAMETERS:
+            raise _WholeRequest(ERR_TOO_MANY)
+        if axis not in self.axes:
+            raise _WholeRequest(ERR_AXIS)
+        offset = HEADER_SIZE + ADDRESS_SIZE * n
+        if len(data) < offset:
+            raise _WholeRequest(ERR_ADDRESS)
+        addresses = [decode_address(data, HEADER_SIZE + ADDRESS_SIZE * i) for i in range(n)]
+        results: list[ParameterResult]
+        if request_id == REQ_READ:
+            if offset != len(data):
+                raise _WholeRequest(ERR_VALUE_COUNT)
+            results = [self._read_one(a) for a in addresses]
+            negative = any(isinstance(r, ParameterFailure) for r in results)
+            response_id = RESP_READ_NAK if negative else RESP_READ_OK
+        else:
+            blocks = self._value_blocks(data, offset, n)
+            results = [self._change_one(a, b) for a, b in zip(addresses, blocks)]
+            negative = any(r is not None for r in results)
+            response_id = RESP_CHANGE_NAK if negative else RESP_CHANGE_OK
+        try:
+            return encode_response(ParameterResponse(reference, response_id, axis, tuple(results)))
+        except BmpError:  # every block was validated alone: only the total size can be wrong
+            raise _WholeRequest(ERR_RESPONSE_TOO_LONG) from None
+
+    # -- parsing -------------------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _value_blocks(data: bytes, offset: int, n: int) -> list[ParameterResult]:
+        """All value blocks of a change request, or a whole-request refusal if they do not parse."""
+        blocks: list[ParameterResult] = []
+        for _ in range(n):
+            if offset + 2 > len(data):
+                raise _WholeRequest(ERR_VALUE_COUNT)
+            fmt = data[offset]
+            if fmt != 0 and fmt not in _FORMATS:
+                raise _WholeRequest(ERR_FORMAT)
+            try:
+                block, offset = decode_value_block(data, offset)
+            except BmpError:
+                raise _WholeRequest(ERR_VALUE_COUNT) from None
+            blocks.append(block)
+        if offset != len(data):
+            raise _WholeRequest(ERR_VALUE_COUNT)
+        return blocks
+
+    @staticmethod
+    def _address_error(address: ParameterAddress) -> ParameterFailure | None:
+        if (address.attribute not in (ATTR_VALUE, ATTR_DESCRIPTION) or not 1 <= address.count <= MAX_ELEMENTS
+                or address.subindex > MAX_SUBINDEX or address.pnu == 0):
+            return ParameterFailure(ERR_ADDRESS)
+        return None
+
+    # -- one parameter -------------------------------------------------------------------------------------------
+
+    def _read_one(self, address: ParameterAddress) -> ParameterResult:
+        failure = self._address_error(address)
+        if failure is not None:
+            return failure
+        try:
+            if address.attribute == ATTR_DESCRIPTION:
+                return self._describe_one(address)
+            value = self.access.pnu_read(address.pnu, address.subindex, address.count)
+        except PnuAccessError as exc:
+            return ParameterFailure(exc.error, exc.additional)
+        except Exception as exc:  # noqa: BLE001 - a model bug refuses this parameter only
+            self.last_exception = exc
+            return ParameterFailure(ERR_OPERATING_STATE)
+        return self._checked(value, address)
+
+    def _describe_one(self, address: ParameterAddress) -> ParameterResult:
+        if address.subindex != 0 and address.count != 1:
+            return ParameterFailure(ERR_ADDRESS)
+        description = self.access.pnu_describe(address.pnu)
+        if address.subindex != 0 and address.subindex not in DESCRIPTION_ELEMENTS:
+            return ParameterFailure(ERR_SUBINDEX, address.subindex)
+        try:
+            return description_element(description, address.subindex)
+        except BmpError as exc:
+            self.last_exception = exc
+            return ParameterFailure(ERR_OPERATING_STATE)
+
+    def _checked(self, value: object, address: ParameterAddress) -> ParameterResult:
+        """A model's answer, validated so one bad value cannot break the whole response."""
+        if not isinstance(value, ParameterValue):
+            self.last_exception = TypeError(f"pnu_read({address.pnu}) returned {value!r}")
+            return ParameterFailure(ERR_OPERATING_STATE)
+        try:
+            if value.count * format_size(value.format) > MAX_BLOCK - HEADER_SIZE - 2:
+                return ParameterFailure(ERR_RESPONSE_TOO_LONG)
+            encode_value_block(value)
+        except BmpError as exc:
+            self.last_exception = exc
+            return ParameterFailure(ERR_OPERATING_STATE)
+        if value.count != address.count:
+            self.last_exception = ValueError(f"pnu_read({address.pnu}) returned {value.count} values "
+                                             f"for {address.count} elements")
+            return ParameterFailure(ERR_OPERATING_STATE)
+        return value
+
+    def _change_one(self, address: ParameterAddress, block: ParameterResult) -> ParameterFailure | None:
+        failure = self._address_error(address)
+        if failure is not None:
+            return failure
+        try:
+            if address.attribute == ATTR_DESCRIPTION:
+                self.access.pnu_describe(address.pnu)  # an unknown PNU says so first
+                return ParameterFailure(ERR_DESCRIPTION_READ_ONLY, address.subindex)
+            if not isinstance(block, ParameterValue):
+                return ParameterFailure(ERR_FORMAT)
+            if block.count != address.count:
+                return ParameterFailure(ERR_VALUE_COUNT)
+            self.access.pnu_write(address.pnu, address.subindex, block)
+        except PnuAccessError as exc:
+            return ParameterFailure(exc.error, exc.additional)
+        except Exception as exc:  # noqa: BLE001 - a model bug refuses this parameter only
+            self.last_exception = exc
+            return ParameterFailure(ERR_OPERATING_STATE)
+        return None
