@@ -116,7 +116,7 @@ def test_fragmented_responses_reassembled(face_factory) -> None:
     t = transport(face.port)
     try:
         assert t.record_link.exchange(READ_930)[:4] == READ_930[:4]
-        im0 = t.read_im0()
+        im0 = t.read_im0_record()
     finally:
         t.close()
     assert im0.vendor_id == face.vendor_id and im0.order_id.startswith("AKD")
@@ -130,7 +130,7 @@ def test_read_implicit_im0_without_ar(face_factory) -> None:
         im0 = t.read_im0()
     finally:
         t.close()
-    assert im0.profile_id == 0x3A00 and im0.software.startswith("V")
+    assert im0["profile_id"] == "0x3A00" and str(im0["software_revision"]).startswith("V")
 
 
 def test_refused_ar_in_words(face_factory) -> None:

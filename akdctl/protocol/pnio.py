@@ -546,6 +546,16 @@ class IM0:
         p, f, b, i = self.sw_revision
         return f"{p}{f}.{b}.{i}"
 
+    def to_json(self) -> dict[str, object]:
+        """Stable keys for ``akdctl info --json``."""
+        return {
+            "vendor_id": f"0x{self.vendor_id:04X}", "order_id": self.order_id, "serial_number": self.serial_number,
+            "hardware_revision": self.hardware_revision, "software_revision": self.software,
+            "revision_counter": self.revision_counter, "profile_id": f"0x{self.profile_id:04X}",
+            "profile_specific_type": self.profile_specific_type, "im_version": f"{self.im_version[0]}.{self.im_version[1]}",
+            "im_supported": f"0x{self.im_supported:04X}",
+        }
+
 
 def _text(raw: bytes) -> str:
     return raw.decode("latin-1").rstrip(" \0")

@@ -256,7 +256,7 @@ class ProfinetTransport(Transport):
             from akdctl.channels.bmp import BmpParameterChannel
 
             self.record_link = PnioRecordLink(self)
-            self.parameters = BmpParameterChannel(self.record_link, axis=self.axis, tracer=self.options.tracer)
+            self.parameters = BmpParameterChannel(self.record_link, axis=self.axis)  # the link traces BMP itself
         except BaseException:
             self.close()
             raise
@@ -382,7 +382,11 @@ class ProfinetTransport(Transport):
                                  f"{res.seq_number}, asked index 0x{address.index:X} seq {req.seq_number}")
         return status, res.data
 
-    def read_im0(self) -> pnio.IM0:
+    def read_im0(self) -> dict[str, object]:
+        """I&M0 of the device in JSON-friendly form (for ``akdctl info``)."""
+        return self.read_im0_record().to_json()
+
+    def read_im0_record(self) -> pnio.IM0:
         """I&M0 of the device (Read Implicit: works without, and beside, an AR)."""
         with self.lock:
             _, data = self._read(pnio.RecordAddress(0, 0, 1, pnio.INDEX_IM0), 0xFFFF, implicit=True)
