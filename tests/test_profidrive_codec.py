@@ -16,7 +16,6 @@ from akdctl.protocol.profidrive import (
     ATTR_VALUE,
     DESCRIPTION_SIZE,
     ID_ARRAY,
-    ID_READ_ONLY,
     MAX_BLOCK,
     MAX_ELEMENTS,
     MAX_PARAMETERS,
