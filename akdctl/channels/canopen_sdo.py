@@ -150,10 +150,14 @@ class CanopenObjectChannel(ObjectChannel):
                 view = view[sent:]
 
     def _open_block(self, index: int, subindex: int, mode: str, size: int | None = None):  # noqa: ANN202
-        from canopen.sdo.exceptions import SdoCommunicationError
+        from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
         try:
             return self.sdo.open(index, subindex, mode, buffering=0, size=size, block_transfer=True)
+        except SdoAbortedError as exc:
+            if exc.code == 0x05040001:  # "command specifier not valid": the server has no block transfer
+                raise _BlockDeclined() from None
+            raise
         except SdoCommunicationError as exc:
             if "Unexpected response" in str(exc):
                 raise _BlockDeclined() from None

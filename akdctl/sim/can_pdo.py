@@ -41,6 +41,21 @@ class PdoConfig:
         return (sum(bits for _, _, bits in self.entries) + 7) // 8
 
 
+def predefined_cob_id(index: int, subindex: int, data: bytes, node: int) -> bytes:
+    """Show the predefined connection set's COB-ID where the stored PDO COB-ID is 0.
+
+    The catalogue comes from the EtherCAT ESI, which has no COB-IDs; on CAN the
+    drive reports 0x180/0x200 + 0x100*(n-1) + node, as every CiA 301 node does.
+    """
+    if subindex != 1 or len(data) != 4 or not (0x1400 <= index <= 0x1403 or 0x1800 <= index <= 0x1803):
+        return data
+    value = int.from_bytes(data, "little")
+    if value & 0x7FF:
+        return data
+    base = 0x180 if index >= 0x1800 else 0x200
+    return (value | (base + 0x100 * (index & 0x3) + node)).to_bytes(4, "little")
+
+
 def _u(model: Any, index: int, sub: int, default: int = 0) -> int:
     try:
         return int.from_bytes(model.object_read(index, sub), "little")

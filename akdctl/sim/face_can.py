@@ -369,8 +369,10 @@ def _make_node(face: CanFace) -> Any:
             self.nmt = SimNmt(self.id, self)
 
         def get_data(self, index: int, subindex: int, check_readable: bool = False) -> bytes:
+            from akdctl.sim.can_pdo import predefined_cob_id
+
             try:
-                return face.drive.object_read(index, subindex)
+                return predefined_cob_id(index, subindex, face.drive.object_read(index, subindex), self.id)
             except SdoAccessError as exc:
                 raise SdoAbortedError(exc.code) from None
             except AkdError:

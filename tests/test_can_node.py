@@ -1,0 +1,267 @@
+"""The simulator's CANopen node against akdctl's CANopen transport and against canopen's own client classes.
+
+Everything runs in this process on python-can's ``virtual`` interface (one
+channel per test), so these tests are fast; tests/test_can_e2e.py repeats the
+important paths across processes.
+"""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+
+import canopen
+import pytest
+
+from akdctl.errors import MalformedReply, NoAnswer, SdoAborted
+from akdctl.protocol.emcy import Emergency
+from akdctl.sim.drive import SimDrive
+from akdctl.sim.face_can import CanFace, parse_spec
+from akdctl.transport.base import LinkOptions
+from akdctl.transport.canopen_bus import CanopenTransport
+from akdctl.transport.registry import parse_target
+from akdctl.transport.trace import Tracer
+
+NODE = 3
+
+
+@pytest.fixture
+def channel() -> str:
+    return f"akd-{uuid.uuid4().hex[:10]}"
+
+
+@pytest.fixture
+def face(channel: str) -> Iterator[CanFace]:
+    face = CanFace(SimDrive(), parse_spec(f"virtual:{channel}:{NODE}"))
+    face.start()
+    yield face
+    face.stop()
+
+
+def _transport(channel: str, query: str = "", timeout: float = 1.0, node: int = NODE) -> CanopenTransport:
+    target = parse_target(f"can://virtual/{channel}/{node}{query}")
+    transport = CanopenTransport(target, LinkOptions(timeout=timeout, retries=0, tracer=Tracer(enabled=False)))
+    transport.open()
+    return transport
+
+
+@pytest.fixture
+def link(face: CanFace, channel: str) -> Iterator[CanopenTransport]:
+    transport = _transport(channel)
+    yield transport
+    transport.close()
+
+
+def _wait(predicate, timeout: float = 3.0) -> bool:  # noqa: ANN001
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return predicate()
+
+
+# ------------------------------------------------------------------ SDO through akdctl's channel
+def test_expedited_identity(link: CanopenTransport) -> None:
+    assert link.objects.upload(0x1018, 1) == (0x6A).to_bytes(4, "little")  # Kollmorgen vendor id (ESI)
+    assert link.objects.upload(0x1000, 0) == (0x00020192).to_bytes(4, "little")
+
+
+@pytest.mark.parametrize("block", [False, True])
+@pytest.mark.parametrize("size", [1, 4, 5, 7, 8, 14, 20, 32])
+def test_segmented_and_block_round_trip(face: CanFace, channel: str, block: bool, size: int) -> None:
+    transport = _transport(channel, "?block=1" if block else "")
+    try:
+        value = bytes((65 + i % 26) for i in range(size))
+        transport.objects.download(0x2032, 0, value)  # DRV.CUSTOMIDENTIFIER, STRING(32)
+        assert transport.objects.upload(0x2032, 0) == value
+        assert transport.objects.block is block  # the simulator accepts block transfers
+    finally:
+        transport.close()
+
+
+def test_abort_translated_with_code_and_text(link: CanopenTransport) -> None:
+    with pytest.raises(SdoAborted) as info:
+        link.objects.upload(0x7777, 0)
+    assert info.value.code == 0x06020000 and info.value.exit_code == 1
+    assert "0x06020000" in info.value.message and "does not exist" in info.value.message
+    with pytest.raises(SdoAborted) as info:
+        link.objects.download(0x1018, 1, b"\0\0\0\0")
+    assert info.value.code == 0x06010002  # read-only
+
+
+def test_silent_node_is_no_answer(face: CanFace, channel: str) -> None:
+    transport = _transport(channel, timeout=0.2, node=99)
+    try:
+        with pytest.raises(NoAnswer) as info:
+            transport.objects.upload(0x1000, 0)
+        assert info.value.exit_code == 3 and "node 99" in info.value.message
+    finally:
+        transport.close()
+
+
+def test_trace_sees_every_frame(face: CanFace, channel: str) -> None:
+    tracer = Tracer(enabled=False)
+    transport = CanopenTransport(parse_target(f"can://virtual/{channel}/{NODE}"), LinkOptions(timeout=1, retries=0, tracer=tracer))
+    transport.open()
+    try:
+        transport.objects.upload(0x1018, 1)
+    finally:
+        transport.close()
+    sdo = [(r.direction, r.meta["can_id"]) for r in tracer.records if r.meta.get("can_id") in (0x600 + NODE, 0x580 + NODE)]
+    assert sdo == [("tx", 0x603), ("rx", 0x583)]
+
+
+# ------------------------------------------------------------------ NMT, heartbeat, guarding
+def test_nmt_states_by_guarding_and_heartbeat(face: CanFace, link: CanopenTransport) -> None:
+    assert link.nmt_state() == "PRE-OPERATIONAL"  # heartbeat is off (0x1017 = 0): node guarding answers
+    link.nmt("stop")
+    assert link.nmt_state(fresh=True) == "STOPPED"
+    with pytest.raises(NoAnswer):
+        link.objects.upload(0x1018, 1)  # no SDO in STOPPED (CiA 301)
+    link.nmt("start")
+    assert link.nmt_state(fresh=True) == "OPERATIONAL"
+    link.objects.download(0x1017, 0, struct.pack("<H", 50))  # heartbeat producer on
+    beats: list[bytes] = []
+    link.network.subscribe(0x700 + NODE, lambda cid, data, ts: beats.append(bytes(data)))
+    assert _wait(lambda: len(beats) >= 2)
+    assert beats[-1] == b"\x05"
+    link.nmt("reset-comm")
+    assert link.nmt_state(fresh=True) == "PRE-OPERATIONAL"
+    assert _wait(lambda: b"\x00" in beats)  # boot-up message
+
+
+def test_scan_reports_identity(face: CanFace, link: CanopenTransport) -> None:
+    found = link.scan(range(1, 128), wait=0.3)
+    assert [n.node for n in found] == [NODE]
+    info = found[0]
+    assert (info.vendor_id, info.device_type, info.state) == (0x6A, 0x00020192, "PRE-OPERATIONAL")
+
+
+# ------------------------------------------------------------------ EMCY
+def test_emergencies_reach_the_channel(face: CanFace, link: CanopenTransport, monkeypatch: pytest.MonkeyPatch) -> None:
+    pending = [Emergency(0x4310, 0x09, b"\x01\x02\x03\x04\x05"), Emergency(0x0000, 0x00)]
+    lock = threading.Lock()
+
+    def take() -> list[Emergency]:
+        with lock:
+            out, pending[:] = list(pending), []
+        return out
+
+    monkeypatch.setattr(face.drive, "take_emergencies", take)
+    got = link.objects.wait_emergencies(3.0)
+    assert _wait(lambda: len(got) + len(link.objects._emcy) >= 2)
+    got += link.objects.take_emergencies()
+    assert got == [Emergency(0x4310, 0x09, b"\x01\x02\x03\x04\x05"), Emergency(0, 0, bytes(5))]
+    assert got[1].is_reset
+
+
+# ------------------------------------------------------------------ PDOs
+def test_pdos_follow_the_mapping(face: CanFace, link: CanopenTransport) -> None:
+    tpdo: list[bytes] = []
+    link.network.subscribe(0x180 + NODE, lambda cid, data, ts: tpdo.append(bytes(data)))
+    o = link.objects
+    assert o.upload(0x1800, 1) == (0x180 + NODE).to_bytes(4, "little")  # predefined connection set
+    assert int.from_bytes(o.upload(0x1A00, 1), "little") == 0x60410010  # statusword in TPDO1
+    o.download(0x1800, 2, bytes([1]))  # TPDO1 synchronous, every SYNC
+    link.nmt("start")
+    assert link.nmt_state(fresh=True) == "OPERATIONAL"
+    tpdo.clear()
+    for _ in range(3):
+        link.network.send_message(0x080, b"")
+        time.sleep(0.05)
+    assert _wait(lambda: len(tpdo) >= 3)
+    assert all(len(p) == 2 for p in tpdo)
+    # RPDO1 carries the controlword (0x1600:01 = 0x60400010)
+    link.network.send_message(0x200 + NODE, b"\x06\x00")
+    assert _wait(lambda: o.upload(0x6040, 0) == b"\x06\x00")
+    link.network.send_message(0x200 + NODE, b"\x07")  # too short: EMCY 0x8210
+    emcy = o.wait_emergencies(3.0)
+    assert any(e.error_code == 0x8210 for e in emcy)
+
+
+# ------------------------------------------------------------------ canopen's own classes as independent peers
+def _od_from_catalogue(indices: list[int]) -> canopen.ObjectDictionary:
+    """A canopen object dictionary for some AKD objects, typed from akdctl's catalogue."""
+    from canopen.objectdictionary import ODRecord, ODVariable, datatypes as dt
+
+    from akdctl.catalog import objects
+
+    types = {"USINT": dt.UNSIGNED8, "SINT": dt.INTEGER8, "UINT": dt.UNSIGNED16, "INT": dt.INTEGER16,
+             "UDINT": dt.UNSIGNED32, "DINT": dt.INTEGER32, "BOOL": dt.UNSIGNED8}
+    od = canopen.ObjectDictionary()
+    for index in indices:
+        entries = objects.subentries(index)
+        def var(e):  # noqa: ANN001, ANN202
+            v = ODVariable(e.name, e.index, e.subindex)
+            v.data_type = types.get(e.type.split("(")[0].upper(), dt.VISIBLE_STRING)
+            v.access_type = {"ro": "ro", "wo": "wo"}.get(e.access, "rw")
+            return v
+        if len(entries) == 1 and entries[0].subindex == 0:
+            od.add_object(var(entries[0]))
+        else:
+            record = ODRecord(objects.object_name(index) or f"0x{index:04X}", index)
+            for e in entries:
+                record.add_member(var(e))
+            od.add_object(record)
+    return od
+
+
+def _peer_network(channel: str) -> canopen.Network:
+    network = canopen.Network()
+    network.connect(interface="virtual", channel=channel)
+    return network
+
+
+def test_canopen_sdo_client_as_peer(face: CanFace, channel: str) -> None:
+    network = _peer_network(channel)
+    try:
+        node = network.add_node(NODE, canopen.ObjectDictionary())
+        node.sdo.RESPONSE_TIMEOUT = 1.0
+        assert node.sdo.upload(0x1018, 1) == b"\x6a\x00\x00\x00"
+        node.sdo.download(0x2032, 0, b"peer-written-by-canopen")
+        assert node.sdo.upload(0x2032, 0) == b"peer-written-by-canopen"
+        with node.sdo.open(0x2032, 0, "wb", size=20, block_transfer=True) as fp:
+            fp.write(b"block-by-canopen-lib")
+        with node.sdo.open(0x2032, 0, "rb", block_transfer=True) as fp:
+            assert fp.read() == b"block-by-canopen-lib"
+        with pytest.raises(canopen.SdoAbortedError) as info:
+            node.sdo.upload(0x7777, 0)
+        assert info.value.code == 0x06020000
+    finally:
+        network.disconnect()
+
+
+def test_canopen_base_node_402_as_peer(face: CanFace, channel: str) -> None:
+    network = _peer_network(channel)
+    indices = [0x1400, 0x1401, 0x1402, 0x1403, 0x1600, 0x1601, 0x1602, 0x1603,
+               0x1800, 0x1801, 0x1802, 0x1803, 0x1A00, 0x1A01, 0x1A02, 0x1A03,
+               0x6040, 0x6041, 0x6060, 0x6061]
+    try:
+        od = _od_from_catalogue(indices)
+        node = canopen.BaseNode402(NODE, od)
+        network.add_node(node)
+        node.sdo.RESPONSE_TIMEOUT = 1.0
+        node.nmt.state = "PRE-OPERATIONAL"
+        node.setup_402_state_machine(read_pdos=True)  # reads the PDO configuration by SDO
+        assert node.tpdo[1].cob_id == 0x180 + NODE and 0x6041 in node.tpdo_values
+        assert 0x6040 in node.rpdo_pointers
+        statusword = int.from_bytes(face.drive.object_read(0x6041, 0), "little")
+        assert node.sdo[0x6041].raw == statusword
+        assert node.state in canopen.profiles.p402.State402.SW_MASK
+    finally:
+        network.disconnect()
+
+
+def test_malformed_block_reply_is_comm_error(link: CanopenTransport, monkeypatch: pytest.MonkeyPatch) -> None:
+    from canopen.sdo.exceptions import SdoCommunicationError
+
+    def broken(*args: object, **kwargs: object) -> bytes:
+        raise SdoCommunicationError("Toggle bit mismatch")
+
+    monkeypatch.setattr(link.objects.sdo, "upload", broken)
+    with pytest.raises(MalformedReply):
+        link.objects.upload(0x1018, 1)
