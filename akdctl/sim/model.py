@@ -22,8 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog import pnus as pnu_catalog
-from akdctl.sim.pnu_server import PnuAccessError
-from akdctl.sim.sdo_server import SdoAccessError
+from akdctl.sim.errors import PnuAccessError, SdoAccessError
 
 STATE_VERSION = 1
 

@@ -49,6 +49,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Protocol
 
+from akdctl.sim.errors import PnuAccessError  # noqa: F401  (re-exported: servers raise and catch it)
 from akdctl.protocol.profidrive import (
     ADDRESS_SIZE,
     ATTR_DESCRIPTION,
@@ -95,14 +96,6 @@ from akdctl.protocol.profidrive import (
     to_unsigned,
 )
 
-
-class PnuAccessError(Exception):
-    """The model refuses one parameter access with a PROFIdrive error value (and optional additional info)."""
-
-    def __init__(self, error: int, additional: int | None = None, message: str = "") -> None:
-        super().__init__(message or f"PROFIdrive error 0x{error:02X}")
-        self.error = error
-        self.additional = additional
 
 
 class ParameterAccess(Protocol):

@@ -33,18 +33,12 @@ from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeError, CoeService
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
+from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
 
 log = logging.getLogger("akdctl")
 
 MAX_TRANSFER = 1 << 20  # larger announced downloads abort with "out of memory"
 
-
-class SdoAccessError(Exception):
-    """Raised by an ObjectAccess to refuse an access with an SDO abort code."""
-
-    def __init__(self, code: int, message: str = "") -> None:
-        super().__init__(message or coe.abort_text(code))
-        self.code = code
 
 
 class ObjectAccess(Protocol):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections import deque
 
+from akdctl.channels.base import ObjectChannel
 from akdctl.sim.drive import SimDrive
 from akdctl.transport.base import LinkOptions, MailboxLink, RecordLink, Transport
 from akdctl.transport.target import Target
@@ -53,6 +54,42 @@ class SimMailboxLink(MailboxLink):
         return reply
 
 
+class _LazyCoeChannel(ObjectChannel):
+    """The CoE SDO client, built on first use so PNU-only commands never import the CoE codecs."""
+
+    def __init__(self, link: SimMailboxLink, options: LinkOptions) -> None:
+        self._link = link
+        self._options = options
+        self._channel: ObjectChannel | None = None
+
+    @property
+    def channel(self) -> ObjectChannel:
+        if self._channel is None:
+            from akdctl.channels.coe_sdo import CoeObjectChannel
+
+            self._channel = CoeObjectChannel(self._link, timeout=self._options.timeout, retries=self._options.retries)
+        return self._channel
+
+    @property
+    def requests(self) -> int:  # type: ignore[override]
+        return self._channel.requests if self._channel is not None else 0
+
+    def upload(self, index: int, subindex: int) -> bytes:
+        return self.channel.upload(index, subindex)
+
+    def download(self, index: int, subindex: int, data: bytes) -> None:
+        self.channel.download(index, subindex, data)
+
+    def take_emergencies(self) -> list:  # type: ignore[type-arg]
+        return self.channel.take_emergencies()
+
+    def object_list(self) -> list[int]:
+        return self.channel.object_list()
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.channel, name)
+
+
 class SimTransport(Transport):
     """``sim`` / ``sim://NAME``: a persisted simulated AKD offering both channels."""
 
@@ -65,14 +102,11 @@ class SimTransport(Transport):
 
     def open(self) -> None:
         from akdctl.channels.bmp import BmpParameterChannel
-        from akdctl.channels.coe_sdo import CoeObjectChannel
 
         self.record_link = SimRecordLink(self.drive, self.options)
         self.mailbox_link = SimMailboxLink(self.drive, self.options)
         self.parameters = BmpParameterChannel(self.record_link)
-        self.objects = CoeObjectChannel(
-            self.mailbox_link, timeout=self.options.timeout, retries=self.options.retries
-        )
+        self.objects = _LazyCoeChannel(self.mailbox_link, self.options)
 
     def close(self) -> None:
         self.parameters = None
