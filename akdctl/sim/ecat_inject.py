@@ -65,6 +65,19 @@ class Injector:
         return ",".join(f"{k}={v}" for k, v in self.every.items()) or "none"
 
 
+# CoE SDO upload request for 0x1000:00 (device type), used to warm a drive up before a face reports ready
+WARMUP_REQUEST = bytes.fromhex("0a00 0000 0003 0020 4000 1000 0000 0000")
+
+
+def warm_up(drive: object) -> None:
+    """Answer one harmless SDO so imports and catalogue loading happen before the first real request
+    (SOEM waits only 700 ms for a mailbox reply)."""
+    import contextlib
+
+    with contextlib.suppress(Exception):
+        drive.handle_mailbox(WARMUP_REQUEST)  # type: ignore[attr-defined]
+
+
 def mailbox_error_reply(request: bytes, code: int = MBX_ERR_SERVICE_NOT_SUPPORTED) -> bytes:
     """A type-0 mailbox error reply to ``request`` (same address, counter kept)."""
     from akdctl.protocol.mailbox import (

@@ -20,7 +20,7 @@ import click
 
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
-from akdctl.sim.ecat_inject import Injector, mailbox_error_reply, sdo_abort_reply
+from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
@@ -120,6 +120,8 @@ class EthercatUdpFace:
         self._stop = threading.Event()
 
     def start(self) -> None:
+        for drive in set(self.handler.stations.values()):
+            warm_up(drive)
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             sock.bind((self.host, self.port))

@@ -1,0 +1,391 @@
+"""A simulated EtherCAT Slave Controller (ESC): the register space a master
+talks to, processing datagrams exactly as the silicon would.
+
+Only what a master needs to bring an AKD to PRE-OP and use its mailbox:
+station address (0x0010), DL status, AL control/status/status code
+(0x0120/0x0130/0x0134) with the AKD's state machine and its two error codes
+(0x0011 invalid requested state change, 0x0017 invalid sync manager
+configuration - AKD EtherCAT manual 5.3.3, SPEC-NOTES 22), the SII EEPROM
+interface (0x0500-0x050F), sync managers (0x0800+) with mailbox semantics
+(full/empty, write to a full mailbox and read of an empty one are not counted
+in the working counter, the repeat request/acknowledge handshake) and the
+mailbox buffers SM0 0x1800 / SM1 0x1C00.
+
+The ESC is pure: :meth:`Esc.process` takes the datagrams of a frame and
+returns them as they leave the slave (data filled in, WKC incremented, ADP
+incremented for auto-increment and broadcast commands). Mailbox requests are
+handed to whoever calls :meth:`take_request` (the face's worker thread, so a
+slow SDO never delays a frame) and replies come back through :meth:`post_replies`.
+"""
+
+from __future__ import annotations
+
+import struct
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+
+from akdctl.protocol import ethercat as ec
+from akdctl.protocol.sii import SiiImage, build_sii
+
+RAM_SIZE = 0x10000
+NUM_SM = 8
+MBX_MIN = 40  # smallest mailbox the AKD accepts (ESI Sm MinSize)
+
+# ECAT-read-only register bytes (writes by the master are ignored there)
+_READ_ONLY = [(0x0000, 0x000F), (0x0012, 0x0013), (0x0110, 0x0111), (0x0130, 0x0135), (0x0140, 0x0141),
+              (0x0220, 0x0223), (0x0501, 0x0501)]
+
+
+@dataclass
+class _MailboxSm:
+    """Run-time state of one mailbox sync manager (beyond its register block)."""
+
+    full: bool = False
+    last: bytes = b""  # last buffer content handed to the master (for the repeat request)
+
+
+@dataclass
+class EscStats:
+    frames: int = 0
+    mailbox_requests: int = 0
+    mailbox_replies: int = 0
+    repeats: int = 0
+    denied: int = 0
+    dropped: int = 0
+
+
+@dataclass
+class Esc:
+    """One slave controller with an SII image and an AL state machine."""
+
+    sii: SiiImage
+    mailbox_sizes: tuple[int, int] = (0, 0)
+    stats: EscStats = field(default_factory=EscStats)
+
+    def __post_init__(self) -> None:
+        self.mem = bytearray(RAM_SIZE)
+        self.eeprom = bytearray(build_sii(self.sii))
+        self._lock = threading.RLock()
+        self._requests: deque[bytes] = deque()
+        self._replies: deque[bytes] = deque()
+        self._have_request = threading.Condition(self._lock)
+        self._sm = [_MailboxSm() for _ in range(NUM_SM)]
+        self.drop_next_reply = False  # fault injection: the frame that reads the next reply is lost
+        self.lost_frame = False  # set by process(): the face must not send this frame back
+        self.reset()
+
+    # ------------------------------------------------------------------ power-on state
+    def reset(self) -> None:
+        with self._lock:
+            self.mem[:] = bytes(RAM_SIZE)
+            struct.pack_into("<BBHBBBB", self.mem, ec.REG_TYPE, 0x04, 0x01, 0x0100, 3, NUM_SM, 8, 0x0F)
+            struct.pack_into("<H", self.mem, ec.REG_FEATURES, 0x01CC)
+            struct.pack_into("<H", self.mem, ec.REG_STATION_ALIAS, self.sii.station_alias)
+            # DL status: PDI operational, link on port 0, port 0 open with communication, ports 1-3 closed
+            struct.pack_into("<H", self.mem, ec.REG_DL_STATUS, 0x0001 | 0x0010 | 0x0200 | 0x0400 | 0x1000 | 0x4000)
+            struct.pack_into("<H", self.mem, ec.REG_AL_STATUS, ec.AlState.INIT)
+            struct.pack_into("<H", self.mem, ec.REG_PDI_CONTROL, self.sii.pdi_control)
+            struct.pack_into("<H", self.mem, ec.REG_EEP_CONTROL, ec.EEP_READ_8_BYTES)
+            self._requests.clear()
+            self._replies.clear()
+            self._sm = [_MailboxSm() for _ in range(NUM_SM)]
+
+    # ------------------------------------------------------------------ small accessors
+    def u16(self, addr: int) -> int:
+        return struct.unpack_from("<H", self.mem, addr)[0]
+
+    def _set_u16(self, addr: int, value: int) -> None:
+        struct.pack_into("<H", self.mem, addr, value & 0xFFFF)
+
+    @property
+    def station(self) -> int:
+        return self.u16(ec.REG_STATION_ADDR)
+
+    @property
+    def al_status(self) -> int:
+        return self.u16(ec.REG_AL_STATUS)
+
+    @property
+    def al_code(self) -> int:
+        return self.u16(ec.REG_AL_STATUS_CODE)
+
+    def sync_manager(self, n: int) -> ec.SyncManager:
+        base = ec.REG_SM0 + ec.SM_STRIDE * n
+        return ec.SyncManager.decode(bytes(self.mem[base : base + 8]))
+
+    def _sm_status_addr(self, n: int) -> int:
+        return ec.REG_SM0 + ec.SM_STRIDE * n + 5
+
+    def _mailbox_enabled(self, n: int) -> bool:
+        sm = self.sync_manager(n)
+        return sm.enabled and sm.is_mailbox and sm.length > 0
+
+    def _set_full(self, n: int, full: bool) -> None:
+        self._sm[n].full = full
+        addr = self._sm_status_addr(n)
+        self.mem[addr] = (self.mem[addr] | ec.SM_STATUS_MAILBOX_FULL) if full else (
+            self.mem[addr] & ~ec.SM_STATUS_MAILBOX_FULL & 0xFF)
+
+    def _mailboxes_active(self) -> bool:
+        return (self.al_status & 0x0F) in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
+
+    # ------------------------------------------------------------------ frame processing
+    def process(self, datagrams: list[ec.Datagram]) -> list[ec.Datagram]:
+        """Process every datagram of a frame in place (and return them)."""
+        with self._lock:
+            self.stats.frames += 1
+            self.lost_frame = False
+            for d in datagrams:
+                self._process_one(d)
+            return datagrams
+
+    def _process_one(self, d: ec.Datagram) -> None:
+        cmd = d.cmd
+        if cmd in ec.AUTO_INCREMENT_CMDS:
+            addressed = d.adp == 0
+            d.adp = (d.adp + 1) & 0xFFFF
+        elif cmd in ec.CONFIGURED_CMDS:
+            addressed = d.adp == self.station
+        elif cmd in ec.BROADCAST_CMDS:
+            addressed = True
+            d.adp = (d.adp + 1) & 0xFFFF
+        else:
+            return  # logical commands: no FMMU is configured in this simulator; NOP: nothing
+        if not addressed:
+            return
+        ado, n = d.ado, len(d.data)
+        if ado + n > RAM_SIZE:
+            return
+        if cmd in ec.READ_CMDS:
+            data = self._read(ado, n)
+            if data is None:
+                self.stats.denied += 1
+                return
+            if cmd in ec.BROADCAST_CMDS:
+                data = bytes(a | b for a, b in zip(d.data, data))
+            d.data = data
+            d.wkc = (d.wkc + 1) & 0xFFFF
+        elif cmd in ec.WRITE_CMDS:
+            if self._write(ado, d.data):
+                d.wkc = (d.wkc + 1) & 0xFFFF
+            else:
+                self.stats.denied += 1
+        else:  # read-write: the old content goes back, the new is written
+            old = self._read(ado, n)
+            if old is None:
+                return
+            wrote = self._write(ado, d.data)
+            d.data = old
+            d.wkc = (d.wkc + (3 if wrote else 1)) & 0xFFFF
+
+    def _mailbox_sm_at(self, addr: int, n: int) -> int | None:
+        """The enabled mailbox SM whose buffer overlaps [addr, addr+n)."""
+        for i in range(NUM_SM):
+            sm = self.sync_manager(i)
+            if sm.enabled and sm.is_mailbox and sm.length and addr < sm.start + sm.length and sm.start < addr + n:
+                return i
+        return None
+
+    def _read(self, addr: int, n: int) -> bytes | None:
+        i = self._mailbox_sm_at(addr, n) if addr >= 0x1000 else None
+        if i is not None:
+            sm = self.sync_manager(i)
+            if sm.writes_to_slave or not self._sm[i].full:
+                return None  # reading an empty read-mailbox (or the write mailbox) is denied: WKC unchanged
+            data = bytes(self.mem[addr : addr + n])
+            if addr + n >= sm.start + sm.length:  # the last byte was read: the buffer is the master's now
+                self._sm[i].last = bytes(self.mem[sm.start : sm.start + sm.length])
+                self._set_full(i, False)
+                self.stats.mailbox_replies += 1
+                if self.drop_next_reply:
+                    self.drop_next_reply = False
+                    self.lost_frame = True
+                    self.stats.dropped += 1
+                self._load_reply()
+            return data
+        return bytes(self.mem[addr : addr + n])
+
+    def _write(self, addr: int, data: bytes) -> bool:
+        n = len(data)
+        if addr >= 0x1000:
+            i = self._mailbox_sm_at(addr, n)
+            if i is not None:
+                sm = self.sync_manager(i)
+                if not sm.writes_to_slave or self._sm[i].full or not self._mailboxes_active():
+                    return False
+                self.mem[addr : addr + n] = data
+                if addr + n >= sm.start + sm.length:
+                    self._set_full(i, True)
+                    raw = bytes(self.mem[sm.start : sm.start + sm.length])
+                    self._requests.append(raw)
+                    self.stats.mailbox_requests += 1
+                    self._have_request.notify_all()
+                return True
+            self.mem[addr : addr + n] = data
+            return True
+        old = bytes(self.mem[addr : addr + n])
+        for pos in range(n):
+            a = addr + pos
+            if not any(lo <= a <= hi for lo, hi in _READ_ONLY) and not self._sm_read_only(a):
+                self.mem[a] = data[pos]
+        self._after_write(addr, n, old)
+        return True
+
+    @staticmethod
+    def _sm_read_only(a: int) -> bool:
+        return ec.REG_SM0 <= a < ec.REG_SM0 + ec.SM_STRIDE * NUM_SM and (a - ec.REG_SM0) % ec.SM_STRIDE in (5, 7)
+
+    def _touches(self, addr: int, n: int, reg: int, size: int = 1) -> bool:
+        return addr < reg + size and reg < addr + n
+
+    def _after_write(self, addr: int, n: int, old: bytes) -> None:
+        if self._touches(addr, n, ec.REG_EEP_CONTROL, 2):
+            self._eeprom_command()
+        for i in range(NUM_SM):
+            act = ec.REG_SM0 + ec.SM_STRIDE * i + 6
+            if self._touches(addr, n, act):
+                before = old[act - addr]
+                self._activate_changed(i, before, self.mem[act])
+        if self._touches(addr, n, ec.REG_AL_CONTROL, 2):
+            self._al_control(self.u16(ec.REG_AL_CONTROL))
+
+    # ------------------------------------------------------------------ SII EEPROM interface
+    def _eeprom_command(self) -> None:
+        ctl = self.u16(ec.REG_EEP_CONTROL)
+        cmd = ctl & 0x0700
+        (word,) = struct.unpack_from("<I", self.mem, ec.REG_EEP_ADDRESS)
+        status = ec.EEP_READ_8_BYTES
+        if cmd == ec.EEP_CMD_READ:
+            start = word * 2
+            chunk = bytes(self.eeprom[start : start + 8]) if start < len(self.eeprom) else b""
+            self.mem[ec.REG_EEP_DATA : ec.REG_EEP_DATA + 8] = chunk.ljust(8, b"\xff")
+        elif cmd == ec.EEP_CMD_WRITE:
+            if not ctl & 0x0001:  # write enable must be set in the same access
+                status |= ec.EEP_ERROR_WRITE_ENABLE
+            elif word * 2 + 2 <= len(self.eeprom):
+                self.eeprom[word * 2 : word * 2 + 2] = self.mem[ec.REG_EEP_DATA : ec.REG_EEP_DATA + 2]
+            else:
+                status |= ec.EEP_ERROR_ACK
+        elif cmd == ec.EEP_CMD_RELOAD:
+            self.mem[ec.REG_STATION_ALIAS : ec.REG_STATION_ALIAS + 2] = self.eeprom[8:10]
+        self._set_u16(ec.REG_EEP_CONTROL, status)  # command done at once: busy never set
+
+    # ------------------------------------------------------------------ sync manager activation / repeat
+    def _activate_changed(self, i: int, before: int, after: int) -> None:
+        if (before ^ after) & ec.SM_ACTIVATE_ENABLE:
+            self._set_full(i, False)
+            self._sm[i].last = b""
+        if (before ^ after) & ec.SM_ACTIVATE_REPEAT and after & ec.SM_ACTIVATE_ENABLE:
+            sm = self.sync_manager(i)
+            if not sm.writes_to_slave and self._sm[i].last and not self._sm[i].full:
+                # repeat request: put the last reply back (the application's job, done at once here)
+                self.mem[sm.start : sm.start + len(self._sm[i].last)] = self._sm[i].last
+                self._set_full(i, True)
+                self.stats.repeats += 1
+            pdi = ec.REG_SM0 + ec.SM_STRIDE * i + 7
+            self.mem[pdi] = (self.mem[pdi] & ~ec.SM_PDI_REPEAT_ACK & 0xFF) | (after & ec.SM_ACTIVATE_REPEAT)
+
+    # ------------------------------------------------------------------ AL state machine (AKD rules)
+    def _al_control(self, ctl: int) -> None:
+        requested, ack = ctl & 0x0F, bool(ctl & ec.AL_ERROR_FLAG)
+        status = self.al_status
+        current, error = status & 0x0F, bool(status & ec.AL_ERROR_FLAG)
+        if error and not ack and requested >= current:
+            return  # an error must be acknowledged before going on (a step down is always allowed)
+        if requested == current:
+            self._set_al(current, 0)
+            return
+        code = self._transition_error(current, requested)
+        if code:
+            self._set_al(current | ec.AL_ERROR_FLAG, code)
+            return
+        if requested == ec.AlState.INIT or (current == ec.AlState.INIT and requested == ec.AlState.PREOP):
+            self._clear_mailboxes()
+        self._set_al(requested, 0)
+
+    def _transition_error(self, current: int, requested: int) -> int:
+        S = ec.AlState
+        if requested not in (S.INIT, S.PREOP, S.BOOT, S.SAFEOP, S.OP):
+            return 0x0011
+        if requested == S.INIT:
+            return 0
+        if requested == S.BOOT:
+            return 0 if current == S.INIT else 0x0011
+        if current == S.BOOT:
+            return 0x0011
+        if requested == S.PREOP:
+            return self._check_mailbox_sms() if current == S.INIT else 0
+        if requested == S.SAFEOP:
+            if current == S.INIT:
+                return 0x0011
+            return self._check_process_sms() if current == S.PREOP else 0
+        # OP
+        return 0 if current == S.SAFEOP else 0x0011
+
+    def _check_mailbox_sms(self) -> int:
+        """I -> P: SM0/SM1 must be the AKD's mailboxes (start address and a sane length)."""
+        rx = self.sii.std_rx_size or self.mailbox_sizes[0]
+        tx = self.sii.std_tx_size or self.mailbox_sizes[1]
+        sm0, sm1 = self.sync_manager(0), self.sync_manager(1)
+        ok = (sm0.start == self.sii.std_rx_offset and MBX_MIN <= sm0.length <= rx and sm0.is_mailbox
+              and sm0.writes_to_slave and sm0.enabled
+              and sm1.start == self.sii.std_tx_offset and MBX_MIN <= sm1.length <= tx and sm1.is_mailbox
+              and not sm1.writes_to_slave and sm1.enabled)
+        return 0 if ok else 0x0017
+
+    def _check_process_sms(self) -> int:
+        """P -> S: process-data SMs, where enabled, at the AKD's addresses 0x1100/0x1140."""
+        for n, start in ((2, 0x1100), (3, 0x1140)):
+            sm = self.sync_manager(n)
+            if sm.enabled and (sm.start != start or sm.is_mailbox):
+                return 0x0017
+        return 0
+
+    def _set_al(self, status: int, code: int) -> None:
+        self._set_u16(ec.REG_AL_STATUS, status)
+        self._set_u16(ec.REG_AL_STATUS_CODE, code)
+
+    def _clear_mailboxes(self) -> None:
+        self._requests.clear()
+        self._replies.clear()
+        for i in range(NUM_SM):
+            self._set_full(i, False)
+            self._sm[i].last = b""
+
+    # ------------------------------------------------------------------ mailbox application side
+    def take_request(self, timeout: float) -> bytes | None:
+        """The next mailbox the master wrote to SM0 (the PDI reading it empties SM0)."""
+        with self._lock:
+            if not self._requests:
+                self._have_request.wait(timeout)
+            if not self._requests:
+                return None
+            raw = self._requests.popleft()
+            for i in range(NUM_SM):
+                sm = self.sync_manager(i)
+                if sm.enabled and sm.is_mailbox and sm.writes_to_slave:
+                    self._set_full(i, False)
+            length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
+            return raw[: min(len(raw), 6 + length)]
+
+    def post_replies(self, replies: list[bytes], drop: bool = False) -> None:
+        """Queue mailboxes for SM1; ``drop`` loses the frame that carries the first one to the master."""
+        with self._lock:
+            if not self._mailboxes_active():
+                return
+            if drop and replies:
+                self.drop_next_reply = True
+            self._replies.extend(replies)
+            self._load_reply()
+
+    def _load_reply(self) -> None:
+        for i in range(NUM_SM):
+            sm = self.sync_manager(i)
+            if sm.enabled and sm.is_mailbox and not sm.writes_to_slave and sm.length:
+                if self._sm[i].full or not self._replies:
+                    return
+                reply = self._replies.popleft()[: sm.length]
+                self.mem[sm.start : sm.start + sm.length] = reply.ljust(sm.length, b"\0")
+                self._set_full(i, True)
+                return

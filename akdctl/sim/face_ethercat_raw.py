@@ -1,0 +1,170 @@
+"""`akdctl sim serve --ethercat-raw IFNAME`: a simulated AKD as an EtherCAT
+slave on a raw interface (AF_PACKET, EtherType 0x88A4).
+
+Frames from a master are processed by the simulated ESC (:mod:`akdctl.sim.esc`)
+and sent back out of the same interface, as the last slave of a line closes
+the ring. A worker thread plays the drive's application: it takes each mailbox
+the master wrote to SM0, lets the drive's SDO server answer it and queues the
+replies for SM1, so frames never wait for an SDO. Any EtherCAT master (pysoem,
+TwinCAT, our own ``ecat://``) can run against it; on a veth pair this is how CI
+tests interoperability.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+
+import click
+
+from akdctl.errors import UsageError
+from akdctl.protocol import ethercat as ec
+from akdctl.protocol.errors import CodecError
+from akdctl.protocol.sii import akd_sii_image
+from akdctl.sim.drive import SimDrive
+from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
+from akdctl.sim.esc import Esc
+
+
+def click_options() -> list[click.Option]:
+    return [
+        click.Option(["--ethercat-raw", "ethercat_raw"], default=None, metavar="IFNAME",
+                     help="Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs CAP_NET_RAW)."),
+        click.Option(["--ecat-raw-inject", "ecat_raw_inject"], default=None, metavar="drop=N,mbxerr=N,abort=N",
+                     help="Raw slave fault injection: lose the frame carrying every N-th reply, "
+                          "answer with a mailbox error or an SDO abort."),
+        click.Option(["--ecat-serial", "ecat_serial"], type=int, default=None, metavar="N",
+                     help="Serial number the raw slave's SII reports."),
+    ]
+
+
+def open_raw_socket(ifname: str, who: str) -> socket.socket:
+    """An AF_PACKET socket for EtherCAT frames on ``ifname``, or a one-line error."""
+    try:
+        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE_ECAT))
+    except PermissionError:
+        raise UsageError(
+            f"{who} needs CAP_NET_RAW: run as root or "
+            "`setcap cap_net_raw+ep $(readlink -f $(which python3))`"
+        ) from None
+    except (OSError, AttributeError) as exc:
+        raise UsageError(f"{who}: raw sockets are not available here ({exc})") from None
+    try:
+        sock.bind((ifname, 0))
+    except OSError as exc:
+        sock.close()
+        raise UsageError(f"{who}: cannot use interface {ifname!r}: {exc.strerror}") from None
+    return sock
+
+
+class SlaveWorker:
+    """The drive application behind the ESC's mailbox: SDO server + fault injection."""
+
+    def __init__(self, esc: Esc, drive: SimDrive, injector: Injector) -> None:
+        self.esc, self.drive, self.injector = esc, drive, injector
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="ecat-raw-app", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            request = self.esc.take_request(0.2)
+            if request is None:
+                continue
+            self.esc.post_replies(*self.answer(request))
+
+    def answer(self, request: bytes) -> tuple[list[bytes], bool]:
+        fault = self.injector.decide()
+        try:
+            if fault == "mbxerr":
+                return [mailbox_error_reply(request)], False
+            if fault == "abort" and (abort := sdo_abort_reply(request)) is not None:
+                return [abort], False
+            return self.drive.handle_mailbox(request), fault == "drop"
+        except CodecError:
+            return [mailbox_error_reply(request, 1)], False
+        except Exception:  # noqa: BLE001 - the slave must keep running; the master sees a mailbox error
+            return [mailbox_error_reply(request, 7)], False
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+
+class EthercatRawFace:
+    def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
+        self.ifname = ifname
+        image = akd_sii_image(serial=serial) if serial is not None else akd_sii_image()
+        self.esc = Esc(image)
+        self.worker = SlaveWorker(self.esc, drive, injector)
+        self.injector = injector
+        self._sock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def start(self) -> None:
+        self._sock = open_raw_socket(self.ifname, f"--ethercat-raw {self.ifname}")
+        warm_up(self.worker.drive)
+        self._sock.settimeout(0.2)
+        self.worker.start()
+        self._thread = threading.Thread(target=self._serve, name="ecat-raw-face", daemon=True)
+        self._thread.start()
+
+    def handle_frame(self, frame: bytes) -> bytes | None:
+        """One received frame -> the frame to send back (None: not EtherCAT, or lost by injection)."""
+        try:
+            dst, src, datagrams = ec.decode_frame(frame)
+        except CodecError:
+            return None
+        if src[0] & 0x02:
+            return None  # already passed a slave's port 0 (our own echo on a shared segment)
+        self.esc.process(datagrams)
+        if self.esc.lost_frame:
+            return None
+        # an ESC sets bit 1 of the source MAC's first byte when the frame leaves port 0
+        return ec.encode_frame(datagrams, src=bytes([src[0] | 0x02]) + src[1:], dst=dst)
+
+    def _serve(self) -> None:
+        assert self._sock is not None
+        while not self._stop.is_set():
+            try:
+                frame = self._sock.recv(2048)
+            except socket.timeout:
+                continue
+            except OSError:
+                break
+            try:
+                reply = self.handle_frame(frame)
+            except Exception:  # noqa: BLE001 - a frame that breaks the ESC is lost, as on a wire
+                reply = None
+            if reply is not None:
+                with contextlib.suppress(OSError):
+                    self._sock.send(reply)
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        self.worker.stop()
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def describe(self) -> str:
+        inject = self.injector.describe()
+        extra = f" inject {inject}" if inject != "none" else ""
+        return f"ethercat-raw {self.ifname} slave AKD serial {self.esc.sii.serial}{extra}"
+
+
+def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
+    ifname = kwargs.get("ethercat_raw")
+    if not ifname:
+        return None
+    injector = Injector.parse(kwargs.get("ecat_raw_inject") or None, "--ecat-raw-inject")  # type: ignore[arg-type]
+    serial = kwargs.get("ecat_serial")
+    return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None)  # type: ignore[arg-type]

@@ -1,0 +1,402 @@
+"""``ecat://IFNAME[/POSITION]``: akdctl as the EtherCAT master on a raw interface,
+in pure Python (AF_PACKET, EtherType 0x88A4).
+
+Bring-up follows SOEM's order (reference notes, "Reaching the mailbox"): count
+the slaves with BRD, give each a station address (0x1001 + position, as SOEM),
+read the SII through the ESC's EEPROM interface, program SM0/SM1 from the SII's
+mailbox layout, request PRE-OP and report the AL status code in words if the
+slave refuses. Mailbox traffic writes SM0 and polls SM1's "mailbox full" bit; a
+reply lost on the wire is recovered with the sync manager's repeat request.
+
+A missing CAP_NET_RAW is a :class:`UsageError` (exit 2): it is a setup problem
+the user fixes with one command, not a communication failure.
+
+Only the slave at POSITION is touched beyond address assignment; a slave that
+is already in PRE-OP or higher with its mailbox configured is used as it is.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import socket
+import struct
+import time
+from dataclasses import dataclass
+
+from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
+from akdctl.protocol import ethercat as ec
+from akdctl.protocol.errors import CodecError
+from akdctl.protocol.sii import CAT_END, SiiImage, parse_sii
+from akdctl.transport.base import LinkOptions, MailboxLink, Transport
+from akdctl.transport.target import Target
+from akdctl.transport.trace import Tracer
+
+MASTER_MAC = b"\x01\x01\x01\x01\x01\x01"  # as SOEM: EtherCAT ignores MACs; slaves set bit 1 of byte 0
+STATION_BASE = 0x1001
+SII_MAX_BYTES = 0x4000
+CAP_HINT = "run as root or `setcap cap_net_raw+ep $(readlink -f $(which python3))`"
+
+
+class FrameLost(CommError):
+    """No frame came back (after the allowed repeats)."""
+
+    kind = "timeout"
+
+
+def open_raw_socket(ifname: str) -> socket.socket:
+    try:
+        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE_ECAT))
+    except PermissionError:
+        raise UsageError(f"ecat://{ifname} needs CAP_NET_RAW: {CAP_HINT}") from None
+    except (OSError, AttributeError) as exc:
+        raise UsageError(f"ecat://{ifname}: raw sockets are not available on this system ({exc})") from None
+    try:
+        sock.bind((ifname, 0))
+    except OSError as exc:
+        sock.close()
+        raise UsageError(f"ecat://{ifname}: cannot use interface {ifname!r}: {exc.strerror}") from None
+    return sock
+
+
+@dataclass
+class SlaveInfo:
+    position: int
+    station: int
+    al_status: int
+    al_code: int
+    sii: SiiImage | None = None
+
+    @property
+    def state_text(self) -> str:
+        return ec.describe_al(self.al_status, self.al_code)
+
+
+class EcatMaster:
+    """Frames, datagrams and ESC register access on one interface."""
+
+    def __init__(self, ifname: str, tracer: Tracer, timeout: float = 2.0, retries: int = 2) -> None:
+        self.ifname = ifname
+        self.tracer = tracer
+        self.timeout = timeout
+        self.retries = retries
+        self.frame_timeout = min(timeout, 0.2)
+        self.sock: socket.socket | None = open_raw_socket(ifname)
+        self._index = 0
+        self.frames = 0
+
+    def close(self) -> None:
+        if self.sock is not None:
+            with contextlib.suppress(OSError):
+                self.sock.close()
+            self.sock = None
+
+    # ------------------------------------------------------------------ frames
+    def _trace(self, direction: str, frame: bytes, note: str) -> None:
+        self.tracer.frame(direction, "ecat", frame, note=note,  # type: ignore[arg-type]
+                          meta={"proto": "ethernet", "src_mac": frame[6:12], "dst_mac": frame[0:6],
+                                "ethertype": ec.ETHERTYPE_ECAT})
+
+    def txrx(self, datagrams: list[ec.Datagram], retries: int | None = None) -> list[ec.Datagram]:
+        """Send one frame and return its datagrams as they came back; FrameLost after the repeats."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        attempts = 1 + (self.retries if retries is None else retries)
+        for _ in range(attempts):
+            self._index = (self._index + 1) & 0xFF
+            for d in datagrams:
+                d.index = self._index
+            frame = ec.encode_frame(datagrams, src=MASTER_MAC)
+            note = " ".join(f"{d.cmd_name} 0x{d.adp:04X}:0x{d.ado:04X}/{len(d.data)}" for d in datagrams)
+            self._trace("tx", frame, note)
+            try:
+                sock.send(frame)
+            except OSError as exc:
+                raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+            self.frames += 1
+            reply = self._wait(self._index, len(datagrams))
+            if reply is not None:
+                return reply
+        raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s "
+                        f"({attempts} attempt{'s' if attempts > 1 else ''}): no slave connected, or the link is down")
+
+    def _wait(self, index: int, count: int) -> list[ec.Datagram] | None:
+        assert self.sock is not None
+        deadline = time.monotonic() + self.frame_timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            ready, _, _ = select.select([self.sock], [], [], remaining)
+            if not ready:
+                return None
+            try:
+                frame = self.sock.recv(2048)
+            except OSError as exc:
+                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            try:
+                _dst, src, got = ec.decode_frame(frame)
+            except CodecError:
+                continue
+            if src == MASTER_MAC or not got or got[0].index != index or len(got) != count:
+                continue  # our own frame seen unprocessed, or a late answer to an earlier attempt
+            self._trace("rx", frame, f"wkc {','.join(str(d.wkc) for d in got)}")
+            return got
+
+    # ------------------------------------------------------------------ register helpers
+    def read(self, cmd: int, adp: int, ado: int, length: int, retries: int | None = None) -> tuple[bytes, int]:
+        (d,) = self.txrx([ec.Datagram(cmd, adp, ado, bytes(length))], retries)
+        return d.data, d.wkc
+
+    def write(self, cmd: int, adp: int, ado: int, data: bytes, retries: int | None = None) -> int:
+        (d,) = self.txrx([ec.Datagram(cmd, adp, ado, bytes(data))], retries)
+        return d.wkc
+
+    def fprd(self, station: int, ado: int, length: int, retries: int | None = None) -> bytes:
+        data, wkc = self.read(ec.Cmd.FPRD, station, ado, length, retries)
+        if wkc != 1:
+            raise CommError(f"slave 0x{station:04X} did not answer a read of register 0x{ado:04X} (WKC {wkc})")
+        return data
+
+    def fpwr(self, station: int, ado: int, data: bytes) -> None:
+        wkc = self.write(ec.Cmd.FPWR, station, ado, data)
+        if wkc != 1:
+            raise CommError(f"slave 0x{station:04X} did not take a write of register 0x{ado:04X} (WKC {wkc})")
+
+    # ------------------------------------------------------------------ bring-up
+    def count_slaves(self) -> int:
+        _data, wkc = self.read(ec.Cmd.BRD, 0, ec.REG_TYPE, 2)
+        return wkc
+
+    def assign_addresses(self, count: int) -> list[int]:
+        stations = []
+        for pos in range(count):
+            station = STATION_BASE + pos
+            wkc = self.write(ec.Cmd.APWR, (-pos) & 0xFFFF, ec.REG_STATION_ADDR, struct.pack("<H", station))
+            if wkc != 1:
+                raise CommError(f"slave at position {pos} did not take station address 0x{station:04X}")
+            stations.append(station)
+        return stations
+
+    def al_status(self, station: int) -> tuple[int, int]:
+        data = self.fprd(station, ec.REG_AL_STATUS, 6)
+        status, _reserved, code = struct.unpack("<HHH", data)
+        return status, code
+
+    def read_eeprom(self, station: int, word: int) -> bytes:
+        """4 or 8 bytes of SII from ``word`` through the ESC's EEPROM interface."""
+        deadline = time.monotonic() + self.timeout
+        self.fpwr(station, ec.REG_EEP_CONTROL, struct.pack("<HI", ec.EEP_CMD_READ, word))
+        while True:
+            data = self.fprd(station, ec.REG_EEP_CONTROL, 14)
+            (ctl,) = struct.unpack_from("<H", data)
+            if not ctl & ec.EEP_BUSY:
+                if ctl & (ec.EEP_ERROR_ACK | ec.EEP_ERROR_CHECKSUM):
+                    raise CommError(f"slave 0x{station:04X}: SII EEPROM read at word 0x{word:X} failed "
+                                    f"(status 0x{ctl:04X})")
+                return data[6:14] if ctl & ec.EEP_READ_8_BYTES else data[6:10]
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"slave 0x{station:04X}: SII EEPROM stays busy")
+
+    def read_sii_bytes(self, station: int, start: int, length: int) -> bytes:
+        out = bytearray()
+        word = start // 2
+        while len(out) < length + (start % 2):
+            out += self.read_eeprom(station, word + len(out) // 2)
+        return bytes(out[start % 2 : start % 2 + length])
+
+    def read_sii(self, station: int, full: bool = True) -> tuple[SiiImage, bytes]:
+        """The SII: the fixed area and (``full``) every category up to the end marker."""
+        with contextlib.suppress(CommError):
+            self.fpwr(station, ec.REG_EEP_CONFIG, b"\x00")  # EEPROM access by ECAT (the master)
+        raw = bytearray(self.read_sii_bytes(station, 0, 0x80))
+        pos = 0x80
+        while full and pos + 4 <= SII_MAX_BYTES:
+            head = self.read_sii_bytes(station, pos, 4)
+            ctype, words = struct.unpack("<HH", head)
+            if ctype == CAT_END:
+                raw += head[:2]
+                break
+            if pos + 4 + 2 * words > SII_MAX_BYTES:
+                raise CommError(f"slave 0x{station:04X}: SII category {ctype} runs past {SII_MAX_BYTES} bytes")
+            raw += head + self.read_sii_bytes(station, pos + 4, 2 * words)
+            pos += 4 + 2 * words
+        try:
+            return parse_sii(bytes(raw)), bytes(raw)
+        except CodecError as exc:
+            raise CommError(f"slave 0x{station:04X}: SII EEPROM content does not decode: {exc}") from None
+
+    def configure_mailbox(self, station: int, sii: SiiImage) -> None:
+        if not sii.std_rx_size or not sii.std_tx_size:
+            raise UsageError(f"slave 0x{station:04X} has no mailbox (SII declares none): no CoE access")
+        sm0 = ec.SyncManager(sii.std_rx_offset, sii.std_rx_size, 0x26, 0, ec.SM_ACTIVATE_ENABLE)
+        sm1 = ec.SyncManager(sii.std_tx_offset, sii.std_tx_size, 0x22, 0, ec.SM_ACTIVATE_ENABLE)
+        self.fpwr(station, ec.REG_SM0, sm0.encode() + sm1.encode())
+
+    def request_state(self, station: int, state: int) -> tuple[int, int]:
+        """Request an AL state and wait for it; DriveError with the AL status code in words if refused."""
+        self.fpwr(station, ec.REG_AL_CONTROL, struct.pack("<H", state | ec.AL_ERROR_FLAG))
+        deadline = time.monotonic() + max(self.timeout, 1.0)
+        while True:
+            status, code = self.al_status(station)
+            if status & ec.AL_ERROR_FLAG:
+                raise DriveError(
+                    f"slave 0x{station:04X} refused {ec.AL_STATE_NAMES.get(state, hex(state))}: "
+                    f"AL status code 0x{code:04X} {ec.al_status_text(code)} (now {ec.al_state_name(status)})",
+                    code=code, details={"al_status": status, "al_status_code": code})
+            if status & 0x0F == state:
+                return status, code
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"slave 0x{station:04X} did not reach {ec.AL_STATE_NAMES.get(state, hex(state))} "
+                               f"(still {ec.al_state_name(status)})")
+            time.sleep(0.002)
+
+    def scan(self, with_sii: bool = True) -> list[SlaveInfo]:
+        count = self.count_slaves()
+        if count == 0:
+            raise NoAnswer(f"no EtherCAT slave answered on {self.ifname}")
+        out = []
+        for pos, station in enumerate(self.assign_addresses(count)):
+            status, code = self.al_status(station)
+            sii = self.read_sii(station, full=True)[0] if with_sii else None
+            out.append(SlaveInfo(pos, station, status, code, sii))
+        return out
+
+
+class RawMailboxLink(MailboxLink):
+    """The mailbox of one slave: write SM0, poll SM1, repeat request for lost replies."""
+
+    def __init__(self, master: EcatMaster, station: int, sm0: ec.SyncManager, sm1: ec.SyncManager) -> None:
+        self.master, self.station, self.sm0, self.sm1 = master, station, sm0, sm1
+        self.mailbox_size = min(sm0.length, sm1.length)
+        self.repeats = 0
+
+    def _sm_reg(self, n: int, offset: int) -> int:
+        return ec.REG_SM0 + ec.SM_STRIDE * n + offset
+
+    def send(self, mailbox: bytes) -> None:
+        if len(mailbox) > self.sm0.length:
+            raise CommError(f"mailbox of {len(mailbox)} bytes exceeds the slave's {self.sm0.length}-byte SM0")
+        data = bytes(mailbox).ljust(self.sm0.length, b"\0")
+        deadline = time.monotonic() + self.master.timeout
+        while True:
+            # no frame repeat here: a repeated write would hit the (then full) mailbox and look refused
+            wkc = self.master.write(ec.Cmd.FPWR, self.station, self.sm0.start, data, retries=0)
+            if wkc == 1:
+                return
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"slave 0x{self.station:04X} does not empty its receive mailbox (SM0 stays full)")
+            time.sleep(0.001)
+
+    def receive(self, timeout: float) -> bytes | None:
+        deadline = time.monotonic() + max(0.0, timeout)
+        pause = 0.0002
+        while True:
+            try:
+                status = self.master.fprd(self.station, self._sm_reg(1, 5), 2, retries=0)
+            except FrameLost:
+                status = b"\0\0"
+            if status[0] & ec.SM_STATUS_MAILBOX_FULL:
+                try:
+                    data, wkc = self.master.read(ec.Cmd.FPRD, self.station, self.sm1.start, self.sm1.length, retries=0)
+                except FrameLost:
+                    self._repeat(status[1], deadline)
+                    continue
+                if wkc == 1:
+                    return _trim(data)
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(min(pause, max(0.0, deadline - time.monotonic())))
+            pause = min(pause * 2, 0.002)
+
+    def _repeat(self, activate: int, deadline: float) -> None:
+        """The reply frame was lost: toggle the repeat request and wait for the acknowledge."""
+        self.repeats += 1
+        want = (activate ^ ec.SM_ACTIVATE_REPEAT) & 0xFF
+        self.master.fpwr(self.station, self._sm_reg(1, 6), bytes([want]))
+        while time.monotonic() < deadline + self.master.timeout:
+            pdi = self.master.fprd(self.station, self._sm_reg(1, 7), 1)[0]
+            if (pdi & ec.SM_PDI_REPEAT_ACK) == (want & ec.SM_ACTIVATE_REPEAT):
+                return
+            time.sleep(0.001)
+        raise NoAnswer(f"slave 0x{self.station:04X} did not acknowledge the mailbox repeat request")
+
+
+def _trim(buffer: bytes) -> bytes:
+    (length,) = struct.unpack_from("<H", buffer)
+    return buffer[: min(len(buffer), 6 + length)]
+
+
+def interface_name(target: Target) -> str:
+    """The interface as typed: URL parsing lower-cases host names, interface names are case-sensitive."""
+    rest = target.raw.split("://", 1)[-1]
+    name = rest.split("/", 1)[0].split("?", 1)[0]
+    return name or target.host
+
+
+class EthercatRawTransport(Transport):
+    """CoE object channel to the slave at POSITION, with akdctl as the master."""
+
+    scheme = "ecat"
+
+    def __init__(self, target: Target, options: LinkOptions) -> None:
+        super().__init__(target, options)
+        self.master: EcatMaster | None = None
+        self.slave: SlaveInfo | None = None
+        self.link: RawMailboxLink | None = None
+
+    @property
+    def position(self) -> int:
+        parts = self.target.path_parts
+        return int(parts[0], 0) if parts else 0
+
+    def open(self) -> None:
+        self.open_bus()
+        self.open_mailbox()
+
+    def open_bus(self) -> EcatMaster:
+        """Socket, slave count and station addresses; nothing changes state yet."""
+        if self.master is None:
+            self.master = EcatMaster(interface_name(self.target), self.options.tracer, self.options.timeout,
+                                     self.options.retries)
+        master = self.master
+        count = master.count_slaves()
+        if count == 0:
+            raise NoAnswer(f"no EtherCAT slave answered on {interface_name(self.target)} (BRD working counter 0)")
+        if self.position >= count:
+            raise UsageError(f"target {self.target.raw!r}: no slave at position {self.position} "
+                             f"({count} slave{'s' if count != 1 else ''} found, positions 0..{count - 1})")
+        stations = master.assign_addresses(count)
+        station = stations[self.position]
+        status, code = master.al_status(station)
+        self.slave = SlaveInfo(self.position, station, status, code)
+        return master
+
+    def open_mailbox(self) -> None:
+        from akdctl.channels.coe_sdo import CoeObjectChannel
+
+        master, slave = self.master, self.slave
+        assert master is not None and slave is not None
+        state = slave.al_status & 0x0F
+        sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
+        sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
+        ready = (state in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
+                 and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled)
+        if not ready:
+            sii, _raw = master.read_sii(slave.station, full=False)
+            slave.sii = sii
+            if state != ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
+                master.request_state(slave.station, ec.AlState.INIT)
+            master.configure_mailbox(slave.station, sii)
+            slave.al_status, slave.al_code = master.request_state(slave.station, ec.AlState.PREOP)
+            sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
+            sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
+        self.link = RawMailboxLink(master, slave.station, sm0, sm1)
+        self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
+                                        tracer=self.options.tracer, station=0)
+
+    def close(self) -> None:
+        if self.master is not None:
+            self.master.close()
+            self.master = None
