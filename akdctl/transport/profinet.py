@@ -42,6 +42,7 @@ DEFAULT_VENDOR_ID = 0x0100       # the simulator's PNU 964[0]; a real AKD is add
 DEFAULT_DEVICE_ID = 0x0001
 MAX_RECORD = 240
 BUSY_BACKOFF = (0.01, 0.1)       # first and longest pause between polls of a busy device
+RETRANSMIT = (0.2, 1.0)          # first and longest wait before a request is sent again
 NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C010002: "operation out of range",
              0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
 
@@ -88,7 +89,9 @@ class RpcClient:
                                   sequence=self.sequence, opnum=opnum, flags1=dcerpc.FLAG_IDEMPOTENT)
         datagram = dcerpc.encode_packet(header, pnio.encode_request_args(blocks))
         name = pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
-        interval = max(0.05, total / (max(0, self.options.retries) + 1))
+        # Retransmit with back-off (0.2, 0.4, 0.8, 1 s ...) until the call's deadline: a record
+        # access is answered within milliseconds, and a working device says "busy" rather than nothing.
+        interval = min(RETRANSMIT[0], total / 2)
         deadline = time.monotonic() + total
         reassembler = dcerpc.Reassembler()
         sent = 0
@@ -110,6 +113,7 @@ class RpcClient:
                 self.retransmissions += 1
             sent += 1
             resend_at = min(deadline, time.monotonic() + interval)
+            interval = min(RETRANSMIT[1], interval * 2)
             while True:
                 wait = resend_at - time.monotonic()
                 if wait <= 0:
