@@ -162,3 +162,21 @@ def test_fuzz_sii_mutations(pos: int, patch: bytes) -> None:
 @given(st.lists(st.text(alphabet=st.characters(min_codepoint=32, max_codepoint=126), max_size=40), max_size=20))
 def test_strings_round_trip(strings: list[str]) -> None:
     assert sii.decode_strings(sii.encode_strings(strings)) == strings
+
+
+def test_missing_cap_net_raw_message(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without CAP_NET_RAW the raw master says in one line what to do (a UsageError, exit 2)."""
+    import socket
+
+    from akdctl.errors import UsageError
+    from akdctl.transport import ethercat_raw
+
+    def refuse(*_args: object, **_kw: object) -> socket.socket:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(ethercat_raw.socket, "socket", refuse)
+    with pytest.raises(UsageError) as info:
+        ethercat_raw.open_raw_socket("eth0")
+    text = str(info.value)
+    assert "needs CAP_NET_RAW" in text and "setcap cap_net_raw+ep" in text and "\n" not in text
+    assert info.value.exit_code == 2

@@ -93,9 +93,8 @@ class EcatMaster:
 
     # ------------------------------------------------------------------ frames
     def _trace(self, direction: str, frame: bytes, note: str) -> None:
-        self.tracer.frame(direction, "ecat", frame, note=note,  # type: ignore[arg-type]
-                          meta={"proto": "ethernet", "src_mac": frame[6:12], "dst_mac": frame[0:6],
-                                "ethertype": ec.ETHERTYPE_ECAT})
+        # data is the whole Ethernet frame, so the pcap sink takes it as it is (no EtherType in meta)
+        self.tracer.frame(direction, "ecat", frame, note=note, meta={"proto": "ethernet"})  # type: ignore[arg-type]
 
     def txrx(self, datagrams: list[ec.Datagram], retries: int | None = None) -> list[ec.Datagram]:
         """Send one frame and return its datagrams as they came back; FrameLost after the repeats."""

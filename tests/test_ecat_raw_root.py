@@ -1,0 +1,215 @@
+"""EtherCAT on a raw interface: our simulated AKD slave on one end of a veth pair in a network namespace, and on the
+other end (another namespace) (a) pysoem - an independent master (SOEM) - and (b) our own raw master through the
+real CLI. tshark dissects our pcaps. Needs root (network namespaces, CAP_NET_RAW): skipped with a reason otherwise,
+never skipped when CI=true.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
+CI = os.environ.get("CI") == "true"
+
+pytestmark = [
+    pytest.mark.root,
+    pytest.mark.slow,
+    pytest.mark.skipif(not IS_ROOT and not CI, reason="needs root for network namespaces and raw sockets"),
+]
+
+
+def _run(*cmd: str, check: bool = True, timeout: float = 30) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(cmd, capture_output=True, text=True, check=check, timeout=timeout)
+
+
+class VethPair:
+    """Two namespaces joined by a veth pair: master side ``a``/``if_a``, slave side ``b``/``if_b``."""
+
+    def __init__(self) -> None:
+        tag = uuid.uuid4().hex[:6]
+        self.a, self.b = f"akdA{tag}", f"akdB{tag}"
+        self.if_a, self.if_b = f"ea{tag}", f"eb{tag}"
+        _run("ip", "netns", "add", self.a)
+        try:
+            _run("ip", "netns", "add", self.b)
+            _run("ip", "link", "add", self.if_a, "type", "veth", "peer", "name", self.if_b)
+            _run("ip", "link", "set", self.if_a, "netns", self.a)
+            _run("ip", "link", "set", self.if_b, "netns", self.b)
+            _run("ip", "-n", self.a, "link", "set", self.if_a, "up")
+            _run("ip", "-n", self.b, "link", "set", self.if_b, "up")
+        except BaseException:
+            self.delete()
+            raise
+
+    def delete(self) -> None:
+        for ns in (self.a, self.b):  # deleting a namespace deletes its veth end (and so the pair)
+            _run("ip", "netns", "delete", ns, check=False)
+
+
+class Slave:
+    def __init__(self, pair: VethPair, state: Path, *extra: str) -> None:
+        self.env = dict(os.environ, AKDCTL_STATE_DIR=str(state), PYTHONPATH=str(ROOT))
+        self.proc = subprocess.Popen(
+            ["ip", "netns", "exec", pair.b, sys.executable, "-m", "akdctl", "sim", "serve", "--ethercat-raw",
+             pair.if_b, "--duration", "120", *extra],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=self.env, cwd=ROOT)
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        assert line.startswith("listening: ethercat-raw"), (line, self.proc.poll())
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        for stream in (self.proc.stdout, self.proc.stderr):
+            if stream:
+                stream.close()
+
+
+@pytest.fixture
+def pair() -> Iterator[VethPair]:
+    p = VethPair()
+    try:
+        yield p
+    finally:
+        p.delete()
+
+
+@pytest.fixture
+def slave(pair: VethPair, tmp_path: Path) -> Iterator[Slave]:
+    s = Slave(pair, tmp_path)
+    try:
+        yield s
+    finally:
+        s.stop()
+
+
+def cli(pair: VethPair, env: dict[str, str], *args: str, position: int = 0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        ["ip", "netns", "exec", pair.a, sys.executable, "-m", "akdctl", "-T", f"ecat://{pair.if_a}/{position}",
+         "--timeout", "1", *args], capture_output=True, text=True, env=env, cwd=ROOT, timeout=60)
+
+
+def test_pysoem_master_against_sim_slave(pair: VethPair, slave: Slave) -> None:
+    pytest.importorskip("pysoem")
+    script = textwrap.dedent(f"""
+        import json, pysoem
+        m = pysoem.Master()
+        m.open({pair.if_a!r})
+        try:
+            n = m.config_init()
+            s = m.slaves[0]
+            out = dict(n=n, man=s.man, id=s.id, rev=s.rev, vendor=s.sdo_read(0x1018, 1).hex(),
+                       name=s.sdo_read(0x1008, 0).decode(), product=s.sdo_read(0x1018, 2).hex())
+            s.sdo_write(0x6060, 0, bytes([3]))
+            out["mode"] = s.sdo_read(0x6060, 0).hex()
+            m.read_state()
+            out["state"] = s.state
+        finally:
+            m.close()
+        print(json.dumps(out))
+    """)
+    result = subprocess.run(["ip", "netns", "exec", pair.a, sys.executable, "-c", script], capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    out = json.loads(result.stdout.strip().splitlines()[-1])
+    assert out["n"] == 1 and out["man"] == 0x6A and out["id"] == 0x00414B44 and out["rev"] == 2
+    assert out["vendor"] == "6a000000" and out["product"] == "444b4100" and out["name"] == "AKD"
+    assert out["mode"] == "03" and out["state"] == 2  # PRE-OP
+
+
+# argv, expected exit code, text expected on stdout
+COMMANDS = [
+    (["--json", "ecat", "scan"], 0, "\"akd\": true"),
+    (["ecat", "state"], 0, "INIT"),
+    (["sdo", "read", "0x1018:1"], 0, "106"),
+    (["sdo", "read", "0x1008:0"], 0, "AKD"),
+    (["sdo", "write", "0x6060:0", "3"], 0, None),
+    (["sdo", "read", "0x6060:0"], 0, "3"),
+    (["ecat", "state"], 0, "PREOP"),
+    (["sdo", "read", "0x5FFF:0", "u8"], 1, None),
+    (["--json", "ecat", "sii"], 0, "AKD-P00606-NBCC-E000"),
+    (["ecat", "sii", "--raw"], 0, "0000: 09 00 00 08"),
+    (["ecat", "state", "op"], 0, "OP"),
+    (["ecat", "state", "init"], 0, "INIT"),
+]
+
+
+def test_our_master_through_the_cli(pair: VethPair, slave: Slave) -> None:
+    for argv, code, text in COMMANDS:
+        result = cli(pair, slave.env, *argv)
+        assert result.returncode == code, (argv, result.stdout, result.stderr)
+        if text is not None:
+            assert text in result.stdout, (argv, result.stdout)
+    result = cli(pair, slave.env, "sdo", "read", "0x1018:1", position=3)
+    assert result.returncode == 2 and "no slave at position 3" in result.stderr
+
+
+@pytest.mark.skipif(shutil.which("tshark") is None and not CI, reason="tshark not installed")
+def test_tshark_dissects_raw_pcap(pair: VethPair, slave: Slave, tmp_path: Path) -> None:
+    pcap = tmp_path / "raw.pcap"
+    result = cli(pair, slave.env, "--pcap", str(pcap), "sdo", "read", "0x1018:1")
+    assert result.returncode == 0, result.stderr
+    fields = _run("tshark", "-r", str(pcap), "-T", "fields", "-e", "ecat.cmd", "-e", "ecat_mailbox.type", "-e",
+                  "ecat_mailbox.coe.sdoidx", "-e", "ecat_mailbox.coe.sdosub", "-e", "ecat_mailbox.coe.sdodata",
+                  timeout=60)
+    rows = [line.split("\t") for line in fields.stdout.splitlines()]
+    cmds = {r[0] for r in rows}
+    assert {"0x07", "0x02", "0x04", "0x05"} <= cmds  # BRD, APWR, FPRD, FPWR
+    mailbox = [r for r in rows if len(r) > 4 and r[2]]
+    assert any(r[0] == "0x05" and r[1] == "3" and r[2] == "0x1018" and r[3] == "0x01" for r in mailbox)
+    assert any(r[0] == "0x04" and r[4] == "0x0000006a" for r in mailbox)
+
+
+@pytest.mark.parametrize("inject, code, words", [
+    ("drop=2", 0, None),  # every 2nd reply frame lost: recovered by the repeat request
+    ("abort=1", 1, "general error"),
+    ("mbxerr=1", (1, 3), "mailbox"),
+])
+def test_fault_injection(pair: VethPair, tmp_path: Path, inject: str, code: object, words: str | None) -> None:
+    s = Slave(pair, tmp_path, "--ecat-raw-inject", inject)
+    try:
+        for _ in range(3 if inject.startswith("drop") else 1):
+            result = cli(pair, s.env, "sdo", "read", "0x1018:1")
+            assert result.returncode in (code if isinstance(code, tuple) else (code,)), result.stderr
+            if words:
+                assert words in result.stderr.lower()
+            assert "Traceback" not in result.stderr
+    finally:
+        s.stop()
+
+
+def test_vanished_slave_exits_3(pair: VethPair, tmp_path: Path) -> None:
+    env = dict(os.environ, AKDCTL_STATE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
+    result = cli(pair, env, "sdo", "read", "0x1018:1")
+    assert result.returncode == 3, result.stderr
+    assert "no EtherCAT frame came back" in result.stderr or "no EtherCAT slave" in result.stderr
+
+
+def test_missing_cap_net_raw_is_one_line(tmp_path: Path) -> None:
+    if shutil.which("setpriv") is None:
+        pytest.skip("setpriv not available to drop privileges")
+    probe = _run("setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-c", "import click",
+                 check=False)
+    if probe.returncode != 0:
+        pytest.skip("python is not usable by an unprivileged user here")
+    env = dict(os.environ, AKDCTL_STATE_DIR=str(tmp_path), PYTHONPATH=str(ROOT), HOME=str(tmp_path))
+    result = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-m",
+                             "akdctl", "-T", "ecat://lo", "sdo", "read", "0x1018:1"], capture_output=True, text=True,
+                            env=env, cwd=ROOT, timeout=60)
+    assert result.returncode == 2
+    assert "needs CAP_NET_RAW" in result.stderr and len(result.stderr.strip().splitlines()) == 1
