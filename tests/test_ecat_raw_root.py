@@ -113,7 +113,7 @@ def test_pysoem_master_against_sim_slave(pair: VethPair, slave: Slave) -> None:
         try:
             n = m.config_init()
             s = m.slaves[0]
-            out = dict(n=n, man=s.man, id=s.id, rev=s.rev, vendor=s.sdo_read(0x1018, 1).hex(),
+            out = dict(n=n, name_sii=s.name, man=s.man, id=s.id, rev=s.rev, vendor=s.sdo_read(0x1018, 1).hex(),
                        name=s.sdo_read(0x1008, 0).decode(), product=s.sdo_read(0x1018, 2).hex())
             s.sdo_write(0x6060, 0, bytes([3]))
             out["mode"] = s.sdo_read(0x6060, 0).hex()
@@ -127,7 +127,8 @@ def test_pysoem_master_against_sim_slave(pair: VethPair, slave: Slave) -> None:
                             text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout.strip().splitlines()[-1])
-    assert out["n"] == 1 and out["man"] == 0x6A and out["id"] == 0x00414B44 and out["rev"] == 2
+    assert out["n"] == 1 and out["name_sii"] == "AKD"  # SOEM names a slave by SII string 1
+    assert out["man"] == 0x6A and out["id"] == 0x00414B44 and out["rev"] == 2
     assert out["vendor"] == "6a000000" and out["product"] == "444b4100" and out["name"] == "AKD"
     assert out["mode"] == "03" and out["state"] == 2  # PRE-OP
 
