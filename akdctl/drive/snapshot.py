@@ -1,0 +1,886 @@
+"""Parameter snapshots: back up, compare and restore a drive's configuration.
+
+Why this module: a machine builder commissions the same axis type hundreds of
+times and a technician must be able to put a replaced drive back exactly as it
+was. So a snapshot is plain data (TOML or JSON) that names the target, the
+drive's identity, firmware and time; reading it costs the fewest round trips
+the protocol allows (every PNU in ONE batched :func:`~akdctl.drive.params.read_pnus`
+call, packed so the channel's 39-parameter / 240-byte split yields the minimum
+number of requests); and restoring it writes only what differs, in an order
+the drive accepts (units and operating mode before values that depend on
+them, telegram before its free mapping, PDO mapping with the manual's
+clear → entries → count sequence), never the control word, and reads every
+written value back.
+
+Items that are *process data* (set points, the control word, command objects)
+are backed up for the record where readable but are never restored: writing
+them is motion, not configuration.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import math
+import os
+import tempfile
+import tomllib
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
+
+SNAPSHOT_FORMAT = 1
+
+# DRV.NVSAVE through the CiA 301 "store parameters" object: the signature "save" (ASCII, little-endian).
+NVSAVE_INDEX = 0x1010
+NVSAVE_SUBINDEX = 1
+NVSAVE_SIGNATURE = 0x65766173
+
+PNU_GROUPS = ("signal", "profidrive", "telegram", "fault", "identity", "jog")
+OBJECT_GROUPS = ("pdo", "comm", "akd", "cia402")
+SOURCES = ("auto", "pnu", "objects", "all")
+
+# Never written by a restore, whatever a file says: the control words and command objects.
+PNU_NEVER_RESTORE = frozenset({1})  # STW1
+OBJECT_NEVER = frozenset({0x6040, 0x1010, 0x1011})
+# RxPDO-mappable objects are set points (process data) except these configuration values.
+_RX_CONFIG = frozenset({0x6060, 0x606D, 0x606E, 0x6072, 0x6081, 0x6083, 0x6084, 0x6087, 0x60B8, 0x60E0, 0x60E1,
+                        0x207F})
+_PDO_MAPPING = frozenset(range(0x1600, 0x1604)) | frozenset(range(0x1A00, 0x1A04))
+_PDO_ASSIGN = frozenset({0x1C12, 0x1C13})
+_SCALING = frozenset({0x608F, 0x6091, 0x6092})
+
+# Restore phases: lower first (SPEC-NOTES 13: PNU 1002 scales positions; the telegram decides 915/916).
+PHASE_UNITS_MODE = 0
+PHASE_TELEGRAM = 1
+PHASE_MAPPING = 2
+PHASE_ASSIGNMENT = 3
+PHASE_REST = 4
+TELEGRAM_DERIVED = frozenset({"915", "916"})
+_PNU_PHASE = {1002: PHASE_UNITS_MODE, 930: PHASE_UNITS_MODE, 922: PHASE_TELEGRAM, 915: PHASE_MAPPING,
+              916: PHASE_MAPPING}
+
+Value = int | float | str | list[int]
+
+
+# ---------------------------------------------------------------------------- items
+@dataclass(frozen=True)
+class Item:
+    """One quantity a snapshot holds: a whole PNU or one object sub-entry."""
+
+    key: str  # "930" / "0x6060:0"
+    kind: str  # "pnu" or "object"
+    name: str
+    group: str
+    restorable: bool
+    phase: int
+    info: Any = field(default=None, compare=False)  # PnuInfo or ObjectEntry
+
+    @property
+    def index(self) -> int:
+        return int(self.key.split(":")[0], 0)
+
+    @property
+    def subindex(self) -> int:
+        return int(self.key.split(":")[1]) if self.kind == "object" else 0
+
+
+def object_key(index: int, subindex: int) -> str:
+    return f"0x{index:04X}:{subindex}"
+
+
+def _object_group(index: int) -> str:
+    if index in _PDO_MAPPING or index in _PDO_ASSIGN:
+        return "pdo"
+    if index < 0x2000:
+        return "comm"
+    if index < 0x6000:
+        return "akd"
+    return "cia402"
+
+
+def _object_phase(index: int) -> int:
+    if index == 0x6060 or index in _SCALING:
+        return PHASE_UNITS_MODE
+    if index in _PDO_MAPPING:
+        return PHASE_MAPPING
+    if index in _PDO_ASSIGN:
+        return PHASE_ASSIGNMENT
+    return PHASE_REST
+
+
+def pnu_item(info: Any) -> Item:
+    restorable = info.writable and info.group != "signal" and info.pnu not in PNU_NEVER_RESTORE
+    return Item(str(info.pnu), "pnu", info.name, info.group, restorable, _PNU_PHASE.get(info.pnu, PHASE_REST), info)
+
+
+def object_backed_up(entry: Any) -> bool:
+    """Configuration objects: readable and writable, not a command or a set point."""
+    if entry.access != "rw" or entry.index in OBJECT_NEVER:
+        return False
+    if entry.pdo == "R" and entry.index not in _RX_CONFIG:
+        return False
+    return entry.short_type in ("u8", "u16", "u32", "u64", "i8", "i16", "i32", "i64", "r32", "r64", "vs", "os", "bool")
+
+
+def object_item(entry: Any) -> Item:
+    from akdctl.catalog.objects import object_name
+
+    name = object_name(entry.index) or entry.name
+    if entry.subindex or len(_subs(entry.index)) > 1:
+        name = f"{name} / {entry.name}"
+    return Item(object_key(entry.index, entry.subindex), "object", name, _object_group(entry.index),
+                object_backed_up(entry), _object_phase(entry.index), entry)
+
+
+def _subs(index: int) -> list[Any]:
+    from akdctl.catalog.objects import subentries
+
+    return subentries(index)
+
+
+def catalogue_pnu_items() -> list[Item]:
+    from akdctl.catalog.pnus import pnu_table
+
+    return [pnu_item(info) for _, info in sorted(pnu_table().items())]
+
+
+def catalogue_object_items() -> list[Item]:
+    from akdctl.catalog.objects import entries
+
+    return [object_item(e) for e in entries().values() if object_backed_up(e)]
+
+
+def resolve_item(text: str) -> Item:
+    """A PNU (``930``, ``STW1``) or object (``0x6060:0``, ``0x6060``) the user named → item."""
+    from akdctl.catalog.objects import lookup as object_lookup
+    from akdctl.catalog.objects import subentries
+    from akdctl.catalog.pnus import by_name, lookup
+
+    cleaned = text.strip()
+    if ":" in cleaned or cleaned.lower().endswith("h") and not cleaned.isdigit():
+        from akdctl.drive.objects import parse_address
+
+        address = parse_address(cleaned)
+        entry = object_lookup(address.index, address.subindex)
+        if entry is None:
+            raise UsageError(f"unknown object {address.label} (not in the AKD catalogue)")
+        return object_item(entry)
+    info = by_name(cleaned)
+    if info is None:
+        try:
+            number = int(cleaned, 0)
+        except ValueError:
+            raise UsageError(f"unknown parameter {text!r}: expected a PNU (930, STW1) or an object (0x6060:0)") from None
+        info = lookup(number) if not cleaned.lower().startswith("0x") else None
+        if info is None and cleaned.lower().startswith("0x") and subentries(number):
+            return object_item(object_lookup(number, 0) or subentries(number)[0])
+        if info is None:
+            raise UsageError(f"unknown parameter {text!r}: not a PNU or object of the catalogue")
+    return pnu_item(info)
+
+
+def select_items(sources: Sequence[str], groups: Sequence[str] = (), only: Sequence[str] = ()) -> list[Item]:
+    """The items to back up: by source ("pnu"/"objects"), narrowed to groups, or an explicit list."""
+    if only:
+        picked: dict[str, Item] = {}
+        for text in only:
+            for part in text.split(","):
+                if part.strip():
+                    item = resolve_item(part)
+                    picked.setdefault(item.key, item)
+        return list(picked.values())
+    for group in groups:
+        if group not in PNU_GROUPS + OBJECT_GROUPS:
+            raise UsageError(f"unknown group {group!r}; groups: {', '.join(PNU_GROUPS + OBJECT_GROUPS)}")
+    items: list[Item] = []
+    if "pnu" in sources:
+        items += [i for i in catalogue_pnu_items() if not groups or i.group in groups]
+    if "objects" in sources:
+        items += [i for i in catalogue_object_items() if not groups or i.group in groups]
+    return items
+
+
+def choose_sources(transport: Any, source: str) -> list[str]:
+    """Which channels a backup reads: ``auto`` = PNUs where the target has them, else objects."""
+    if source not in SOURCES:
+        raise UsageError(f"unknown source {source!r}; choose one of {', '.join(SOURCES)}")
+    has_pnu, has_obj = transport.parameters is not None, transport.objects is not None
+    wanted = {"auto": ["pnu"] if has_pnu else ["objects"], "pnu": ["pnu"], "objects": ["objects"],
+              "all": ["pnu", "objects"]}[source]
+    if "pnu" in wanted and not has_pnu:
+        raise UsageError("this target offers no PROFIdrive parameter channel; use --source objects")
+    if "objects" in wanted and not has_obj:
+        raise UsageError("this target offers no object channel (SDO); use --source pnu")
+    return wanted
+
+
+# ---------------------------------------------------------------------------- reading
+@contextlib.contextmanager
+def exact_element_sizes(channel: Any) -> Iterator[None]:
+    """Let the channel size responses by the catalogue's element sizes instead of its 4-byte bound.
+
+    Why: the AKD answers U16 PNUs as words (SPEC-NOTES 5), so a 64-element fault
+    buffer fits one block; with the generic 4-byte bound it would be split. The
+    channel still halves and retries if a drive answers longer than expected.
+    """
+    if not hasattr(channel, "element_size") or callable(channel.element_size):
+        yield
+        return
+    from akdctl.catalog.pnus import lookup
+
+    fallback = channel.element_size
+
+    def size(address: Any) -> int:
+        info = lookup(address.pnu)
+        return info.bits // 8 if info is not None else fallback
+
+    channel.element_size = size
+    try:
+        yield
+    finally:
+        channel.element_size = fallback
+
+
+def _pack_order(specs: list[Any], element_size: Any) -> list[Any]:
+    """Order PNU reads so the channel's in-order greedy split gives the fewest requests.
+
+    First-fit decreasing over the two limits (39 parameters, 240-byte response);
+    the bins are emitted one after another, so each becomes exactly one request.
+    """
+    from akdctl.protocol.profidrive import HEADER_SIZE, MAX_BLOCK, MAX_PARAMETERS, ParameterAddress, response_block_size
+
+    def cost(spec: Any) -> int:
+        return response_block_size(ParameterAddress(spec.pnu, spec.subindex, spec.count), element_size)
+
+    bins: list[tuple[list[Any], list[int]]] = []  # (specs, [bytes used])
+    for spec in sorted(specs, key=cost, reverse=True):
+        c = cost(spec)
+        for members, used in bins:
+            if len(members) < MAX_PARAMETERS and used[0] + c <= MAX_BLOCK:
+                members.append(spec)
+                used[0] += c
+                break
+        else:
+            bins.append(([spec], [HEADER_SIZE + c]))
+    return [spec for members, _ in bins for spec in members]
+
+
+def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+    """Every PNU item in one batched read; (values by key, refusals by key)."""
+    from akdctl.drive.params import PnuSpec, read_pnus
+
+    specs = [PnuSpec(i.index, 0, i.info.length, i.info) for i in items if i.kind == "pnu"]
+    if not specs:
+        return {}, {}
+    with exact_element_sizes(channel):
+        ordered = _pack_order(specs, getattr(channel, "element_size", 4))
+        readings = read_pnus(channel, ordered)
+    values: dict[str, Value] = {}
+    errors: dict[str, str] = {}
+    for reading in readings:
+        key = str(reading.spec.pnu)
+        if not reading.ok:
+            errors[key] = f"{reading.error_text} (error 0x{reading.error:02X})"
+            continue
+        got = [int(v) for v in reading.values or []]
+        values[key] = got if reading.spec.info.is_array else (got[0] if got else 0)
+    order = {str(s.pnu): n for n, s in enumerate(specs)}
+    return dict(sorted(values.items(), key=lambda kv: order[kv[0]])), errors
+
+
+def _decode_object(entry: Any, data: bytes) -> Value:
+    from akdctl.protocol.datatypes import DataTypeError, unpack
+
+    kind = entry.short_type
+    try:
+        value = unpack(kind, data)
+    except DataTypeError:
+        return "0x" + data.hex()
+    if isinstance(value, (bytes, bytearray)):
+        return "0x" + bytes(value).hex()
+    if isinstance(value, bool):
+        return int(value)
+    return value  # type: ignore[return-value]
+
+
+def encode_object(entry: Any, value: Any) -> bytes:
+    """A snapshot/recipe value → the bytes an SDO download carries; UsageError when it does not fit."""
+    from akdctl.protocol.datatypes import DataTypeError, pack
+
+    kind = entry.short_type
+    try:
+        if kind == "os":
+            if not isinstance(value, str):
+                raise DataTypeError("octet strings are written as hex text, e.g. \"0x0102\"")
+            text = value[2:] if value.lower().startswith("0x") else value
+            return bytes.fromhex(text)
+        if kind == "bool":
+            return pack("u8", int(value)) if isinstance(value, (bool, int)) else pack("bool", value)
+        return pack(kind, value)
+    except (DataTypeError, ValueError) as exc:
+        raise UsageError(f"object {object_key(entry.index, entry.subindex)} ({entry.name}): bad value {value!r}: {exc}") from None
+
+
+def read_object_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+    """One SDO upload per object item; refusals recorded, a broken link raises."""
+    values: dict[str, Value] = {}
+    errors: dict[str, str] = {}
+    for item in items:
+        if item.kind != "object":
+            continue
+        try:
+            data = channel.upload(item.info.index, item.info.subindex)
+        except CommError:
+            raise
+        except AkdError as exc:
+            errors[item.key] = exc.message
+            continue
+        values[item.key] = _decode_object(item.info, data)
+    return values, errors
+
+
+def read_values(transport: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+    pnu_items = [i for i in items if i.kind == "pnu"]
+    obj_items = [i for i in items if i.kind == "object"]
+    values: dict[str, Value] = {}
+    errors: dict[str, str] = {}
+    if pnu_items:
+        if transport.parameters is None:
+            raise UsageError("this target offers no PROFIdrive parameter channel; PNUs cannot be read")
+        v, e = read_pnu_values(transport.parameters, pnu_items)
+        values.update(v)
+        errors.update(e)
+    if obj_items:
+        if transport.objects is None:
+            raise UsageError("this target offers no object channel (SDO); objects cannot be read")
+        v, e = read_object_values(transport.objects, obj_items)
+        values.update(v)
+        errors.update(e)
+    return values, errors
+
+
+# ---------------------------------------------------------------------------- identity
+IDENTITY_CHECKED = ("manufacturer", "drive_unit_type", "vendor_id", "product_code")
+
+
+def identity_from_pnus(values: dict[str, Value]) -> dict[str, Any]:
+    """Identity fields from PNU 964 (already in a PNU backup: no extra round trip)."""
+    du = values.get("964")
+    if not isinstance(du, list) or len(du) < 5:
+        return {}
+    return {"manufacturer": du[0], "drive_unit_type": du[1], "firmware": f"{du[2] // 100}.{du[2] % 100:02d}",
+            "firmware_date": f"{du[4] // 100:02d}.{du[4] % 100:02d}.{du[3]}"}
+
+
+def read_identity(transport: Any, use_pnu: bool, use_objects: bool) -> dict[str, Any]:
+    """The identity fields of the drive from the channels a backup uses."""
+    out: dict[str, Any] = {}
+    if use_pnu and transport.parameters is not None:
+        values, _ = read_pnu_values(transport.parameters, [resolve_item("964")])
+        out.update(identity_from_pnus(values))
+    if use_objects and transport.objects is not None:
+        out.update(_object_identity(transport.objects))
+    return out
+
+
+def _object_identity(channel: Any) -> dict[str, Any]:
+    from akdctl.protocol.datatypes import DataTypeError, unpack
+
+    out: dict[str, Any] = {}
+    for key, index, sub, kind in (("vendor_id", 0x1018, 1, "u32"), ("product_code", 0x1018, 2, "u32"),
+                                  ("revision", 0x1018, 3, "u32"), ("serial", 0x1018, 4, "u32"),
+                                  ("device_name", 0x1008, 0, "vs"), ("software_version", 0x100A, 0, "vs")):
+        try:
+            out[key] = unpack(kind, channel.upload(index, sub))
+        except CommError:
+            raise
+        except (AkdError, DataTypeError):
+            continue
+    return out
+
+
+def identity_mismatches(expected: dict[str, Any], actual: dict[str, Any]) -> list[str]:
+    """Type-identity fields both sides know and that differ (serial numbers may differ: same type, new unit)."""
+    return [f"{key}: file {expected[key]!r}, drive {actual[key]!r}" for key in IDENTITY_CHECKED
+            if key in expected and key in actual and expected[key] != actual[key]]
+
+
+# ---------------------------------------------------------------------------- snapshot data
+@dataclass
+class Snapshot:
+    target: str
+    time: str
+    identity: dict[str, Any]
+    pnus: dict[str, Value] = field(default_factory=dict)
+    objects: dict[str, Value] = field(default_factory=dict)
+    refused: dict[str, str] = field(default_factory=dict)
+    source: str = ""  # the file it came from (not stored)
+
+    @property
+    def firmware(self) -> str | None:
+        return self.identity.get("firmware") or self.identity.get("software_version")
+
+    def values(self) -> dict[str, Value]:
+        return {**self.pnus, **self.objects}
+
+    def to_data(self) -> dict[str, Any]:
+        data: dict[str, Any] = {
+            "akdctl_backup": {"format": SNAPSHOT_FORMAT, "target": self.target, "time": self.time,
+                              "firmware": self.firmware or ""},
+            "identity": self.identity,
+        }
+        if self.pnus:
+            data["pnus"] = self.pnus
+        if self.objects:
+            data["objects"] = self.objects
+        if self.refused:
+            data["refused"] = self.refused
+        return data
+
+    @classmethod
+    def from_data(cls, data: Any, source: str) -> "Snapshot":
+        if not isinstance(data, dict) or not isinstance(data.get("akdctl_backup"), dict):
+            raise UsageError(f"{source}: not an akdctl parameter backup (no [akdctl_backup] table)")
+        head = data["akdctl_backup"]
+        if head.get("format") != SNAPSHOT_FORMAT:
+            raise UsageError(f"{source}: backup format {head.get('format')!r} is not supported (expected {SNAPSHOT_FORMAT})")
+        snap = cls(str(head.get("target", "")), str(head.get("time", "")), dict(data.get("identity") or {}),
+                   source=source)
+        for section, store in (("pnus", snap.pnus), ("objects", snap.objects)):
+            table = data.get(section) or {}
+            if not isinstance(table, dict):
+                raise UsageError(f"{source}: [{section}] must be a table of values")
+            for key, value in table.items():
+                item = _item_for_key(str(key), section, source)
+                _check_value(item, value, f"{source}: [{section}] {key}")
+                store[item.key] = value
+        snap.refused = {str(k): str(v) for k, v in dict(data.get("refused") or {}).items()}
+        return snap
+
+
+def _item_for_key(key: str, section: str, source: str) -> Item:
+    try:
+        item = resolve_item(key)
+    except UsageError as exc:
+        raise UsageError(f"{source}: [{section}] {key!r}: {exc.message}") from None
+    if (section == "pnus") != (item.kind == "pnu"):
+        raise UsageError(f"{source}: [{section}] {key!r} is a{'n object' if item.kind == 'object' else ' PNU'}, "
+                         f"not a{' PNU' if section == 'pnus' else 'n object'}")
+    return item
+
+
+def _check_value(item: Item, value: Any, where: str) -> None:
+    """A file's value fits the item's type (checked before anything is written)."""
+    if item.kind == "pnu":
+        info = item.info
+        values = value if isinstance(value, list) else [value]
+        if info.is_array != isinstance(value, list):
+            raise UsageError(f"{where}: expected {'a list of' if info.is_array else 'one'} integer"
+                             f"{'s' if info.is_array else ''} for PNU {info.pnu} ({info.name})")
+        if len(values) > info.length:
+            raise UsageError(f"{where}: PNU {info.pnu} ({info.name}) has {info.length} elements, file has {len(values)}")
+        lo, hi = info.limits()
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise UsageError(f"{where}: expected an integer, got {v!r}")
+            if item.restorable and not lo <= v <= hi:
+                raise UsageError(f"{where}: {v} is outside {lo}..{hi} for PNU {info.pnu} ({info.name})")
+        return
+    encode_object(item.info, value)
+
+
+def values_equal(a: Any, b: Any) -> bool:
+    if isinstance(a, float) or isinstance(b, float):
+        try:
+            return math.isclose(float(a), float(b), rel_tol=1e-6, abs_tol=1e-9)
+        except (TypeError, ValueError):
+            return False
+    if isinstance(a, str) and isinstance(b, str) and a.lower().startswith("0x") and b.lower().startswith("0x"):
+        return a.lower() == b.lower()
+    return a == b
+
+
+def now_iso() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+def take(transport: Any, items: Sequence[Item], target: str, sources: Sequence[str]) -> Snapshot:
+    """Read every item (one batched PNU read, one SDO upload per object) into a snapshot."""
+    values, errors = read_values(transport, items)
+    identity = identity_from_pnus(values) if "964" in values else {}
+    need_pnu_identity = "pnu" in sources and not identity
+    extra = read_identity(transport, need_pnu_identity, "objects" in sources)
+    identity.update(extra)
+    snap = Snapshot(target, now_iso(), identity, refused=errors)
+    for item in items:
+        if item.key in values:
+            (snap.pnus if item.kind == "pnu" else snap.objects)[item.key] = values[item.key]
+    return snap
+
+
+# ---------------------------------------------------------------------------- files
+def write_file(snapshot: Snapshot, path: str | os.PathLike[str]) -> Path:
+    """Write TOML (``.toml``) or JSON (``.json``) atomically: a crash never leaves half a backup."""
+    target = Path(path)
+    suffix = target.suffix.lower()
+    if suffix == ".toml":
+        text = to_toml(snapshot.to_data(), comments=_comments(snapshot))
+    elif suffix == ".json":
+        text = json.dumps(snapshot.to_data(), indent=2) + "\n"
+    else:
+        raise UsageError(f"backup file {target.name}: use a .toml or .json suffix (the format follows it)")
+    atomic_write(target, text)
+    return target
+
+
+def atomic_write(target: Path, text: str) -> None:
+    directory = target.parent if str(target.parent) else Path(".")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+
+
+def load_file(path: str | os.PathLike[str]) -> Snapshot:
+    source = Path(path)
+    try:
+        text = source.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UsageError(f"backup file {source} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read backup file {source}: {getattr(exc, 'strerror', None) or exc}") from None
+    if source.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise UsageError(f"{source}:{exc.lineno}: not valid JSON: {exc.msg}") from None
+    else:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise UsageError(f"{source}: not valid TOML: {exc}") from None
+    return Snapshot.from_data(data, str(source))
+
+
+def _comments(snapshot: Snapshot) -> dict[str, str]:
+    out = {}
+    for key in snapshot.values():
+        try:
+            item = resolve_item(key)
+        except UsageError:
+            continue
+        out[key] = item.name + ("" if item.restorable else " (not restored)")
+    return out
+
+
+def _toml_key(key: str) -> str:
+    return key if key.replace("_", "").replace("-", "").isalnum() and not key[0].isdigit() else json.dumps(key)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_toml_key(str(k))} = {_toml_value(v)}" for k, v in value.items()
+                                if v is not None) + " }"
+    raise UsageError(f"cannot write {type(value).__name__} value to TOML")
+
+
+def to_toml(data: dict[str, Any], comments: dict[str, str] | None = None, prefix: str = "") -> str:
+    """A small TOML writer for snapshot-shaped data (nested tables of scalars and lists)."""
+    comments = comments or {}
+    lines: list[str] = []
+    scalars = [(k, v) for k, v in data.items() if not isinstance(v, dict) and v is not None]
+    tables = [(k, v) for k, v in data.items() if isinstance(v, dict)]
+    for key, value in scalars:
+        note = comments.get(str(key))
+        lines.append(f"{_toml_key(str(key))} = {_toml_value(value)}" + (f"  # {note}" if note else ""))
+    for key, value in tables:
+        name = f"{prefix}.{_toml_key(str(key))}" if prefix else _toml_key(str(key))
+        body = to_toml(value, comments, name)
+        if lines:
+            lines.append("")
+        lines.append(f"[{name}]")
+        if body:
+            lines.append(body.rstrip("\n"))
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------- diff
+@dataclass(frozen=True)
+class Difference:
+    key: str
+    name: str
+    old: Any  # the drive's (or file B's) value; None when missing
+    new: Any  # file A's value; None when missing
+    restorable: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return {"key": self.key, "name": self.name, "a": self.new, "b": self.old, "restorable": self.restorable}
+
+
+def compare(wanted: dict[str, Value], actual: dict[str, Value], *, include_all: bool = False) -> list[Difference]:
+    """Differences between the wanted values (file A) and the actual ones (drive or file B).
+
+    Only restorable (configuration) items by default: live values such as the
+    status word or actual velocity always differ and say nothing about setup.
+    """
+    out = []
+    for key in wanted:
+        if key not in actual:
+            continue  # one-sided keys: see one_sided()
+        item = resolve_item(key)
+        if not include_all and not item.restorable:
+            continue
+        a, b = wanted[key], actual[key]
+        if not values_equal(a, b):
+            out.append(Difference(key, item.name, b, a, item.restorable))
+    return out
+
+
+def one_sided(wanted: dict[str, Value], actual: dict[str, Value], *, include_all: bool = False) -> tuple[list[str], list[str]]:
+    """Keys only in A and only in B (files of different scope); listed, not counted as differences."""
+    def keep(key: str) -> bool:
+        return include_all or resolve_item(key).restorable
+
+    return ([k for k in wanted if k not in actual and keep(k)], [k for k in actual if k not in wanted and keep(k)])
+
+
+# ---------------------------------------------------------------------------- restore
+@dataclass
+class Change:
+    item: Item
+    old: Any
+    new: Any
+
+    def to_json(self) -> dict[str, Any]:
+        return {"key": self.item.key, "name": self.item.name, "old": self.old, "new": self.new,
+                "phase": self.item.phase}
+
+
+def plan_restore(snapshot: Snapshot, current: dict[str, Value]) -> list[Change]:
+    """What must be written to make the drive equal the snapshot, in a safe order."""
+    changes = []
+    telegram = snapshot.pnus.get("922", current.get("922"))
+    for key, new in snapshot.values().items():
+        item = resolve_item(key)
+        if not item.restorable:
+            continue
+        if key in TELEGRAM_DERIVED and telegram not in (None, 0):
+            continue  # a standard telegram fixes its IO words; 915/916 are writable only with telegram 0
+        old = current.get(key)
+        if old is not None and values_equal(old, new):
+            continue
+        changes.append(Change(item, old, new))
+    position = {key: n for n, key in enumerate(snapshot.values())}
+    changes.sort(key=lambda c: (c.item.phase, c.item.kind != "pnu", c.item.index if c.item.kind == "object" else 0,
+                                c.item.subindex, position[c.item.key]))
+    return changes
+
+
+def restorable_items(snapshot: Snapshot) -> list[Item]:
+    return [item for item in (resolve_item(k) for k in snapshot.values()) if item.restorable]
+
+
+def drive_enabled(transport: Any) -> bool:
+    """Operation enabled (ZSW1 / statusword bit 2): a restore then could change a running axis."""
+    try:
+        if transport.parameters is not None:
+            from akdctl.drive.params import parse_pnu_spec, read_pnus
+
+            (zsw1,) = read_pnus(transport.parameters, [parse_pnu_spec("2")])
+            if zsw1.ok and zsw1.values:
+                return bool(zsw1.values[0] & 0x0004)
+        if transport.objects is not None:
+            data = transport.objects.upload(0x6041, 0)
+            return (int.from_bytes(data[:2], "little") & 0x006F) == 0x0027
+    except CommError:
+        raise
+    except AkdError:
+        return False
+    return False
+
+
+def apply_changes(transport: Any, changes: Sequence[Change]) -> list[dict[str, Any]]:
+    """Write the changes in order, then read every one back; CheckFailed when a value did not stick."""
+    from akdctl.drive.params import PnuSpec, write_pnus
+
+    done: list[dict[str, Any]] = []
+    pnu_batch: list[Change] = []
+
+    def flush() -> None:
+        if not pnu_batch:
+            return
+        assignments = []
+        for change in pnu_batch:
+            info = change.item.info
+            values = change.new if isinstance(change.new, list) else [change.new]
+            assignments.append((PnuSpec(info.pnu, 0, len(values), info), [int(v) for v in values]))
+        results = write_pnus(transport.parameters, assignments)
+        for change, result in zip(pnu_batch, results):
+            if not result.ok:
+                raise DriveError(f"drive refused PNU {change.item.key} ({change.item.name}) = {change.new}: "
+                                 f"{result.error_text}; {len(done)} change(s) were written before it",
+                                 code=result.error, details={"written": done})
+            done.append(change.to_json())
+        pnu_batch.clear()
+
+    phase = None
+    for change in changes:
+        if change.item.phase != phase:
+            flush()  # a later phase depends on the earlier one having been accepted
+            phase = change.item.phase
+        if change.item.kind == "pnu":
+            if transport.parameters is None:
+                raise UsageError("this target offers no PROFIdrive parameter channel; the backup holds PNUs")
+            pnu_batch.append(change)
+            continue
+        flush()
+    flush()
+    _write_objects(transport, [c for c in changes if c.item.kind == "object"], done)
+    verify(transport, changes)
+    return done
+
+
+def _write_objects(transport: Any, changes: Sequence[Change], done: list[dict[str, Any]]) -> None:
+    if not changes:
+        return
+    if transport.objects is None:
+        raise UsageError("this target offers no object channel (SDO); the backup holds objects")
+    channel = transport.objects
+    by_index: dict[int, list[Change]] = {}
+    order: list[int] = []
+    for change in changes:
+        if change.item.info.index not in by_index:
+            order.append(change.item.info.index)
+        by_index.setdefault(change.item.info.index, []).append(change)
+    for index in order:
+        group = by_index[index]
+        counted = index in _PDO_MAPPING or index in _PDO_ASSIGN
+        if counted:
+            # EtherCAT manual 5.6 / SPEC-NOTES 17: count 0, entries, count.
+            entries = [c for c in group if c.item.info.subindex != 0]
+            count = next((c for c in group if c.item.info.subindex == 0), None)
+            sub0 = _subs(index)[0]
+            final = count.new if count is not None else None
+            if final is None:
+                final = _decode_object(sub0, channel.upload(index, 0))
+            _download(channel, sub0, 0, done, label=f"{object_key(index, 0)} = 0 (clear before changing entries)")
+            for change in entries:
+                _download(channel, change.item.info, change.new, done, change=change)
+            _download(channel, sub0, final, done, change=count)
+        else:
+            for change in group:
+                _download(channel, change.item.info, change.new, done, change=change)
+
+
+def _download(channel: Any, entry: Any, value: Any, done: list[dict[str, Any]], *, change: Change | None = None,
+              label: str = "") -> None:
+    data = encode_object(entry, value)
+    try:
+        channel.download(entry.index, entry.subindex, data)
+    except SdoAborted as exc:
+        raise SdoAborted(f"drive refused {object_key(entry.index, entry.subindex)} ({entry.name}) = {value!r}: "
+                         f"{exc.message}; {len(done)} change(s) were written before it", code=exc.code,
+                         details={"written": done}) from None
+    if change is not None:
+        done.append(change.to_json())
+    elif label:
+        done.append({"key": object_key(entry.index, entry.subindex), "name": entry.name, "new": value, "note": label})
+
+
+def verify(transport: Any, changes: Sequence[Change]) -> None:
+    """Read every changed item back (one batched PNU read + SDO uploads) and compare."""
+    if not changes:
+        return
+    items = [c.item for c in changes]
+    values, errors = read_values(transport, items)
+    bad = []
+    for change in changes:
+        key = change.item.key
+        if key in errors:
+            bad.append(f"{key} ({change.item.name}): read-back refused: {errors[key]}")
+        elif not values_equal(values.get(key), change.new):
+            bad.append(f"{key} ({change.item.name}): wrote {change.new!r}, read back {values.get(key)!r}")
+    if bad:
+        raise CheckFailed("read-back differs: " + "; ".join(bad), details={"mismatches": bad})
+
+
+def save_nonvolatile(transport: Any) -> None:
+    """DRV.NVSAVE: 0x1010:1 = "save" (0x65766173); the AKD keeps the values over a power cycle."""
+    if transport.objects is None:
+        raise UsageError("saving to non-volatile memory needs the object channel (0x1010); this target has none")
+    transport.objects.download(NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE.to_bytes(4, "little"))
+
+
+@dataclass
+class RestoreResult:
+    changes: list[Change]
+    written: list[dict[str, Any]]
+    saved: bool
+    identity_warnings: list[str]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"changes": [c.to_json() for c in self.changes], "written": self.written, "saved": self.saved,
+                "identity_mismatches": self.identity_warnings}
+
+
+def restore(transport: Any, snapshot: Snapshot, *, dry_run: bool = False, force: bool = False,
+            save: bool = False) -> RestoreResult:
+    """Make the drive equal the snapshot's configuration values (see the module docstring)."""
+    items = restorable_items(snapshot)
+    use_pnu = any(i.kind == "pnu" for i in items) or transport.objects is None
+    use_obj = any(i.kind == "object" for i in items) or transport.parameters is None
+    actual_identity = read_identity(transport, use_pnu, use_obj)
+    mismatches = identity_mismatches(snapshot.identity, actual_identity)
+    if mismatches and not force:
+        raise SafetyRefusal("the backup is of a different drive type (" + "; ".join(mismatches)
+                            + "); refusing to restore (use --force to restore anyway)",
+                            details={"mismatches": mismatches})
+    current, _ = read_values(transport, items)
+    changes = plan_restore(snapshot, current)
+    if dry_run:
+        return RestoreResult(changes, [], False, mismatches)
+    if changes and drive_enabled(transport):
+        raise SafetyRefusal("the drive is enabled (operation enabled); disable it before restoring parameters")
+    written = apply_changes(transport, changes)
+    if save:
+        save_nonvolatile(transport)
+    return RestoreResult(changes, written, save, mismatches)
+
+
+def describe_value(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, list):
+        return "[" + ", ".join(str(v) for v in value) + "]"
+    return str(value)
+
