@@ -1,0 +1,173 @@
+"""PROFIdrive telegrams over any ParameterChannel: read PNU 922/915/916/923, select a telegram, map telegram 0.
+
+Why: what travels cyclically on PROFINET is chosen by PNU 922 and, for the free
+telegram 0, by the signal numbers in PNU 915 (set points) and 916 (actual values)
+taken from the signal list PNU 923 (PROFINET manual 5.8, 5.11). The layouts of
+the fixed telegrams are catalogue data (:mod:`akdctl.catalog.telegrams`); this
+module reads what the drive says, checks a wanted free mapping before anything is
+written, writes it and reads it back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from akdctl.catalog import telegrams as tc
+from akdctl.catalog.pnus import lookup
+from akdctl.errors import CheckFailed, MalformedReply, ParameterRefused, UsageError
+
+
+@dataclass
+class TelegramState:
+    """What the drive reports: the selected telegram and the IO words of both directions."""
+
+    number: int
+    setpoint_words: list[int]
+    actual_words: list[int]
+    signal_list: list[int]
+
+    @property
+    def setpoint(self) -> list[int]:
+        return _signals(self.setpoint_words, "PNU 915")
+
+    @property
+    def actual(self) -> list[int]:
+        return _signals(self.actual_words, "PNU 916")
+
+    def to_json(self) -> dict[str, Any]:
+        layout = tc.telegram(self.number)
+        return {
+            "telegram": self.number,
+            "description": layout.text if layout else ("free mapping (PNU 915/916)" if self.number == 0 else "unknown"),
+            "source": layout.source if layout else "",
+            "pnu915": self.setpoint_words, "pnu916": self.actual_words,
+            "setpoint": words_json(self.setpoint), "actual": words_json(self.actual),
+            "signal_list": [n for n, pnu in enumerate(self.signal_list) if pnu],
+        }
+
+
+def _signals(words: list[int], what: str) -> list[int]:
+    try:
+        return tc.words_to_signals(words)
+    except tc.TelegramDataError as exc:
+        raise MalformedReply(f"{what} does not describe a telegram: {exc}") from None
+
+
+def words_json(signals: Sequence[int]) -> list[dict[str, Any]]:
+    """Word by word: number (1-based), signal number and name, part of a double word, direction, meaning."""
+    return [{"word": s.word, "signal": s.signal.number, "name": s.signal.name, "part": s.part,
+             "label": s.label, "text": s.signal.text} for s in tc.word_layout(signals)]
+
+
+def _spec(pnu: int, count: int | None = None) -> Any:
+    from akdctl.drive.params import PnuSpec
+
+    info = lookup(pnu)
+    assert info is not None
+    return PnuSpec(pnu, 0, count if count is not None else info.length, info)
+
+
+def _refused(reading: Any, verb: str) -> ParameterRefused:
+    return ParameterRefused(
+        f"drive refused to {verb} PNU {reading.spec.label}: {reading.error_text} (error 0x{reading.error:02X})"
+        + (f", element {reading.additional}"
+           if reading.additional is not None and reading.spec.info is not None and reading.spec.info.is_array else ""),
+        code=reading.error, details={"pnu": reading.spec.pnu, "additional": reading.additional},
+    )
+
+
+def read_state(channel: Any) -> TelegramState:
+    """PNU 922, 915, 916 and 923 in one batched read."""
+    from akdctl.drive.params import read_pnus
+
+    readings = read_pnus(channel, [_spec(922), _spec(915), _spec(916), _spec(923)])
+    for reading in readings:
+        if not reading.ok:
+            raise _refused(reading, "read")
+    number, setpoint, actual, offered = (list(r.values or []) for r in readings)
+    return TelegramState(number[0], setpoint, actual, offered)
+
+
+def parse_signals(text: str) -> list[int]:
+    """``1,5`` or ``STW1,NSOLL_A`` -> signal numbers (known to the catalogue)."""
+    out: list[int] = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        sig = tc.signal_by_name(part)
+        if sig is None:
+            try:
+                number = int(part, 0)
+            except ValueError:
+                raise UsageError(f"unknown signal {part!r}; signals: "
+                                 + ", ".join(f"{s.number} {s.name}" for s in tc.SIGNALS.values())) from None
+            sig = tc.signal(number)
+            if sig is None:
+                raise UsageError(f"signal {number} is not a signal of the AKD; signals: "
+                                 + ", ".join(f"{s.number} {s.name}" for s in tc.SIGNALS.values()))
+        out.append(sig.number)
+    return out
+
+
+def validate_free_map(setpoint: Sequence[int], actual: Sequence[int], offered: Sequence[int] | None = None) -> list[str]:
+    """Why a telegram 0 mapping cannot work (empty: fine): signal in PNU 923, right direction, <= 10 words."""
+    listed = list(offered) if offered is not None else tc.signal_list()
+    problems: list[str] = []
+    for signals, direction, pnu in ((setpoint, "setpoint", 915), (actual, "actual", 916)):
+        for number in signals:
+            sig = tc.signal(number)
+            if sig is None:
+                problems.append(f"signal {number} is not a signal of the AKD")
+                continue
+            if number >= len(listed) or not listed[number]:
+                problems.append(f"signal {number} ({sig.name}) is not in the signal list (PNU 923); "
+                                "it exists only inside the standard telegrams")
+            if sig.direction != direction:
+                problems.append(f"signal {number} ({sig.name}) is a{'n' if sig.direction == 'actual' else ''} "
+                                f"{sig.direction} signal; it cannot go into PNU {pnu}")
+        words = sum(tc.SIGNALS[n].words for n in signals if n in tc.SIGNALS)
+        if words > tc.PZD_MAX_WORDS:
+            problems.append(f"PNU {pnu}: {words} IO words, at most {tc.PZD_MAX_WORDS}")
+        if len(set(signals)) != len(signals):
+            problems.append(f"PNU {pnu}: a signal is mapped twice")
+    return problems
+
+
+def select_telegram(channel: Any, number: int) -> TelegramState:
+    """Write PNU 922 and read back the whole telegram state; CheckFailed if 922 reads back differently."""
+    from akdctl.drive.params import write_pnus
+
+    result = write_pnus(channel, [(_spec(922), [number])])[0]
+    if not result.ok:
+        raise _refused(result, "change")
+    state = read_state(channel)
+    if state.number != number:
+        raise CheckFailed(f"PNU 922: wrote {number}, read back {state.number}")
+    return state
+
+
+def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
+    """Write PNU 915 and/or 916 (all ten words each, zero-padded) and verify by reading back."""
+    from akdctl.drive.params import write_pnus
+
+    items = []
+    try:
+        if setpoint is not None:
+            items.append((_spec(915), tc.expand_words(list(setpoint))))
+        if actual is not None:
+            items.append((_spec(916), tc.expand_words(list(actual))))
+    except tc.TelegramDataError as exc:
+        raise UsageError(str(exc)) from None
+    for result in write_pnus(channel, items):
+        if not result.ok:
+            raise _refused(result, "change")
+    state = read_state(channel)
+    differences = [f"PNU {spec.pnu}: wrote {words}, read back {got}"
+                   for (spec, words), got in zip(items, [state.setpoint_words if s.pnu == 915 else state.actual_words
+                                                         for s, _ in items])
+                   if got != words]
+    if differences:
+        raise CheckFailed("telegram 0 mapping read back differs: " + "; ".join(differences))
+    return state
