@@ -42,7 +42,9 @@ def parse_address(text: str) -> ObjectAddress:
         index = int(index_text, 16)
     else:
         index = int(index_text, 10)
-    sub = int(match.group("sub"), 0) if match.group("sub") else 0
+    sub_text = match.group("sub")
+    # int(text, 0) refuses leading zeros ("0x1C12:01", as the manuals write it): parse by form.
+    sub = (int(sub_text, 16) if sub_text.lower().startswith("0x") else int(sub_text, 10)) if sub_text else 0
     if not 0 <= index <= 0xFFFF:
         raise UsageError(f"object index {index:#x} is outside 0x0000..0xFFFF")
     if not 0 <= sub <= 0xFF:

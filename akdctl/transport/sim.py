@@ -111,3 +111,11 @@ class SimTransport(Transport):
     def close(self) -> None:
         self.parameters = None
         self.objects = None
+
+    def al_state(self) -> str | None:
+        """The simulated drive's EtherCAT AL state (its ``pdo`` component), so commands whose rules
+        depend on it (PDO mapping only in PRE-OP) can check before writing; None if unknown."""
+        with self.drive.transaction() as model:
+            component = model.component("pdo")
+            state = getattr(component, "al_state", None)
+        return None if state is None else str(state)
