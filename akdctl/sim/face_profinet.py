@@ -111,7 +111,7 @@ def click_options() -> list[click.Option]:
                      help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
         click.Option(["--pn-station"], default="akd-sim", show_default=True,
                      help="PROFINET station name (NameOfStation) the simulated device reports."),
-        click.Option(["--dcp"], "dcp_iface", default=None, metavar="IFNAME",
+        click.Option(["--dcp", "dcp_iface"], default=None, metavar="IFNAME",
                      help="Also answer DCP identify/set/signal on this interface (raw socket, needs root)."),
     ]
 

@@ -1,0 +1,114 @@
+"""``akdctl pn scan|set-name|set-ip|blink``: PROFINET DCP on a local network interface.
+
+These talk to the network, not to one target: ``--iface`` names the card the
+drives are on. DEVICE is a MAC address (``00:1b:..``) or a station name.
+"""
+
+from __future__ import annotations
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.cli.output import Doc
+from akdctl.errors import UsageError
+
+IFACE = click.option("--iface", "-i", required=True, metavar="IFNAME",
+                     help="Network interface the PROFINET devices are on (e.g. eth0).")
+
+
+def _client(iface: str):  # type: ignore[no-untyped-def]
+    from akdctl.transport.dcp import DcpClient
+
+    app = get_app()
+    return DcpClient(iface, timeout=app.options.timeout, tracer=app.options.tracer)
+
+
+def _hex(value: int | None) -> str:
+    return "" if value is None else f"0x{value:04X}"
+
+
+@click.group()
+def pn() -> None:
+    """PROFINET: discover (DCP), name, address and blink devices."""
+
+
+@pn.command("scan")
+@IFACE
+@click.option("--wait", type=click.FloatRange(min=0.1, max=60), default=None, metavar="SECONDS",
+              help="How long to collect answers (default: the --timeout).")
+def scan(iface: str, wait: float | None) -> None:
+    """List the PROFINET devices on IFNAME: station name, IP, MAC, vendor/device ID, role."""
+    with _client(iface) as client:
+        stations = client.identify(timeout=wait)
+    app = get_app()
+    rows = [[s.name or "(no name)", s.ip, s.mac, _hex(s.vendor_id), _hex(s.device_id), s.role_text, s.family]
+            for s in stations]
+    doc = Doc(f"PROFINET devices on {iface}", iface)
+    if rows:
+        doc.table(["station name", "IP", "MAC", "vendor", "device", "role", "type"], rows)
+    else:
+        doc.line("no device answered DCP identify")
+    app.emit({"interface": iface, "devices": [s.to_json() for s in stations]}, doc)
+
+
+@pn.command("set-name")
+@IFACE
+@click.argument("device")
+@click.argument("name")
+@click.option("--temporary", is_flag=True, help="Keep the name only until the device restarts.")
+def set_name(iface: str, device: str, name: str, temporary: bool) -> None:
+    """Give DEVICE (MAC or current station name) the station name NAME."""
+    from akdctl.protocol import dcp
+    from akdctl.transport.dcp import find_station
+
+    if not dcp.valid_station_name(name):
+        raise UsageError(f"{name!r} is not a valid PROFINET station name (lower-case letters, digits and '-', "
+                         "dot-separated labels of at most 63 characters)")
+    with _client(iface) as client:
+        station = find_station(client, device)
+        client.set_name(dcp.mac_bytes(station.mac), name, permanent=not temporary)
+    get_app().emit({"mac": station.mac, "name": name, "permanent": not temporary},
+                   f"{station.mac}: station name set to {name!r}" + (" (temporary)" if temporary else ""))
+
+
+@pn.command("set-ip")
+@IFACE
+@click.argument("device")
+@click.argument("ip")
+@click.option("--netmask", default="255.255.255.0", show_default=True)
+@click.option("--gateway", default="0.0.0.0", show_default=True)
+@click.option("--temporary", is_flag=True, help="Keep the address only until the device restarts.")
+def set_ip(iface: str, device: str, ip: str, netmask: str, gateway: str, temporary: bool) -> None:
+    """Give DEVICE (MAC or station name) the IPv4 address IP."""
+    import ipaddress
+
+    from akdctl.protocol import dcp
+    from akdctl.transport.dcp import find_station
+
+    try:
+        for value in (ip, netmask, gateway):
+            ipaddress.IPv4Address(value)
+    except ValueError as exc:
+        raise UsageError(f"bad IPv4 setting: {exc}") from None
+    with _client(iface) as client:
+        station = find_station(client, device)
+        client.set_ip(dcp.mac_bytes(station.mac), ip, netmask, gateway, permanent=not temporary)
+    get_app().emit({"mac": station.mac, "ip": ip, "netmask": netmask, "gateway": gateway,
+                    "permanent": not temporary},
+                   f"{station.mac} ({station.name or 'no name'}): IP set to {ip}/{netmask} via {gateway}"
+                   + (" (temporary)" if temporary else ""))
+
+
+@pn.command("blink")
+@IFACE
+@click.argument("device")
+def blink(iface: str, device: str) -> None:
+    """Flash DEVICE's LED (DCP signal) so you can find it in the cabinet."""
+    from akdctl.protocol import dcp
+    from akdctl.transport.dcp import find_station
+
+    with _client(iface) as client:
+        station = find_station(client, device)
+        client.blink(dcp.mac_bytes(station.mac))
+    get_app().emit({"mac": station.mac, "name": station.name, "blink": True},
+                   f"{station.mac} ({station.name or 'no name'}): LED flashing")
