@@ -1,0 +1,183 @@
+"""``akdctl support bundle -o FILE`` and ``akdctl support show FILE``.
+
+The bundle is what a technician sends; ``show`` is what the support engineer
+runs on it, on a desk with no drive. See :mod:`akdctl.drive.bundle` for the
+file format.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.cli.output import Doc, message
+from akdctl.errors import CommError, UsageError
+
+
+@click.group()
+def support() -> None:
+    """Write a support bundle from a drive, or show one without a drive."""
+
+
+@support.command("bundle")
+@click.option("-o", "--output", "output", required=True, metavar="FILE", type=click.Path(dir_okay=False),
+              help="Bundle file to write (JSON; a name ending in .zip writes a zip with the JSON inside).")
+@click.option("--all-objects", is_flag=True,
+              help="Snapshot every readable object of the dictionary, not only the core ones (slow on a real bus).")
+def bundle(output: str, all_objects: bool) -> None:
+    """Collect identity, fault dump, status, parameters, mapping and the session trace into one file.
+
+    A section the drive refuses is recorded in the file; the file is written
+    atomically, never half. Exit 3 (file still written) if the drive did not answer at all.
+    """
+    from akdctl.drive import bundle as bundle_mod
+
+    app = get_app()
+    data = bundle_mod.collect(app, all_objects=all_objects)
+    path = bundle_mod.write(data, output)
+    errors = data.get("errors", {})
+    summary = {"file": str(path), "format": bundle_mod.FORMAT, "format_version": bundle_mod.FORMAT_VERSION,
+               "target": data["target"]["display"], "sections_with_errors": sorted(errors),
+               "trace_frames": len(data.get("trace", []))}
+    app.emit(summary, lambda: Doc("support bundle written", data["target"]["display"])
+             .kv("file", str(path)).kv("trace frames", summary["trace_frames"])
+             .kv("sections with errors", ", ".join(sorted(errors)) or "none"))
+    for section, text in sorted(errors.items()):
+        message(f"akdctl: warning: {section}: {text}")
+    if "transport" in errors:
+        exc = CommError(f"bundle written to {path}, but the drive could not be reached: {errors['transport']}")
+        exc.reported = True
+        raise exc
+
+
+# ---------------------------------------------------------------------------- show
+def _flatten(prefix: str, value: Any, doc: Doc) -> None:
+    if isinstance(value, dict):
+        for key, sub in value.items():
+            _flatten(f"{prefix}.{key}" if prefix else str(key), sub, doc)
+    elif isinstance(value, list) and value and all(isinstance(v, dict) and "set" in v for v in value):
+        doc.kv(prefix, ", ".join(str(v.get("name", v.get("bit"))) for v in value if v.get("set")) or "none set")
+    elif isinstance(value, list) and value and all(isinstance(v, dict) and "code" in v for v in value):
+        doc.kv(prefix, "; ".join(f"{v.get('code')} {v.get('text', v.get('name', ''))}".strip() for v in value))
+    elif isinstance(value, list) and len(value) > 12:
+        doc.kv(prefix, f"[{len(value)} values] " + ", ".join(str(v) for v in value[:12]) + ", …")
+    else:
+        doc.kv(prefix, value)
+
+
+def _header_doc(data: dict[str, Any], path: str) -> Doc:
+    tool, target = data.get("tool", {}), data.get("target", {})
+    doc = Doc("support bundle", str(target.get("display", "")))
+    doc.kv("file", path).kv("created", data.get("created"))
+    doc.kv("written by", f"{tool.get('name', '?')} {tool.get('version', '?')} (Python {tool.get('python', '?')}, "
+                         f"{tool.get('platform', '?')})")
+    doc.kv("target", f"{target.get('display')} (scheme {target.get('scheme')}, profile "
+                     f"{target.get('drive_profile') or 'auto'})")
+    for section, text in sorted((data.get("errors") or {}).items()):
+        doc.kv(f"error in {section}", text)
+    _flatten("identity", data.get("identity") or {}, doc)
+    return doc
+
+
+def _status_doc(data: dict[str, Any]) -> Doc:
+    doc = Doc("status")
+    _flatten("", data.get("status") or {}, doc)
+    return doc
+
+
+def _parameters_doc(data: dict[str, Any]) -> Doc:
+    params = data.get("parameters") or {}
+    doc = Doc("parameter snapshot")
+    if "error" in params:
+        return doc.line(f"not readable: {params['error']}")
+    trips = params.get("round_trips")
+    if isinstance(trips, dict):
+        doc.kv("round trips", ", ".join(f"{k} {v}" for k, v in trips.items()) or "none")
+    pnus = params.get("pnus")
+    if isinstance(pnus, list):
+        rows = []
+        for r in pnus:
+            values = r.get("values")
+            shown = r["error"]["text"] if "error" in r else ",".join(str(v) for v in (values or []))
+            if len(shown) > 70:
+                shown = shown[:67] + "..."
+            rows.append([r.get("pnu"), r.get("name") or "?", shown])
+        doc.table(["PNU", "name", "value"], rows, title="PNUs")
+    elif isinstance(pnus, dict):
+        doc.line(f"PNUs not readable: {pnus.get('error')}")
+    objects = params.get("objects")
+    if isinstance(objects, list):
+        doc.table(["object", "name", "value"],
+                  [[o.get("object"), o.get("name") or "?", o["error"] if "error" in o else o.get("value", o.get("hex"))]
+                   for o in objects], title="objects")
+    elif isinstance(objects, dict):
+        doc.line(f"objects not readable: {objects.get('error')}")
+    return doc
+
+
+def _mapping_doc(data: dict[str, Any]) -> Doc:
+    doc = Doc("process-data mapping")
+    mapping = dict(data.get("mapping") or {})
+    co = mapping.pop("canopen", None)
+    _flatten("", mapping, doc)
+    if isinstance(co, dict) and "error" not in co:
+        rows = []
+        for direction, d in co.items():
+            doc.kv(f"canopen {direction}", f"{d.get('assign_object')} = {', '.join(d.get('assigned', [])) or 'none'} "
+                                           f"({d.get('bytes')} of {d.get('max_bytes')} bytes)")
+            for pdo in d.get("pdos", []):
+                for e in pdo.get("entries", []):
+                    rows.append([direction, pdo.get("name"), e.get("address"), e.get("bits"), e.get("name")])
+        if rows:
+            doc.table(["dir", "PDO", "object", "bits", "name"], rows, title="PDO entries")
+    elif isinstance(co, dict):
+        doc.kv("canopen", f"not readable: {co.get('error')}")
+    return doc
+
+
+def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
+    trace = data.get("trace") or []
+    doc = Doc(f"session trace ({len(trace)} frames)")
+    shown = trace if full else trace[:20]
+    for rec in shown:
+        arrow = "->" if rec.get("direction") == "tx" else "<-"
+        doc.line(f"{arrow} {str(rec.get('layer', '')):8s} {rec.get('hex', '')}")
+    if len(shown) < len(trace):
+        doc.line(f"… {len(trace) - len(shown)} more frames (--trace-all shows them)")
+    return doc
+
+
+@support.command("show")
+@click.argument("file", metavar="FILE")
+@click.option("--trace-all", is_flag=True, help="Show every frame of the session trace (default: the first 20).")
+def show(file: str, trace_all: bool) -> None:
+    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2."""
+    from akdctl.cli.fault import dump_doc
+    from akdctl.cli.output import emit_json, render
+    from akdctl.drive.bundle import load
+
+    app = get_app()
+    data = load(file)
+    if app.json:
+        emit_json(data)
+        return
+    docs: list[Doc] = []
+    builders = (
+        ("header", lambda: _header_doc(data, file)),
+        ("faults", lambda: dump_doc(data["faults"]) if isinstance(data.get("faults"), dict)
+         and "error" not in data["faults"] else Doc("fault dump").line(
+             f"not readable: {(data.get('faults') or {}).get('error', 'missing')}")),
+        ("status", lambda: _status_doc(data)),
+        ("parameters", lambda: _parameters_doc(data)),
+        ("mapping", lambda: _mapping_doc(data)),
+        ("trace", lambda: _trace_doc(data, trace_all)),
+    )
+    for name, build in builders:
+        try:
+            docs.append(build())
+        except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+            raise UsageError(f"{file}: damaged support bundle (section {name}: {type(exc).__name__})") from None
+    for doc in docs:
+        render(doc)

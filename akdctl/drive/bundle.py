@@ -1,0 +1,332 @@
+"""The support bundle: everything a support engineer needs about one drive, in one file.
+
+Why one file with stable keys: the technician on site runs one command and
+attaches one file; the engineer opens it days later without a drive
+(``akdctl support show``). Each section is collected on its own: a refusal or
+a missing feature becomes ``{"error": "..."}`` in that section instead of
+losing the rest; only the bundle's own bookkeeping can fail the command.
+
+Layout (``FORMAT`` / ``FORMAT_VERSION`` identify the file)::
+
+    format, format_version, created (UTC ISO 8601), tool {name, version, python, platform},
+    target {display, scheme}, identity, faults (the ``fault dump`` data), status,
+    parameters {pnus: [...], objects: [...], round_trips}, mapping, trace [...], errors {section: text}
+
+Written atomically (temporary file in the same directory, fsync, ``os.replace``),
+so an interrupted run never leaves half a bundle. ``.zip`` output holds the
+same JSON as ``bundle.json`` plus the trace as text (``trace.txt``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import io
+import json
+import os
+import platform
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+from akdctl.errors import AkdError, CommError, UsageError
+
+FORMAT = "akdctl-support-bundle"
+FORMAT_VERSION = 1
+ZIP_MEMBER = "bundle.json"
+ZIP_TRACE = "trace.txt"
+REQUIRED_KEYS = ("format", "format_version", "created", "tool", "target")
+MAX_BUNDLE_BYTES = 256 * 1024 * 1024  # refuse to load anything larger (not a bundle of ours)
+
+# Objects worth a support engineer's look on every CoE/CANopen drive (the whole dictionary is opt-in).
+CORE_OBJECTS: tuple[tuple[int, int], ...] = (
+    (0x1000, 0), (0x1001, 0), (0x1008, 0), (0x1009, 0), (0x100A, 0),
+    (0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1018, 4),
+    (0x6040, 0), (0x6041, 0), (0x6060, 0), (0x6061, 0), (0x6063, 0), (0x6064, 0), (0x606C, 0),
+    (0x607A, 0), (0x6081, 0), (0x6083, 0), (0x6084, 0), (0x605A, 0), (0x60C2, 1), (0x60C2, 2), (0x6502, 0),
+)
+
+
+# ---------------------------------------------------------------------------- sections
+def _guard(errors: dict[str, str], name: str, func: Any) -> Any:
+    """Run one section; its failure is recorded (communication failures too: the rest may still work)."""
+    try:
+        return func()
+    except AkdError as exc:
+        errors[name] = exc.message
+        return {"error": exc.message, "kind": exc.kind}
+
+
+def _tool() -> dict[str, Any]:
+    from akdctl import __version__
+
+    return {"name": "akdctl", "version": __version__, "python": platform.python_version(),
+            "platform": f"{platform.system()} {platform.machine()}"}
+
+
+def pnu_snapshot(channel: Any) -> list[dict[str, Any]]:
+    """Every readable catalogue PNU in ONE batched read call (the channel packs the fewest requests)."""
+    from akdctl.catalog.pnus import pnu_table
+    from akdctl.drive.params import PnuSpec, read_pnus
+
+    specs = [PnuSpec(n, 0, info.length if info.is_array else 1, info)
+             for n, info in sorted(pnu_table().items()) if "r" in info.access]
+    return [r.to_json() for r in read_pnus(channel, specs)]
+
+
+def object_snapshot(channel: Any, *, everything: bool = False) -> list[dict[str, Any]]:
+    """Upload the core objects (or every readable catalogue object); aborts are recorded per object."""
+    from akdctl.catalog import objects as catalog
+    from akdctl.drive.objects import decode, json_value
+
+    if everything:
+        keys = sorted(k for k, e in catalog.entries().items() if e.readable)
+    else:
+        keys = [k for k in CORE_OBJECTS if catalog.lookup(*k) is not None]
+    out = []
+    for index, sub in keys:
+        entry = catalog.lookup(index, sub)
+        item: dict[str, Any] = {"object": f"0x{index:04X}:{sub}", "name": entry.name if entry else None}
+        try:
+            data = channel.upload(index, sub)
+            item["hex"] = bytes(data).hex()
+            if entry is not None:
+                item["value"] = json_value(entry.short_type, decode(entry.short_type, data))
+        except CommError:
+            raise
+        except AkdError as exc:
+            item["error"] = exc.message
+        out.append(item)
+    return out
+
+
+def _readings_by_pnu(pnus: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    return {int(r["pnu"]): r for r in pnus if isinstance(r, dict) and "pnu" in r}
+
+
+def status(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> dict[str, Any]:
+    """The axis status: the motion layer's when it exists, else the raw words decoded here."""
+    try:
+        from akdctl.drive import axis as axis_module
+    except ImportError:
+        axis_module = None
+    if axis_module is not None and hasattr(axis_module, "open_axis"):
+        axis = axis_module.open_axis(app)
+        read = getattr(axis, "read_status", None) or getattr(axis, "status", None)
+        if read is not None:
+            result = read()
+            to_json = getattr(result, "to_json", None)
+            return {"source": "axis", **(to_json() if to_json else dict(result))}
+    out: dict[str, Any] = {"source": "raw"}
+    transport = app.transport()
+    try:
+        from akdctl.drive import statusword as sw
+    except ImportError:
+        sw = None
+    if "profidrive" in sources:
+        by_pnu = _readings_by_pnu(pnus or [])
+        if not {2, 930} <= set(by_pnu):
+            from akdctl.drive.params import parse_pnu_spec, read_pnus
+
+            by_pnu.update(_readings_by_pnu([r.to_json() for r in read_pnus(
+                transport.parameters, [parse_pnu_spec("2"), parse_pnu_spec("930"), parse_pnu_spec("1")])]))
+        zsw1 = (by_pnu.get(2, {}).get("values") or [None])[0]
+        mode = (by_pnu.get(930, {}).get("values") or [None])[0]
+        pd: dict[str, Any] = {"zsw1": zsw1, "stw1": (by_pnu.get(1, {}).get("values") or [None])[0],
+                              "operating_mode": mode}
+        if zsw1 is not None:
+            pd["fault_present"] = bool(zsw1 & 0x08)
+            pd["warning_present"] = bool(zsw1 & 0x80)
+            if sw is not None:
+                pd["state"] = sw.profidrive_state(zsw1)
+                pd["zsw1_set"] = sw.set_names(sw.zsw1_bits(zsw1, mode))
+        out["profidrive"] = pd
+    if "canopen" in sources:
+        from akdctl.drive.objects import decode
+
+        objects = transport.objects
+        co: dict[str, Any] = {}
+        for key, index, dtype in (("statusword", 0x6041, "u16"), ("mode_display", 0x6061, "i8"),
+                                  ("position", 0x6064, "i32"), ("velocity", 0x606C, "i32")):
+            try:
+                co[key] = decode(dtype, objects.upload(index, 0))
+            except CommError:
+                raise
+            except AkdError as exc:
+                co[key] = None
+                co.setdefault("errors", {})[key] = exc.message
+        word = co.get("statusword")
+        if isinstance(word, int):
+            co["fault_present"] = bool(word & 0x08)
+            co["warning_present"] = bool(word & 0x80)
+            if sw is not None:
+                co["state"] = sw.cia402_state(word)
+                co["statusword_set"] = sw.set_names(sw.statusword_bits(word, co.get("mode_display")))
+        out["canopen"] = co
+    return out
+
+
+def mapping(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> dict[str, Any]:
+    """Process-data mapping: telegram + PZD lists (from the snapshot) and/or the CoE PDO assignment."""
+    out: dict[str, Any] = {}
+    if "profidrive" in sources and pnus:
+        by_pnu = _readings_by_pnu(pnus)
+        out["profidrive"] = {
+            "telegram": (by_pnu.get(922, {}).get("values") or [None])[0],
+            "setpoints_pnu915": by_pnu.get(915, {}).get("values"),
+            "actuals_pnu916": by_pnu.get(916, {}).get("values"),
+        }
+    if "canopen" in sources:
+        try:
+            from akdctl.drive.pdo import read_mapping
+        except ImportError:
+            read_mapping = None
+        if read_mapping is not None:
+            try:
+                out["canopen"] = {d: m.to_json() for d, m in read_mapping(app.transport().objects).items()}
+            except CommError:
+                raise
+            except AkdError as exc:
+                out["canopen"] = {"error": exc.message}
+    return out
+
+
+def collect(app: Any, *, all_objects: bool = False) -> dict[str, Any]:
+    """Read everything from the target into one JSON-able bundle (never raises for a drive problem)."""
+    from akdctl.drive import faults, identity
+
+    errors: dict[str, str] = {}
+    target = app.target
+    bundle: dict[str, Any] = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "tool": _tool(),
+        "target": {"display": target.display, "scheme": target.scheme, "drive_profile": app.drive_profile},
+    }
+    transport = _guard(errors, "transport", app.transport)
+    if isinstance(transport, dict):  # could not open: every section says why
+        for key in ("identity", "faults", "status", "parameters", "mapping"):
+            bundle[key] = {"error": errors["transport"]}
+    else:
+        sources = faults._sources(app)
+        bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(transport))
+        bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(app))
+        params: dict[str, Any] = {"round_trips": {}}
+        pnus = None
+        if "profidrive" in sources:
+            before = _requests(transport.parameters)
+            pnus = _guard(errors, "parameters.pnus", lambda: pnu_snapshot(transport.parameters))
+            params["pnus"] = pnus
+            params["round_trips"]["pnus"] = _requests(transport.parameters) - before
+            pnus = pnus if isinstance(pnus, list) else None
+        if "canopen" in sources:
+            before = _requests(transport.objects)
+            params["objects"] = _guard(errors, "parameters.objects",
+                                       lambda: object_snapshot(transport.objects, everything=all_objects))
+            params["round_trips"]["objects"] = _requests(transport.objects) - before
+        bundle["parameters"] = params
+        bundle["status"] = _guard(errors, "status", lambda: status(app, sources, pnus))
+        bundle["mapping"] = _guard(errors, "mapping", lambda: mapping(app, sources, pnus))
+    bundle["trace"] = [r.to_json() for r in app.options.tracer.records]
+    bundle["errors"] = errors
+    return bundle
+
+
+def _requests(channel: Any) -> int:
+    """Round trips the channel made so far (channels count them, see channels/base.py)."""
+    return int(getattr(channel, "requests", 0) or 0)
+
+
+# ---------------------------------------------------------------------------- files
+def _trace_text(bundle: dict[str, Any]) -> str:
+    lines = []
+    for rec in bundle.get("trace", []):
+        arrow = "->" if rec.get("direction") == "tx" else "<-"
+        lines.append(f"{rec.get('time')} {arrow} {rec.get('layer', ''):8s} {rec.get('hex', '')}")
+    return "\n".join(lines) + ("\n" if lines else "")
+
+
+def encode(bundle: dict[str, Any], *, as_zip: bool) -> bytes:
+    text = json.dumps(bundle, indent=2, default=_json_default) + "\n"
+    if not as_zip:
+        return text.encode("utf-8")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr(ZIP_MEMBER, text)
+        zf.writestr(ZIP_TRACE, _trace_text(bundle))
+    return buf.getvalue()
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).hex()
+    if hasattr(value, "to_json"):
+        return value.to_json()
+    return str(value)
+
+
+def write(bundle: dict[str, Any], path: str | os.PathLike[str]) -> Path:
+    """Write atomically: JSON, or a zip when the name ends in ``.zip``."""
+    target = Path(path)
+    data = encode(bundle, as_zip=target.suffix.lower() == ".zip")
+    directory = target.parent if str(target.parent) else Path(".")
+    if not directory.is_dir():
+        raise UsageError(f"cannot write {target}: directory {directory} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+        raise
+    return target
+
+
+def load(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a bundle (JSON or zip); a damaged or foreign file is a one-line :class:`UsageError`."""
+    name = str(path)
+    try:
+        size = os.path.getsize(path)
+        if size > MAX_BUNDLE_BYTES:
+            raise UsageError(f"{name} is not an akdctl support bundle (too large)")
+        if zipfile.is_zipfile(path):
+            with zipfile.ZipFile(path) as zf:
+                if ZIP_MEMBER not in zf.namelist():
+                    raise UsageError(f"{name} is not an akdctl support bundle (zip without {ZIP_MEMBER})")
+                raw = zf.read(ZIP_MEMBER)
+        else:
+            raw = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise UsageError(f"no such file: {name}") from None
+    except IsADirectoryError:
+        raise UsageError(f"{name} is a directory, not a support bundle") from None
+    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, RuntimeError, ValueError) as exc:
+        if isinstance(exc, UsageError):
+            raise
+        raise UsageError(f"{name} is not a readable support bundle ({type(exc).__name__}: {exc})") from None
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UsageError(f"{name} is not an akdctl support bundle (damaged JSON: {exc})".splitlines()[0]) from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise UsageError(f"{name} is not an akdctl support bundle (format key missing or foreign)")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise UsageError(f"{name}: support bundle format version {data.get('format_version')!r} is not supported "
+                         f"(this akdctl reads version {FORMAT_VERSION})")
+    missing = [k for k in REQUIRED_KEYS if k not in data]
+    if missing:
+        raise UsageError(f"{name}: damaged support bundle (missing {', '.join(missing)})")
+    if not isinstance(data.get("tool"), dict) or not isinstance(data.get("target"), dict):
+        raise UsageError(f"{name}: damaged support bundle (tool/target are not objects)")
+    return data
