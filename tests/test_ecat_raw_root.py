@@ -214,3 +214,15 @@ def test_missing_cap_net_raw_is_one_line(tmp_path: Path) -> None:
                             env=env, cwd=ROOT, timeout=60)
     assert result.returncode == 2
     assert "needs CAP_NET_RAW" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_soem_transport_through_the_cli(pair: VethPair, slave: Slave) -> None:
+    pytest.importorskip("pysoem")
+    for argv, code, text in [(["sdo", "read", "0x1018:1"], 0, "106"), (["sdo", "read", "0x5FFF:0", "u8"], 1, None),
+                             (["sdo", "write", "0x6060:0", "3"], 0, None)]:
+        result = subprocess.run(
+            ["ip", "netns", "exec", pair.a, sys.executable, "-m", "akdctl", "-T", f"ecat+soem://{pair.if_a}/0",
+             "--timeout", "1", *argv], capture_output=True, text=True, env=slave.env, cwd=ROOT, timeout=60)
+        assert result.returncode == code, (argv, result.stdout, result.stderr)
+        if text:
+            assert text in result.stdout

@@ -79,8 +79,10 @@ def sdo_reply(frame: bytes) -> coe.SdoMessage:
     mbx = decode_mailbox(frame)
     assert mbx.type == MailboxType.COE
     service, _number, payload = coe.decode_coe(mbx.data)
-    assert service == CoeService.SDO_RESPONSE
-    return coe.decode_sdo(payload, from_server=True)
+    msg = coe.decode_sdo(payload, from_server=True)
+    # ETG.1000.6: an abort travels as CoE service 2 (SDO request), every other reply as 3 (what SOEM expects)
+    assert service == (CoeService.SDO_REQUEST if isinstance(msg, coe.SdoAbort) else CoeService.SDO_RESPONSE)
+    return msg
 
 
 def only(replies: list[bytes]) -> coe.SdoMessage:

@@ -108,7 +108,8 @@ def sdo_abort_reply(request: bytes, code: int = ABORT_GENERAL) -> bytes | None:
             return None
         index, sub = struct.unpack_from("<HB", payload, 1)
         abort = encode_sdo(SdoAbort(index, sub, code))
-        return encode_mailbox(Mailbox(MailboxType.COE, encode_coe(CoeService.SDO_RESPONSE, abort), mbx.address,
+        # an abort travels as CoE service 2 (SDO request), as ETG.1000.6 has it and SOEM expects
+        return encode_mailbox(Mailbox(MailboxType.COE, encode_coe(CoeService.SDO_REQUEST, abort), mbx.address,
                                       counter=mbx.counter))
     except CodecError:
         return None

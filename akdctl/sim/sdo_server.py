@@ -190,7 +190,10 @@ class SdoServer:
             if len(payload) < coe.SDO_SIZE:
                 return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
             answer = self._sdo(payload)
-            return [self._reply(request, CoeService.SDO_RESPONSE, coe.encode_sdo(answer))] if answer else []
+            # ETG.1000.6: "Abort SDO Transfer" travels as CoE service 2 (SDO request), not 3; SOEM/pysoem
+            # report an abort sent as a response as a malformed frame (found by the EtherCAT interop tests).
+            service = CoeService.SDO_REQUEST if isinstance(answer, coe.SdoAbort) else CoeService.SDO_RESPONSE
+            return [self._reply(request, service, coe.encode_sdo(answer))] if answer else []
         if service == CoeService.SDO_INFO:
             return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
         return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
