@@ -1,0 +1,318 @@
+"""What each recipe action does on the drive — always through the one implementation of that operation.
+
+Why a thin layer: the recipe must behave exactly like the commands a technician
+types (``pnu set --verify``, ``pdo map``, ``telegram set``, ``enable``, ``home``,
+``move``, ``fault dump``, ``params backup``), so every action calls the same
+drive-layer function those commands call (:mod:`akdctl.drive.params`,
+:mod:`akdctl.drive.pdo`, :mod:`akdctl.drive.telegram`, :mod:`akdctl.drive.axis`,
+:mod:`akdctl.drive.faults`, :mod:`akdctl.drive.snapshot`) and never re-implements
+it. An action whose module is missing fails with "not available in this version".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from akdctl.errors import CheckFailed, DriveFault, DriveError, UsageError
+from akdctl.recipe.schema import PlannedStep
+
+POLL_S = 0.05
+
+
+class Session:
+    """The drive side of one recipe run: the CLI app, its transport, the axis once a step needs it."""
+
+    def __init__(self, app: Any, output_dir: Path, interrupted: Callable[[], bool]) -> None:
+        self.app = app
+        self.output_dir = output_dir
+        self.interrupted = interrupted
+        self._axis: Any = None
+        self.files: list[str] = []
+
+    @property
+    def transport(self) -> Any:
+        return self.app.transport()
+
+    def axis(self) -> Any:
+        if self._axis is None:
+            from akdctl.drive.axis import open_axis
+
+            self._axis = open_axis(self.app)
+        return self._axis
+
+    @property
+    def axis_opened(self) -> bool:
+        return self._axis is not None
+
+    def sleep(self, seconds: float) -> None:
+        """Sleep in short slices so Ctrl-C is seen promptly (the runner then stops the axis)."""
+        end = time.monotonic() + seconds
+        while True:
+            if self.interrupted():
+                raise KeyboardInterrupt
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(POLL_S, left))
+
+
+# ---------------------------------------------------------------------------- reading and comparing
+def read_target(session: Session, target: dict[str, Any]) -> Any:
+    if target["kind"] == "pnu":
+        from akdctl.drive.params import read_pnus
+
+        (reading,) = read_pnus(session.app.parameters(), [target["spec"]])
+        if not reading.ok:
+            raise DriveError(f"drive refused to read {target['label']}: {reading.error_text}", code=reading.error)
+        values = reading.values or []
+        return values if target["spec"].count > 1 else (values[0] if values else None)
+    from akdctl.drive.snapshot import _decode_object
+
+    entry = target["entry"]
+    return _decode_object(entry, session.app.objects().upload(entry.index, entry.subindex))
+
+
+def matches(value: Any, comparison: dict[str, Any]) -> bool:
+    if "value" in comparison:
+        want = comparison["value"]
+        if "mask" in comparison:
+            return isinstance(value, int) and (value & comparison["mask"]) == (want & comparison["mask"])
+        if "tolerance" in comparison and isinstance(value, (int, float)) and isinstance(want, (int, float)):
+            return abs(value - want) <= comparison["tolerance"]
+        if isinstance(value, list) and not isinstance(want, list):
+            return len(value) == 1 and value[0] == want
+        if isinstance(value, float) or isinstance(want, float):
+            return isinstance(value, (int, float)) and math.isclose(float(value), float(want), rel_tol=1e-6)
+        return value == want
+    if not isinstance(value, (int, float)):
+        return False
+    return comparison.get("min", -math.inf) <= value <= comparison.get("max", math.inf)
+
+
+# ---------------------------------------------------------------------------- actions
+def do_set(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive.params import write_pnus
+    from akdctl.drive.snapshot import encode_object
+
+    pnu_targets = [t for t in params["targets"] if t["kind"] == "pnu"]
+    if pnu_targets:
+        assignments = [(t["spec"], t["value"] if isinstance(t["value"], list) else [t["value"]]) for t in pnu_targets]
+        for target, result in zip(pnu_targets, write_pnus(session.app.parameters(), assignments)):
+            if not result.ok:
+                raise DriveError(f"drive refused {target['label']} = {target['value']}: {result.error_text} "
+                                 f"(error 0x{result.error:02X})", code=result.error)
+    for target in params["targets"]:
+        if target["kind"] == "object":
+            entry = target["entry"]
+            session.app.objects().download(entry.index, entry.subindex, encode_object(entry, target["value"]))
+    readback = {}
+    if params["verify"]:
+        bad = []
+        for target in params["targets"]:
+            got = read_target(session, target)
+            readback[target["label"]] = got
+            if not matches(got, {"value": target["value"]}):
+                bad.append(f"{target['label']}: wrote {target['value']}, read back {got}")
+        if bad:
+            raise CheckFailed("read-back differs: " + "; ".join(bad))
+    return {"written": {t["label"]: t["value"] for t in params["targets"]}, "read_back": readback}
+
+
+def do_expect(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    target, comparison = params["target"], params["comparison"]
+    got = read_target(session, target)
+    if not matches(got, comparison):
+        from akdctl.recipe.schema import _describe_comparison
+
+        raise CheckFailed(f"expected {_describe_comparison(target['label'], comparison)}, read {got}",
+                          details={"read": got})
+    return {"read": got}
+
+
+def do_wait(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    if "seconds" in params:
+        if not session.axis_opened:
+            session.sleep(params["seconds"])
+            return {"waited_s": params["seconds"]}
+        # With the axis in use, keep watching it: a fault during the wait ends the wait (and the run).
+        axis = session.axis()
+        end = time.monotonic() + params["seconds"]
+        while (left := end - time.monotonic()) > 0:
+            status = axis.read_status()
+            if status.fault:
+                raise DriveFault(f"drive fault while waiting: {status.fault_summary()}",
+                                 details={"faults": status.faults})
+            session.sleep(min(0.25, left))
+        return {"waited_s": params["seconds"]}
+    target, comparison = params["target"], params["comparison"]
+    start = time.monotonic()
+    deadline = start + params["timeout"]
+    while True:
+        got = read_target(session, target)
+        if matches(got, comparison):
+            return {"read": got, "waited_s": round(time.monotonic() - start, 3)}
+        if time.monotonic() > deadline:
+            from akdctl.recipe.schema import _describe_comparison
+
+            raise CheckFailed(f"{_describe_comparison(target['label'], comparison)} did not hold within "
+                              f"{params['timeout']:g} s (last read {got})", details={"read": got})
+        session.sleep(POLL_S * 2)
+
+
+def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    if "telegram_map" in params:
+        from akdctl.drive import telegram as dt
+
+        lists = params["telegram_map"]
+        state = dt.map_free(session.app.parameters(), lists.get("setpoint"), lists.get("actual"))
+        return state.to_json()
+    from akdctl.drive import pdo as dp
+
+    plan = params["pdo"]
+    state = dp.al_state_of(session.transport)
+    if state is not None and state != "PREOP":
+        raise UsageError(f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)")
+    channel = session.app.objects()
+    steps = dp.startup_list(plan)
+    written = dp.apply(channel, steps)
+    dp.check_verified(dp.verify(channel, plan))
+    return {"sdo_downloads": written, "plan": plan.to_json()}
+
+
+def do_telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive import telegram as dt
+
+    return dt.select_telegram(session.app.parameters(), params["telegram"]).to_json()
+
+
+def _axis_with_timeout(session: Session, timeout: float | None) -> Any:
+    axis = session.axis()
+    if timeout is not None:
+        axis.timeout = max(axis.timeout, timeout)
+    return axis
+
+
+def do_enable(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    return _axis_with_timeout(session, params.get("timeout")).enable().to_json()
+
+
+def do_disable(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    return _axis_with_timeout(session, params.get("timeout")).disable().to_json()
+
+
+def do_stop(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    return session.axis().stop(quick=params["quick"]).to_json()
+
+
+def do_acknowledge(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    return session.axis().acknowledge_faults().to_json()
+
+
+def do_home(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    axis = session.axis()
+    if hasattr(axis, "home"):  # the axis's own complete procedure, when it offers one
+        return _status_json(axis.home(mode=params["mode"], timeout=params["timeout"]))
+    from akdctl.drive.axis import MotionRun
+
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    axis.ensure_mode("homing")
+    axis.enable()
+    final = MotionRun(axis, session.interrupted).run(lambda: axis.start_home(params["mode"]), axis.home_finished,
+                                                     deadline_s=params["timeout"], what="homing")
+    return final.to_json()
+
+
+def do_move(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    axis = session.axis()
+    if hasattr(axis, "move"):  # the axis's own complete procedure, when it offers one
+        return _status_json(axis.move(**_move_kwargs(params)))
+    from akdctl.drive.axis import MotionRun, MoveSpec
+
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    per_rev = status.counts_per_rev or 65536
+    target = params["target"]
+    rev = target / 360.0 if params["unit"] == "deg" else target / per_rev if params["unit"] == "counts" else target
+    spec = MoveSpec(rev, params["relative"], params["velocity"], params["accel"], params["decel"])
+    axis.ensure_mode("position")
+    axis.enable()
+    distance = abs(rev - (0 if params["relative"] else (status.position_rev or 0.0)))
+    # Trapezoid time with margin: the move must finish well inside this, else it is stopped.
+    estimate = distance / (spec.rpm / 60.0) + spec.rpm / spec.acc_rpm_s + spec.rpm / spec.dec_rpm_s
+    deadline = params["timeout"] or max(10.0, 3 * estimate + 5.0)
+    final = MotionRun(axis, session.interrupted).run(lambda: axis.start_move(spec), _move_done, deadline_s=deadline,
+                                                     what="move")
+    return final.to_json()
+
+
+def _move_done(status: Any) -> bool | None:
+    return True if status.target_reached and status.standstill else None
+
+
+def _move_kwargs(params: dict[str, Any]) -> dict[str, Any]:
+    return {k: params[k] for k in ("target", "unit", "relative", "velocity", "accel", "decel", "timeout")}
+
+
+def _status_json(result: Any) -> dict[str, Any]:
+    return result.to_json() if hasattr(result, "to_json") else {"result": result}
+
+
+def do_check_faults(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive import faults
+
+    data = faults.dump(session.app)
+    summary = faults.summary(data)
+    if summary["fault_present"]:
+        raise DriveFault(f"fault active: {', '.join(summary['faults']) or 'see fault dump'}",
+                         details={"faults": summary["faults"]})
+    if summary["warning_present"] and not params["allow_warnings"]:
+        raise CheckFailed(f"warning active: {', '.join(summary['warnings']) or 'see fault dump'}")
+    return summary
+
+
+def do_save(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive.snapshot import save_nonvolatile
+
+    save_nonvolatile(session.transport)
+    return {"saved": True}
+
+
+def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive import snapshot
+
+    transport = session.transport
+    if params["only"]:
+        items = snapshot.select_items([], only=params["only"])
+        sources = sorted({"pnu" if i.kind == "pnu" else "objects" for i in items})
+    else:
+        sources = snapshot.choose_sources(transport, params["source"])
+        items = snapshot.select_items(sources, params["groups"])
+    snap = snapshot.take(transport, items, session.app.target.display, sources)
+    snapshot.write_file(snap, session.output_dir / params["file"])
+    session.files.append(str(params["file"]))
+    return {"file": params["file"], "pnus": len(snap.pnus), "objects": len(snap.objects), "refused": snap.refused}
+
+
+def do_restore(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    from akdctl.drive import snapshot
+
+    result = snapshot.restore(session.transport, params["snapshot"], force=params["force"])
+    return result.to_json()
+
+
+ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
+    "set": do_set, "expect": do_expect, "wait": do_wait, "map": do_map, "telegram": do_telegram,
+    "enable": do_enable, "disable": do_disable, "stop": do_stop, "acknowledge": do_acknowledge, "home": do_home,
+    "move": do_move, "check_faults": do_check_faults, "save": do_save, "backup": do_backup, "restore": do_restore,
+}
+
+
+def run_step(session: Session, step: PlannedStep) -> dict[str, Any]:
+    if not step.available:
+        raise UsageError(step.unavailable_reason)
+    return ACTIONS[step.action](session, step.params)

@@ -1,0 +1,537 @@
+"""What a recipe step may say, and the check of every step before anything is written.
+
+Why a separate validator: "nothing is written before the whole recipe validated".
+Each step is checked against the catalogues (PNUs, objects, PDOs, signals,
+telegrams), the data types and ranges, and the config profile's motion limits,
+without touching the drive; every problem is reported with file, line, step and
+what was expected. The result is a list of :class:`PlannedStep` whose
+``params`` hold already-resolved values, so the runner never re-parses text.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from akdctl.errors import AkdError, UsageError
+from akdctl.recipe.loader import RawRecipe, RawStep, display_path, inside
+
+COMMON = {"action": str, "name": str}
+NUMBER = (int, float)
+
+# action -> {key: accepted types}; required keys listed separately. Documented in docs/commissioning.md.
+ACTIONS: dict[str, dict[str, Any]] = {
+    "set": {"pnu": (str, int), "object": str, "value": (int, float, str, list), "pnus": dict, "objects": dict,
+            "verify": bool},
+    "expect": {"pnu": (str, int), "object": str, "value": (int, float, str, list), "min": NUMBER, "max": NUMBER,
+               "mask": int, "tolerance": NUMBER},
+    "map": {"rx": (list, str), "tx": (list, str), "define": (list, str), "opmode": (int, str), "cycle_time": str,
+            "setpoint": (list, str), "actual": (list, str)},
+    "telegram": {"telegram": int},
+    "enable": {"timeout": NUMBER},
+    "disable": {"timeout": NUMBER},
+    "stop": {"quick": bool},
+    "acknowledge": {},
+    "home": {"mode": int, "timeout": NUMBER},
+    "move": {"target": NUMBER, "unit": str, "relative": bool, "velocity": NUMBER, "accel": NUMBER, "decel": NUMBER,
+             "timeout": NUMBER},
+    "wait": {"seconds": NUMBER, "pnu": (str, int), "object": str, "value": (int, float, str, list), "min": NUMBER,
+             "max": NUMBER, "mask": int, "tolerance": NUMBER, "timeout": NUMBER},
+    "check_faults": {"allow_warnings": bool},
+    "save": {},
+    "backup": {"file": str, "source": str, "groups": list, "only": list},
+    "restore": {"file": str, "force": bool},
+}
+REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
+MOTION = {"enable", "home", "move"}
+MAX_WAIT_S = 3600.0
+UNITS = ("rev", "deg", "counts")
+DEFAULT_VELOCITY_RPM = 60.0
+DEFAULT_ACCEL_RPM_S = 1000.0
+MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
+           "enable": ("akdctl.drive.axis",), "disable": ("akdctl.drive.axis",), "stop": ("akdctl.drive.axis",),
+           "acknowledge": ("akdctl.drive.axis",), "home": ("akdctl.drive.axis",), "move": ("akdctl.drive.axis",),
+           "check_faults": ("akdctl.drive.faults",)}
+
+
+@dataclass
+class PlannedStep:
+    """A validated step: what the runner does and how the plan/report names it."""
+
+    number: int
+    action: str
+    name: str
+    file: str
+    line: int | None
+    params: dict[str, Any]
+    plan: str
+    motion: bool = False
+    available: bool = True
+    unavailable_reason: str = ""
+
+    @property
+    def where(self) -> str:
+        return f"{self.file}:{self.line}" if self.line is not None else self.file
+
+    def to_json(self) -> dict[str, Any]:
+        return {"step": self.number, "action": self.action, "name": self.name, "file": self.file, "line": self.line,
+                "plan": self.plan, "motion": self.motion, "available": self.available}
+
+
+@dataclass
+class Context:
+    """What validation may consult: the recipe's folder, the include/restore policy, the motion limits."""
+
+    folder: Path
+    allow_outside: bool = False
+    limits: dict[str, Any] = field(default_factory=dict)
+
+
+class StepProblem(Exception):
+    """One validation failure of a step; ``key`` points the line finder at the offending key."""
+
+    def __init__(self, message: str, key: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.key = key
+
+
+def module_available(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+# ---------------------------------------------------------------------------- helpers
+def _number(data: dict[str, Any], key: str, *, positive: bool = False, maximum: float | None = None,
+            default: float | None = None) -> float | None:
+    if key not in data:
+        return default
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, NUMBER) or not math.isfinite(float(value)):
+        raise StepProblem(f"'{key}' must be a number, got {value!r}", key)
+    if positive and value <= 0:
+        raise StepProblem(f"'{key}' must be greater than 0, got {value!r}", key)
+    if maximum is not None and value > maximum:
+        raise StepProblem(f"'{key}' must be at most {maximum:g}, got {value!r}", key)
+    return float(value)
+
+
+def _pnu_target(text: Any, *, write: bool) -> Any:
+    from akdctl.catalog.pnus import by_name
+    from akdctl.drive.params import PnuSpec, parse_pnu_spec
+
+    try:
+        named = by_name(str(text)) if isinstance(text, str) and " " in text.strip() else None
+        spec = PnuSpec(named.pnu, 0, named.length, named) if named is not None else parse_pnu_spec(str(text))
+    except UsageError as exc:
+        raise StepProblem(exc.message + " — expected a PNU of the catalogue (see 'akdctl pnu list')", "pnu") from None
+    if spec.info is None:
+        raise StepProblem(f"unknown PNU {spec.pnu}: not in the AKD catalogue (see 'akdctl pnu list')", "pnu")
+    if write:
+        if spec.pnu == 1:
+            raise StepProblem("STW1 (PNU 1) is never written by a set step; use enable/disable/stop/acknowledge "
+                              "steps, which run the state machine safely", "pnu")
+        if not spec.info.writable:
+            raise StepProblem(f"PNU {spec.pnu} ({spec.info.name}) is read-only", "pnu")
+    return spec
+
+
+def _pnu_values(spec: Any, value: Any, key: str = "value") -> list[int]:
+    info = spec.info
+    values = value if isinstance(value, list) else [value]
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise StepProblem(f"PNU {spec.label} ({info.name}) takes integers ({info.type}); got {v!r}", key)
+    if isinstance(value, list) and "[" not in str(spec.label) and info.is_array:
+        from akdctl.drive.params import PnuSpec
+
+        spec = PnuSpec(spec.pnu, 0, len(values), info)
+    if len(values) != spec.count:
+        raise StepProblem(f"PNU {spec.label} ({info.name}): {spec.count} element(s) addressed but {len(values)} "
+                          "value(s) given", key)
+    if spec.subindex + spec.count > info.length:
+        raise StepProblem(f"PNU {info.pnu} ({info.name}) has elements 0..{info.length - 1}; too many values", key)
+    lo, hi = info.limits()
+    for v in values:
+        if not lo <= v <= hi:
+            raise StepProblem(f"value {v} for PNU {info.pnu} ({info.name}) is out of range: expected {lo}..{hi}", key)
+    return values
+
+
+def _object_target(text: Any, *, write: bool) -> Any:
+    from akdctl.catalog.objects import lookup, subentries
+    from akdctl.drive.objects import parse_address
+
+    if not isinstance(text, str):
+        raise StepProblem(f"'object' must be text such as \"0x6060:0\", got {text!r}", "object")
+    try:
+        address = parse_address(text)
+    except UsageError as exc:
+        raise StepProblem(exc.message, "object") from None
+    entry = lookup(address.index, address.subindex)
+    if entry is None:
+        what = "subindex" if subentries(address.index) else "object"
+        raise StepProblem(f"unknown {what} {address.label}: not in the AKD object dictionary (see 'akdctl sdo')",
+                          "object")
+    if write:
+        if address.index == 0x6040:
+            raise StepProblem("the controlword (0x6040) is never written by a set step; use enable/disable/stop/"
+                              "acknowledge steps", "object")
+        if not entry.writable:
+            raise StepProblem(f"object {address.label} ({entry.name}) is read-only", "object")
+    elif not entry.readable:
+        raise StepProblem(f"object {address.label} ({entry.name}) is write-only; it cannot be read", "object")
+    return entry
+
+
+def _object_value(entry: Any, value: Any, key: str = "value") -> Any:
+    from akdctl.drive.snapshot import encode_object
+
+    kind = entry.short_type
+    if kind.startswith(("u", "i")) and (isinstance(value, bool) or not isinstance(value, int)):
+        raise StepProblem(f"object 0x{entry.index:04X}:{entry.subindex} ({entry.name}) takes an integer ({kind}); "
+                          f"got {value!r}", key)
+    try:
+        encode_object(entry, value)
+    except UsageError as exc:
+        message = exc.message.split(": bad value ", 1)[-1]
+        raise StepProblem(f"object 0x{entry.index:04X}:{entry.subindex} ({entry.name}): value {message}; "
+                          f"expected type {kind}", key) from None
+    return value
+
+
+def _targets(data: dict[str, Any], *, write: bool, multi: bool) -> list[dict[str, Any]]:
+    """The quantities a set/expect/wait step addresses: [{'kind','spec'|'entry','label','value'}]."""
+    forms = [k for k in ("pnu", "object", "pnus", "objects") if k in data and (multi or k in ("pnu", "object"))]
+    if len(forms) != 1:
+        allowed = "'pnu' or 'object'" + (" (or a 'pnus'/'objects' table)" if multi else "")
+        if not forms:
+            raise StepProblem(f"missing key: give {allowed}")
+        raise StepProblem(f"give only one of {allowed}, not {' and '.join(forms)}", forms[1])
+    form = forms[0]
+    out = []
+    if form in ("pnu", "object"):
+        if write and "value" not in data:
+            raise StepProblem("missing key 'value' (the value to write)")
+        pairs = [(data[form], data.get("value"))]
+    else:
+        table = data[form]
+        if not table:
+            raise StepProblem(f"'{form}' is empty", form)
+        if "value" in data:
+            raise StepProblem(f"'value' does not go with a '{form}' table; put the values into the table", "value")
+        pairs = list(table.items())
+    for target, value in pairs:
+        if form in ("pnu", "pnus"):
+            spec = _pnu_target(target, write=write)
+            values = _pnu_values(spec, value, "value" if form == "pnu" else form) if value is not None and write else None
+            if values is not None and spec.count != len(values):
+                from akdctl.drive.params import PnuSpec
+
+                spec = PnuSpec(spec.pnu, spec.subindex, len(values), spec.info)
+            out.append({"kind": "pnu", "spec": spec, "label": f"PNU {spec.label} ({spec.info.name})",
+                        "value": values if values is None or isinstance(value, list) else values[0]})
+        else:
+            entry = _object_target(target, write=write)
+            if value is not None and write:
+                _object_value(entry, value, "value" if form == "object" else form)
+            out.append({"kind": "object", "entry": entry,
+                        "label": f"0x{entry.index:04X}:{entry.subindex} ({entry.name})", "value": value})
+    return out
+
+
+def _comparison(data: dict[str, Any], target: dict[str, Any]) -> dict[str, Any]:
+    """expect/wait: value (optionally under mask), min/max, tolerance."""
+    has_value, has_range = "value" in data, "min" in data or "max" in data
+    if not has_value and not has_range:
+        raise StepProblem("missing key: give 'value' (optionally with 'mask' or 'tolerance') or 'min'/'max'")
+    if has_value and has_range:
+        raise StepProblem("give either 'value' or 'min'/'max', not both", "min")
+    comparison: dict[str, Any] = {}
+    if has_value:
+        value = data["value"]
+        if target["kind"] == "pnu":
+            values = _pnu_values(target["spec"], value)
+            comparison["value"] = values if isinstance(value, list) else values[0]
+        else:
+            comparison["value"] = _object_value(target["entry"], value)
+    for key in ("min", "max", "tolerance"):
+        if key in data:
+            comparison[key] = _number(data, key)
+    if "mask" in data:
+        if not has_value or isinstance(data["value"], (list, float, str)):
+            raise StepProblem("'mask' needs an integer 'value' to compare the masked bits with", "mask")
+        comparison["mask"] = data["mask"]
+    if "min" in comparison and "max" in comparison and comparison["min"] > comparison["max"]:
+        raise StepProblem(f"'min' {comparison['min']:g} is greater than 'max' {comparison['max']:g}", "min")
+    return comparison
+
+
+def _describe_comparison(label: str, comparison: dict[str, Any]) -> str:
+    if "value" in comparison:
+        text = f"{label} == {comparison['value']}"
+        if "mask" in comparison:
+            text = f"{label} & 0x{comparison['mask']:X} == {comparison['value']}"
+        if "tolerance" in comparison:
+            text += f" ± {comparison['tolerance']:g}"
+        return text
+    parts = []
+    if "min" in comparison:
+        parts.append(f"{comparison['min']:g} <=")
+    parts.append(label)
+    if "max" in comparison:
+        parts.append(f"<= {comparison['max']:g}")
+    return " ".join(parts)
+
+
+def _string_list(data: dict[str, Any], key: str) -> list[str]:
+    value = data.get(key, [])
+    if isinstance(value, str):
+        value = [value]
+    if not all(isinstance(v, (str, int)) and not isinstance(v, bool) for v in value):
+        raise StepProblem(f"'{key}' must be a list of strings such as \"0x1701\"", key)
+    return [str(v) for v in value]
+
+
+def _file_in_folder(data: dict[str, Any], ctx: Context, *, must_exist: bool) -> Path:
+    text = data["file"]
+    path = Path(text)
+    full = ctx.folder / path
+    if must_exist:
+        if not ctx.allow_outside and (path.is_absolute() or not inside(full, ctx.folder)):
+            raise StepProblem(f"{text!r} is outside the recipe's folder; recipes may only read files from their own "
+                              "folder (use --allow-outside-includes to permit it)", "file")
+        if not full.is_file():
+            raise StepProblem(f"{text!r}: no such file next to the recipe", "file")
+        return full
+    return path
+
+
+# ---------------------------------------------------------------------------- per action
+def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    if action == "set":
+        targets = _targets(data, write=True, multi=True)
+        verify = data.get("verify", True)
+        plan = "write " + ", ".join(f"{t['label']} = {t['value']}" for t in targets) + (" and read back" if verify else "")
+        return {"targets": targets, "verify": verify}, plan
+    if action in ("expect", "wait") and (action == "expect" or "seconds" not in data):
+        targets = _targets(data, write=False, multi=False)
+        comparison = _comparison(data, targets[0])
+        params = {"target": targets[0], "comparison": comparison}
+        text = _describe_comparison(targets[0]["label"], comparison)
+        if action == "wait":
+            params["timeout"] = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S, default=10.0)
+            return params, f"wait until {text} (at most {params['timeout']:g} s)"
+        return params, f"check {text}"
+    if action == "wait":
+        for key in ("pnu", "object", "value", "min", "max", "mask", "tolerance", "timeout"):
+            if key in data:
+                raise StepProblem(f"'{key}' does not go with 'seconds' (a plain wait); remove one of them", key)
+        seconds = _number(data, "seconds", positive=True, maximum=MAX_WAIT_S)
+        return {"seconds": seconds}, f"wait {seconds:g} s"
+    if action == "map":
+        return _check_map(data)
+    if action == "telegram":
+        from akdctl.catalog.pnus import TELEGRAMS
+
+        number = data["telegram"]
+        if number not in TELEGRAMS:
+            raise StepProblem(f"telegram {number} is not one the AKD offers; expected one of "
+                              f"{', '.join(str(t) for t in TELEGRAMS)}", "telegram")
+        return {"telegram": number}, f"select telegram {number} (PNU 922) and read it back"
+    if action in ("enable", "disable"):
+        timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
+        return {"timeout": timeout}, ("enable the drive (operation enabled)" if action == "enable"
+                                      else "disable the power stage (ramp to standstill first)")
+    if action == "stop":
+        quick = data.get("quick", False)
+        return {"quick": quick}, "stop the axis" + (" (quick stop)" if quick else " (ramp)")
+    if action == "acknowledge":
+        return {}, "acknowledge faults"
+    if action == "home":
+        mode = data.get("mode")
+        if mode is not None and not -128 <= mode <= 127:
+            raise StepProblem(f"'mode' {mode} is out of range: expected a homing mode -128..127", "mode")
+        timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S, default=60.0)
+        return {"mode": mode, "timeout": timeout}, f"home the axis{f' (mode {mode})' if mode is not None else ''}"
+    if action == "move":
+        return _check_move(data, ctx)
+    if action == "check_faults":
+        allow = data.get("allow_warnings", True)
+        return {"allow_warnings": allow}, "check that no fault" + ("" if allow else " or warning") + " is active"
+    if action == "save":
+        return {}, "save parameters to non-volatile memory (DRV.NVSAVE, 0x1010:1)"
+    if action == "backup":
+        from akdctl.drive import snapshot
+
+        path = _file_in_folder(data, ctx, must_exist=False)
+        if path.is_absolute() or ".." in path.parts:
+            raise StepProblem(f"{data['file']!r}: a backup file is written below the output directory; give a "
+                              "relative path without '..'", "file")
+        if path.suffix.lower() not in (".toml", ".json"):
+            raise StepProblem(f"{data['file']!r}: expected a .toml or .json file name", "file")
+        source = data.get("source", "auto")
+        if source not in snapshot.SOURCES:
+            raise StepProblem(f"'source' {source!r}: expected one of {', '.join(snapshot.SOURCES)}", "source")
+        groups = _string_list(data, "groups")
+        only = _string_list(data, "only")
+        try:
+            snapshot.select_items(["pnu", "objects"], groups, only)
+        except UsageError as exc:
+            raise StepProblem(exc.message, "only" if only else "groups") from None
+        return {"file": str(path), "source": source, "groups": groups, "only": only}, f"back up parameters to {path}"
+    if action == "restore":
+        from akdctl.drive import snapshot
+
+        full = _file_in_folder(data, ctx, must_exist=True)
+        try:
+            snap = snapshot.load_file(full)
+        except UsageError as exc:
+            raise StepProblem(exc.message, "file") from None
+        return {"file": str(full), "snapshot": snap, "force": data.get("force", False)}, \
+            f"restore parameters from {data['file']} (write differences, verify)"
+    raise StepProblem(f"unknown action {action!r}")  # pragma: no cover - filtered before
+
+
+def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    pdo_keys = [k for k in ("rx", "tx", "define", "opmode", "cycle_time") if k in data]
+    tel_keys = [k for k in ("setpoint", "actual") if k in data]
+    if pdo_keys and tel_keys:
+        raise StepProblem("a map step maps either EtherCAT PDOs (rx/tx/define) or the PROFIdrive free telegram "
+                          "(setpoint/actual), not both", tel_keys[0])
+    if not pdo_keys and not tel_keys:
+        raise StepProblem("missing key: give 'rx'/'tx' (EtherCAT PDOs, e.g. rx = [\"0x1701\"]) or "
+                          "'setpoint'/'actual' (PROFIdrive telegram 0 signals)")
+    if tel_keys:
+        if not module_available("akdctl.drive.telegram"):
+            return {"telegram_map": None}, "map the free telegram (PNU 915/916)"
+        from akdctl.drive import telegram as dt
+
+        lists = {}
+        for key in ("setpoint", "actual"):
+            if key in data:
+                try:
+                    lists[key] = dt.parse_signals(",".join(_string_list(data, key)))
+                except UsageError as exc:
+                    raise StepProblem(exc.message, key) from None
+        problems = dt.validate_free_map(lists.get("setpoint", []), lists.get("actual", []))
+        if problems:
+            raise StepProblem("; ".join(problems), tel_keys[0])
+        return {"telegram_map": lists}, ("map the free telegram: " + "; ".join(
+            f"{k} signals {', '.join(str(s) for s in v)}" for k, v in lists.items()))
+    if not module_available("akdctl.drive.pdo"):
+        return {"pdo": None}, "map process data"
+    from akdctl.drive import pdo as dp
+
+    try:
+        opmode = data.get("opmode")
+        plan = dp.build_plan(_string_list(data, "rx"), _string_list(data, "tx"), _string_list(data, "define"),
+                             str(opmode) if opmode is not None else None, data.get("cycle_time"))
+    except UsageError as exc:
+        raise StepProblem(exc.message, pdo_keys[0]) from None
+    problems = dp.validate(plan)
+    if problems:
+        raise StepProblem("; ".join(problems), pdo_keys[0])
+    parts = [f"{d} {', '.join(f'0x{n:04X}' for n in plan.assign[d] or [])}" for d in ("rx", "tx")
+             if plan.assign[d] is not None]
+    return {"pdo": plan}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
+
+
+def _check_move(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    target = _number(data, "target")
+    unit = data.get("unit", "rev")
+    if unit not in UNITS:
+        raise StepProblem(f"'unit' {unit!r}: expected one of {', '.join(UNITS)}", "unit")
+    relative = data.get("relative", False)
+    velocity = _number(data, "velocity", positive=True, default=DEFAULT_VELOCITY_RPM)
+    accel = _number(data, "accel", positive=True, default=DEFAULT_ACCEL_RPM_S)
+    decel = _number(data, "decel", positive=True, default=accel)
+    timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
+    limits = ctx.limits or {}
+    vmax, amax = limits.get("max_velocity"), limits.get("max_acceleration")
+    if isinstance(vmax, NUMBER) and velocity > vmax:
+        raise StepProblem(f"velocity {velocity:g} rpm exceeds the profile's max_velocity {vmax:g} rpm", "velocity")
+    if isinstance(amax, NUMBER) and max(accel, decel) > amax:
+        raise StepProblem(f"acceleration {max(accel, decel):g} rpm/s exceeds the profile's max_acceleration "
+                          f"{amax:g} rpm/s", "accel")
+    travel = limits.get("travel")
+    if not relative and unit != "counts" and isinstance(travel, list) and len(travel) == 2:
+        rev = target / 360.0 if unit == "deg" else target
+        if not travel[0] <= rev <= travel[1]:
+            raise StepProblem(f"target {rev:g} rev is outside the profile's travel {travel[0]:g}..{travel[1]:g} rev",
+                              "target")
+    params = {"target": target, "unit": unit, "relative": relative, "velocity": velocity, "accel": accel,
+              "decel": decel, "timeout": timeout}
+    return params, (f"move {'by' if relative else 'to'} {target:g} {unit} at {velocity:g} rpm "
+                    f"(acc {accel:g}, dec {decel:g} rpm/s), wait for target reached")
+
+
+# ---------------------------------------------------------------------------- the whole recipe
+def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
+    data = raw.data
+    action = data.get("action")
+    shown = display_path(raw.file, ctx.folder)
+    if action is None:
+        raise StepProblem("missing key 'action': expected one of " + ", ".join(list(ACTIONS) + ["include"]))
+    if not isinstance(action, str) or action not in ACTIONS:
+        raise StepProblem(f"unknown action {action!r}: expected one of " + ", ".join(list(ACTIONS) + ["include"]),
+                          "action")
+    allowed = {**COMMON, **ACTIONS[action]}
+    for key, value in data.items():
+        if key not in allowed:
+            raise StepProblem(f"unknown key {key!r} for a {action} step; allowed: "
+                              + ", ".join(k for k in allowed if k != "action"), key)
+        types = allowed[key]
+        ok = isinstance(value, types) and not (isinstance(value, bool) and bool not in (
+            types if isinstance(types, tuple) else (types,)))
+        if not ok:
+            names = " or ".join(_type_word(t) for t in (types if isinstance(types, tuple) else (types,)))
+            raise StepProblem(f"'{key}' must be {names}, got {_type_word(type(value))} {value!r}", key)
+    for key in REQUIRED.get(action, ()):
+        if key not in data:
+            raise StepProblem(f"missing key {key!r} for a {action} step")
+    params, plan = _check(action, data, ctx)
+    name = data.get("name") or plan
+    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION)
+    for module in MODULES.get(action, ()):
+        if action == "map" and module != _map_module(params):
+            continue
+        if not module_available(module):
+            step.available = False
+            step.unavailable_reason = f"the {action} step is not available in this version of akdctl " \
+                                      f"({module} is missing)"
+    return step
+
+
+def _map_module(params: dict[str, Any]) -> str:
+    return "akdctl.drive.telegram" if "telegram_map" in params else "akdctl.drive.pdo"
+
+
+def _type_word(t: type) -> str:
+    return {int: "an integer", float: "a number", str: "text", bool: "true/false", list: "a list",
+            dict: "a table"}.get(t, t.__name__)
+
+
+def validate(recipe: RawRecipe, ctx: Context, structural: list[str]) -> list[PlannedStep]:
+    """Every step checked; RecipeError with every problem (file:line: step n (action): what) if any."""
+    from akdctl.recipe.loader import RecipeError
+
+    problems = list(structural)
+    planned: list[PlannedStep] = []
+    for raw in recipe.steps:
+        action = raw.data.get("action")
+        label = f"step {raw.number}" + (f" ({action})" if isinstance(action, str) else "")
+        try:
+            planned.append(validate_step(raw, ctx))
+        except StepProblem as exc:
+            problems.append(f"{raw.where(exc.key, ctx.folder)}: {label}: {exc.message}")
+        except AkdError as exc:
+            problems.append(f"{raw.where(None, ctx.folder)}: {label}: {exc.message}")
+    if problems:
+        raise RecipeError(problems)
+    return planned
