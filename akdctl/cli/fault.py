@@ -145,6 +145,13 @@ def dump(fmt: str) -> None:
         render(dump_markdown(data))
     else:
         render(dump_doc(data))
+    failed = [key for key in ("profidrive", "canopen") if isinstance(data.get(key), dict) and "error" in data[key]]
+    if failed and len(failed) == len([k for k in ("profidrive", "canopen") if k in data]):
+        from akdctl.errors import DriveError
+
+        exc = DriveError(f"the drive refused the fault dump: {data[failed[0]]['error']}")
+        exc.reported = True
+        raise exc
 
 
 @fault.command("ack")
