@@ -38,7 +38,7 @@ SII_MAX_BYTES = 0x4000
 CAP_HINT = "run as root or `setcap cap_net_raw+ep $(readlink -f $(which python3))`"
 
 
-class FrameLost(CommError):
+class FrameLost(NoAnswer):
     """No frame came back (after the allowed repeats)."""
 
     kind = "timeout"
@@ -75,13 +75,15 @@ class SlaveInfo:
 class EcatMaster:
     """Frames, datagrams and ESC register access on one interface."""
 
-    def __init__(self, ifname: str, tracer: Tracer, timeout: float = 2.0, retries: int = 2) -> None:
+    def __init__(self, ifname: str, tracer: Tracer, timeout: float = 2.0, retries: int = 2,
+                 sock: socket.socket | None = None) -> None:
+        """``sock`` replaces the raw socket (tests run the master against an in-process slave over a socketpair)."""
         self.ifname = ifname
         self.tracer = tracer
         self.timeout = timeout
         self.retries = retries
         self.frame_timeout = min(timeout, 0.2)
-        self.sock: socket.socket | None = open_raw_socket(ifname)
+        self.sock: socket.socket | None = sock if sock is not None else open_raw_socket(ifname)
         self._index = 0
         self.frames = 0
 
@@ -289,25 +291,34 @@ class RawMailboxLink(MailboxLink):
             time.sleep(0.001)
 
     def receive(self, timeout: float) -> bytes | None:
+        """Poll SM1: one frame reads the SM1 status and the whole SM1 buffer; the ESC counts the buffer read
+        (WKC 1) only when a reply is there, so a reply costs no extra status round trip."""
         deadline = time.monotonic() + max(0.0, timeout)
-        pause = 0.0002
         while True:
+            status = ec.Datagram(ec.Cmd.FPRD, self.station, self._sm_reg(1, 5), bytes(2))
+            data = ec.Datagram(ec.Cmd.FPRD, self.station, self.sm1.start, bytes(self.sm1.length))
             try:
-                status = self.master.fprd(self.station, self._sm_reg(1, 5), 2, retries=0)
+                got_status, got_data = self.master.txrx([status, data], retries=0)
             except FrameLost:
-                status = b"\0\0"
-            if status[0] & ec.SM_STATUS_MAILBOX_FULL:
-                try:
-                    data, wkc = self.master.read(ec.Cmd.FPRD, self.station, self.sm1.start, self.sm1.length, retries=0)
-                except FrameLost:
-                    self._repeat(status[1], deadline)
-                    continue
-                if wkc == 1:
-                    return _trim(data)
+                self._recover(deadline)
+                continue
+            if got_data.wkc == 1:
+                return _trim(got_data.data)
             if time.monotonic() >= deadline:
                 return None
-            time.sleep(min(pause, max(0.0, deadline - time.monotonic())))
-            pause = min(pause * 2, 0.002)
+            time.sleep(min(0.0002, max(0.0, deadline - time.monotonic())))
+
+    def _recover(self, deadline: float) -> None:
+        """A polling frame was lost: if it took the reply with it (SM1 now empty after having been read),
+        ask for it again with the repeat request; if SM1 still holds it, just poll again."""
+        try:
+            status = self.master.fprd(self.station, self._sm_reg(1, 5), 2)
+        except FrameLost:
+            if time.monotonic() > deadline:
+                raise
+            return
+        if not status[0] & ec.SM_STATUS_MAILBOX_FULL:
+            self._repeat(status[1], deadline)
 
     def _repeat(self, activate: int, deadline: float) -> None:
         """The reply frame was lost: toggle the repeat request and wait for the acknowledge."""
