@@ -1,0 +1,698 @@
+"""The axis: one interface for enable/disable/stop/acknowledge/jog/home/move/status on both profiles.
+
+Why one implementation: every command that moves or powers the axis (``enable``,
+``move``, ``fault ack``, recipes) goes through :func:`open_axis`, so the safety
+checks (fault present, control not honoured, controlword overridden by process
+data, not homed) and the stop-on-error behaviour exist exactly once.
+
+* :class:`ProfidriveAxis` speaks PNUs: STW1/ZSW1 (PNU 1/2) and the general state
+  machine S1..S5 (SPEC-NOTES 6/7), jog with STW1 bits 8/9 and PNU 1004..1007
+  (note 8), homing with STW1 bit 11 (note 9), MDI positioning with SATZANW bit 15,
+  MDI_* PNU 34..38 and the ZSW1 bit 12 handshake (note 12), units per note 13.
+* :class:`Cia402Axis` speaks objects: controlword/statusword (EtherCAT manual 5.4),
+  profile position (1) with the bit 4 / bit 12 handshake, profile velocity (3) for
+  jog, homing (6, 0x6098, statusword bits 10/12/13). Modes 7/8 need a cyclic set
+  point stream and are refused acyclically. Scaling assumed: 65536 counts per
+  revolution, counts/s, counts/s² (the simulator's; set a real drive alike).
+
+Every wait polls with a deadline; nothing here sleeps unbounded.
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from akdctl.drive import statusword as sw
+from akdctl.drive import units
+from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
+
+POLL_S = 0.05
+CIA_COUNTS_PER_REV = 65536
+
+
+@dataclass
+class AxisStatus:
+    """What the drive reports, decoded. ``word`` is ZSW1 or the statusword."""
+
+    profile: str
+    state: str
+    state_text: str
+    word: int
+    control: int
+    mode: int | None
+    mode_text: str
+    enabled: bool
+    fault: bool
+    warning: bool
+    faults: list[dict[str, Any]] = field(default_factory=list)
+    homed: bool | None = None
+    target_reached: bool = False
+    standstill: bool = True
+    task_ack: bool = False
+    homing_error: bool = False
+    control_honoured: bool | None = None
+    position_rev: float | None = None
+    counts_per_rev: int = 65536
+    velocity_rpm: float | None = None
+    current_pct: float | None = None
+    bits: list[sw.Bit] = field(default_factory=list)
+
+    @property
+    def position_counts(self) -> int | None:
+        return None if self.position_rev is None else round(self.position_rev * self.counts_per_rev)
+
+    def fault_summary(self) -> str:
+        if not self.faults:
+            return "a fault is present (the drive did not report its number)"
+        return "; ".join(f"{f['code']} {f['text']}".strip() for f in self.faults)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "profile": self.profile,
+            "state": self.state,
+            "state_text": self.state_text,
+            "word": self.word,
+            "word_hex": f"0x{self.word:04X}",
+            "control": self.control,
+            "mode": self.mode,
+            "mode_text": self.mode_text,
+            "enabled": self.enabled,
+            "fault": self.fault,
+            "warning": self.warning,
+            "faults": self.faults,
+            "homed": self.homed,
+            "target_reached": self.target_reached,
+            "standstill": self.standstill,
+            "control_honoured": self.control_honoured,
+            "position_counts": self.position_counts,
+            "position_rev": None if self.position_rev is None else round(self.position_rev, 6),
+            "counts_per_rev": self.counts_per_rev,
+            "velocity_rpm": None if self.velocity_rpm is None else round(self.velocity_rpm, 3),
+            "current_pct": None if self.current_pct is None else round(self.current_pct, 2),
+            "bits": [b.to_json() for b in self.bits],
+        }
+
+
+@dataclass
+class MoveSpec:
+    """A checked point-to-point move: target in revolutions (absolute or relative), rpm, rpm/s."""
+
+    target_rev: float
+    relative: bool
+    rpm: float
+    acc_rpm_s: float
+    dec_rpm_s: float
+
+
+def _fault_entries(numbers: list[int]) -> list[dict[str, Any]]:
+    from akdctl.catalog import faults as catalog
+
+    out = []
+    for number in numbers:
+        fault = catalog.by_number(number)
+        out.append({"number": number, "code": fault.code if fault else f"F{number}",
+                    "text": fault.name if fault else "unknown fault"})
+    return out
+
+
+class Axis(ABC):
+    """One axis over one profile. ``timeout`` bounds each wait for a state change."""
+
+    profile = "?"
+
+    def __init__(self, timeout: float = 2.0, target: str = "") -> None:
+        self.timeout = timeout
+        self.target = target
+
+    # ---------------------------------------------------------------- primitives per profile
+    @abstractmethod
+    def read_status(self) -> AxisStatus: ...
+
+    @abstractmethod
+    def _enable_steps(self, status: AxisStatus) -> None: ...
+
+    @abstractmethod
+    def _disable_command(self) -> None: ...
+
+    @abstractmethod
+    def _ramp_stop_command(self) -> None: ...
+
+    @abstractmethod
+    def _quick_stop_command(self) -> None: ...
+
+    @abstractmethod
+    def _ack_command(self) -> None: ...
+
+    @abstractmethod
+    def start_jog(self, rpm: float, acc_rpm_s: float) -> None: ...
+
+    @abstractmethod
+    def end_jog(self) -> None: ...
+
+    @abstractmethod
+    def start_home(self, mode: int | None) -> None: ...
+
+    @abstractmethod
+    def home_finished(self, status: AxisStatus) -> bool | None:
+        """True done, False failed, None still running."""
+
+    @abstractmethod
+    def start_move(self, move: MoveSpec) -> None: ...
+
+    @abstractmethod
+    def ensure_mode(self, kind: str) -> None:
+        """Switch to the mode a motion needs ('velocity', 'position', 'homing') at standstill."""
+
+    @abstractmethod
+    def mode_name(self, kind: str) -> str: ...
+
+    # ---------------------------------------------------------------- shared behaviour
+    def wait_for(self, predicate: Callable[[AxisStatus], bool], what: str, timeout: float | None = None,
+                 allow_fault: bool = False) -> AxisStatus:
+        """Poll the status until ``predicate`` holds; DriveFault on a fault, DriveError on timeout."""
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while True:
+            status = self.read_status()
+            if predicate(status):
+                return status
+            if status.fault and not allow_fault:
+                raise DriveFault(f"drive fault while waiting for {what}: {status.fault_summary()}",
+                                 details={"faults": status.faults})
+            if time.monotonic() > deadline:
+                raise DriveError(f"the drive did not reach {what} within {self.timeout if timeout is None else timeout:g} s "
+                                 f"(state {status.state} {status.state_text}, word 0x{status.word:04X})")
+            time.sleep(POLL_S)
+
+    def refuse_if_fault(self, status: AxisStatus) -> None:
+        if status.fault:
+            raise SafetyRefusal(f"refusing: the drive reports a fault: {status.fault_summary()}; "
+                                "acknowledge it with 'akdctl fault ack' once the cause is removed",
+                                details={"faults": status.faults})
+
+    def enable(self) -> AxisStatus:
+        status = self.read_status()
+        self.refuse_if_fault(status)
+        if status.enabled:
+            return status
+        self._enable_steps(status)
+        return self.wait_for(lambda s: s.enabled, "operation enabled")
+
+    def disable(self) -> AxisStatus:
+        status = self.read_status()
+        if status.enabled and not status.standstill:
+            self.stop()
+        self._disable_command()
+        return self.wait_for(lambda s: not s.enabled, "power stage disabled", timeout=self.timeout + 5.0,
+                             allow_fault=True)
+
+    def stop(self, quick: bool = False, timeout: float | None = None) -> AxisStatus:
+        """Ramp to standstill (quick stop with ``quick`` or when the ramp is not acknowledged)."""
+        wait = max(self.timeout, 5.0) if timeout is None else timeout
+        if not quick:
+            self._ramp_stop_command()
+            try:
+                return self.wait_for(lambda s: s.standstill, "standstill", timeout=wait, allow_fault=True)
+            except DriveError:
+                pass  # the ramp was not obeyed in time: quick stop
+        self._quick_stop_command()
+        return self.wait_for(lambda s: s.standstill, "standstill after quick stop", timeout=wait, allow_fault=True)
+
+    def acknowledge_faults(self) -> AxisStatus:
+        self._ack_command()
+        status = self.read_status()
+        if status.fault:
+            raise DriveFault(f"fault still present after acknowledge (cause not removed?): {status.fault_summary()}",
+                             details={"faults": status.faults})
+        return status
+
+    def safe_stop(self) -> tuple[AxisStatus | None, str]:
+        """Best-effort stop used when something went wrong: never raises; says what happened."""
+        try:
+            status = self.stop()
+            return status, "axis stopped" if status.standstill else "axis did not confirm standstill"
+        except CommError as exc:
+            return None, f"could not stop the axis, the drive does not answer ({exc.message}); " \
+                         "the motion is bounded by the drive's own limits (see 'Safety model')"
+        except AkdError as exc:
+            return None, f"stop failed: {exc.message}"
+
+
+# ====================================================================== PROFIdrive
+class ProfidriveAxis(Axis):
+    profile = "profidrive"
+
+    BASE = sw.STW1_CONTROL_BY_PLC | sw.STW1_NO_COAST_STOP | sw.STW1_NO_QUICK_STOP  # 0x0406
+
+    def __init__(self, params: Any, objects: Any = None, timeout: float = 2.0, target: str = "") -> None:
+        super().__init__(timeout, target)
+        self.params = params
+        self.objects = objects
+
+    # ---------------------------------------------------------------- access
+    def _read(self, *pnus: int) -> dict[int, list[int]]:
+        from akdctl.drive.params import parse_pnu_spec, read_pnus
+
+        readings = read_pnus(self.params, [parse_pnu_spec(str(p)) for p in pnus])
+        out: dict[int, list[int]] = {}
+        for reading in readings:
+            if not reading.ok:
+                from akdctl.errors import ParameterRefused
+
+                raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
+                                       code=reading.error)
+            out[reading.spec.pnu] = list(reading.values or [])
+        return out
+
+    def _write(self, *pairs: tuple[int, int]) -> None:
+        from akdctl.drive.params import PnuSpec, write_pnus
+        from akdctl.catalog.pnus import lookup
+        from akdctl.errors import ParameterRefused
+
+        items = [(PnuSpec(pnu, 0, 1, lookup(pnu)), [value]) for pnu, value in pairs]
+        for result in write_pnus(self.params, items):
+            if not result.ok:
+                raise ParameterRefused(f"drive refused to change PNU {result.spec.label}: {result.error_text}",
+                                       code=result.error)
+
+    def stw1(self, word: int) -> None:
+        self._write((1, word))
+
+    # ---------------------------------------------------------------- status
+    def read_status(self) -> AxisStatus:
+        values = self._read(2, 1, 930, 6, 52, 1002)
+        zsw1, stw1, opmode = values[2][0], values[1][0], values[930][0]
+        nist, itist, bits = values[6][0], values[52][0], values[1002][0]
+        state = sw.profidrive_state(zsw1)
+        fault = bool(zsw1 & sw.ZSW1_FAULT)
+        faults: list[dict[str, Any]] = []
+        if fault:
+            try:
+                buffer = self._read(947)[947][:8]
+                faults = _fault_entries([n for n in buffer if n])
+            except AkdError:
+                faults = []
+        position = None
+        if self.objects is not None:
+            try:
+                position = struct.unpack("<i", self.objects.upload(0x6064, 0))[0] / CIA_COUNTS_PER_REV
+            except (AkdError, struct.error):
+                position = None
+        velocity = units.x_to_rpm(nist, 15)
+        if opmode == 2:
+            standstill = bool(zsw1 & sw.ZSW1_DRIVE_STOPPED) and nist == 0
+            homed: bool | None = bool(zsw1 & sw.ZSW1_HOME_POSITION_SET)
+        else:
+            standstill = nist == 0
+            homed = bool(zsw1 & sw.ZSW1_HOME_POSITION_SET) if opmode == 2 else None
+        return AxisStatus(
+            profile=self.profile, state=state, state_text=sw.PD_STATES[state], word=zsw1, control=stw1,
+            mode=opmode, mode_text=sw.PROFIDRIVE_MODES.get(opmode, f"mode {opmode}"),
+            enabled=state in ("S4", "S5") and not fault, fault=fault, warning=bool(zsw1 & sw.ZSW1_WARNING),
+            faults=faults, homed=homed, target_reached=bool(zsw1 & sw.ZSW1_BIT10), standstill=standstill,
+            task_ack=bool(zsw1 & sw.ZSW1_TASK_ACK), control_honoured=bool(zsw1 & sw.ZSW1_CONTROL_REQUESTED),
+            position_rev=position, counts_per_rev=1 << bits, velocity_rpm=velocity,
+            current_pct=itist * 100.0 / (1 << 14), bits=sw.zsw1_bits(zsw1, opmode),
+        )
+
+    def _refuse_if_not_honoured(self) -> None:
+        status = self.read_status()
+        if not status.control_honoured:
+            raise SafetyRefusal(
+                "refusing: the drive does not honour STW1 bit 10 (control by PLC): ZSW1 bit 9 'control requested' "
+                "stays clear, so it would ignore every control word (SPEC-NOTES 7); check the drive's command source"
+            )
+
+    # ---------------------------------------------------------------- state machine
+    def _enable_steps(self, status: AxisStatus) -> None:
+        # The S7 sample's sequence (SPEC-NOTES 6): OFF with bits 1/2/10 → S2, then ON+enable → S3 → S4.
+        if status.state in ("S1", "S2", "S3"):
+            self.stw1(self.BASE)  # 0x0406
+            self._refuse_if_not_honoured()
+            self.wait_for(lambda s: s.state in ("S2", "S3"), "S2 (ready for switching on)")
+        self.stw1(self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION)  # 0x040F
+
+    def _disable_command(self) -> None:
+        self.stw1(self.BASE)  # OFF1: ramp down, then S2
+
+    def _ramp_stop_command(self) -> None:
+        # Stay in S4; bit 4 = 0 rejects a traversing task / zeroes the ramp generator, bits 8/9/11 = 0
+        # end jog and homing: every mode brakes along its ramp.
+        status = self.read_status()
+        if status.state in ("S4",):
+            self.stw1(self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION | sw.STW1_BIT5)
+        elif status.state not in ("S5",):
+            self.stw1(self.BASE)
+
+    def _quick_stop_command(self) -> None:
+        self.stw1(sw.STW1_CONTROL_BY_PLC | sw.STW1_NO_COAST_STOP | sw.STW1_ON | sw.STW1_ENABLE_OPERATION)  # OFF3
+
+    def _ack_command(self) -> None:
+        current = self._read(1)[1][0] & ~sw.STW1_FAULT_ACK & 0xFFFF
+        base = (current | sw.STW1_CONTROL_BY_PLC) & ~(sw.STW1_ON | sw.STW1_ENABLE_OPERATION)
+        self.stw1(base)
+        self.stw1(base | sw.STW1_FAULT_ACK)  # rising edge of bit 7 (SPEC-NOTES 7)
+        self.stw1(base)
+
+    # ---------------------------------------------------------------- modes
+    def mode_name(self, kind: str) -> str:
+        return {"velocity": "velocity (PNU 930 = 1), jog via STW1 bit 8",
+                "position": "position (PNU 930 = 2), MDI via SATZANW bit 15",
+                "homing": "position (PNU 930 = 2), homing via STW1 bit 11"}[kind]
+
+    def ensure_mode(self, kind: str) -> None:
+        wanted = 1 if kind == "velocity" else 2
+        if self._read(930)[930][0] != wanted:
+            self._write((930, wanted))
+
+    def _operating_word(self) -> int:
+        return self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION  # 0x040F
+
+    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
+        value = units.rpm_to_x(rpm, 15)
+        if not -32768 <= value <= 32767:
+            raise UsageError(f"jog velocity {rpm:g} rpm is outside the drive's range (±12000 rpm)")
+        acc = max(1, min(65535, round(acc_rpm_s)))
+        self._write((1004, value), (1006, acc), (1007, acc))
+        self.stw1(self._operating_word())  # bits 4/5/6 = 0: the jog prerequisite
+        self.stw1(self._operating_word() | sw.STW1_JOG1)
+
+    def end_jog(self) -> None:
+        self.stw1(self._operating_word())
+
+    def start_home(self, mode: int | None) -> None:
+        if mode is not None:
+            self._write((1001, mode))
+        self.stw1(self._operating_word())
+        self.stw1(self._operating_word() | sw.STW1_START_HOMING)
+
+    def home_finished(self, status: AxisStatus) -> bool | None:
+        # SPEC-NOTES 9: bits 10/11/13 clear while homing runs, all set when it finished.
+        if status.word & sw.ZSW1_HOME_POSITION_SET and status.word & sw.ZSW1_DRIVE_STOPPED:
+            self.stw1(self._operating_word())
+            return True
+        if status.word & sw.ZSW1_DRIVE_STOPPED and status.standstill:
+            self.stw1(self._operating_word())
+            return False
+        return None
+
+    def start_move(self, move: MoveSpec) -> None:
+        status = self.read_status()
+        if not status.homed:
+            raise SafetyRefusal(
+                "refusing: the axis is not homed (ZSW1 bit 11 clear); the AKD runs MDI traversing tasks only on a "
+                "homed axis (PROFINET manual 5.10.2); run 'akdctl home' first")
+        counts = round(move.target_rev * status.counts_per_rev)
+        if not -(1 << 31) <= counts < (1 << 31):
+            raise UsageError("target is outside the 32-bit position range of MDI_TARPOS")
+        self._write((32, 0x8000), (34, counts), (35, max(1, units.rpm_to_x(move.rpm, 32))),
+                    (36, max(1, min(65535, units.rpm_s_to_acc(move.acc_rpm_s)))),
+                    (37, max(1, min(65535, units.rpm_s_to_acc(move.dec_rpm_s)))),
+                    (38, 0 if move.relative else 1))
+        ready = self._operating_word() | sw.STW1_BIT4 | sw.STW1_BIT5
+        self.stw1(ready)
+        self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the MDI task
+        try:
+            self.wait_for(lambda s: s.task_ack, "traversing task acknowledged (ZSW1 bit 12)")
+        except DriveError as exc:
+            if isinstance(exc, DriveFault):
+                raise
+            self.stw1(ready)
+            raise DriveError("the drive did not accept the MDI traversing task (ZSW1 bit 12 stayed clear): "
+                             "target outside the software limits, or the drive not in position mode/S4") from None
+        self.stw1(ready)  # handshake: drop bit 6 once bit 12 is seen; the task keeps running
+
+
+# ====================================================================== CiA 402
+class Cia402Axis(Axis):
+    profile = "cia402"
+
+    def __init__(self, objects: Any, transport: Any = None, timeout: float = 2.0, target: str = "") -> None:
+        super().__init__(timeout, target)
+        self.objects = objects
+        self.transport = transport
+
+    def _up(self, index: int, sub: int, fmt: str) -> int:
+        data = self.objects.upload(index, sub)
+        try:
+            return struct.unpack(fmt, data)[0]
+        except struct.error:
+            from akdctl.errors import MalformedReply
+
+            raise MalformedReply(f"object 0x{index:04X}:{sub} answered {len(data)} bytes") from None
+
+    def _down(self, index: int, sub: int, fmt: str, value: int) -> None:
+        self.objects.download(index, sub, struct.pack(fmt, value))
+
+    def controlword(self, word: int) -> None:
+        self._down(0x6040, 0, "<H", word)
+
+    def read_status(self) -> AxisStatus:
+        word = self._up(0x6041, 0, "<H")
+        control = self._up(0x6040, 0, "<H")
+        mode = self._up(0x6061, 0, "<b")
+        position = self._up(0x6064, 0, "<i") / CIA_COUNTS_PER_REV
+        velocity = self._up(0x606C, 0, "<i") * 60.0 / CIA_COUNTS_PER_REV
+        torque = self._up(0x6077, 0, "<h") / 10.0
+        state = sw.cia402_state(word)
+        fault = bool(word & sw.SW_FAULT)
+        faults: list[dict[str, Any]] = []
+        if fault:
+            numbers = []
+            try:
+                for sub in range(1, 11):
+                    number = self._up(0x2001, sub, "<H")
+                    if not number:
+                        break
+                    numbers.append(number)
+            except AkdError:
+                pass
+            faults = _fault_entries(numbers)
+        homed = None
+        if mode == 6:
+            homed = bool(word & sw.SW_BIT12)
+        return AxisStatus(
+            profile=self.profile, state=state, state_text=state, word=word, control=control, mode=mode,
+            mode_text=sw.CIA402_MODES.get(mode, f"mode {mode}"),
+            enabled=state in ("operation enabled", "quick stop active"), fault=fault,
+            warning=bool(word & sw.SW_WARNING), faults=faults, homed=homed,
+            target_reached=bool(word & sw.SW_TARGET_REACHED), standstill=velocity == 0.0,
+            task_ack=bool(word & sw.SW_BIT12) and mode == 1, homing_error=bool(word & sw.SW_BIT13) and mode == 6,
+            position_rev=position, counts_per_rev=CIA_COUNTS_PER_REV, velocity_rpm=velocity, current_pct=torque,
+            bits=sw.statusword_bits(word, mode),
+        )
+
+    # ---------------------------------------------------------------- SPEC-NOTES 23
+    def controlword_mapping(self) -> list[int]:
+        """The assigned RxPDOs (read back by SDO from 0x1C12) whose mapping holds 0x6040."""
+        found = []
+        count = self._up(0x1C12, 0, "<B")
+        for sub in range(1, count + 1):
+            pdo = self._up(0x1C12, sub, "<H")
+            entries = self._up(pdo, 0, "<B")
+            for esub in range(1, entries + 1):
+                if self._up(pdo, esub, "<I") >> 16 == 0x6040:
+                    found.append(pdo)
+                    break
+        return found
+
+    def _al_state(self) -> str | None:
+        probe = getattr(self.transport, "al_state", None)
+        if probe is None:
+            return None
+        try:
+            state = probe()
+        except AkdError:
+            return None
+        return None if state is None else str(state).upper()
+
+    def _refuse_pdo_override(self, observed: bool) -> None:
+        try:
+            mapped = self.controlword_mapping()
+        except AkdError:
+            mapped = []
+        if not mapped:
+            return
+        al = self._al_state()
+        if al == "OP" or (observed and al is None):
+            pdos = ", ".join(f"0x{p:04X}" for p in mapped)
+            raise SafetyRefusal(
+                f"refusing: the controlword 0x6040 is mapped in the active RxPDO {pdos} and the drive is in "
+                f"{al or 'an AL state that makes process data win'}; controlword writes by SDO have no effect "
+                "(SPEC-NOTES 23): let the EtherCAT master enable the axis, or drop to SAFE-OP/PRE-OP")
+
+    def _enable_steps(self, status: AxisStatus) -> None:
+        self._refuse_pdo_override(observed=False)
+        before = status.word
+        if status.state in ("switch on disabled", "not ready to switch on", "ready to switch on", "switched on"):
+            if status.state != "switched on":
+                self.controlword(sw.CW_SHUTDOWN)
+                try:
+                    self.wait_for(lambda s: s.state in ("ready to switch on", "switched on"), "ready to switch on")
+                except DriveError:
+                    if self.read_status().word == before:
+                        self._refuse_pdo_override(observed=True)
+                    raise
+            self.controlword(sw.CW_SWITCH_ON_CMD)
+            self.wait_for(lambda s: s.state in ("switched on", "operation enabled"), "switched on")
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD)
+
+    def _disable_command(self) -> None:
+        self.controlword(sw.CW_SHUTDOWN)
+
+    def _ramp_stop_command(self) -> None:
+        status = self.read_status()
+        if status.state == "operation enabled":
+            self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)  # halt: brake along the profile ramp
+        elif status.state not in ("quick stop active",):
+            self.controlword(sw.CW_SHUTDOWN)
+
+    def _quick_stop_command(self) -> None:
+        self.controlword(sw.CW_QUICK_STOP_CMD | sw.CW_SWITCH_ON | sw.CW_ENABLE_OPERATION)  # 0x000B
+
+    def _ack_command(self) -> None:
+        self.controlword(0x0000)
+        self.controlword(sw.CW_FAULT_RESET)  # rising edge of bit 7
+        self.controlword(0x0000)
+
+    def mode_name(self, kind: str) -> str:
+        return {"velocity": "profile velocity (0x6060 = 3)", "position": "profile position (0x6060 = 1)",
+                "homing": "homing (0x6060 = 6)"}[kind]
+
+    def ensure_mode(self, kind: str) -> None:
+        wanted = {"velocity": 3, "position": 1, "homing": 6}[kind]
+        if self._up(0x6061, 0, "<b") != wanted:
+            self._down(0x6060, 0, "<b", wanted)
+            deadline = time.monotonic() + self.timeout
+            while self._up(0x6061, 0, "<b") != wanted:
+                if time.monotonic() > deadline:
+                    raise DriveError(f"the drive did not switch to mode {wanted} (0x6061) within {self.timeout:g} s")
+                time.sleep(POLL_S)
+
+    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
+        acc = round(acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)
+        self._down(0x6083, 0, "<I", acc)
+        self._down(0x6084, 0, "<I", acc)
+        self._down(0x60FF, 0, "<i", round(rpm / 60.0 * CIA_COUNTS_PER_REV))
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD)  # halt clear: follow 0x60FF
+
+    def end_jog(self) -> None:
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)
+        self._down(0x60FF, 0, "<i", 0)
+
+    def start_home(self, mode: int | None) -> None:
+        if mode is not None:
+            self._down(0x6098, 0, "<b", mode)
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD)
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_NEW_SETPOINT)  # homing operation start
+
+    def home_finished(self, status: AxisStatus) -> bool | None:
+        if status.homing_error:
+            self.controlword(sw.CW_ENABLE_OPERATION_CMD)
+            return False
+        if status.word & sw.SW_BIT12 and status.word & sw.SW_TARGET_REACHED:
+            self.controlword(sw.CW_ENABLE_OPERATION_CMD)
+            return True
+        return None
+
+    def start_move(self, move: MoveSpec) -> None:
+        counts = round(move.target_rev * CIA_COUNTS_PER_REV)
+        self._down(0x607A, 0, "<i", counts)
+        self._down(0x6081, 0, "<I", max(1, round(move.rpm / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x6083, 0, "<I", max(1, round(move.acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x6084, 0, "<I", max(1, round(move.dec_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
+        base = sw.CW_ENABLE_OPERATION_CMD | (sw.CW_RELATIVE if move.relative else 0) | sw.CW_CHANGE_IMMEDIATELY
+        self.controlword(base)
+        self.controlword(base | sw.CW_NEW_SETPOINT)
+        try:
+            self.wait_for(lambda s: s.task_ack, "set-point acknowledge (statusword bit 12)")
+        except DriveError as exc:
+            if isinstance(exc, DriveFault):
+                raise
+            self.controlword(base)
+            raise DriveError("the drive did not acknowledge the new set-point (statusword bit 12 stayed clear): "
+                             "target outside the software limits 0x607D, or the drive not in profile position") from None
+        self.controlword(base)  # handshake: drop bit 4 once bit 12 is seen
+
+
+# ====================================================================== choosing
+def open_axis(app: Any) -> Axis:
+    """The axis of this invocation: ``app.drive_profile`` if set, else PROFIdrive when the
+    transport has a parameter channel, else CiA 402."""
+    transport = app.transport()
+    chosen = app.drive_profile
+    timeout = app.options.timeout
+    target = app.target.display
+    if chosen is None:
+        chosen = "profidrive" if transport.parameters is not None else "cia402"
+    if chosen == "profidrive":
+        return ProfidriveAxis(app.parameters(), transport.objects, timeout=timeout, target=target)
+    if chosen == "cia402":
+        return Cia402Axis(app.objects(), transport, timeout=timeout, target=target)
+    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
+
+
+# ====================================================================== running a motion safely
+class MotionRun:
+    """Run one motion to its end, stopping the axis on Ctrl-C, on any error, and at the deadline.
+
+    ``interrupted`` is a callable the CLI's signal handler flips; it is checked between polls
+    so a Ctrl-C never lands in the middle of a request.
+    """
+
+    def __init__(self, axis: Axis, interrupted: Callable[[], bool],
+                 progress: Callable[[AxisStatus], None] | None = None) -> None:
+        self.axis = axis
+        self.interrupted = interrupted
+        self.progress = progress
+
+    def _stop_and_raise(self, exc: AkdError) -> None:
+        _, outcome = self.axis.safe_stop()
+        exc.details.setdefault("stop", outcome)
+        if "stop" not in exc.message:
+            exc.message = f"{exc.message} ({outcome})"
+        raise exc
+
+    def run(self, start: Callable[[], None], finished: Callable[[AxisStatus], bool | None], *,
+            deadline_s: float, what: str, on_deadline: str = "error") -> AxisStatus:
+        """``start`` then poll ``finished`` (True done / False failed / None running) until ``deadline_s``.
+
+        ``on_deadline='stop'`` ends the motion at the deadline as a success (jog --for).
+        """
+        try:
+            start()
+        except AkdError as exc:
+            self._stop_and_raise(exc)
+        end = time.monotonic() + deadline_s
+        while True:
+            if self.interrupted():
+                _, outcome = self.axis.safe_stop()
+                raise Interrupted(f"interrupted during {what}; {outcome}", details={"stop": outcome})
+            try:
+                status = self.axis.read_status()
+            except AkdError as exc:
+                self._stop_and_raise(exc)
+            if self.progress is not None:
+                self.progress(status)
+            if status.fault:
+                self.axis.safe_stop()
+                raise DriveFault(f"drive fault during {what}: {status.fault_summary()}",
+                                 details={"faults": status.faults})
+            try:
+                result = finished(status)
+            except AkdError as exc:
+                self._stop_and_raise(exc)
+            if result is True:
+                return status
+            if result is False:
+                self._stop_and_raise(DriveError(f"{what} failed: the drive ended it without success "
+                                                f"(state {status.state}, word 0x{status.word:04X})"))
+            if time.monotonic() > end:
+                if on_deadline == "stop":
+                    return status
+                self._stop_and_raise(DriveError(f"{what} did not finish within {deadline_s:.1f} s"))
+            time.sleep(POLL_S)
