@@ -218,10 +218,7 @@ def do_home(session: Session, params: dict[str, Any]) -> dict[str, Any]:
         return _status_json(axis.home(mode=params["mode"], timeout=params["timeout"]))
     from akdctl.drive.axis import MotionRun
 
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    axis.ensure_mode("homing")
-    axis.enable()
+    _prepare(axis, "homing")
     final = MotionRun(axis, session.interrupted).run(lambda: axis.start_home(params["mode"]), axis.home_finished,
                                                      deadline_s=params["timeout"], what="homing")
     return final.to_json()
@@ -235,12 +232,12 @@ def do_move(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
     status = axis.read_status()
     axis.refuse_if_fault(status)
+    _refuse_if_moving(status)
     per_rev = status.counts_per_rev or 65536
     target = params["target"]
     rev = target / 360.0 if params["unit"] == "deg" else target / per_rev if params["unit"] == "counts" else target
     spec = MoveSpec(rev, params["relative"], params["velocity"], params["accel"], params["decel"])
-    axis.ensure_mode("position")
-    axis.enable()
+    _prepare(axis, "position")
     distance = abs(rev - (0 if params["relative"] else (status.position_rev or 0.0)))
     # Trapezoid time with margin: the move must finish well inside this, else it is stopped.
     estimate = distance / (spec.rpm / 60.0) + spec.rpm / spec.acc_rpm_s + spec.rpm / spec.dec_rpm_s
@@ -248,6 +245,22 @@ def do_move(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     final = MotionRun(axis, session.interrupted).run(lambda: axis.start_move(spec), _move_done, deadline_s=deadline,
                                                      what="move")
     return final.to_json()
+
+
+def _refuse_if_moving(status: Any) -> None:
+    if not status.standstill:
+        from akdctl.errors import SafetyRefusal
+
+        raise SafetyRefusal("refusing: the axis is moving; a recipe starts a motion only from standstill")
+
+
+def _prepare(axis: Any, kind: str) -> None:
+    """As ``akdctl home``/``move`` do: refuse a faulted or moving axis, switch the mode, enable."""
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    _refuse_if_moving(status)
+    axis.ensure_mode(kind)
+    axis.enable()
 
 
 def _move_done(status: Any) -> bool | None:
