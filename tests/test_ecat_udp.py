@@ -80,6 +80,13 @@ COMMANDS = [
     (["sdo", "write", "0x6060:0", "3"], 1002, 0, None),
     (["sdo", "read", "0x6060:0"], 1002, 0, "3"),
     (["sdo", "read", "0x5FFF:0", "u8"], 1001, 1, None),  # object does not exist: SDO abort
+    (["info"], 1001, 0, "106"),
+    (["-y", "enable"], 1001, 0, "operation enabled"),
+    (["status"], 1001, 0, "operation enabled"),
+    (["-y", "disable"], 1001, 0, "drive disabled"),
+    (["pdo", "show"], 1001, 0, "0x1701"),
+    (["fault", "list"], 1001, 0, None),
+    (["-y", "move", "1000"], 1001, 4, None),  # not homed: a safety refusal, over EtherCAT as on sim
     (["sdo", "read", "0x1018:1"], 1003, 3, None),  # unknown station: the gateway stays silent
 ]
 
