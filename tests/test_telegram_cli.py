@@ -1,0 +1,136 @@
+"""``akdctl telegram`` through the real CLI against the simulated AKD (PROFINET manual 5.8/5.11, SPEC-NOTES 10-11)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from akdctl.catalog import telegrams as tc
+
+# Word-by-word layouts: 004 5.11.2-5.11.5, 003 6.11.6; telegram 9 with XIST_A (SPEC-NOTES 10),
+# telegram 351 = ZSW1, NIST_A, ITIST_GLATT, XIST_A (SPEC-NOTES 11).
+LAYOUTS = {
+    1: (["STW1", "NSOLL_A"], ["ZSW1", "NIST_A"]),
+    7: (["STW1", "SATZANW"], ["ZSW1", "AKTSATZ"]),
+    9: (["STW1", "SATZANW", "STW2", "MDI_TARPOS", "MDI_TARPOS", "MDI_VELOCITY", "MDI_VELOCITY", "MDI_ACC",
+         "MDI_DEC", "MDI_MOD"], ["ZSW1", "AKTSATZ", "ZSW2", "XIST_A", "XIST_A"]),
+    350: (["STW1", "NSOLL_A"], ["ZSW1", "NIST_A", "ITIST_GLATT"]),
+    351: (["STW1", "NSOLL_A"], ["ZSW1", "NIST_A", "ITIST_GLATT", "XIST_A", "XIST_A"]),
+}
+
+
+def _pnu_writes(state_dir: Path) -> int:
+    from akdctl.sim.drive import SimDrive
+
+    with SimDrive("default", state_dir).transaction() as model:
+        return model.writes
+
+
+def _names(words: list[dict]) -> list[str]:
+    return [w["name"] for w in words]
+
+
+def test_default_is_telegram_1(akd_inproc) -> None:
+    code, out, err = akd_inproc("--json", "telegram", "show")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["telegram"] == 1
+    assert (_names(data["setpoint"]), _names(data["actual"])) == LAYOUTS[1]
+
+
+@pytest.mark.parametrize("number", sorted(LAYOUTS))
+def test_set_shows_the_layout(akd_inproc, number: int) -> None:
+    code, out, err = akd_inproc("--json", "telegram", "set", str(number))
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["telegram"] == number
+    assert (_names(data["setpoint"]), _names(data["actual"])) == LAYOUTS[number]
+    assert [w["word"] for w in data["actual"]] == list(range(1, len(LAYOUTS[number][1]) + 1))
+    # the drive's PNU 915/916 agree with the catalogue, and a later show reads the same
+    code, out, _ = akd_inproc("--json", "telegram", "show")
+    again = json.loads(out)
+    assert again["telegram"] == number and again["pnu915"] == data["pnu915"]
+    assert len(again["pnu915"]) == tc.PZD_MAX_WORDS
+
+
+def test_telegram_9_human_output_names_double_words(akd_inproc) -> None:
+    code, out, _ = akd_inproc("telegram", "set", "9")
+    assert code == 0
+    assert "XIST_A (high word)" in out and "XIST_A (low word)" in out
+    assert "10 words" in out and "5 words" in out
+
+
+def test_unknown_telegram(akd_inproc, isolated_env: Path) -> None:
+    before = _pnu_writes(isolated_env)
+    code, _, err = akd_inproc("telegram", "set", "2")
+    assert code == 2 and "nothing was written" in err
+    assert _pnu_writes(isolated_env) == before
+    code, _, err = akd_inproc("telegram", "set", "2", "--force")
+    assert code == 1 and "0x14" in err  # the drive: value impermissible
+    code, out, _ = akd_inproc("--json", "telegram", "show")
+    assert json.loads(out)["telegram"] == 1
+
+
+def test_free_mapping_in_telegram_0(akd_inproc) -> None:
+    assert akd_inproc("telegram", "set", "0")[0] == 0
+    code, out, err = akd_inproc("--json", "telegram", "map", "--setpoint", "STW1,MDI_TARPOS,5", "--actual", "2,6,52")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["pnu915"] == [1, 34, 34, 5, 0, 0, 0, 0, 0, 0]
+    assert _names(data["setpoint"]) == ["STW1", "MDI_TARPOS", "MDI_TARPOS", "NSOLL_A"]
+    assert _names(data["actual"]) == ["ZSW1", "NIST_A", "ITIST_GLATT"]
+    code, out, _ = akd_inproc("--json", "telegram", "show")
+    assert json.loads(out)["pnu916"][:4] == [2, 6, 52, 0]
+
+
+@pytest.mark.parametrize("args,fragment", [
+    (("--setpoint", "2"), "cannot go into PNU 915"),            # ZSW1 is an actual value
+    (("--actual", "1"), "cannot go into PNU 916"),              # STW1 is a set point
+    (("--actual", "2,28"), "not in the signal list"),           # XIST_A only inside telegrams 9/351
+    (("--setpoint", "1,34,35,35,36"), "mapped twice"),
+    (("--setpoint", "1,34,35,5,32,36,37,38,34"), "at most 10"),  # 12 words
+])
+def test_free_mapping_refused_before_any_write(akd_inproc, isolated_env: Path, args, fragment: str) -> None:
+    assert akd_inproc("telegram", "set", "0")[0] == 0
+    before = _pnu_writes(isolated_env)
+    code, _, err = akd_inproc("telegram", "map", *args)
+    assert code == 2 and fragment in err, err
+    assert _pnu_writes(isolated_env) == before
+
+
+def test_free_mapping_forced_is_refused_by_the_drive(akd_inproc) -> None:
+    assert akd_inproc("telegram", "set", "0")[0] == 0
+    code, _, err = akd_inproc("telegram", "map", "--setpoint", "1,2", "--force")
+    assert code == 1 and "0x14" in err and "element 1" in err
+
+
+def test_mapping_needs_telegram_0(akd_inproc, isolated_env: Path) -> None:
+    before = _pnu_writes(isolated_env)
+    code, _, err = akd_inproc("telegram", "map", "--setpoint", "1,5")
+    assert code == 2 and "telegram set 0" in err
+    assert _pnu_writes(isolated_env) == before
+    code, _, err = akd_inproc("telegram", "map", "--setpoint", "1,5", "--force")
+    assert code == 1 and "0x11" in err  # operating state: 915 changes only in telegram 0
+
+
+def test_unknown_signal_names(akd_inproc) -> None:
+    code, _, err = akd_inproc("telegram", "map", "--setpoint", "STW9")
+    assert code == 2 and "unknown signal" in err
+
+
+def test_signal_list_pnu_923(akd_inproc) -> None:
+    code, out, _ = akd_inproc("--json", "telegram", "show")
+    assert json.loads(out)["signal_list"] == [1, 2, 5, 6, 32, 33, 34, 35, 36, 37, 38, 52]
+
+
+def test_catalogue_word_lists_round_trip() -> None:
+    for layout in tc.TELEGRAMS.values():
+        for signals in (layout.setpoint, layout.actual):
+            assert tc.words_to_signals(tc.expand_words(signals)) == list(signals)
+    assert tc.TELEGRAMS[9].setpoint_words == 10 and tc.TELEGRAMS[9].actual_words == 5
+    with pytest.raises(tc.TelegramDataError):
+        tc.words_to_signals([34, 5])  # a double word cut in half
+    with pytest.raises(tc.TelegramDataError):
+        tc.words_to_signals([1, 0, 5])  # after the end
