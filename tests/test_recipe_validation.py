@@ -161,8 +161,6 @@ def test_motion_without_consent_is_refused_before_any_write(akd, tmp_path: Path,
 def test_dry_run_prints_the_plan_and_touches_nothing(akd_inproc, tmp_path: Path, primed: int) -> None:
     import json
 
-    from akdctl.cli.main import main  # noqa: F401 - the entry point the fixture runs
-
     root = Path(__file__).resolve().parent.parent
     code, out, err = akd_inproc("--json", "commission", "--dry-run", str(root / "examples" / "commission-sim.toml"),
                                 "--report", str(tmp_path / "plan.xml"))
