@@ -27,6 +27,9 @@ from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_a
 from akdctl.sim.esc import Esc
 
 
+SIM_MAILBOX = 512
+
+
 def click_options() -> list[click.Option]:
     return [
         click.Option(["--ethercat-raw", "ethercat_raw"], default=None, metavar="IFNAME",
@@ -99,7 +102,9 @@ class SlaveWorker:
 class EthercatRawFace:
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
         self.ifname = ifname
-        image = akd_sii_image(serial=serial) if serial is not None else akd_sii_image()
+        # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
+        # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
+        image = akd_sii_image(mailbox_size=SIM_MAILBOX, **({"serial": serial} if serial is not None else {}))
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
         self.injector = injector
