@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from akdctl.catalog import objects as oc
 from akdctl.sim.model import DriveModel
@@ -164,3 +166,47 @@ def test_al_state_names(text: object, expected: str) -> None:
 def test_al_state_unknown() -> None:
     with pytest.raises(ValueError):
         normalise_al_state("running")
+
+
+_INDICES = st.sampled_from([0x1C12, 0x1C13, 0x1600, 0x1601, 0x1602, 0x1A00, 0x1A01])
+_ENTRY_VALUES = st.sampled_from([0, 0x60400010, 0x60C10120, 0x607A0020, 0x60FF0020, 0x60600008, 0x00020008,
+                                 0x60410010, 0x60630020, 0x60610008, 0x20020108, 0x10000020])
+_PDO_VALUES = st.sampled_from([0, 0x1600, 0x1601, 0x1602, 0x1701, 0x1704, 0x1A00, 0x1A01, 0x1B01, 0x1B20])
+
+
+@st.composite
+def _writes(draw: st.DrawFn) -> list[tuple[int, int, int]]:
+    out = []
+    for _ in range(draw(st.integers(0, 40))):
+        index = draw(_INDICES)
+        sub = draw(st.integers(0, 4))
+        if sub == 0:
+            value = draw(st.integers(0, 9))
+        elif index in (0x1C12, 0x1C13):
+            value = draw(_PDO_VALUES)
+        else:
+            value = draw(_ENTRY_VALUES)
+        out.append((index, sub, value))
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(_writes())
+def test_no_write_sequence_breaks_the_rules(writes: list[tuple[int, int, int]]) -> None:
+    """Whatever a client writes, the active process data stays within SPEC-NOTES 16-18."""
+    model = DriveModel()
+    comp = _pdo(model)
+    for index, sub, value in writes:
+        try:
+            _write(model, index, sub, value)
+        except SdoAccessError as exc:
+            assert exc.code in {0x06010003, 0x06040041, 0x06040042, 0x06040043, 0x06090030, 0x06090031}
+    for direction, limit, fixed in (("rx", oc.RX_TOTAL_MAX_BYTES, oc.FIXED_RX_PDOS),
+                                     ("tx", oc.TX_TOTAL_MAX_BYTES, oc.FIXED_TX_PDOS)):
+        assigned = comp.assigned(direction)
+        assert all((oc.is_rx_pdo(p) if direction == "rx" else oc.is_tx_pdo(p)) for p in assigned)
+        assert len(assigned) <= 1 or not any(p in fixed for p in assigned)
+        assert oc.pdo_bytes(comp.active_entries(direction)) <= limit
+        for pdo in assigned:
+            entries = comp.pdo_entries(pdo)
+            assert sum(e.bits for e in entries) % 16 == 0 and oc.pdo_bytes(entries) <= oc.PDO_MAX_BYTES or pdo in fixed

@@ -6,6 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from akdctl.catalog import telegrams as tc
 
@@ -134,3 +136,32 @@ def test_catalogue_word_lists_round_trip() -> None:
         tc.words_to_signals([34, 5])  # a double word cut in half
     with pytest.raises(tc.TelegramDataError):
         tc.words_to_signals([1, 0, 5])  # after the end
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 0xFFFF), max_size=12))
+def test_word_list_parser_raises_only_its_error(words: list[int]) -> None:
+    try:
+        signals = tc.words_to_signals(words)
+    except tc.TelegramDataError:
+        return
+    assert tc.expand_words(signals, len(words)) == words  # a valid list is exactly its signals re-expanded
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.sampled_from([0, 0, 0, 1, 2, 3, 5, 6, 28, 32, 34, 35, 36, 38, 52, 60]), min_size=10, max_size=10))
+def test_sim_915_accepts_only_valid_free_mappings(words: list[int]) -> None:
+    """Whatever reaches PNU 915 in telegram 0, what the drive keeps is a valid set-point telegram."""
+    from akdctl.sim.model import DriveModel
+    from akdctl.sim.pnu_server import PnuAccessError
+
+    model = DriveModel()
+    model.pnu_write_raw(922, 0, 0x42, [0])
+    try:
+        model.pnu_write_raw(915, 0, 0x42, words)
+    except PnuAccessError as exc:
+        assert exc.error == 0x14
+        return
+    kept = model.pnu_read_raw(915, 0, 10)[1]
+    signals = tc.words_to_signals(kept)
+    assert all(tc.SIGNALS[n].direction == "setpoint" and tc.SIGNALS[n].free_mappable for n in signals)

@@ -230,6 +230,10 @@ class PdoComponent(Component):
         fixed = oc.FIXED_RX_PDOS if rx else oc.FIXED_TX_PDOS
         if len(pdos) > 1 and any(p in fixed for p in pdos):
             raise SdoAccessError(ABORT_INCOMPATIBLE, "a fixed PDO excludes every other PDO of its direction")
+        for p in pdos:
+            bits = sum(e.bits for e in self.pdo_entries(p))
+            if bits % 16:  # e.g. the ESI default of 0x1601 (0x6040 + 0x6060, 3 bytes)
+                raise SdoAccessError(ABORT_PDO_LENGTH, f"PDO 0x{p:04X} has an odd length")
         total = sum(oc.pdo_bytes(self.pdo_entries(p)) for p in pdos)
         if total > (oc.RX_TOTAL_MAX_BYTES if rx else oc.TX_TOTAL_MAX_BYTES):
             raise SdoAccessError(ABORT_PDO_LENGTH, f"assigned PDOs hold {total} bytes")
