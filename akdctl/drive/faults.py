@@ -32,15 +32,12 @@ from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, Usa
 MAX_ATTEMPTS = 5  # consistent-read attempts before reporting an inconsistent dump
 PNU_FAULT_COUNTER = 944
 PNU_FAULT_BUFFER = 947
-PNU_STW1 = 1
 PNU_ZSW1 = 2
 SITUATION_SIZE = 8
 ZSW1_FAULT = 1 << 3
 ZSW1_WARNING = 1 << 7
 SW_FAULT = 1 << 3
 SW_WARNING = 1 << 7
-CONTROL_BY_PLC = 1 << 10
-ACK_BIT = 1 << 7
 
 
 # ---------------------------------------------------------------------------- decoding
@@ -383,44 +380,11 @@ def _ack_path(app: Any) -> str:
     return sources[0]
 
 
-def _fault_present(app: Any, path: str) -> bool:
-    transport = app.transport()
-    if path == "profidrive":
-        from akdctl.drive.params import parse_pnu_spec
-
-        (zsw1,) = _read_one(transport.parameters, [parse_pnu_spec(str(PNU_ZSW1))])
-        if not zsw1.ok:
-            return bool(read_profidrive_faults(transport.parameters).active)
-        return bool(zsw1.values[0] & ZSW1_FAULT)
-    return bool(_upload_int(transport.objects, 0x6041, 0, 2) & SW_FAULT)
-
-
-def _edge_ack(app: Any, path: str) -> None:
-    """Interim acknowledge (until ``akdctl.drive.axis`` offers it): a rising edge of STW1/controlword bit 7."""
-    transport = app.transport()
-    if path == "profidrive":
-        from akdctl.drive.params import parse_pnu_spec, read_pnus, write_pnus
-
-        spec = parse_pnu_spec(str(PNU_STW1))
-        (stw1,) = read_pnus(transport.parameters, [spec])
-        base = ((stw1.values or [0])[0] if stw1.ok else 0) | CONTROL_BY_PLC  # SPEC-NOTES 7
-        for value in (base & ~ACK_BIT, base | ACK_BIT, base & ~ACK_BIT):
-            (result,) = write_pnus(transport.parameters, [(spec, [value & 0xFFFF])])
-            if not result.ok:
-                raise ParameterRefused(f"drive refused STW1 = 0x{value & 0xFFFF:04X} ({result.error_text})",
-                                       code=result.error)
-        return
-    objects = transport.objects
-    cw = _upload_int(objects, 0x6040, 0, 2)
-    for value in (cw & ~ACK_BIT, cw | ACK_BIT, cw & ~ACK_BIT):
-        objects.download(0x6040, 0, struct.pack("<H", value & 0xFFFF))
-
-
 def acknowledge(app: Any) -> dict[str, Any]:
     """Acknowledge the drive's faults; raise :class:`DriveFault` if a fault remains active.
 
-    The motion layer's ``Axis.acknowledge_faults`` is the one implementation once it
-    exists; the edge written here is the interim stand-in and goes away then.
+    The edge itself is the motion layer's ``Axis.acknowledge_faults`` (one implementation
+    for every command); this adds the before/after dumps so the user sees what was cleared.
     """
     path = _ack_path(app)
     before = dump(app)
@@ -428,18 +392,9 @@ def acknowledge(app: Any) -> dict[str, Any]:
     if not summary(before)["fault_present"]:
         return {"target": app.target.display, "acknowledged": [], "still_active": [], "fault_present": False,
                 "via": path, "note": "no active fault: nothing was written"}
-    axis_ack = None
-    try:
-        from akdctl.drive import axis as axis_module
+    from akdctl.drive.axis import open_axis
 
-        if hasattr(axis_module, "open_axis"):
-            axis_ack = axis_module.open_axis(app).acknowledge_faults
-    except ImportError:
-        axis_ack = None
-    if axis_ack is not None:
-        axis_ack()
-    else:
-        _edge_ack(app, path)
+    open_axis(app).acknowledge_faults()  # the one acknowledge (STW1 / controlword bit 7 edge)
     after = dump(app)
     remaining = summary(after)["faults"]
     result = {"target": app.target.display, "acknowledged": active_before, "still_active": remaining,

@@ -33,10 +33,9 @@ raised right after the drive has answered N more reads of the fault PNUs or
 objects (``akdctl sim fault F501 --after-reads N``): the fault then appears
 *between* two reads of one dump.
 
-When no motion component owns STW1/ZSW1 and the controlword/statusword, this
-component binds a minimal version of them (bit 7 edge = acknowledge; ZSW1 bits
-3/6/7, statusword bits 3/6/7) so faults can be acknowledged and seen before
-the motion simulator lands; the motion component takes precedence.
+STW1/ZSW1 and the controlword/statusword belong to the motion component: it
+calls :meth:`acknowledge` on a rising edge of bit 7 and reads
+:attr:`fault_present`/:attr:`warning_present` for bits 3 and 7.
 """
 
 from __future__ import annotations
@@ -66,9 +65,6 @@ OBJ_HISTORY_NUMBERS = 0x2012
 OBJ_HISTORY_TIMES = 0x2013
 PNU_FAULT_COUNTER = 944
 PNU_FAULT_BUFFER = 947
-
-STW1_ACK = 1 << 7
-STW1_CONTROL_BY_PLC = 1 << 10
 
 
 def error_register_bits(emcy_code: int) -> int:
@@ -116,8 +112,6 @@ class FaultComponent(Component):
         self.error_field: list[int] = []  # 0x1003 entries, newest first
         self.emergencies: list[Emergency] = []
         self.armed: list[dict[str, Any]] = []
-        self.stw1 = 0
-        self.controlword = 0
         model.bind_pnu(PNU_FAULT_COUNTER, read=self._read_counter)
         model.bind_pnu(PNU_FAULT_BUFFER, read=self._read_buffer)
         model.bind_object(OBJ_ERROR_REGISTER, read=self._read_error_register)
@@ -126,7 +120,6 @@ class FaultComponent(Component):
         model.bind_object(OBJ_FAULTS, read=self._read_faults)
         model.bind_object(OBJ_HISTORY_NUMBERS, read=self._read_history_numbers)
         model.bind_object(OBJ_HISTORY_TIMES, read=self._read_history_times)
-        self._bind_fallbacks()
 
     # ------------------------------------------------------------------ contract
     @property
@@ -314,56 +307,6 @@ class FaultComponent(Component):
         self._counted_read()
         return data
 
-    # Fallback control/status words (only while no motion component owns them) ---------------
-    def _bind_fallbacks(self) -> None:
-        bound_pnus = getattr(self.model, "_pnu_bindings", {})
-        bound_objects = getattr(self.model, "_object_bindings", {})
-        if 1 not in bound_pnus:
-            self.model.bind_pnu(1, read=lambda sub, count: [self.stw1], write=self._write_stw1)
-        if 2 not in bound_pnus:
-            self.model.bind_pnu(2, read=lambda sub, count: [self._zsw1()])
-        if 0x6040 not in bound_objects:
-            self.model.bind_object(0x6040, read=self._read_controlword, write=self._write_controlword)
-        if 0x6041 not in bound_objects:
-            self.model.bind_object(0x6041, read=self._read_statusword)
-
-    def _write_stw1(self, sub: int, values: list[int]) -> None:
-        new = values[0] & 0xFFFF
-        if new & STW1_CONTROL_BY_PLC and new & STW1_ACK and not self.stw1 & STW1_ACK:
-            self.acknowledge()
-        self.stw1 = new
-
-    def _zsw1(self) -> int:
-        word = 0x0200  # bit 9: control requested (the PLC may control)
-        if self.fault_present:
-            word |= 0x0008
-        else:
-            word |= 0x0040  # S1 switching on inhibited
-        if self.warning_present:
-            word |= 0x0080
-        return word
-
-    def _read_controlword(self, sub: int) -> bytes:
-        if sub != 0:
-            raise SdoAccessError(0x06090011)
-        return struct.pack("<H", self.controlword)
-
-    def _write_controlword(self, sub: int, data: bytes) -> None:
-        if sub != 0:
-            raise SdoAccessError(0x06090011)
-        new = struct.unpack("<H", data)[0]
-        if new & 0x80 and not self.controlword & 0x80:
-            self.acknowledge()
-        self.controlword = new
-
-    def _read_statusword(self, sub: int) -> bytes:
-        if sub != 0:
-            raise SdoAccessError(0x06090011)
-        word = 0x0008 if self.fault_present else 0x0040  # fault / switch on disabled
-        if self.warning_present:
-            word |= 0x0080
-        return struct.pack("<H", word)
-
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:
         return {
@@ -375,8 +318,6 @@ class FaultComponent(Component):
             "error_field": list(self.error_field),
             "emergencies": [[e.error_code, e.error_register, e.data.hex()] for e in self.emergencies],
             "armed": [dict(a) for a in self.armed],
-            "stw1": self.stw1,
-            "controlword": self.controlword,
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -390,8 +331,6 @@ class FaultComponent(Component):
         self.emergencies = [Emergency(int(c), int(r), bytes.fromhex(d)) for c, r, d in state.get("emergencies", [])]
         self.armed = [{"code": str(a["code"]), "reads": int(a["reads"]), "persist": bool(a.get("persist"))}
                       for a in state.get("armed", [])]
-        self.stw1 = int(state.get("stw1", 0))
-        self.controlword = int(state.get("controlword", 0))
 
 
 def _lookup(code: str) -> catalog.Fault:
