@@ -176,3 +176,23 @@ def test_explain_by_emcy_code_and_unknown(akd_inproc: Any) -> None:
     assert code == 2 and "unknown AKD fault" in err
     code, _, err = akd_inproc("fault", "explain", "0xZZ")
     assert code == 2
+
+
+def test_dump_fails_only_when_every_view_is_refused(akd_inproc: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    from akdctl.drive import faults as df
+    from akdctl.errors import ParameterRefused, SdoAborted
+
+    def refuse_pnu(channel: Any, **_: Any) -> Any:
+        raise ParameterRefused("drive refused to read PNU 944 (impermissible parameter number, error 0x00)")
+
+    monkeypatch.setattr(df, "read_profidrive_faults", refuse_pnu)
+    code, out, err = akd_inproc("--json", "fault", "dump")
+    assert code == 0, err  # the CoE view still answered
+    assert "error" in _json(out)["profidrive"] and "canopen" in _json(out)
+
+    def refuse_sdo(channel: Any, **_: Any) -> Any:
+        raise SdoAborted("SDO abort 0x06020000: object does not exist")
+
+    monkeypatch.setattr(df, "read_canopen_faults", refuse_sdo)
+    code, out, err = akd_inproc("fault", "dump")
+    assert code == 1 and "refused the fault dump" in err and "not readable" in out

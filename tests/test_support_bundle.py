@@ -163,3 +163,23 @@ def test_write_is_atomic_when_interrupted(tmp_path: Path, monkeypatch: pytest.Mo
 def test_missing_output_directory_is_a_usage_error(akd_inproc: Any, tmp_path: Path) -> None:
     code, _, err = akd_inproc("support", "bundle", "-o", str(tmp_path / "nope" / "b.json"))
     assert code == 2 and "does not exist" in err
+
+
+def test_unreachable_drive_still_writes_a_bundle_and_exits_3(akd_inproc: Any, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    from akdctl.cli.context import AppContext
+    from akdctl.errors import NoAnswer
+
+    def silent(self: AppContext) -> Any:
+        raise NoAnswer("no answer from the drive within 0.2 s")
+
+    monkeypatch.setattr(AppContext, "transport", silent)
+    path = tmp_path / "b.json"
+    code, _, err = akd_inproc("support", "bundle", "-o", str(path))
+    assert code == 3 and "bundle written" in err
+    data = json.loads(path.read_text())
+    assert data["faults"] == {"error": "no answer from the drive within 0.2 s"}
+    assert "transport" in data["errors"]
+    code, out, err = akd_inproc("support", "show", str(path))
+    assert code == 0, err
+    assert "no answer" in out
