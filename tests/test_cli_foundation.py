@@ -157,6 +157,17 @@ def test_bad_input_through_subprocess(akd) -> None:
     assert json.loads(out)["parameters"][0]["error"]["code"] == 0
 
 
+def test_json_errors_are_a_json_document_on_stdout(akd_inproc) -> None:
+    code, out, err = akd_inproc("--json", "sdo", "read", "0x9999:1", "u32")
+    assert code == EXIT_DRIVE
+    error = json.loads(out)["error"]
+    assert error["kind"] == "sdo-abort" and error["code"] == 0x06020000 and error["target"] == "sim"
+    assert error["exit_code"] == EXIT_DRIVE
+    assert "0x06020000" in one_line_error(err)
+    code, out, _ = akd_inproc("--json", "-T", "foo://x", "pnu", "get", "930")
+    assert code == EXIT_USAGE and json.loads(out)["error"]["kind"] == "usage"
+
+
 def test_bad_config_file(akd_inproc, tmp_path: Path) -> None:
     config = tmp_path / "bad.toml"
     config.write_text("[profiles.x\ntarget=1\n")

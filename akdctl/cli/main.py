@@ -128,6 +128,8 @@ def cli(ctx: click.Context, target: str | None, config_path: str | None, profile
 
 
 def _print_error(app: AppContext | None, exc: AkdError) -> None:
+    if exc.target is None and app is not None and app._target is not None:
+        exc.target = app._target.display
     target = exc.target
     prefix = f"akdctl: error: {exc.message}"
     if target and target not in exc.message:
@@ -146,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
     app: AppContext | None = None
     try:
         with cli.make_context("akdctl", args) as ctx:
-            app = ctx.find_object(AppContext)
+            app = ctx.ensure_object(AppContext)  # the root callback fills this same object
             cli.invoke(ctx)
         code = 0
     except click.exceptions.Exit as exc:
