@@ -190,12 +190,17 @@ def _end_progress(app: Any) -> None:
         sys.stderr.write("\n")
 
 
-def _prepare(axis: Any, kind: str) -> Any:
-    """Refuse a faulted or moving axis, switch the mode, enable; returns the status."""
+def _prepare(axis: Any, kind: str, check: Any = None) -> Any:
+    """Refuse a faulted or moving axis, switch the mode, run ``check``, enable; returns the status.
+
+    Runs only after consent: switching the mode is already a change on the drive.
+    """
     status = axis.read_status()
     axis.refuse_if_fault(status)
     if not status.standstill:
         raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
+    if check is not None:
+        check()
     axis.ensure_mode(kind)
     return axis.enable()
 
@@ -329,9 +334,8 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
         _check_limits(app, final_rev=status.position_rev + rev)
     else:
         _travel_needs_position(app, status)
-    _require_homed(axis, True)
     _consent(app, f"jog {distance:g} {unit} at {abs(velocity):g} rpm", axis.mode_name("position"))
-    _prepare(axis, "position")
+    _prepare(axis, "position", lambda: _require_homed(axis, True))
     move = MoveSpec(rev, True, abs(velocity), accel, accel)
     result = _run(app, axis, lambda: axis.start_move(move), lambda s: s.target_reached and s.standstill or None,
                   _move_time(rev, velocity, accel, accel) + 2 * axis.timeout + 1.0, "jog")
@@ -388,12 +392,11 @@ def move(target: float, relative: bool, velocity: float | None, accel: float | N
             _travel_needs_position(app, status)
     else:
         _check_limits(app, final_rev=rev)
-    _require_homed(axis, relative)
     distance = rev if relative else (rev - status.position_rev if status.position_rev is not None else rev)
     how = "by" if relative else "to"
     _consent(app, f"move {how} {target:g} {unit} at {rpm:g} rpm (accel {acc:g}, decel {dec:g} rpm/s)",
              axis.mode_name("position"))
-    _prepare(axis, "position")
+    _prepare(axis, "position", lambda: _require_homed(axis, relative))
     spec = MoveSpec(rev, relative, rpm, acc, dec)
     if no_wait:
         with _interrupt_guard():

@@ -264,6 +264,8 @@ class MotionComponent(Component):
 
     def _stop_motion(self, quick: bool, activity: str) -> None:
         rate = QUICK_STOP_RPM_S if quick else self._ramp_dec_rpm_s()
+        if not quick and self.gen is not None and self.gen.get("kind") == "position":
+            rate = max(rate, self.gen["dec"] * 60.0)  # brake a traversing task along its own ramp
         if self._at_rest():
             self.gen = None
             self.activity = "idle"
@@ -548,6 +550,7 @@ class MotionComponent(Component):
         self.watchdog_tripped = False
         if new & sw.STW1_FAULT_ACK and not old & sw.STW1_FAULT_ACK:
             self._acknowledge()
+            return  # SPEC-NOTES 7: after the acknowledge the drive is in S1; the next word moves on
         if self.state in (FAULT, FAULT_REACTION):
             return
         self._pd_general(new)
