@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from akdctl.sim.sdo_server import SdoAccessError
+from akdctl.sim.errors import SdoAccessError
 
 PDO_COUNT = 4
 #: Indices 0x0001..0x0007 are the CiA 301 dummy-mapping data types (padding).

@@ -326,7 +326,7 @@ def _make_node(face: CanFace) -> Any:
     from canopen.sdo import SdoAbortedError
 
     from akdctl.sim.can_sdo import BlockSdoServer
-    from akdctl.sim.sdo_server import SdoAccessError
+    from akdctl.sim.errors import SdoAccessError
 
     class SimNmt(NmtSlave):
         """NMT slave with a drive's reset behaviour: reset -> boot-up -> PRE-OPERATIONAL."""

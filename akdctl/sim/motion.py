@@ -244,7 +244,11 @@ class MotionComponent(Component):
             codes = [c for c in faults.active() if not c.lower().startswith("n")]
             self.on_fault(codes[0] if codes else "F0")
         threshold = self.watchdog_s * float(getattr(self.model, "time_scale", 1.0) or 1.0)
-        if self.watchdog_s > 0 and not self._at_rest() and self.activity not in ("stop", "quickstop", "fault", "coast"):
+        if self._at_rest():
+            # The watchdog only guards motion; a resting axis keeps a constant state, so an idle
+            # drive's state file need not be rewritten on every read (SimDrive saves on change).
+            self.since_access = 0.0
+        elif self.watchdog_s > 0 and self.activity not in ("stop", "quickstop", "fault", "coast"):
             remaining = threshold - self.since_access
             if dt > remaining:
                 before = max(0.0, remaining)
@@ -252,7 +256,8 @@ class MotionComponent(Component):
                 self._watchdog_trip()
                 self.since_access += before
                 dt -= before
-        self.since_access += dt
+        if not self._at_rest():
+            self.since_access += dt
         self._integrate(dt)
 
     def _watchdog_trip(self) -> None:

@@ -38,8 +38,8 @@ from akdctl.sim.model import (
     Component,
     DriveModel,
 )
-from akdctl.sim.pnu_server import PnuAccessError
-from akdctl.sim.sdo_server import SdoAccessError
+from akdctl.sim.errors import PnuAccessError
+from akdctl.sim.errors import SdoAccessError
 
 ABORT_SUBINDEX_0_NOT_ZERO = 0x06010003
 ABORT_NOT_MAPPABLE = 0x06040041
