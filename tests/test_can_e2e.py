@@ -112,6 +112,30 @@ def test_cli_over_udp_multicast(udp_target: str) -> None:
     _run_table(udp_target)
 
 
+# Motion, fault, mapping and identity commands over CANopen (CiA 402 through SDO), in order.
+FEATURE_COMMANDS: list[tuple[list[str], int, str]] = [
+    (["--json", "status"], 0, "state"),
+    (["--yes", "enable"], 0, "operation enabled"),
+    (["--yes", "home", "--mode", "35"], 0, "homed"),
+    (["--yes", "move", "0.5"], 0, "standstill"),
+    (["--yes", "move", "--relative", "0.25"], 0, "target reached"),
+    (["move", "1"], 4, ""),  # no terminal and no --yes: refused before anything is written
+    (["fault", "dump"], 0, "none"),
+    (["pdo", "show"], 0, "0x1C13"),
+    (["disable"], 0, ""),
+    (["info"], 0, "AKD"),
+]
+
+
+def test_motion_fault_pdo_commands_over_canopen(udp_target: str) -> None:
+    assert run_akdctl("sim", "speed", "1000")[0] == 0  # the served drive shares the state dir
+    for argv, code, text in FEATURE_COMMANDS:
+        rc, out, err = run_akdctl("-T", udp_target, *argv)
+        assert rc == code, (argv, rc, out, err)
+        assert text in out, (argv, out)
+        assert "Traceback" not in err
+
+
 def test_cli_over_slcan_pty(slcan_target: str) -> None:
     _run_table(slcan_target)
 
