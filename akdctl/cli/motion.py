@@ -191,18 +191,9 @@ def _end_progress(app: Any) -> None:
 
 
 def _prepare(axis: Any, kind: str, check: Any = None) -> Any:
-    """Refuse a faulted or moving axis, switch the mode, run ``check``, enable; returns the status.
+    from akdctl.drive.axis import prepare_motion
 
-    Runs only after consent: switching the mode is already a change on the drive.
-    """
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    if not status.standstill:
-        raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
-    if check is not None:
-        check()
-    axis.ensure_mode(kind)
-    return axis.enable()
+    return prepare_motion(axis, kind, check)
 
 
 def _run(app: Any, axis: Any, start: Any, finished: Any, deadline: float, what: str,

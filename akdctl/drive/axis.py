@@ -624,6 +624,23 @@ class Cia402Axis(Axis):
 
 
 # ====================================================================== choosing
+def prepare_motion(axis: Axis, kind: str, check: Callable[[], object] | None = None) -> Any:
+    """The one preparation before any motion (commands and recipes alike).
+
+    Refuse a faulted or moving axis, run ``check`` (e.g. "homed?"), switch the mode, enable;
+    returns the status after enabling. Runs only after consent: switching the mode is
+    already a change on the drive.
+    """
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    if not status.standstill:
+        raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
+    if check is not None:
+        check()
+    axis.ensure_mode(kind)
+    return axis.enable()
+
+
 def open_axis(app: Any) -> Axis:
     """The axis of this invocation: ``app.drive_profile`` if set, else PROFIdrive when the
     transport has a parameter channel, else CiA 402."""

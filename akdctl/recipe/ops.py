@@ -255,12 +255,9 @@ def _refuse_if_moving(status: Any) -> None:
 
 
 def _prepare(axis: Any, kind: str) -> None:
-    """As ``akdctl home``/``move`` do: refuse a faulted or moving axis, switch the mode, enable."""
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    _refuse_if_moving(status)
-    axis.ensure_mode(kind)
-    axis.enable()
+    from akdctl.drive.axis import prepare_motion
+
+    prepare_motion(axis, kind)
 
 
 def _move_done(status: Any) -> bool | None:
