@@ -223,7 +223,9 @@ def test_missing_cap_net_raw_is_one_line(tmp_path: Path) -> None:
                  check=False)
     if probe.returncode != 0:
         pytest.skip("python is not usable by an unprivileged user here")
-    env = dict(os.environ, AKDCTL_STATE_DIR=str(tmp_path), PYTHONPATH=str(ROOT), HOME=str(tmp_path))
+    # The unprivileged user cannot enter root's pytest tmp dirs: point every per-user path somewhere absent.
+    env = dict(os.environ, AKDCTL_STATE_DIR="/nonexistent/akdctl-state", XDG_CONFIG_HOME="/nonexistent/akdctl-config",
+               PYTHONPATH=str(ROOT), HOME="/nonexistent")
     result = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-m",
                              "akdctl", "-T", "ecat://lo", "sdo", "read", "0x1018:1"], capture_output=True, text=True,
                             env=env, cwd=ROOT, timeout=60)

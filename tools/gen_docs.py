@@ -120,7 +120,7 @@ def fish(root: Node) -> str:
         else:
             cond = "__fish_use_subcommand"
         for child in node.children:
-            help_text = (child.command.get_short_help_str(70) or "").replace("'", "\\'")
+            help_text = short_help(child.command, 70).replace("'", "\\'")
             lines.append(f"complete -c akdctl -n '{cond}' -a {child.path[-1]} -d '{help_text}'")
         for opt in options(node.command):
             for o in opt.opts:
@@ -128,6 +128,45 @@ def fish(root: Node) -> str:
                     help_text = (opt.help or "").split("\n")[0][:70].replace("'", "\\'")
                     lines.append(f"complete -c akdctl -n '{cond}' -l {o[2:]} -d '{help_text}'")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ version-independent rendering
+# click's own usage and help formatting changes between releases; the generated files must
+# depend only on the command tree, so they are rendered here from the parameters themselves.
+def _metavar(param: click.Parameter) -> str:
+    if param.metavar:
+        return param.metavar
+    if isinstance(param.type, click.Choice):
+        return "{" + "|".join(str(c) for c in param.type.choices) + "}"
+    if isinstance(param, click.Argument):
+        return (param.name or "ARG").upper()
+    return param.type.name.upper()
+
+
+def usage(command: click.Command) -> str:
+    pieces = ["[OPTIONS]"] if options(command) else []
+    for param in command.params:
+        if isinstance(param, click.Argument):
+            text = _metavar(param) + ("..." if param.nargs == -1 else "")
+            pieces.append(text if param.required else f"[{text}]")
+    if isinstance(command, click.Group):
+        pieces.append("COMMAND [ARGS]...")
+    return " ".join(pieces)
+
+
+def option_synopsis(opt: click.Option) -> str:
+    names = ", ".join([*opt.opts, *opt.secondary_opts])
+    if opt.is_flag or opt.count:
+        return names
+    return f"{names} {_metavar(opt)}"
+
+
+def short_help(command: click.Command, limit: int = 200) -> str:
+    text = command.short_help or (command.help or "").strip().split("\n\n")[0].replace("\n", " ")
+    text = " ".join(text.split())
+    if "." in text:
+        text = text.split(". ")[0].rstrip(".") + "."
+    return text if len(text) <= limit else text[: limit - 3].rstrip() + "..."
 
 
 # ------------------------------------------------------------------ man pages
@@ -143,16 +182,14 @@ def _roff(text: str) -> str:
 
 def man_page(node: Node) -> str:
     command = node.command
-    ctx = click.Context(command, info_name=node.name)
     title = node.name.replace(" ", "-").upper()
-    usage = " ".join(command.collect_usage_pieces(ctx))
     lines = [
         f'.TH {title} 1 "" "akdctl {__version__}" "akdctl manual"',
         ".SH NAME",
-        f"{node.name.replace(' ', '-')} \\- {_roff(command.get_short_help_str(200))}",
+        f"{node.name.replace(' ', '-')} \\- {_roff(short_help(command))}",
         ".SH SYNOPSIS",
         f".B {node.name}",
-        _roff(usage),
+        _roff(usage(command)),
         ".SH DESCRIPTION",
         _roff(click.unstyle(command.help or "").strip()),
     ]
@@ -160,13 +197,11 @@ def man_page(node: Node) -> str:
     if opts:
         lines.append(".SH OPTIONS")
         for opt in opts:
-            record = opt.get_help_record(ctx)
-            if record:
-                lines += [".TP", f"\\fB{_roff(record[0])}\\fR", _roff(record[1])]
+            lines += [".TP", f"\\fB{_roff(option_synopsis(opt))}\\fR", _roff(" ".join((opt.help or "").split()))]
     if node.children:
         lines.append(".SH COMMANDS")
         for child in node.children:
-            lines += [".TP", f"\\fB{child.path[-1]}\\fR", _roff(child.command.get_short_help_str(80)),
+            lines += [".TP", f"\\fB{child.path[-1]}\\fR", _roff(short_help(child.command)),
                       f"See \\fB{child.name.replace(' ', '-')}\\fR(1)."]
     if command.epilog:
         lines += [".SH NOTES", _roff(command.epilog)]
