@@ -147,7 +147,9 @@ def usage(command: click.Command) -> str:
     pieces = ["[OPTIONS]"] if options(command) else []
     for param in command.params:
         if isinstance(param, click.Argument):
-            text = _metavar(param) + ("..." if param.nargs == -1 else "")
+            text = _metavar(param)
+            if param.nargs == -1 and not text.endswith("..."):
+                text += "..."
             pieces.append(text if param.required else f"[{text}]")
     if isinstance(command, click.Group):
         pieces.append("COMMAND [ARGS]...")
