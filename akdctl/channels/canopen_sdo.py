@@ -36,9 +36,8 @@ def abort_text(code: int) -> str:
     try:
         from akdctl.catalog import texts
 
-        text = texts.sdo_abort_text(code)  # type: ignore[attr-defined]
-        if text:
-            return str(text)
+        if code in texts.SDO_ABORT_TEXTS:  # unknown codes fall through to canopen's own table
+            return str(texts.sdo_abort_text(code))
     except (ImportError, AttributeError, LookupError):
         pass
     from canopen.sdo.exceptions import SdoAbortedError

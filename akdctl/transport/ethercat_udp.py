@@ -147,8 +147,9 @@ class EthercatUdpTransport(Transport):
             raise UsageError(f"target {self.target.raw!r}: mailbox={mailbox} is outside 16..2040 bytes")
         self.link = GatewayMailboxLink(self.target.host, self.target.port or DEFAULT_PORT, self.station,
                                        self.options.tracer, mailbox)
+        # The gateway link traces every datagram itself (2-byte header + the mailbox): no second copy.
         self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
-                                        tracer=self.options.tracer, station=self.station)
+                                        station=self.station)
 
     def close(self) -> None:
         if self.link is not None:
