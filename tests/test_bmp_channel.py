@@ -155,10 +155,18 @@ def test_request_size_splits_at_240_bytes(channel: BmpParameterChannel, access: 
     assert access.params[980][1][:150] == list(range(1000, 1150))
 
 
-def test_long_array_read_in_ranges_and_joined(channel: BmpParameterChannel) -> None:
+def test_long_array_read_in_ranges_and_joined(link: ServerLink) -> None:
+    channel = BmpParameterChannel(link, element_size=4)  # the generic bound, whatever the catalogue says
     result = channel.read([ParameterAddress(980, 0, 200)])[0]
     assert result == ParameterValue(Format.UINT16, tuple(range(200)))
     assert channel.requests == 4          # 58 elements per response at 4 bytes per element
+
+
+def test_catalogue_element_sizes_pack_word_arrays_tighter(channel: BmpParameterChannel) -> None:
+    """By default the channel sizes PNU 980 (U16 in the catalogue) at 2 bytes per element (SPEC-NOTES 5)."""
+    result = channel.read([ParameterAddress(980, 0, 200)])[0]
+    assert result == ParameterValue(Format.UINT16, tuple(range(200)))
+    assert channel.requests == 2          # 117 elements per response at 2 bytes per element
 
 
 def test_long_array_write_in_ranges(channel: BmpParameterChannel, access: FakeAccess) -> None:

@@ -63,13 +63,24 @@ _WIDEST_ELEMENT = 8
 _TEXT_ELEMENT = 16
 
 
+def catalogue_element_size(address: ParameterAddress) -> int:
+    """Bytes per element the drive answers with: the catalogue's type for known PNUs (the AKD
+    sends U16 PNUs as words, SPEC-NOTES 5), else the 4-byte bound. A drive that answers wider
+    than this is caught by the "response too long" retry in :meth:`BmpParameterChannel.read`."""
+    from akdctl.catalog.pnus import lookup
+
+    info = lookup(address.pnu)
+    return info.bits // 8 if info is not None and address.attribute == ATTR_VALUE else DEFAULT_ELEMENT_SIZE
+
+
 class BmpParameterChannel(ParameterChannel):
     """Batched, reference-checked parameter access over a :class:`RecordLink`.
 
     ``tracer`` records the BMP blocks (layer ``"bmp"``); pass it only when the
     link does not already trace them. ``element_size`` bounds the bytes per
-    element when sizing read responses (AKD PNUs are at most 4 bytes, SPEC-NOTES 5;
-    a request that still comes back "response too long" is retried smaller).
+    element when sizing read responses (by default the catalogue's type, else 4
+    bytes: AKD PNUs are at most 4 bytes, SPEC-NOTES 5); a request that still comes
+    back "response too long" is retried with the widest element size.
     """
 
     def __init__(
@@ -79,7 +90,7 @@ class BmpParameterChannel(ParameterChannel):
         tracer: Tracer | None = None,
         *,
         reference_start: int = 1,
-        element_size: ElementSize = DEFAULT_ELEMENT_SIZE,
+        element_size: ElementSize = catalogue_element_size,
     ) -> None:
         if not 1 <= reference_start <= 255:
             raise UsageError(f"request reference must be 1..255, not {reference_start}")
@@ -101,7 +112,7 @@ class BmpParameterChannel(ParameterChannel):
         # A per-parameter "response too long" means the 4-byte estimate was short: retry those in smaller ranges.
         retry = [i for i, (a, r) in enumerate(zip(wanted, results))
                  if _too_long(r) and a.attribute == ATTR_VALUE and a.count > 1
-                 and not callable(self.element_size) and self.element_size < _WIDEST_ELEMENT]
+                 and (callable(self.element_size) or self.element_size < _WIDEST_ELEMENT)]
         if retry:
             again = self._read([wanted[i] for i in retry], _WIDEST_ELEMENT)
             for i, result in zip(retry, again):

@@ -26,7 +26,7 @@ import math
 import os
 import tempfile
 import tomllib
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -220,32 +220,6 @@ def choose_sources(transport: Any, source: str) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- reading
-@contextlib.contextmanager
-def exact_element_sizes(channel: Any) -> Iterator[None]:
-    """Let the channel size responses by the catalogue's element sizes instead of its 4-byte bound.
-
-    Why: the AKD answers U16 PNUs as words (SPEC-NOTES 5), so a 64-element fault
-    buffer fits one block; with the generic 4-byte bound it would be split. The
-    channel still halves and retries if a drive answers longer than expected.
-    """
-    if not hasattr(channel, "element_size") or callable(channel.element_size):
-        yield
-        return
-    from akdctl.catalog.pnus import lookup
-
-    fallback = channel.element_size
-
-    def size(address: Any) -> int:
-        info = lookup(address.pnu)
-        return info.bits // 8 if info is not None else fallback
-
-    channel.element_size = size
-    try:
-        yield
-    finally:
-        channel.element_size = fallback
-
-
 def _pack_order(specs: list[Any], element_size: Any) -> list[Any]:
     """Order PNU reads so the channel's in-order greedy split gives the fewest requests.
 
@@ -277,9 +251,9 @@ def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Valu
     specs = [PnuSpec(i.index, 0, i.info.length, i.info) for i in items if i.kind == "pnu"]
     if not specs:
         return {}, {}
-    with exact_element_sizes(channel):
-        ordered = _pack_order(specs, getattr(channel, "element_size", 4))
-        readings = read_pnus(channel, ordered)
+    # The channel sizes responses by the catalogue's element sizes; order the reads to match.
+    ordered = _pack_order(specs, getattr(channel, "element_size", 4))
+    readings = read_pnus(channel, ordered)
     values: dict[str, Value] = {}
     errors: dict[str, str] = {}
     for reading in readings:
