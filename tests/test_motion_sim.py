@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.protocol import profidrive as bmp
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer

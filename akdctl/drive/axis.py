@@ -27,8 +27,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
 
 POLL_S = 0.05

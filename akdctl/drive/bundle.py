@@ -121,7 +121,7 @@ def status(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> d
     out: dict[str, Any] = {"source": "raw"}
     transport = app.transport()
     try:
-        from akdctl.drive import statusword as sw
+        from akdctl.profiles import statusword as sw
     except ImportError:
         sw = None
     if "profidrive" in sources:

@@ -30,8 +30,8 @@ import math
 import struct
 from typing import Any
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
 from akdctl.sim.model import (
     ABORT_DEVICE_STATE,
