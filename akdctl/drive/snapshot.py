@@ -19,12 +19,10 @@ them is motion, not configuration.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import json
 import math
 import os
-import tempfile
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -32,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
+from akdctl.io.atomic import write_user_file
 
 SNAPSHOT_FORMAT = 1
 
@@ -516,19 +515,9 @@ def atomic_write(target: Path, text: str) -> None:
     directory = target.parent if str(target.parent) else Path(".")
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:
         raise UsageError(f"cannot write {target}: {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+    write_user_file(target, text)
 
 
 def load_file(path: str | os.PathLike[str]) -> Snapshot:

@@ -40,6 +40,7 @@ from urllib.parse import parse_qsl
 import click
 
 from akdctl.errors import AkdError, UsageError
+from akdctl.io.canbus import BusConfig, close_bus, open_bus
 
 if TYPE_CHECKING:
     import can
@@ -118,7 +119,6 @@ def _open_face_bus(spec: CanSpec) -> "can.BusABC":
         from akdctl.sim.slcan_device import SlcanDeviceBus
 
         return SlcanDeviceBus(link=spec.channel)
-    from akdctl.transport.canopen_bus import BusConfig, open_bus
 
     return open_bus(BusConfig(spec.interface, spec.channel, dict(spec.kwargs)))
 
@@ -175,17 +175,7 @@ class CanFace:
                 pass
         network, bus = self.network, self.bus
         self.network = self.bus = None
-        if network is not None:
-            try:
-                network.disconnect()
-                bus = None
-            except Exception:
-                pass
-        if bus is not None:
-            try:
-                bus.shutdown()
-            except Exception:
-                pass
+        close_bus(network, bus)
 
     def describe(self) -> str:
         spec = self.spec

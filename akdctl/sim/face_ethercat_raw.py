@@ -18,7 +18,7 @@ import threading
 
 import click
 
-from akdctl.errors import UsageError
+from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import akd_sii_image
@@ -40,25 +40,6 @@ def click_options() -> list[click.Option]:
         click.Option(["--ecat-serial", "ecat_serial"], type=int, default=None, metavar="N",
                      help="Serial number the raw slave's SII reports."),
     ]
-
-
-def open_raw_socket(ifname: str, who: str) -> socket.socket:
-    """An AF_PACKET socket for EtherCAT frames on ``ifname``, or a one-line error."""
-    try:
-        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE_ECAT))
-    except PermissionError:
-        raise UsageError(
-            f"{who} needs CAP_NET_RAW: run as root or "
-            "`setcap cap_net_raw+ep $(readlink -f $(which python3))`"
-        ) from None
-    except (OSError, AttributeError) as exc:
-        raise UsageError(f"{who}: raw sockets are not available here ({exc})") from None
-    try:
-        sock.bind((ifname, 0))
-    except OSError as exc:
-        sock.close()
-        raise UsageError(f"{who}: cannot use interface {ifname!r}: {exc.strerror}") from None
-    return sock
 
 
 class SlaveWorker:
@@ -113,7 +94,7 @@ class EthercatRawFace:
         self._stop = threading.Event()
 
     def start(self) -> None:
-        self._sock = open_raw_socket(self.ifname, f"--ethercat-raw {self.ifname}")
+        self._sock = open_raw_socket(self.ifname, ec.ETHERTYPE_ECAT, f"--ethercat-raw {self.ifname}")
         warm_up(self.worker.drive)
         self._sock.settimeout(0.2)
         self.worker.start()

@@ -14,7 +14,8 @@ from typing import Any
 from akdctl.channels.base import ObjectChannel
 from akdctl.errors import CommError, MalformedReply, NoAnswer, SdoAborted, UsageError
 from akdctl.transport.base import LinkOptions, Transport
-from akdctl.transport.ethercat_raw import CAP_HINT, interface_name
+from akdctl.io.raw_socket import CAP_HINT
+from akdctl.transport.ethercat_raw import interface_name
 from akdctl.transport.target import Target
 
 
