@@ -24,6 +24,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from akdctl.channels.base import ObjectChannel
+from akdctl.catalog.texts import mailbox_error_text, sdo_abort_text
 from akdctl.errors import CommError, MalformedReply, NoAnswer, SdoAborted, UsageError
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
@@ -189,7 +190,7 @@ class CoeObjectChannel(ObjectChannel):
             if isinstance(msg, coe.SdoAbort):
                 if (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment:
                     raise SdoAborted(
-                        f"SDO {verb} of {_where(index, subindex)} aborted: 0x{msg.code:08X} {coe.abort_text(msg.code)}",
+                        f"SDO {verb} of {_where(index, subindex)} aborted: 0x{msg.code:08X} {sdo_abort_text(msg.code)}",
                         code=msg.code,
                         details={"index": index, "subindex": subindex, "abort_code": f"0x{msg.code:08X}"},
                     )
@@ -239,7 +240,7 @@ class CoeObjectChannel(ObjectChannel):
             if isinstance(message, coe.SdoInfoError):
                 raise SdoAborted(
                     f"SDO information request for the {what} refused: "
-                    f"0x{message.code:08X} {coe.abort_text(message.code)}",
+                    f"0x{message.code:08X} {sdo_abort_text(message.code)}",
                     code=message.code,
                 )
             if not isinstance(message, expect):
@@ -284,7 +285,7 @@ class CoeObjectChannel(ObjectChannel):
             except CodecError as exc:
                 raise MalformedReply(f"the drive sent a mailbox error reply that does not decode: {exc}") from None
             raise CommError(
-                f"the drive refused the mailbox request: {reply.text} (mailbox error {reply.code})", code=reply.code
+                f"the drive refused the mailbox request: {mailbox_error_text(reply.code)} (mailbox error {reply.code})", code=reply.code
             )
         if frame.type != mbx.MailboxType.COE:
             log.debug("ignoring a mailbox of type %d", frame.type)

@@ -20,7 +20,7 @@ from akdctl.transport.target import Target
 
 
 def _abort_text(code: int) -> str:
-    from akdctl.protocol.coe import abort_text
+    from akdctl.catalog.texts import sdo_abort_text as abort_text
 
     return abort_text(code)
 
