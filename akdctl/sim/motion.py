@@ -28,19 +28,21 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
-from akdctl.sim.model import (
+from akdctl.sim.component import (
     ABORT_DEVICE_STATE,
     ABORT_NO_SUBINDEX,
     ABORT_VALUE_RANGE,
     PE_OPERATING_STATE,
     Component,
-    DriveModel,
 )
+
+if TYPE_CHECKING:
+    from akdctl.sim.model import DriveModel
 
 CIA_COUNTS_PER_REV = 65536
 EPS = 1e-9  # rev, rev/s: below this the axis is at its target / at standstill
@@ -100,7 +102,7 @@ class MotionComponent(Component):
 
     name = "motion"
 
-    def __init__(self, model: DriveModel) -> None:
+    def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
         self.state = SOD
         self.stopping_to: str | None = None  # state to enter when a ramp stop reaches standstill
