@@ -51,6 +51,9 @@ ABORT_INCOMPATIBLE = 0x06040043
 AL_STATES = ("INIT", "PREOP", "BOOT", "SAFEOP", "OP")
 _AL_CODES = {0x01: "INIT", 0x02: "PREOP", 0x03: "BOOT", 0x04: "SAFEOP", 0x08: "OP"}
 
+#: AL state name -> the AL status code an ESC shows for it.
+AL_STATE_CODES = {name: code for code, name in _AL_CODES.items()}
+
 _FLEXIBLE = tuple(oc.FLEXIBLE_RX) + tuple(oc.FLEXIBLE_TX)
 
 
