@@ -16,8 +16,6 @@ import contextlib
 import socket
 import threading
 
-import click
-
 from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
@@ -25,22 +23,22 @@ from akdctl.protocol.sii import akd_sii_image
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
 from akdctl.sim.esc import Esc
+from akdctl.sim.face import Face, FaceOption
 from akdctl.sim.pdo import AL_STATE_CODES
 
 
 SIM_MAILBOX = 512
 
 
-def click_options() -> list[click.Option]:
-    return [
-        click.Option(["--ethercat-raw", "ethercat_raw"], default=None, metavar="IFNAME",
-                     help="Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs CAP_NET_RAW)."),
-        click.Option(["--ecat-raw-inject", "ecat_raw_inject"], default=None, metavar="drop=N,mbxerr=N,abort=N",
-                     help="Raw slave fault injection: lose the frame carrying every N-th reply, "
-                          "answer with a mailbox error or an SDO abort."),
-        click.Option(["--ecat-serial", "ecat_serial"], type=int, default=None, metavar="N",
-                     help="Serial number the raw slave's SII reports."),
-    ]
+OPTIONS = (
+    FaceOption("--ethercat-raw", "ethercat_raw", metavar="IFNAME",
+               help="Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs CAP_NET_RAW)."),
+    FaceOption("--ecat-raw-inject", "ecat_raw_inject", metavar="drop=N,mbxerr=N,abort=N",
+               help="Raw slave fault injection: lose the frame carrying every N-th reply, "
+                    "answer with a mailbox error or an SDO abort."),
+    FaceOption("--ecat-serial", "ecat_serial", type=int, metavar="N",
+               help="Serial number the raw slave's SII reports."),
+)
 
 
 class SlaveWorker:
@@ -132,7 +130,7 @@ class AlStateBinding:
             model.component("pdo").set_al_state(state)  # type: ignore[union-attr]
 
 
-class EthercatRawFace:
+class EthercatRawFace(Face):
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
