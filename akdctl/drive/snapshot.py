@@ -5,8 +5,8 @@ times and a technician must be able to put a replaced drive back exactly as it
 was. So a snapshot is plain data (TOML or JSON) that names the target, the
 drive's identity, firmware and time; reading it costs the fewest round trips
 the protocol allows (every PNU in ONE batched :func:`~akdctl.drive.params.read_pnus`
-call, packed so the channel's 39-parameter / 240-byte split yields the minimum
-number of requests); and restoring it writes only what differs, in an order
+call, which the channel packs into the fewest requests its 39-parameter /
+240-byte limits allow); and restoring it writes only what differs, in an order
 the drive accepts (units and operating mode before values that depend on
 them, telegram before its free mapping, PDO mapping with the manual's
 clear → entries → count sequence), never the control word, and reads every
@@ -220,30 +220,6 @@ def choose_sources(transport: Any, source: str) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- reading
-def _pack_order(specs: list[Any], element_size: Any) -> list[Any]:
-    """Order PNU reads so the channel's in-order greedy split gives the fewest requests.
-
-    First-fit decreasing over the two limits (39 parameters, 240-byte response);
-    the bins are emitted one after another, so each becomes exactly one request.
-    """
-    from akdctl.protocol.profidrive import HEADER_SIZE, MAX_BLOCK, MAX_PARAMETERS, ParameterAddress, response_block_size
-
-    def cost(spec: Any) -> int:
-        return response_block_size(ParameterAddress(spec.pnu, spec.subindex, spec.count), element_size)
-
-    bins: list[tuple[list[Any], list[int]]] = []  # (specs, [bytes used])
-    for spec in sorted(specs, key=cost, reverse=True):
-        c = cost(spec)
-        for members, used in bins:
-            if len(members) < MAX_PARAMETERS and used[0] + c <= MAX_BLOCK:
-                members.append(spec)
-                used[0] += c
-                break
-        else:
-            bins.append(([spec], [HEADER_SIZE + c]))
-    return [spec for members, _ in bins for spec in members]
-
-
 def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
     """Every PNU item in one batched read; (values by key, refusals by key)."""
     from akdctl.drive.params import PnuSpec, read_pnus
@@ -251,9 +227,8 @@ def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Valu
     specs = [PnuSpec(i.index, 0, i.info.length, i.info) for i in items if i.kind == "pnu"]
     if not specs:
         return {}, {}
-    # The channel sizes responses by the catalogue's element sizes; order the reads to match.
-    ordered = _pack_order(specs, getattr(channel, "element_size", 4))
-    readings = read_pnus(channel, ordered)
+    # One call: the channel packs the reads into the fewest requests (channels/batching.py).
+    readings = read_pnus(channel, specs)
     values: dict[str, Value] = {}
     errors: dict[str, str] = {}
     for reading in readings:
