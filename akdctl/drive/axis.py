@@ -562,7 +562,7 @@ class Cia402Axis(Axis):
     def start_home(self, mode: int | None) -> None:
         if mode is not None:
             self._down(0x6098, 0, mode)
-        elif int.from_bytes(self.objects.upload(0x6098, 0), "little", signed=True) == 0:
+        elif self._up(0x6098, 0) == 0:
             # Method 0 means "no homing method": the drive would only report a homing error.
             raise UsageError("homing method 0x6098 is 0 (none configured); choose one with --mode, "
                              "e.g. 35 = current position, 19..30 = home switch, 1/2 = limit switch and index")

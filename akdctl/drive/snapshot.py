@@ -41,6 +41,7 @@ from akdctl.drive.values import (
     read_pnus,
     read_snapshot_value,
     snapshot_value,
+    write_object,
     write_pnus,
 )
 from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
@@ -740,7 +741,7 @@ def save_nonvolatile(transport: Any) -> None:
     """DRV.NVSAVE: 0x1010:1 = "save" (0x65766173); the AKD keeps the values over a power cycle."""
     if transport.objects is None:
         raise UsageError("saving to non-volatile memory needs the object channel (0x1010); this target has none")
-    transport.objects.download(NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE.to_bytes(4, "little"))
+    write_object(transport.objects, NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE)
 
 
 @dataclass
