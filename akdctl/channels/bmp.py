@@ -140,7 +140,10 @@ class BmpParameterChannel(ParameterChannel):
         """The parameter's 46-byte description (attribute 0x20, subindex 0); refusals raise ParameterRefused."""
         result = self.read([ParameterAddress(pnu, 0, 1, ATTR_DESCRIPTION)])[0]
         if isinstance(result, ParameterFailure):
-            raise ParameterRefused(f"PNU {pnu}: description refused: {result.detail}", code=result.error,
+            from akdctl.catalog.texts import profidrive_failure_detail
+
+            raise ParameterRefused(f"PNU {pnu}: description refused: "
+                                   f"{profidrive_failure_detail(result.error, result.additional)}", code=result.error,
                                    details={"pnu": pnu, "error": result.error, "additional": result.additional})
         assert isinstance(result, ParameterValue)
         if result.format == Format.OCTET_STRING:

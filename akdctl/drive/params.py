@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog.pnus import PnuInfo, by_name, lookup
+from akdctl.catalog.texts import profidrive_error_phrase
 from akdctl.errors import UsageError
 
 _SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
@@ -160,7 +161,7 @@ def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
     readings = []
     for spec, result in zip(specs, results):
         if isinstance(result, ParameterFailure):
-            readings.append(PnuReading(spec, error=result.error, error_text=result.text, additional=result.additional))
+            readings.append(PnuReading(spec, error=result.error, error_text=profidrive_error_phrase(result.error), additional=result.additional))
             continue
         raw = list(result.values)
         values = raw
@@ -192,7 +193,7 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
         if failure is None:
             out.append(PnuReading(spec, values=list(values), format=spec.info.wire_format if spec.info else None))
         else:
-            out.append(PnuReading(spec, error=failure.error, error_text=failure.text, additional=failure.additional))
+            out.append(PnuReading(spec, error=failure.error, error_text=profidrive_error_phrase(failure.error), additional=failure.additional))
     return out
 
 
