@@ -102,14 +102,20 @@ class Connection:
         return self.target.display
 
     # ---------------------------------------------------------------- transport and channels
+    def new_transport(self) -> "Transport":
+        """A transport for this target, not opened: the registry's class for the target's scheme.
+
+        Bus-level commands (``ecat scan``/``state``/``sii``) open it their own way and close it
+        themselves; everything else uses :meth:`transport`.
+        """
+        from akdctl.transport.registry import transport_class
+
+        return transport_class(self.target)(self.target, self.options)
+
     def transport(self) -> "Transport":
         """The open transport (opened on first use, with its channels built; closed by :meth:`close`)."""
         if self._transport is None:
-            transport = self._given
-            if transport is None:
-                from akdctl.transport.registry import transport_class
-
-                transport = transport_class(self.target)(self.target, self.options)
+            transport = self._given if self._given is not None else self.new_transport()
             try:
                 transport.open()
                 self._build_channels(transport)
