@@ -30,7 +30,7 @@ everything below the Connection is imported when it is first used.
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from akdctl.errors import AkdError, UsageError
 
@@ -42,6 +42,8 @@ if TYPE_CHECKING:
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
+
+T = TypeVar("T")
 
 
 def open_tracer(*, enabled: bool = False, pcap: str | None = None) -> "Tracer":
@@ -181,22 +183,18 @@ class Connection:
     def parameters(self) -> "ParameterChannel":
         """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""
         self.transport()
-        if self._parameters is None:
-            raise UsageError(
-                f"target {self.target.display} offers no PROFIdrive parameter channel (PNUs); use 'sdo' commands "
-                "or a sim/pn:// target"
-            )
-        return self._parameters
+        return self._offered(self._parameters, "no PROFIdrive parameter channel (PNUs); use 'sdo' commands "
+                                               "or a sim/pn:// target")
 
     def objects(self) -> "ObjectChannel":
         """The SDO object channel; UsageError naming the alternatives if the target has none."""
         self.transport()
-        if self._objects is None:
-            raise UsageError(
-                f"target {self.target.display} offers no object channel (SDO); use 'pnu' commands or a "
-                "sim/ecat/can target"
-            )
-        return self._objects
+        return self._offered(self._objects, "no object channel (SDO); use 'pnu' commands or a sim/ecat/can target")
+
+    def _offered(self, channel: "T | None", missing: str) -> "T":
+        if channel is None:
+            raise UsageError(f"target {self.target.display} offers {missing}")
+        return channel
 
     def axis(self) -> "Axis":
         """The axis of this target, in the profile :func:`akdctl.drive.axis.open_axis` chooses."""
