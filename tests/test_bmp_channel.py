@@ -21,8 +21,8 @@ from akdctl.protocol.profidrive import (
     decode_request,
 )
 from akdctl.sim.pnu_server import PnuAccessError, PnuServer, convert_value
-from akdctl.transport.base import RecordLink
-from akdctl.transport.trace import Tracer
+from akdctl.links import RecordLink
+from akdctl.transport.trace import TracedRecordLink, Tracer
 
 
 class FakeAccess:
@@ -279,11 +279,11 @@ def test_header_only_positive_change_accepted(access: FakeAccess) -> None:
 
 
 def test_describe(channel: BmpParameterChannel) -> None:
-    description = channel.describe(947)
+    description = channel.read_description(947)
     assert description.name == "P947" and description.is_array and description.elements == 64
     assert description.data_type == Format.UINT16 and description.limits() == (0, 1000)
     with pytest.raises(ParameterRefused) as info:
-        channel.describe(555)
+        channel.read_description(555)
     assert info.value.code == 0 and "impermissible parameter number" in str(info.value)
 
 
@@ -314,7 +314,7 @@ def test_link_errors_pass_through() -> None:
 
 def test_tracer_records_bmp_frames(link: ServerLink) -> None:
     tracer = Tracer()
-    BmpParameterChannel(link, tracer=tracer).read([ParameterAddress(1)])
+    BmpParameterChannel(TracedRecordLink(link, tracer)).read([ParameterAddress(1)])
     assert [(r.direction, r.layer) for r in tracer.records] == [("tx", "bmp"), ("rx", "bmp")]
     assert tracer.records[0].data == link.log[0][0]
 

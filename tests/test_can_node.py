@@ -16,6 +16,7 @@ from collections.abc import Iterator
 import canopen
 import pytest
 
+from akdctl.connection import Connection
 from akdctl.errors import MalformedReply, NoAnswer, SdoAborted
 from akdctl.protocol.emcy import Emergency
 from akdctl.sim.drive import SimDrive
@@ -44,7 +45,7 @@ def face(channel: str) -> Iterator[CanFace]:
 def _transport(channel: str, query: str = "", timeout: float = 1.0, node: int = NODE) -> CanopenTransport:
     target = parse_target(f"can://virtual/{channel}/{node}{query}")
     transport = CanopenTransport(target, LinkOptions(timeout=timeout, retries=0, tracer=Tracer(enabled=False)))
-    transport.open()
+    Connection.over(transport).transport()
     return transport
 
 
@@ -106,7 +107,7 @@ def test_silent_node_is_no_answer(face: CanFace, channel: str) -> None:
 def test_trace_sees_every_frame(face: CanFace, channel: str) -> None:
     tracer = Tracer(enabled=False)
     transport = CanopenTransport(parse_target(f"can://virtual/{channel}/{NODE}"), LinkOptions(timeout=1, retries=0, tracer=tracer))
-    transport.open()
+    Connection.over(transport).transport()
     try:
         transport.objects.upload(0x1018, 1)
     finally:

@@ -72,13 +72,13 @@ def test_trace_dumps_request_and_response_bytes(akd_inproc) -> None:
 
 def test_pnu_batching_uses_minimum_round_trips() -> None:
     """100 single-element reads need ceil(100/39) = 3 requests (SPEC-NOTES 4)."""
+    from akdctl.connection import Connection
     from akdctl.drive.params import PnuSpec, read_pnus
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.sim import SimTransport
     from akdctl.transport.target import Target
 
-    transport = SimTransport(Target("sim", "sim"), LinkOptions())
-    transport.open()
+    transport = Connection.over(SimTransport(Target("sim", "sim"), LinkOptions())).transport()
     specs = [PnuSpec(947, i % 64, 1, None) for i in range(100)]
     readings = read_pnus(transport.parameters, specs)
     assert all(r.ok for r in readings)
@@ -240,10 +240,10 @@ class _FakeTransport:
         self.options = options
         self.parameters = None
         self.objects = None
+        self.record_link = self.mailbox_link = self.sdo_client = None
 
     def open(self) -> None:
-        from akdctl.channels.bmp import BmpParameterChannel
-        from akdctl.transport.base import RecordLink
+        from akdctl.links import RecordLink
 
         reply = type(self).reply
 
@@ -253,7 +253,7 @@ class _FakeTransport:
                     raise reply
                 return reply
 
-        self.parameters = BmpParameterChannel(Link())
+        self.record_link = Link()
 
     def close(self) -> None:
         pass
@@ -301,18 +301,16 @@ def test_verify_mismatch_is_exit_5(akd_inproc, fake_scheme) -> None:
     class Scripted(Exception):
         pass
 
-    from akdctl.transport.base import RecordLink
+    from akdctl.links import RecordLink
 
     original_open = _FakeTransport.open
 
     def open_scripted(self) -> None:
-        from akdctl.channels.bmp import BmpParameterChannel
-
         class Link(RecordLink):
             def exchange(self, request: bytes) -> bytes:
                 return next(replies)
 
-        self.parameters = BmpParameterChannel(Link())
+        self.record_link = Link()
 
     _FakeTransport.open = open_scripted  # type: ignore[method-assign]
     try:

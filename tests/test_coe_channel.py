@@ -22,7 +22,7 @@ from akdctl.protocol.mailbox import (
     encode_mailbox,
 )
 from akdctl.sim.sdo_server import EntryInfo, ObjectInfo, SdoAccessError, SdoServer
-from akdctl.transport.base import MailboxLink
+from akdctl.links import MailboxLink
 
 LONG_TEXT = bytes((i * 7 + 3) % 95 + 32 for i in range(3000))  # a 3000-byte visible string
 

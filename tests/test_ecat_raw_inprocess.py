@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from akdctl.connection import Connection
 from akdctl.errors import NoAnswer, SdoAborted
 from akdctl.protocol import ethercat as ec
 from akdctl.sim.drive import SimDrive
@@ -78,7 +79,7 @@ def wire(drive: SimDrive) -> Iterator[Wire]:
 def test_bring_up_and_sdo(wire: Wire) -> None:
     tracer = Tracer()
     t = transport(wire, tracer)
-    t.open()
+    Connection.over(t).transport()
     assert t.slave is not None and t.slave.al_status == ec.AlState.PREOP and t.slave.station == 0x1001
     assert t.slave.sii is not None and t.slave.sii.is_akd
     assert t.objects is not None
@@ -99,7 +100,7 @@ def test_lost_reply_frames_recovered_by_repeat(drive: SimDrive) -> None:
     w = Wire(drive, "drop=2")
     try:
         t = transport(w)
-        t.open()
+        Connection.over(t).transport()
         assert t.objects is not None
         for _ in range(4):
             assert t.objects.upload(0x1018, 1) == b"\x6a\0\0\0"
@@ -113,7 +114,7 @@ def test_injected_abort(drive: SimDrive) -> None:
     w = Wire(drive, "abort=1")
     try:
         t = transport(w)
-        t.open()
+        Connection.over(t).transport()
         assert t.objects is not None
         with pytest.raises(SdoAborted) as info:
             t.objects.upload(0x1018, 1)

@@ -111,13 +111,12 @@ def test_emergency_decoding_never_raises(code: int, register: int, data: bytes) 
 
 # ---------------------------------------------------------------------------- against the simulator
 def _sim_transport(tmp_path: Any, query: str = "") -> Any:
+    from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport
 
-    transport = SimTransport(parse_target("sim" + query, "test"), LinkOptions(timeout=2.0))
-    transport.open()
-    return transport
+    return Connection.over(SimTransport(parse_target("sim" + query, "test"), LinkOptions(timeout=2.0))).transport()
 
 
 def _with_model(fn: Any) -> None:

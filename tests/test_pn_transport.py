@@ -16,7 +16,7 @@ from akdctl.sim.face_profinet import Injection, ProfinetFace
 from akdctl.transport.base import LinkOptions
 from akdctl.transport.profinet import PnioRecordLink, ProfinetTransport
 from akdctl.transport.target import split_target
-from akdctl.transport.trace import Tracer
+from akdctl.transport.trace import TracedRecordLink, Tracer
 
 READ_930 = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")
 
@@ -234,7 +234,7 @@ def test_pcap_meta_on_every_datagram(face_factory) -> None:
     face = face_factory()
     t = transport(face.port)
     try:
-        t.record_link.exchange(READ_930)
+        TracedRecordLink(t.record_link, t.options.tracer).exchange(READ_930)  # the Connection's wrapper
     finally:
         t.close()
     rpc = [r for r in t.options.tracer.records if r.layer == "pnio-rpc"]

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from akdctl.catalog.texts import profidrive_error_phrase, profidrive_failure_detail
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.profidrive import (
     ATTR_DESCRIPTION,
@@ -151,8 +152,8 @@ def test_negative_read_response_with_and_without_additional_info() -> None:
     response = decode_response(raw, request)
     assert response.negative
     assert response.results == (ParameterValue.of(Format.WORD, 2), ParameterFailure(0), ParameterFailure(3, 99))
-    assert response.results[1].text == "impermissible parameter number"
-    assert "subindex 99" in response.results[2].detail
+    assert profidrive_error_phrase(response.results[1].error) == "impermissible parameter number"
+    assert "subindex 99" in profidrive_failure_detail(response.results[2].error, response.results[2].additional)
     assert encode_response(response) == raw
 
 
@@ -167,11 +168,11 @@ def test_not_supported_response() -> None:
     raw = bytes.fromhex("0B 80 00 01 44 01 0021")
     response = decode_response(raw, ParameterRequest(0x0B, REQ_READ, 0, (ParameterAddress(930),)))
     assert response.results == (ParameterFailure(0x21),)
-    assert "service not supported" in response.results[0].text
+    assert "service not supported" in profidrive_error_phrase(response.results[0].error)
 
 
 def test_manufacturer_specific_error_text() -> None:
-    assert ParameterFailure(0x6A).text == "manufacturer-specific error 0x6A"
+    assert profidrive_error_phrase(ParameterFailure(0x6A).error) == "manufacturer-specific PROFIdrive error 0x6A"
 
 
 def test_single_error_for_multi_parameter_request_applies_to_all() -> None:

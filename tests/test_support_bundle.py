@@ -167,13 +167,13 @@ def test_missing_output_directory_is_a_usage_error(akd_inproc: Any, tmp_path: Pa
 
 def test_unreachable_drive_still_writes_a_bundle_and_exits_3(akd_inproc: Any, tmp_path: Path,
                                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    from akdctl.cli.context import AppContext
+    from akdctl.connection import Connection
     from akdctl.errors import NoAnswer
 
-    def silent(self: AppContext) -> Any:
+    def silent(self: Connection) -> Any:
         raise NoAnswer("no answer from the drive within 0.2 s")
 
-    monkeypatch.setattr(AppContext, "transport", silent)
+    monkeypatch.setattr(Connection, "transport", silent)
     path = tmp_path / "b.json"
     code, _, err = akd_inproc("support", "bundle", "-o", str(path))
     assert code == 3 and "bundle written" in err

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 __all__ = [
     "SDO_ABORT_TEXTS", "sdo_abort_text",
-    "PROFIDRIVE_ERROR_TEXTS", "profidrive_error_text", "PROFIDRIVE_SUBINDEX_INFO_ERRORS",
+    "PROFIDRIVE_ERROR_TEXTS", "profidrive_error_text", "profidrive_error_phrase", "profidrive_failure_detail",
+    "PROFIDRIVE_SUBINDEX_INFO_ERRORS",
     "RECORD_ERROR_TEXTS", "RECORD_RETRY_CODES", "PNIO_ERROR_CODE_TEXTS", "PNIO_ERROR_DECODE_TEXTS",
     "PNIO_CM_ERROR_CODE1_TEXTS", "pnio_status_text",
     "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text",
@@ -103,7 +104,7 @@ PROFIDRIVE_ERROR_TEXTS: dict[int, str] = {
     0x18: "Number of values inconsistent",
     0x19: "Axis/DO nonexistent",
     0x20: "Parameter text element cannot be changed",
-    0x21: "Service not supported",
+    0x21: "Service not supported (invalid request ID)",
     0x22: "Too many parameter requests",
     0x23: "Multi-parameter access not supported",
 }
@@ -124,6 +125,22 @@ def profidrive_error_text(code: int) -> str:
     if 0x65 <= code <= 0xFF:
         return f"manufacturer-specific PROFIdrive error 0x{code:02X}"
     return f"unknown PROFIdrive error 0x{code & 0xFFFF:02X}"
+
+
+def profidrive_error_phrase(code: int) -> str:
+    """:func:`profidrive_error_text` as it reads inside a sentence ("drive refused to read PNU 9999:
+    impermissible parameter number"): the same words, first letter lower-case."""
+    text = profidrive_error_text(code)
+    return text[:1].lower() + text[1:]
+
+
+def profidrive_failure_detail(error: int, additional: int | None = None) -> str:
+    """A negative parameter result in words with its codes: "faulty subindex (error 0x03, subindex 99)"."""
+    words = f"{profidrive_error_phrase(error)} (error 0x{error:02X}"
+    if additional is not None:
+        label = "subindex" if error in PROFIDRIVE_SUBINDEX_INFO_ERRORS else "additional info"
+        words += f", {label} {additional}"
+    return words + ")"
 
 
 # --- PROFINET PNIOStatus (ErrorCode, ErrorDecode, ErrorCode1, ErrorCode2) --------------

@@ -60,8 +60,7 @@ from akdctl.protocol.profidrive import (
     format_size,
     next_reference,
 )
-from akdctl.transport.base import RecordLink
-from akdctl.transport.trace import Tracer
+from akdctl.links import RecordLink
 
 #: Widest element any numeric format has: the retry size when a 4-byte estimate proved too small.
 _WIDEST_ELEMENT = 8
@@ -80,8 +79,8 @@ def catalogue_element_size(address: ParameterAddress) -> int:
 class BmpParameterChannel(ParameterChannel):
     """Batched, reference-checked parameter access over a :class:`RecordLink`.
 
-    ``tracer`` records the BMP blocks (layer ``"bmp"``); pass it only when the
-    link does not already trace them. ``element_size`` bounds the bytes per
+    ``axis`` is the PROFIdrive axis (drive object) addressed; by default the
+    link's. ``element_size`` bounds the bytes per
     element when sizing read responses (by default the catalogue's type, else 4
     bytes: AKD PNUs are at most 4 bytes, SPEC-NOTES 5); a request that still comes
     back "response too long" is retried with the widest element size.
@@ -90,19 +89,18 @@ class BmpParameterChannel(ParameterChannel):
     def __init__(
         self,
         link: RecordLink,
-        axis: int = 0,
-        tracer: Tracer | None = None,
+        axis: int | None = None,
         *,
         reference_start: int = 1,
         element_size: ElementSize = catalogue_element_size,
     ) -> None:
         if not 1 <= reference_start <= 255:
             raise UsageError(f"request reference must be 1..255, not {reference_start}")
+        axis = link.axis if axis is None else axis
         if not 0 <= axis <= 255:
             raise UsageError(f"axis must be 0..255, not {axis}")
         self.link = link
         self.axis = axis
-        self.tracer = tracer
         self.element_size = element_size
         self.requests = 0
         self._reference = reference_start
@@ -144,11 +142,14 @@ class BmpParameterChannel(ParameterChannel):
                 merged[owner] = result
         return merged
 
-    def describe(self, pnu: int) -> ParameterDescription:
+    def read_description(self, pnu: int) -> ParameterDescription:
         """The parameter's 46-byte description (attribute 0x20, subindex 0); refusals raise ParameterRefused."""
         result = self.read([ParameterAddress(pnu, 0, 1, ATTR_DESCRIPTION)])[0]
         if isinstance(result, ParameterFailure):
-            raise ParameterRefused(f"PNU {pnu}: description refused: {result.detail}", code=result.error,
+            from akdctl.catalog.texts import profidrive_failure_detail
+
+            raise ParameterRefused(f"PNU {pnu}: description refused: "
+                                   f"{profidrive_failure_detail(result.error, result.additional)}", code=result.error,
                                    details={"pnu": pnu, "error": result.error, "additional": result.additional})
         assert isinstance(result, ParameterValue)
         if result.format == Format.OCTET_STRING:
@@ -249,16 +250,12 @@ class BmpParameterChannel(ParameterChannel):
         except BmpError as exc:
             raise UsageError(f"cannot build a parameter request: {exc}") from None
         what = f"{'read' if request_id == REQ_READ else 'change'} {len(addresses)} parameter(s), ref {request.reference}"
-        if self.tracer is not None:
-            self.tracer.frame("tx", "bmp", raw, note=what)
         self.requests += 1
         reply = self.link.exchange(raw)
         try:
             reply = bytes(reply)
         except TypeError:
             raise MalformedReply(f"parameter {what}: the link returned {type(reply).__name__}, not bytes") from None
-        if self.tracer is not None:
-            self.tracer.frame("rx", "bmp", reply, note=f"ref {reply[0]}" if reply else "empty")
         try:
             response = decode_response(reply, request)
         except BmpError as exc:

@@ -5,8 +5,9 @@ segmented and block transfer, toggle bits, CRC), so this module only chooses
 the transfer, translates the library's exceptions into akdctl's errors and
 collects emergencies:
 
-* ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` with the
-  abort code and its CiA 301 text (exit 1);
+* ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` through
+  :func:`~akdctl.channels.base.sdo_aborted`, worded by the catalogue and, for codes
+  it lacks, by canopen's own table (exit 1);
 * ``canopen.SdoCommunicationError`` (no answer, or an answer that does not
   fit) -> :class:`~akdctl.errors.NoAnswer` / :class:`~akdctl.errors.MalformedReply`
   (exit 3);
@@ -23,26 +24,12 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
-from akdctl.channels.base import ObjectChannel
-from akdctl.errors import CommError, MalformedReply, NoAnswer, SdoAborted
+from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.errors import CommError, MalformedReply, NoAnswer
 from akdctl.protocol.emcy import Emergency
 
 if TYPE_CHECKING:
     import canopen
-
-
-def abort_text(code: int) -> str:
-    """CiA 301 text for an SDO abort code (akdctl's catalogue first, then canopen's table)."""
-    try:
-        from akdctl.catalog import texts
-
-        if code in texts.SDO_ABORT_TEXTS:  # unknown codes fall through to canopen's own table
-            return str(texts.sdo_abort_text(code))
-    except (ImportError, AttributeError, LookupError):
-        pass
-    from canopen.sdo.exceptions import SdoAbortedError
-
-    return SdoAbortedError.CODES.get(code, "unknown abort code")
 
 
 class CanopenObjectChannel(ObjectChannel):
@@ -102,6 +89,9 @@ class CanopenObjectChannel(ObjectChannel):
                 self._emcy_cond.wait(left)
         return self.take_emergencies()
 
+    def close(self) -> None:
+        self.detach()
+
     def detach(self) -> None:
         """Stop collecting emergencies (the node object may outlive this channel)."""
         self._attached = False
@@ -112,7 +102,7 @@ class CanopenObjectChannel(ObjectChannel):
 
     # -- SDO --------------------------------------------------------------------------------------------------
     def upload(self, index: int, subindex: int) -> bytes:
-        what = f"reading 0x{index:04X}:{subindex:02X}"
+        what = sdo_what("upload", index, subindex)
         self.requests += 1
         if self.block:
             try:
@@ -122,7 +112,7 @@ class CanopenObjectChannel(ObjectChannel):
         return self._call(what, self.sdo.upload, index, subindex)
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
-        what = f"writing 0x{index:04X}:{subindex:02X}"
+        what = sdo_what("download", index, subindex)
         self.requests += 1
         data = bytes(data)
         if self.block:
@@ -170,21 +160,16 @@ class CanopenObjectChannel(ObjectChannel):
         try:
             return func(*args)
         except SdoAbortedError as exc:
-            code = int(exc.code)
-            raise SdoAborted(
-                f"SDO abort 0x{code:08X} ({abort_text(code)}) {what} on {self.where}",
-                code=code,
-                details={"abort_code": f"0x{code:08X}", "abort_text": abort_text(code)},
-            ) from None
+            raise sdo_aborted(int(exc.code), what, where=self.where, fallback=SdoAbortedError.CODES) from None
         except SdoCommunicationError as exc:
             text = str(exc)
             if "No SDO response" in text or "timed out" in text.lower():
-                raise NoAnswer(f"no SDO answer from {self.where} {what} ({self.tries} tries of {self.timeout:g} s)") from None
-            raise MalformedReply(f"unexpected SDO reply from {self.where} {what}: {text}") from None
+                raise NoAnswer(f"no answer from {self.where} to SDO {what} ({self.tries} tries of {self.timeout:g} s)") from None
+            raise MalformedReply(f"unexpected reply from {self.where} to SDO {what}: {text}") from None
         except can.CanError as exc:
-            raise CommError(f"CAN bus error {what} on {self.where}: {exc}") from None
+            raise CommError(f"CAN bus error during SDO {what} on {self.where}: {exc}") from None
         except RuntimeError as exc:  # canopen: "Not connected to CAN bus" / network gone
-            raise CommError(f"CAN bus not usable {what} on {self.where}: {exc}") from None
+            raise CommError(f"CAN bus not usable for SDO {what} on {self.where}: {exc}") from None
 
 
 class _BlockDeclined(Exception):

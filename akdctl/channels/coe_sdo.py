@@ -23,15 +23,14 @@ import time
 from collections.abc import Callable
 from typing import TypeVar
 
-from akdctl.channels.base import ObjectChannel
-from akdctl.catalog.texts import mailbox_error_text, sdo_abort_text
-from akdctl.errors import CommError, MalformedReply, NoAnswer, SdoAborted, UsageError
+from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.catalog.texts import mailbox_error_text
+from akdctl.errors import CommError, MalformedReply, NoAnswer, UsageError
+from akdctl.links import MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
 from akdctl.protocol.errors import CodecError
-from akdctl.transport.base import MailboxLink
-from akdctl.transport.trace import Tracer
 
 log = logging.getLogger("akdctl")
 
@@ -55,8 +54,7 @@ class CoeObjectChannel(ObjectChannel):
         *,
         timeout: float,
         retries: int = 2,
-        tracer: Tracer | None = None,
-        station: int = 0,
+        station: int | None = None,
         strict_counter: bool = False,
     ) -> None:
         if timeout <= 0:
@@ -64,8 +62,7 @@ class CoeObjectChannel(ObjectChannel):
         self.link = link
         self.timeout = float(timeout)
         self.retries = max(0, int(retries))
-        self.tracer = tracer  # only for links that do not trace mailboxes themselves
-        self.station = station
+        self.station = link.mailbox_address if station is None else station
         self.strict_counter = strict_counter
         self.requests = 0
         self._counter = 0
@@ -189,11 +186,8 @@ class CoeObjectChannel(ObjectChannel):
                 return None
             if isinstance(msg, coe.SdoAbort):
                 if (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment:
-                    raise SdoAborted(
-                        f"SDO {verb} of {_where(index, subindex)} aborted: 0x{msg.code:08X} {sdo_abort_text(msg.code)}",
-                        code=msg.code,
-                        details={"index": index, "subindex": subindex, "abort_code": f"0x{msg.code:08X}"},
-                    )
+                    raise sdo_aborted(msg.code, sdo_what(verb, index, subindex),
+                                      details={"index": index, "subindex": subindex})
                 return None
             if not isinstance(msg, wanted):
                 return None
@@ -238,11 +232,7 @@ class CoeObjectChannel(ObjectChannel):
             except CodecError as exc:
                 raise MalformedReply(f"SDO information reply for the {what} does not decode: {exc}") from None
             if isinstance(message, coe.SdoInfoError):
-                raise SdoAborted(
-                    f"SDO information request for the {what} refused: "
-                    f"0x{message.code:08X} {sdo_abort_text(message.code)}",
-                    code=message.code,
-                )
+                raise sdo_aborted(message.code, f"information request for the {what}")
             if not isinstance(message, expect):
                 raise MalformedReply(f"unexpected SDO information reply {type(message).__name__} for the {what}")
             return message
@@ -254,8 +244,6 @@ class CoeObjectChannel(ObjectChannel):
     def _send(self, coe_data: bytes) -> int:
         self._counter = mbx.next_counter(self._counter)
         frame = mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.COE, coe_data, address=self.station, counter=self._counter))
-        if self.tracer is not None:
-            self.tracer.frame("tx", "mailbox", frame)
         self.link.send(frame)
         self.requests += 1
         return self._counter
@@ -269,9 +257,7 @@ class CoeObjectChannel(ObjectChannel):
             self._classify(raw, counter=None)
 
     def _classify(self, raw: bytes, counter: int | None) -> tuple[int, bytes] | None:
-        """Handle what every reply shares: trace, mailbox errors, emergencies, foreign types."""
-        if self.tracer is not None:
-            self.tracer.frame("rx", "mailbox", raw)
+        """Handle what every reply shares: mailbox errors, emergencies, foreign types."""
         try:
             frame = mbx.decode_mailbox(raw)
         except CodecError as exc:

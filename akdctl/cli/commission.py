@@ -65,7 +65,7 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
     _consent(app, steps, target)
     progress = message if (sys.stderr.isatty() or app.verbose) else None
     interrupted = [False]
-    session = Session(app, runner.output_dir_for(output_dir), lambda: interrupted[0])
+    session = Session(app.connection, runner.output_dir_for(output_dir), lambda: interrupted[0])
     result = runner.run(steps, session, progress, **meta)
     for path in reports:
         report.write(result, path)

@@ -1,25 +1,28 @@
-"""The invocation's shared state: global options, config, target, open transport.
+"""The invocation's shared state: global options, config, target, the one Connection.
 
 The root command builds one :class:`AppContext`; subcommands reach it with
-:func:`get_app`. Opening the transport is lazy (commands that need no drive,
-such as ``fault explain``, never open one) and happens once per invocation.
+:func:`get_app`. It resolves the target and config profile from the command line,
+then holds one :class:`~akdctl.connection.Connection` (``app.connection``) and
+delegates the drive side to it; ``drive/`` and ``recipe/`` are handed that
+Connection, never this context. Opening the transport is lazy (commands that need
+no drive, such as ``fault explain``, never open one) and happens once per invocation.
 """
 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from akdctl.errors import AkdError, UsageError
-
 if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel, ParameterChannel
     from akdctl.cli.output import Doc
+    from akdctl.connection import Connection
     from akdctl.config import Profile
+    from akdctl.drive.axis import Axis
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
 
@@ -40,7 +43,7 @@ class AppContext:
     _profile: "Profile | None" = None
     _profile_loaded: bool = False
     _options: "LinkOptions | None" = None
-    _transport: "Transport | None" = None
+    _connection: "Connection | None" = None
     _cleanups: list[Callable[[], None]] = field(default_factory=list)
 
     # ---------------------------------------------------------------- resolution
@@ -65,75 +68,55 @@ class AppContext:
 
     @property
     def options(self) -> "LinkOptions":
+        """Timeout, retries and the session's one tracer (``--trace``/``--pcap``), closed last at exit."""
         if self._options is None:
+            from akdctl.connection import open_tracer
             from akdctl.transport.base import LinkOptions
-            from akdctl.transport.trace import Tracer
 
             timeout = self.timeout
             if timeout is None and self.profile is not None and self.profile.timeout is not None:
                 timeout = self.profile.timeout
-            tracer = Tracer(enabled=self.trace)
-            if self.pcap:
-                from akdctl.transport.pcap import PcapWriter
-
-                try:
-                    writer = PcapWriter(self.pcap)
-                except OSError as exc:
-                    raise UsageError(f"cannot write capture file {self.pcap}: {exc.strerror}") from None
-                tracer.add_sink(writer.write)
-                self._cleanups.append(writer.close)
+            tracer = open_tracer(enabled=self.trace, pcap=self.pcap)
+            self._cleanups.append(tracer.close)
             self._options = LinkOptions(timeout=timeout if timeout is not None else 2.0, tracer=tracer,
                                         verbose=self.verbose)
         return self._options
 
     @property
+    def connection(self) -> "Connection":
+        """The invocation's Connection to its target (the transport opens on first use, closes at exit)."""
+        if self._connection is None:
+            from akdctl.connection import Connection
+
+            options = self.options  # first: its tracer closes after the connection
+            self._connection = Connection(self.target, options, self.profile)
+            self._cleanups.append(self._connection.close)
+        return self._connection
+
+    @property
     def drive_profile(self) -> str | None:
-        """Which axis profile motion commands use: target ?drive=, else the config profile's ``drive``."""
-        chosen = self.target.query.get("drive")
-        if chosen is None and self.profile is not None:
-            chosen = self.profile.drive
-        return chosen
+        return self.connection.drive_profile
 
-    # ---------------------------------------------------------------- transport
+    # ---------------------------------------------------------------- delegated to the Connection
     def transport(self) -> "Transport":
-        """The open transport of this invocation (opened on first use, closed at exit)."""
-        if self._transport is None:
-            from akdctl.transport.registry import transport_class
-
-            target = self.target
-            cls = transport_class(target)
-            transport = cls(target, self.options)
-            try:
-                transport.open()
-            except AkdError as exc:
-                with contextlib.suppress(Exception):
-                    transport.close()
-                raise exc.with_target(target.display)
-            self._transport = transport
-            self._cleanups.append(transport.close)
-        return self._transport
-
-    @contextlib.contextmanager
-    def open_transport(self) -> Iterator["Transport"]:
-        yield self.transport()
+        return self.connection.transport()
 
     def parameters(self) -> "ParameterChannel":
-        transport = self.transport()
-        if transport.parameters is None:
-            raise UsageError(
-                f"target {self.target.display} offers no PROFIdrive parameter channel (PNUs); use 'sdo' commands "
-                "or a sim/pn:// target"
-            )
-        return transport.parameters
+        return self.connection.parameters()
 
     def objects(self) -> "ObjectChannel":
-        transport = self.transport()
-        if transport.objects is None:
-            raise UsageError(
-                f"target {self.target.display} offers no object channel (SDO); use 'pnu' commands or a "
-                "sim/ecat/can target"
-            )
-        return transport.objects
+        return self.connection.objects()
+
+    @property
+    def has_parameters(self) -> bool:
+        return self.connection.has_parameters
+
+    @property
+    def has_objects(self) -> bool:
+        return self.connection.has_objects
+
+    def axis(self) -> "Axis":
+        return self.connection.axis()
 
     def close(self) -> None:
         while self._cleanups:

@@ -23,15 +23,13 @@ if TYPE_CHECKING:
 def _bus() -> "EthercatRawTransport":
     """The raw transport with the bus counted and addressed, registered for closing at exit."""
     from akdctl.transport.ethercat_raw import EthercatRawTransport
-    from akdctl.transport.registry import transport_class
 
     app = get_app()
     target = app.target
     if target.scheme != "ecat":
         raise UsageError(f"'ecat' commands need akdctl as the EtherCAT master: use a target ecat://IFNAME[/POSITION] "
                          f"(got {target.display})")
-    cls = transport_class(target)
-    transport = cls(target, app.options)
+    transport = app.connection.new_transport()
     assert isinstance(transport, EthercatRawTransport)
     app._cleanups.append(transport.close)  # noqa: SLF001 - the context closes what commands open
     try:

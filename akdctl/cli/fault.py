@@ -137,7 +137,7 @@ def dump(fmt: str) -> None:
     from akdctl.drive.faults import dump as read_dump
 
     app = get_app()
-    data = read_dump(app)
+    data = read_dump(app.connection)
     _warn_inconsistent(data)
     if app.json or fmt == "json":
         emit_json(data)
@@ -163,7 +163,7 @@ def ack() -> None:
     from akdctl.drive.faults import acknowledge
 
     app = get_app()
-    result = acknowledge(app)
+    result = acknowledge(app.connection)
     if result["acknowledged"]:
         text = f"acknowledged {', '.join(result['acknowledged'])}; no fault active"
     elif not result.get("note"):
@@ -182,7 +182,7 @@ def clear_history() -> None:
     from akdctl.drive.faults import clear_history as do_clear
 
     app = get_app()
-    result = do_clear(app)
+    result = do_clear(app.connection)
     app.emit(result, Doc("fault history", app.target.display).line(
         f"error history 0x1003 cleared ({result['entries_left']} entries left)"))
 

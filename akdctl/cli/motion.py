@@ -37,9 +37,7 @@ DEFAULT_ACC = 1000.0
 
 # ---------------------------------------------------------------------- helpers
 def _axis(app: Any) -> Any:
-    from akdctl.drive.axis import open_axis
-
-    return open_axis(app)
+    return app.connection.axis()
 
 
 def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None = None) -> Doc:

@@ -112,7 +112,7 @@ def describe(address: str) -> None:
     app = get_app()
     spec = parse_pnu_spec(address)
     channel = app.parameters()
-    description = description_json(channel.describe(spec.pnu))
+    description = description_json(channel.read_description(spec.pnu))
     info = spec.info
     data: dict[str, Any] = {"target": app.target.display, "pnu": spec.pnu, "drive": description}
     if info is not None:

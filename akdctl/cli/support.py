@@ -35,7 +35,7 @@ def bundle(output: str, all_objects: bool) -> None:
     from akdctl.drive import bundle as bundle_mod
 
     app = get_app()
-    data = bundle_mod.collect(app, all_objects=all_objects)
+    data = bundle_mod.collect(app.connection, all_objects=all_objects)
     path = bundle_mod.write(data, output)
     errors = data.get("errors", {})
     summary = {"file": str(path), "format": bundle_mod.FORMAT, "format_version": bundle_mod.FORMAT_VERSION,

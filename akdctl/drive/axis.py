@@ -24,7 +24,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
 from akdctl.profiles import statusword as sw
@@ -616,19 +616,23 @@ def prepare_motion(axis: Axis, kind: str, check: Callable[[], object] | None = N
     return axis.enable()
 
 
-def open_axis(app: Any) -> Axis:
-    """The axis of this invocation: ``app.drive_profile`` if set, else PROFIdrive when the
-    transport has a parameter channel, else CiA 402."""
-    transport = app.transport()
-    chosen = app.drive_profile
-    timeout = app.options.timeout
-    target = app.target.display
+if TYPE_CHECKING:  # beside its one user, so this hunk stays apart from the module's import block
+    from akdctl.connection import Connection
+
+
+def open_axis(conn: "Connection") -> Axis:
+    """The axis of this connection: ``conn.drive_profile`` if set, else PROFIdrive when the
+    target has a parameter channel, else CiA 402."""
+    chosen = conn.drive_profile
+    timeout = conn.options.timeout
+    target = conn.target.display
     if chosen is None:
-        chosen = "profidrive" if transport.parameters is not None else "cia402"
+        chosen = "profidrive" if conn.has_parameters else "cia402"
     if chosen == "profidrive":
-        return ProfidriveAxis(app.parameters(), transport.objects, timeout=timeout, target=target)
+        return ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
+                              timeout=timeout, target=target)
     if chosen == "cia402":
-        return Cia402Axis(app.objects(), transport, timeout=timeout, target=target)
+        return Cia402Axis(conn.objects(), conn.transport(), timeout=timeout, target=target)
     raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
 
 

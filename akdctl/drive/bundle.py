@@ -26,10 +26,13 @@ import os
 import platform
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, CommError, UsageError
 from akdctl.io.atomic import write_user_file
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 FORMAT = "akdctl-support-bundle"
 FORMAT_VERSION = 1
@@ -104,69 +107,12 @@ def _readings_by_pnu(pnus: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
     return {int(r["pnu"]): r for r in pnus if isinstance(r, dict) and "pnu" in r}
 
 
-def status(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> dict[str, Any]:
-    """The axis status: the motion layer's when it exists, else the raw words decoded here."""
-    try:
-        from akdctl.drive import axis as axis_module
-    except ImportError:
-        axis_module = None
-    if axis_module is not None and hasattr(axis_module, "open_axis"):
-        axis = axis_module.open_axis(app)
-        read = getattr(axis, "read_status", None) or getattr(axis, "status", None)
-        if read is not None:
-            result = read()
-            to_json = getattr(result, "to_json", None)
-            return {"source": "axis", **(to_json() if to_json else dict(result))}
-    out: dict[str, Any] = {"source": "raw"}
-    transport = app.transport()
-    try:
-        from akdctl.profiles import statusword as sw
-    except ImportError:
-        sw = None
-    if "profidrive" in sources:
-        by_pnu = _readings_by_pnu(pnus or [])
-        if not {2, 930} <= set(by_pnu):
-            from akdctl.drive.params import parse_pnu_spec, read_pnus
-
-            by_pnu.update(_readings_by_pnu([r.to_json() for r in read_pnus(
-                transport.parameters, [parse_pnu_spec("2"), parse_pnu_spec("930"), parse_pnu_spec("1")])]))
-        zsw1 = (by_pnu.get(2, {}).get("values") or [None])[0]
-        mode = (by_pnu.get(930, {}).get("values") or [None])[0]
-        pd: dict[str, Any] = {"zsw1": zsw1, "stw1": (by_pnu.get(1, {}).get("values") or [None])[0],
-                              "operating_mode": mode}
-        if zsw1 is not None:
-            pd["fault_present"] = bool(zsw1 & 0x08)
-            pd["warning_present"] = bool(zsw1 & 0x80)
-            if sw is not None:
-                pd["state"] = sw.profidrive_state(zsw1)
-                pd["zsw1_set"] = sw.set_names(sw.zsw1_bits(zsw1, mode))
-        out["profidrive"] = pd
-    if "canopen" in sources:
-        from akdctl.drive.objects import decode
-
-        objects = transport.objects
-        co: dict[str, Any] = {}
-        for key, index, dtype in (("statusword", 0x6041, "u16"), ("mode_display", 0x6061, "i8"),
-                                  ("position", 0x6064, "i32"), ("velocity", 0x606C, "i32")):
-            try:
-                co[key] = decode(dtype, objects.upload(index, 0))
-            except CommError:
-                raise
-            except AkdError as exc:
-                co[key] = None
-                co.setdefault("errors", {})[key] = exc.message
-        word = co.get("statusword")
-        if isinstance(word, int):
-            co["fault_present"] = bool(word & 0x08)
-            co["warning_present"] = bool(word & 0x80)
-            if sw is not None:
-                co["state"] = sw.cia402_state(word)
-                co["statusword_set"] = sw.set_names(sw.statusword_bits(word, co.get("mode_display")))
-        out["canopen"] = co
-    return out
+def status(conn: "Connection") -> dict[str, Any]:
+    """The axis status exactly as the ``status`` command reads it (the axis profile the target uses)."""
+    return {"source": "axis", **conn.axis().read_status().to_json()}
 
 
-def mapping(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> dict[str, Any]:
+def mapping(conn: "Connection", sources: list[str], pnus: list[dict[str, Any]] | None) -> dict[str, Any]:
     """Process-data mapping: telegram + PZD lists (from the snapshot) and/or the CoE PDO assignment."""
     out: dict[str, Any] = {}
     if "profidrive" in sources and pnus:
@@ -177,65 +123,59 @@ def mapping(app: Any, sources: list[str], pnus: list[dict[str, Any]] | None) -> 
             "actuals_pnu916": by_pnu.get(916, {}).get("values"),
         }
     if "canopen" in sources:
+        from akdctl.drive.pdo import read_mapping
+
         try:
-            from akdctl.drive.pdo import read_mapping
-        except ImportError:
-            read_mapping = None
-        if read_mapping is not None:
-            try:
-                out["canopen"] = {d: m.to_json() for d, m in read_mapping(app.transport().objects).items()}
-            except CommError:
-                raise
-            except AkdError as exc:
-                out["canopen"] = {"error": exc.message}
+            out["canopen"] = {d: m.to_json() for d, m in read_mapping(conn.objects()).items()}
+        except CommError:
+            raise
+        except AkdError as exc:
+            out["canopen"] = {"error": exc.message}
     return out
 
 
-def collect(app: Any, *, all_objects: bool = False) -> dict[str, Any]:
+def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     """Read everything from the target into one JSON-able bundle (never raises for a drive problem)."""
     from akdctl.drive import faults, identity
 
     errors: dict[str, str] = {}
-    target = app.target
+    target = conn.target
     bundle: dict[str, Any] = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "tool": _tool(),
-        "target": {"display": target.display, "scheme": target.scheme, "drive_profile": app.drive_profile},
+        "target": {"display": target.display, "scheme": target.scheme, "drive_profile": conn.drive_profile},
     }
-    transport = _guard(errors, "transport", app.transport)
+    transport = _guard(errors, "transport", conn.transport)
     if isinstance(transport, dict):  # could not open: every section says why
         for key in ("identity", "faults", "status", "parameters", "mapping"):
             bundle[key] = {"error": errors["transport"]}
     else:
-        sources = faults._sources(app)
+        sources = faults._sources(conn)
         bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(transport))
-        bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(app))
+        bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
         params: dict[str, Any] = {"round_trips": {}}
         pnus = None
         if "profidrive" in sources:
-            before = _requests(transport.parameters)
-            pnus = _guard(errors, "parameters.pnus", lambda: pnu_snapshot(transport.parameters))
+            channel = conn.parameters()
+            before = channel.requests
+            pnus = _guard(errors, "parameters.pnus", lambda: pnu_snapshot(channel))
             params["pnus"] = pnus
-            params["round_trips"]["pnus"] = _requests(transport.parameters) - before
+            params["round_trips"]["pnus"] = channel.requests - before
             pnus = pnus if isinstance(pnus, list) else None
         if "canopen" in sources:
-            before = _requests(transport.objects)
+            objects = conn.objects()
+            before = objects.requests
             params["objects"] = _guard(errors, "parameters.objects",
-                                       lambda: object_snapshot(transport.objects, everything=all_objects))
-            params["round_trips"]["objects"] = _requests(transport.objects) - before
+                                       lambda: object_snapshot(objects, everything=all_objects))
+            params["round_trips"]["objects"] = objects.requests - before
         bundle["parameters"] = params
-        bundle["status"] = _guard(errors, "status", lambda: status(app, sources, pnus))
-        bundle["mapping"] = _guard(errors, "mapping", lambda: mapping(app, sources, pnus))
-    bundle["trace"] = [r.to_json() for r in app.options.tracer.records]
+        bundle["status"] = _guard(errors, "status", lambda: status(conn))
+        bundle["mapping"] = _guard(errors, "mapping", lambda: mapping(conn, sources, pnus))
+    bundle["trace"] = [r.to_json() for r in conn.options.tracer.records]
     bundle["errors"] = errors
     return bundle
-
-
-def _requests(channel: Any) -> int:
-    """Round trips the channel made so far (channels count them, see channels/base.py)."""
-    return int(getattr(channel, "requests", 0) or 0)
 
 
 # ---------------------------------------------------------------------------- files

@@ -24,10 +24,13 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import faults as catalog
 from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 MAX_ATTEMPTS = 5  # consistent-read attempts before reporting an inconsistent dump
 PNU_FAULT_COUNTER = 944
@@ -322,11 +325,10 @@ def read_canopen_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> Ca
 
 
 # ---------------------------------------------------------------------------- whole dump
-def _sources(app: Any) -> list[str]:
-    """Which views to read: the one ``?drive=``/profile selects, else every channel the transport offers."""
-    transport = app.transport()
-    has_pnu, has_obj = transport.parameters is not None, transport.objects is not None
-    chosen = app.drive_profile
+def _sources(conn: "Connection") -> list[str]:
+    """Which views to read: the one ``?drive=``/profile selects, else every channel the target offers."""
+    has_pnu, has_obj = conn.has_parameters, conn.has_objects
+    chosen = conn.drive_profile
     if chosen == "profidrive" and has_pnu:
         return ["profidrive"]
     if chosen == "cia402" and has_obj:
@@ -334,19 +336,18 @@ def _sources(app: Any) -> list[str]:
     return [name for name, ok in (("profidrive", has_pnu), ("canopen", has_obj)) if ok]
 
 
-def dump(app: Any) -> dict[str, Any]:
+def dump(conn: "Connection") -> dict[str, Any]:
     """The whole fault dump of the target as JSON-able data (the ``fault dump`` document)."""
-    transport = app.transport()
-    data: dict[str, Any] = {"target": app.target.display}
-    sources = _sources(app)
+    data: dict[str, Any] = {"target": conn.target.display}
+    sources = _sources(conn)
     if not sources:
-        raise UsageError(f"target {app.target.display} offers neither PNU nor object access; no fault dump possible")
+        raise UsageError(f"target {conn.target.display} offers neither PNU nor object access; no fault dump possible")
     for source in sources:
         try:
             if source == "profidrive":
-                data["profidrive"] = read_profidrive_faults(transport.parameters).to_json()
+                data["profidrive"] = read_profidrive_faults(conn.parameters()).to_json()
             else:
-                data["canopen"] = read_canopen_faults(transport.objects).to_json()
+                data["canopen"] = read_canopen_faults(conn.objects()).to_json()
         except CommError:
             raise
         except AkdError as exc:
@@ -372,31 +373,29 @@ def summary(data: dict[str, Any]) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------------- acknowledge / clear
-def _ack_path(app: Any) -> str:
-    sources = _sources(app)
+def _ack_path(conn: "Connection") -> str:
+    sources = _sources(conn)
     if not sources:
-        raise UsageError(f"target {app.target.display} offers neither PNU nor object access")
+        raise UsageError(f"target {conn.target.display} offers neither PNU nor object access")
     return sources[0]
 
 
-def acknowledge(app: Any) -> dict[str, Any]:
+def acknowledge(conn: "Connection") -> dict[str, Any]:
     """Acknowledge the drive's faults; raise :class:`DriveFault` if a fault remains active.
 
     The edge itself is the motion layer's ``Axis.acknowledge_faults`` (one implementation
     for every command); this adds the before/after dumps so the user sees what was cleared.
     """
-    path = _ack_path(app)
-    before = dump(app)
+    path = _ack_path(conn)
+    before = dump(conn)
     active_before = summary(before)["faults"]
     if not summary(before)["fault_present"]:
-        return {"target": app.target.display, "acknowledged": [], "still_active": [], "fault_present": False,
+        return {"target": conn.target.display, "acknowledged": [], "still_active": [], "fault_present": False,
                 "via": path, "note": "no active fault: nothing was written"}
-    from akdctl.drive.axis import open_axis
-
-    open_axis(app).acknowledge_faults()  # the one acknowledge (STW1 / controlword bit 7 edge)
-    after = dump(app)
+    conn.axis().acknowledge_faults()  # the one acknowledge (STW1 / controlword bit 7 edge)
+    after = dump(conn)
     remaining = summary(after)["faults"]
-    result = {"target": app.target.display, "acknowledged": active_before, "still_active": remaining,
+    result = {"target": conn.target.display, "acknowledged": active_before, "still_active": remaining,
               "fault_present": summary(after)["fault_present"], "via": path}
     if summary(after)["fault_present"]:
         exc = DriveFault(
@@ -408,14 +407,13 @@ def acknowledge(app: Any) -> dict[str, Any]:
     return result
 
 
-def clear_history(app: Any) -> dict[str, Any]:
+def clear_history(conn: "Connection") -> dict[str, Any]:
     """Clear the CiA 301 error history (0x1003:0 = 0); PROFIdrive offers no way to clear PNU 947."""
-    transport = app.transport()
-    if transport.objects is None or app.drive_profile == "profidrive":
+    if not conn.has_objects or conn.drive_profile == "profidrive":
         raise UsageError(
-            f"target {app.target.display}: the PROFIdrive fault buffer (PNU 947) cannot be cleared over the "
+            f"target {conn.target.display}: the PROFIdrive fault buffer (PNU 947) cannot be cleared over the "
             "parameter channel; acknowledged situations drop out after 8 new ones"
         )
-    transport.objects.download(0x1003, 0, b"\x00")
-    remaining = _upload_int(transport.objects, 0x1003, 0)
-    return {"target": app.target.display, "cleared": "0x1003", "entries_left": remaining}
+    conn.objects().download(0x1003, 0, b"\x00")
+    remaining = _upload_int(conn.objects(), 0x1003, 0)
+    return {"target": conn.target.display, "cleared": "0x1003", "entries_left": remaining}

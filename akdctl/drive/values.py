@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
+from akdctl.catalog.texts import profidrive_error_phrase
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 
 #: What a snapshot or recipe holds for one object or PNU.
@@ -292,7 +293,7 @@ def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
     readings = []
     for spec, result in zip(specs, results):
         if isinstance(result, ParameterFailure):
-            readings.append(PnuReading(spec, error=result.error, error_text=result.text, additional=result.additional))
+            readings.append(PnuReading(spec, error=result.error, error_text=profidrive_error_phrase(result.error), additional=result.additional))
             continue
         raw = list(result.values)
         readings.append(PnuReading(spec, values=pnu_from_wire(spec.info, raw), raw=raw, format=result.format))
@@ -319,7 +320,7 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
         if failure is None:
             out.append(PnuReading(spec, values=list(values), format=spec.info.wire_format if spec.info else None))
         else:
-            out.append(PnuReading(spec, error=failure.error, error_text=failure.text, additional=failure.additional))
+            out.append(PnuReading(spec, error=failure.error, error_text=profidrive_error_phrase(failure.error), additional=failure.additional))
     return out
 
 

@@ -87,41 +87,6 @@ ERR_SERVICE = 0x21
 ERR_TOO_MANY = 0x22
 ERR_NO_MULTI = 0x23
 
-#: Error texts (PROFIdrive V4.2 table 32, as gathered in the reference notes).
-ERROR_TEXTS: dict[int, str] = {
-    0x00: "impermissible parameter number",
-    0x01: "parameter value cannot be changed",
-    0x02: "low or high limit exceeded",
-    0x03: "faulty subindex",
-    0x04: "no array",
-    0x05: "incorrect data type",
-    0x06: "setting not permitted (may only be reset)",
-    0x07: "description element cannot be changed",
-    0x08: "reserved (PROFIdrive V2: PPO-write requested in IR not available)",
-    0x09: "no description data available",
-    0x0A: "reserved (PROFIdrive V2: access group wrong)",
-    0x0B: "no operation priority (no parameter change rights)",
-    0x0C: "reserved (PROFIdrive V2: wrong password)",
-    0x0D: "reserved (PROFIdrive V2: text cannot be read in cyclic data transfer)",
-    0x0E: "reserved (PROFIdrive V2: name cannot be read in cyclic data transfer)",
-    0x0F: "no text array available",
-    0x10: "reserved (PROFIdrive V2: no PPO-write)",
-    0x11: "request cannot be executed because of operating state",
-    0x14: "value impermissible",
-    0x15: "response too long",
-    0x16: "parameter address impermissible",
-    0x17: "illegal format",
-    0x18: "number of values inconsistent",
-    0x19: "axis/DO nonexistent",
-    0x20: "parameter text element cannot be changed",
-    0x21: "service not supported (invalid request ID)",
-    0x22: "too many parameters in the request",
-    0x23: "multi-parameter access not supported",
-}
-
-#: Error values whose additional info is the subindex concerned (Siemens G130 table 6-15).
-SUBINDEX_INFO_ERRORS = frozenset({0x01, 0x02, 0x03, 0x06, 0x07, 0x14})
-
 # Identifier (V2) bits of a parameter description (PROFIdrive table 18).
 ID_NO_STANDARDISATION = 1 << 8
 ID_READ_ONLY = 1 << 9
@@ -302,30 +267,14 @@ class ParameterValue:
 
 @dataclass(frozen=True)
 class ParameterFailure:
-    """A negative per-parameter result: PROFIdrive error value and optional additional info."""
+    """A negative per-parameter result: PROFIdrive error value and optional additional info.
+
+    Codes only: the words are :func:`akdctl.catalog.texts.profidrive_error_text` and
+    :func:`~akdctl.catalog.texts.profidrive_failure_detail`.
+    """
 
     error: int
     additional: int | None = None
-
-    @property
-    def text(self) -> str:
-        return error_text(self.error)
-
-    @property
-    def detail(self) -> str:
-        """Error text with the additional info in words, for messages."""
-        words = f"{self.text} (error 0x{self.error:02X}"
-        if self.additional is not None:
-            label = "subindex" if self.error in SUBINDEX_INFO_ERRORS else "additional info"
-            words += f", {label} {self.additional}"
-        return words + ")"
-
-
-def error_text(error: int) -> str:
-    """Words for a PROFIdrive error value; unknown codes are the manufacturer's."""
-    if error in ERROR_TEXTS:
-        return ERROR_TEXTS[error]
-    return f"manufacturer-specific error 0x{error:02X}"
 
 
 ParameterResult = ParameterValue | ParameterFailure | None

@@ -15,19 +15,22 @@ import math
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import CheckFailed, DriveFault, DriveError, UsageError
 from akdctl.recipe.schema import PlannedStep
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 POLL_S = 0.05
 
 
 class Session:
-    """The drive side of one recipe run: the CLI app, its transport, the axis once a step needs it."""
+    """The drive side of one recipe run: the Connection to the target, the axis once a step needs it."""
 
-    def __init__(self, app: Any, output_dir: Path, interrupted: Callable[[], bool]) -> None:
-        self.app = app
+    def __init__(self, conn: "Connection", output_dir: Path, interrupted: Callable[[], bool]) -> None:
+        self.conn = conn
         self.output_dir = output_dir
         self.interrupted = interrupted
         self._axis: Any = None
@@ -35,13 +38,11 @@ class Session:
 
     @property
     def transport(self) -> Any:
-        return self.app.transport()
+        return self.conn.transport()
 
     def axis(self) -> Any:
         if self._axis is None:
-            from akdctl.drive.axis import open_axis
-
-            self._axis = open_axis(self.app)
+            self._axis = self.conn.axis()
         return self._axis
 
     @property
@@ -65,12 +66,12 @@ def read_target(session: Session, target: dict[str, Any]) -> Any:
     from akdctl.drive.values import read_pnus, read_snapshot_value
 
     if target["kind"] == "pnu":
-        (reading,) = read_pnus(session.app.parameters(), [target["spec"]])
+        (reading,) = read_pnus(session.conn.parameters(), [target["spec"]])
         if not reading.ok:
             raise DriveError(f"drive refused to read {target['label']}: {reading.error_text}", code=reading.error)
         values = reading.values or []
         return values if target["spec"].count > 1 else (values[0] if values else None)
-    return read_snapshot_value(session.app.objects(), target["entry"])
+    return read_snapshot_value(session.conn.objects(), target["entry"])
 
 
 def matches(value: Any, comparison: dict[str, Any]) -> bool:
@@ -97,14 +98,14 @@ def do_set(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     pnu_targets = [t for t in params["targets"] if t["kind"] == "pnu"]
     if pnu_targets:
         assignments = [(t["spec"], t["value"] if isinstance(t["value"], list) else [t["value"]]) for t in pnu_targets]
-        for target, result in zip(pnu_targets, write_pnus(session.app.parameters(), assignments)):
+        for target, result in zip(pnu_targets, write_pnus(session.conn.parameters(), assignments)):
             if not result.ok:
                 raise DriveError(f"drive refused {target['label']} = {target['value']}: {result.error_text} "
                                  f"(error 0x{result.error:02X})", code=result.error)
     for target in params["targets"]:
         if target["kind"] == "object":
             entry = target["entry"]
-            session.app.objects().download(entry.index, entry.subindex, encode_object(entry, target["value"]))
+            session.conn.objects().download(entry.index, entry.subindex, encode_object(entry, target["value"]))
     readback = {}
     if params["verify"]:
         bad = []
@@ -164,7 +165,7 @@ def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
         from akdctl.drive import telegram as dt
 
         lists = params["telegram_map"]
-        state = dt.map_free(session.app.parameters(), lists.get("setpoint"), lists.get("actual"))
+        state = dt.map_free(session.conn.parameters(), lists.get("setpoint"), lists.get("actual"))
         return state.to_json()
     from akdctl.drive import pdo as dp
 
@@ -172,7 +173,7 @@ def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     state = dp.al_state_of(session.transport)
     if state is not None and state != "PREOP":
         raise UsageError(f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)")
-    channel = session.app.objects()
+    channel = session.conn.objects()
     steps = dp.startup_list(plan)
     written = dp.apply(channel, steps)
     dp.check_verified(dp.verify(channel, plan))
@@ -182,7 +183,7 @@ def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 def do_telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import telegram as dt
 
-    return dt.select_telegram(session.app.parameters(), params["telegram"]).to_json()
+    return dt.select_telegram(session.conn.parameters(), params["telegram"]).to_json()
 
 
 def _axis_with_timeout(session: Session, timeout: float | None) -> Any:
@@ -210,8 +211,6 @@ def do_acknowledge(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
 def do_home(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     axis = session.axis()
-    if hasattr(axis, "home"):  # the axis's own complete procedure, when it offers one
-        return _status_json(axis.home(mode=params["mode"], timeout=params["timeout"]))
     from akdctl.drive.axis import MotionRun
 
     _prepare(axis, "homing")
@@ -222,8 +221,6 @@ def do_home(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
 def do_move(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     axis = session.axis()
-    if hasattr(axis, "move"):  # the axis's own complete procedure, when it offers one
-        return _status_json(axis.move(**_move_kwargs(params)))
     from akdctl.drive.axis import MotionRun, MoveSpec
 
     status = axis.read_status()
@@ -260,18 +257,10 @@ def _move_done(status: Any) -> bool | None:
     return True if status.target_reached and status.standstill else None
 
 
-def _move_kwargs(params: dict[str, Any]) -> dict[str, Any]:
-    return {k: params[k] for k in ("target", "unit", "relative", "velocity", "accel", "decel", "timeout")}
-
-
-def _status_json(result: Any) -> dict[str, Any]:
-    return result.to_json() if hasattr(result, "to_json") else {"result": result}
-
-
 def do_check_faults(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import faults
 
-    data = faults.dump(session.app)
+    data = faults.dump(session.conn)
     summary = faults.summary(data)
     if summary["fault_present"]:
         raise DriveFault(f"fault active: {', '.join(summary['faults']) or 'see fault dump'}",
@@ -298,7 +287,7 @@ def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     else:
         sources = snapshot.choose_sources(transport, params["source"])
         items = snapshot.select_items(sources, params["groups"])
-    snap = snapshot.take(transport, items, session.app.target.display, sources)
+    snap = snapshot.take(transport, items, session.conn.target.display, sources)
     snapshot.write_file(snap, session.output_dir / params["file"])
     session.files.append(str(params["file"]))
     return {"file": params["file"], "pnus": len(snap.pnus), "objects": len(snap.objects), "refused": snap.refused}

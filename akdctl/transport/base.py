@@ -1,17 +1,13 @@
-"""The transport contract: what every link to a drive offers.
+"""The transport contract: one open connection to one drive, moving bytes.
 
-A transport is opened for one CLI invocation (or one recipe run) and offers
-one or both *channels*:
-
-* a parameter channel (PROFIdrive base-mode parameter access, PNUs), and
-* an object channel (CoE / CANopen SDO, index:subindex).
-
-Transports that carry raw protocol bytes expose a *link* (:class:`RecordLink`
-for BMP request/response bytes, :class:`MailboxLink` for EtherCAT mailboxes);
-the generic channel implementations in :mod:`akdctl.channels` turn a link into a
-channel, so batching, reference checking and SDO segmentation are written once.
-A transport whose library already speaks SDO (CANopen via ``canopen``)
-implements :class:`akdctl.channels.base.ObjectChannel` directly.
+A transport opens the link to the drive and offers what it carries as *links*
+(:mod:`akdctl.links`): ``record_link`` (PROFIdrive request/response bytes),
+``mailbox_link`` (EtherCAT mailboxes) and/or ``sdo_client`` (an SDO client a
+library already implements: canopen, pysoem). It never builds a channel and never
+traces the bytes of those links: :class:`akdctl.connection.Connection` builds the
+channels over the links and wraps each link in the session's tracer. A transport
+traces only the wire frames nobody else sees (DCE/RPC datagrams, EtherCAT frames,
+gateway datagrams, CAN frames), to ``options.tracer``.
 """
 
 from __future__ import annotations
@@ -24,6 +20,7 @@ from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel, ParameterChannel
+    from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
     from akdctl.transport.target import Target
 
 
@@ -32,7 +29,8 @@ class LinkOptions:
     """Settings every transport honours.
 
     ``timeout`` bounds every single wait (seconds); ``retries`` is how often a
-    request may be repeated after a timeout where the protocol allows it.
+    request may be repeated after a timeout where the protocol allows it;
+    ``tracer`` receives the transport's wire frames (the Connection traces the links).
     """
 
     timeout: float = 2.0
@@ -41,38 +39,17 @@ class LinkOptions:
     verbose: int = 0
 
 
-class RecordLink(ABC):
-    """Carries one PROFIdrive base-mode request to the parameter manager and
-    returns its response bytes (PROFINET: write record 47 then read record 47).
-
-    Raises :class:`akdctl.errors.CommError` subclasses on link failures and
-    :class:`akdctl.errors.RecordError` on record-layer refusals.
-    """
-
-    max_record: int = 240
-
-    @abstractmethod
-    def exchange(self, request: bytes) -> bytes: ...
-
-
-class MailboxLink(ABC):
-    """Carries EtherCAT mailbox frames (6-byte mailbox header + payload)."""
-
-    mailbox_size: int = 512
-
-    @abstractmethod
-    def send(self, mailbox: bytes) -> None: ...
-
-    @abstractmethod
-    def receive(self, timeout: float) -> bytes | None:
-        """Next mailbox from the slave, or ``None`` if nothing came in ``timeout`` s."""
-
-
 class Transport(ABC):
     """One open connection to one drive.
 
-    Subclasses set ``scheme`` and fill ``parameters`` and/or ``objects`` in
-    :meth:`open`. ``close`` must be safe to call twice and after a failed open.
+    Subclasses set ``scheme`` and, in :meth:`open`, fill ``record_link``,
+    ``mailbox_link`` and/or ``sdo_client``. ``close`` must be safe to call twice
+    and after a failed open.
+
+    ``parameters`` / ``objects`` are the channels the :class:`~akdctl.connection.Connection`
+    built over these links (``None`` until a Connection opened the transport, and
+    where the transport offers no such link); they stay here for code that is handed
+    a transport (snapshot, identity) rather than the Connection.
     """
 
     scheme: ClassVar[str] = ""
@@ -80,6 +57,9 @@ class Transport(ABC):
     def __init__(self, target: "Target", options: LinkOptions) -> None:
         self.target = target
         self.options = options
+        self.record_link: "RecordLink | None" = None
+        self.mailbox_link: "MailboxLink | None" = None
+        self.sdo_client: "NativeSdoClient | None" = None
         self.parameters: "ParameterChannel | None" = None
         self.objects: "ObjectChannel | None" = None
 
@@ -96,6 +76,7 @@ class Transport(ABC):
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def describe(self) -> str:
-        """Human name of the target, shown with every result."""
+    @property
+    def display_name(self) -> str:
+        """Human name of the target, shown with results (a transport may add what it resolved)."""
         return self.target.display

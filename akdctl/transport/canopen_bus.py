@@ -4,7 +4,9 @@ python-can opens the adapter (socketcan, slcan through pyserial, pcan, kvaser,
 ixxat, vector, virtual, udp_multicast, socketcand, ...) and the ``canopen``
 library speaks CiA 301 on it (SDO client, NMT master, heartbeat consumer, EMCY
 consumer). akdctl adds only what those libraries do not know: target syntax,
-error translation into akdctl's exit codes, and frame tracing.
+error translation into akdctl's exit codes, and frame tracing. The node's SDO
+client is offered as ``sdo_client``; the Connection puts
+:class:`~akdctl.channels.canopen_sdo.CanopenObjectChannel` on it.
 
 Target syntax
 -------------
@@ -52,13 +54,13 @@ from urllib.parse import unquote
 
 from akdctl.errors import AkdError, CommError, NoAnswer, UsageError
 from akdctl.io.canbus import BusConfig, close_bus, open_bus, reason
+from akdctl.links import CanopenSdoClient
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
     import can
     import canopen
 
-    from akdctl.channels.canopen_sdo import CanopenObjectChannel
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -210,9 +212,9 @@ class NodeInfo:
 class CanopenTransport(Transport):
     """One CANopen node on one CAN bus, reached through python-can + canopen.
 
-    ``objects`` is a :class:`~akdctl.channels.canopen_sdo.CanopenObjectChannel`
-    on the node's default SDO channel (0x600/0x580 + node).  The NMT master and
-    a node scan work on the whole bus.
+    ``sdo_client`` is the node's default SDO channel (0x600/0x580 + node), for the
+    Connection's :class:`~akdctl.channels.canopen_sdo.CanopenObjectChannel`.  The NMT
+    master and a node scan work on the whole bus.
     """
 
     scheme = "can"
@@ -224,7 +226,6 @@ class CanopenTransport(Transport):
         self.bus: "can.BusABC | None" = None
         self.network: "canopen.Network | None" = None
         self.node: "canopen.RemoteNode | None" = None
-        self.objects: "CanopenObjectChannel | None" = None
         self._watches: dict[int, _StateWatch] = {}
         self._nmt_sent_at: float | None = None
 
@@ -232,20 +233,12 @@ class CanopenTransport(Transport):
     def open(self) -> None:
         import canopen
 
-        from akdctl.channels.canopen_sdo import CanopenObjectChannel
-
         self.bus = open_bus(self.config)
         try:
             self.network = _make_network(self.bus, self.options.tracer)
             self.network.connect()
             self.node = self._remote_node(self.node_id)
-            self.objects = CanopenObjectChannel(
-                self.node,
-                timeout=self.options.timeout,
-                retries=self.options.retries,
-                block=self.config.block,
-                where=f"CANopen node {self.node_id} on {self.config.describe()}",
-            )
+            self.sdo_client = CanopenSdoClient(self.node, self.where(self.node_id), block=self.config.block)
         except AkdError:
             self.close()
             raise
@@ -259,12 +252,16 @@ class CanopenTransport(Transport):
         network, bus = self.network, self.bus
         self.network = None
         self.bus = None
-        if self.objects is not None:
-            self.objects.detach()
+        self.sdo_client = None
         close_bus(network, bus)
 
-    def describe(self) -> str:
-        return f"{self.target.display} (CANopen node {self.node_id} on {self.config.describe()})"
+    @property
+    def display_name(self) -> str:
+        return f"{self.target.display} ({self.where(self.node_id)})"
+
+    def where(self, node_id: int) -> str:
+        """"CANopen node N on INTERFACE CHANNEL", as messages name a node."""
+        return f"CANopen node {node_id} on {self.config.describe()}"
 
     # -- helpers ----------------------------------------------------------------------------------------------
     def _need_network(self) -> "canopen.Network":
@@ -351,35 +348,42 @@ class CanopenTransport(Transport):
         return [self.identify(n) for n in found]
 
     def identify(self, node_id: int) -> NodeInfo:
-        """Identity (0x1018:1..4), device type (0x1000), name (0x1008) and NMT state of one node."""
-        from akdctl.channels.canopen_sdo import CanopenObjectChannel
+        """Identity (0x1018:1..4), device type (0x1000), name (0x1008) and NMT state of one node.
 
-        remote = self._remote_node(node_id)
-        channel = CanopenObjectChannel(remote, timeout=self.options.timeout, retries=0,
-                                       where=f"CANopen node {node_id} on {self.config.describe()}")
+        One try per object and whatever goes wrong leaves that field ``None``: a scan
+        reports what nodes answer, it does not fail on one that answers partly.
+        """
+        import can
+        from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+        sdo = self._remote_node(node_id).sdo
+        tries, sdo.MAX_RETRIES = sdo.MAX_RETRIES, 1
         info = NodeInfo(node_id)
 
-        def u32(index: int, sub: int) -> int | None:
+        def upload(index: int, sub: int) -> bytes | None:
             try:
-                data = channel.upload(index, sub)
-            except AkdError:
+                return bytes(sdo.upload(index, sub))
+            except (SdoAbortedError, SdoCommunicationError, can.CanError, RuntimeError):
                 return None
-            return int.from_bytes(data[:4].ljust(4, b"\0"), "little")
 
-        info.device_type = u32(0x1000, 0)
-        info.vendor_id = u32(0x1018, 1)
-        info.product_code = u32(0x1018, 2)
-        info.revision = u32(0x1018, 3)
-        info.serial = u32(0x1018, 4)
+        def u32(index: int, sub: int) -> int | None:
+            data = upload(index, sub)
+            return None if data is None else int.from_bytes(data[:4].ljust(4, b"\0"), "little")
+
         try:
-            info.device_name = channel.upload(0x1008, 0).rstrip(b"\0").decode("latin-1") or None
-        except AkdError:
-            pass
+            info.device_type = u32(0x1000, 0)
+            info.vendor_id = u32(0x1018, 1)
+            info.product_code = u32(0x1018, 2)
+            info.revision = u32(0x1018, 3)
+            info.serial = u32(0x1018, 4)
+            name = upload(0x1008, 0)
+            info.device_name = name.rstrip(b"\0").decode("latin-1") or None if name is not None else None
+        finally:
+            sdo.MAX_RETRIES = tries
         try:
             info.state = self.nmt_state(node_id, timeout=min(self.options.timeout, 1.5))
         except AkdError:
             info.state = None
-        channel.detach()
         return info
 
 

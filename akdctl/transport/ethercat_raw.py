@@ -29,7 +29,8 @@ from akdctl.io import raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import CAT_END, SiiImage, parse_sii
-from akdctl.transport.base import LinkOptions, MailboxLink, Transport
+from akdctl.links import MailboxLink
+from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
 from akdctl.transport.trace import Tracer
 
@@ -374,8 +375,6 @@ class EthercatRawTransport(Transport):
         return master
 
     def open_mailbox(self) -> None:
-        from akdctl.channels.coe_sdo import CoeObjectChannel
-
         master, slave = self.master, self.slave
         assert master is not None and slave is not None
         state = slave.al_status & 0x0F
@@ -392,11 +391,10 @@ class EthercatRawTransport(Transport):
             slave.al_status, slave.al_code = master.request_state(slave.station, ec.AlState.PREOP)
             sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
             sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
-        self.link = RawMailboxLink(master, slave.station, sm0, sm1)
-        self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
-                                        tracer=self.options.tracer, station=0)
+        self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
 
     def close(self) -> None:
+        self.mailbox_link = None
         if self.master is not None:
             self.master.close()
             self.master = None

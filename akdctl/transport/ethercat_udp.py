@@ -22,7 +22,8 @@ import time
 from dataclasses import replace
 
 from akdctl.errors import CommError, UsageError
-from akdctl.transport.base import LinkOptions, MailboxLink, Transport
+from akdctl.links import MailboxLink
+from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
 from akdctl.transport.trace import Tracer
 
@@ -31,10 +32,17 @@ DEFAULT_MAILBOX = 512
 
 
 class GatewayMailboxLink(MailboxLink):
-    """A :class:`MailboxLink` over one connected UDP socket to a gateway."""
+    """A :class:`MailboxLink` over one connected UDP socket to a gateway.
+
+    It traces each datagram (layer ``ecat-gw``: the 2-byte gateway header and the
+    mailbox as it is), so the mailbox layer is not traced a second time.
+    """
+
+    traced_on_wire = True
 
     def __init__(self, host: str, port: int, station: int, tracer: Tracer, mailbox_size: int = DEFAULT_MAILBOX) -> None:
         self.host, self.port, self.station = host, port, station
+        self.mailbox_address = station
         self.tracer = tracer
         self.mailbox_size = mailbox_size
         self.sent = 0
@@ -140,21 +148,14 @@ class EthercatUdpTransport(Transport):
         return station
 
     def open(self) -> None:
-        from akdctl.channels.coe_sdo import CoeObjectChannel
-
         mailbox = self.target.query_int("mailbox", DEFAULT_MAILBOX)
         if not 16 <= mailbox <= 2040:
             raise UsageError(f"target {self.target.raw!r}: mailbox={mailbox} is outside 16..2040 bytes")
-        self.link = GatewayMailboxLink(self.target.host, self.target.port or DEFAULT_PORT, self.station,
-                                       self.options.tracer, mailbox)
-        # The gateway link traces every datagram itself (2-byte header + the mailbox): no second copy.
-        self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
-                                        station=self.station)
+        self.link = self.mailbox_link = GatewayMailboxLink(self.target.host, self.target.port or DEFAULT_PORT,
+                                                           self.station, self.options.tracer, mailbox)
 
     def close(self) -> None:
         if self.link is not None:
             self.link.close()
             self.link = None
-
-    def describe(self) -> str:
-        return self.target.display
+        self.mailbox_link = None

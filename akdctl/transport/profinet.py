@@ -33,7 +33,8 @@ from typing import TYPE_CHECKING
 from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.transport.base import LinkOptions, RecordLink, Transport
+from akdctl.links import RecordLink
+from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
@@ -173,19 +174,18 @@ class PnioRecordLink(RecordLink):
 
     def __init__(self, transport: "ProfinetTransport") -> None:
         self.t = transport
+        self.axis = transport.axis
+        self.trace_note = transport.address.describe()
 
     def exchange(self, request: bytes) -> bytes:
         t = self.t
         if len(request) > MAX_RECORD:
             raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
                              f"of {MAX_RECORD} bytes")
-        t.options.tracer.frame("tx", "bmp", request, note=t.address.describe())
         with t.lock:
             deadline = time.monotonic() + t.options.timeout
             self._until_not_busy(deadline, lambda: t.write_record(request), "write")
-            response = self._until_not_busy(deadline, t.read_record, "read")
-        t.options.tracer.frame("rx", "bmp", response, note=t.address.describe())
-        return response
+            return self._until_not_busy(deadline, t.read_record, "read")
 
     def _until_not_busy(self, deadline: float, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
         pause = BUSY_BACKOFF[0]
@@ -231,7 +231,6 @@ class ProfinetTransport(Transport):
         self._last_activity = 0.0
         self._keepalive: threading.Thread | None = None
         self._stop = threading.Event()
-        self.record_link: PnioRecordLink | None = None
 
     # ------------------------------------------------------------- connection
     def _host(self) -> str:
@@ -257,10 +256,7 @@ class ProfinetTransport(Transport):
     def open(self) -> None:
         try:
             self.connect()
-            from akdctl.channels.bmp import BmpParameterChannel
-
             self.record_link = PnioRecordLink(self)
-            self.parameters = BmpParameterChannel(self.record_link, axis=self.axis)  # the link traces BMP itself
         except BaseException:
             self.close()
             raise
@@ -329,7 +325,6 @@ class ProfinetTransport(Transport):
         if rpc is not None:
             rpc.close()
         self.rpc = None
-        self.parameters = None
         self.record_link = None
 
     # ------------------------------------------------------------- records
@@ -399,8 +394,6 @@ class ProfinetTransport(Transport):
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed I&M0 record: {exc}") from None
 
-    def describe(self) -> str:
-        return self.label
 
 
 def _local_mac() -> bytes:

@@ -1,9 +1,19 @@
 """Frame tracing: one place where every request and reply byte is seen.
 
-Transports call :meth:`Tracer.frame` for each frame they send or receive (the
-simulated drive included), so ``--trace`` hex dumps, ``--pcap`` captures and the
-support bundle's session trace all come from the same records. Sinks (such as
-a pcap writer) subscribe with :meth:`Tracer.add_sink`.
+One :class:`Tracer` per session receives every frame, so ``--trace`` hex dumps,
+``--pcap`` captures and the support bundle's session trace all come from the
+same records. Sinks (such as a pcap writer) subscribe with :meth:`Tracer.add_sink`.
+
+Who calls it, once per layer:
+
+* the protocol layer the channels speak (``bmp`` PROFIdrive blocks, ``mailbox``
+  EtherCAT mailboxes) is traced by :class:`TracedRecordLink` /
+  :class:`TracedMailboxLink`, the one wrapper :class:`akdctl.connection.Connection`
+  puts around every link -- channels and links never trace these;
+* the wire frames only a transport sees (PNIO DCE/RPC datagrams, raw EtherCAT
+  frames, ETG.8200 gateway datagrams, CAN frames) are reported by that transport
+  to the same tracer, which the Connection hands it in
+  :class:`~akdctl.transport.base.LinkOptions`.
 """
 
 from __future__ import annotations
@@ -12,6 +22,8 @@ import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Literal, TextIO
+
+from akdctl.links import MailboxLink, RecordLink
 
 Direction = Literal["tx", "rx"]
 
@@ -57,9 +69,19 @@ class Tracer:
         self.keep = keep
         self.records: list[TraceRecord] = []
         self._sinks: list[Callable[[TraceRecord], None]] = []
+        self._closers: list[Callable[[], None]] = []
 
-    def add_sink(self, sink: Callable[[TraceRecord], None]) -> None:
+    def add_sink(self, sink: Callable[[TraceRecord], None], close: Callable[[], None] | None = None) -> None:
+        """Forward every record to ``sink``; ``close`` (if given) runs at :meth:`close`."""
         self._sinks.append(sink)
+        if close is not None:
+            self._closers.append(close)
+
+    def close(self) -> None:
+        """Close the sinks (a pcap file is complete after this); safe to call twice."""
+        closers, self._closers = self._closers, []
+        for close in closers:
+            close()
 
     def frame(
         self,
@@ -84,3 +106,50 @@ class Tracer:
 
 
 NULL_TRACER = Tracer(enabled=False, keep=0)
+
+
+class TracedRecordLink(RecordLink):
+    """A :class:`RecordLink` that reports each request and response block to the tracer (layer ``bmp``)."""
+
+    def __init__(self, link: RecordLink, tracer: Tracer) -> None:
+        self.link = link
+        self.tracer = tracer
+        self.max_record = link.max_record
+        self.axis = link.axis
+        self.trace_note = link.trace_note
+
+    def exchange(self, request: bytes) -> bytes:
+        self.tracer.frame("tx", "bmp", request, note=self.trace_note)
+        response = self.link.exchange(request)
+        if isinstance(response, (bytes, bytearray, memoryview)):
+            self.tracer.frame("rx", "bmp", bytes(response), note=self.trace_note)
+        return response
+
+
+class TracedMailboxLink(MailboxLink):
+    """A :class:`MailboxLink` that reports each mailbox sent and received to the tracer (layer ``mailbox``)."""
+
+    def __init__(self, link: MailboxLink, tracer: Tracer) -> None:
+        self.link = link
+        self.tracer = tracer
+        self.mailbox_address = link.mailbox_address
+        self.trace_note = link.trace_note
+
+    @property
+    def mailbox_size(self) -> int:  # type: ignore[override]
+        return self.link.mailbox_size  # the raw master learns it from the sync managers
+
+    def send(self, mailbox: bytes) -> None:
+        self.tracer.frame("tx", "mailbox", mailbox, note=self.trace_note)
+        self.link.send(mailbox)
+
+    def receive(self, timeout: float) -> bytes | None:
+        reply = self.link.receive(timeout)
+        if reply is not None:
+            self.tracer.frame("rx", "mailbox", reply, note=self.trace_note)
+        return reply
+
+
+def traced_mailbox_link(link: MailboxLink, tracer: Tracer) -> MailboxLink:
+    """The link wrapped in the tracer, unless its wire trace already shows each mailbox (no second copy)."""
+    return link if link.traced_on_wire else TracedMailboxLink(link, tracer)

@@ -1,0 +1,219 @@
+"""The Connection: the one place where a command's pieces are wired together.
+
+Why one place: every command, recipe step and support bundle needs the same
+sequence -- open the target's transport, put channels on the links it offers,
+trace every frame once, pick the axis profile, close everything on the way out.
+Written once here, ``drive/`` and ``recipe/`` take a :class:`Connection` (never the
+CLI's context) and tests hand one a transport of their own (the way httpx hands a
+client its transport).
+
+What is built from what:
+
+* a record link (:class:`~akdctl.links.RecordLink`) -> the PROFIdrive parameter
+  channel :class:`~akdctl.channels.bmp.BmpParameterChannel`;
+* a mailbox link (:class:`~akdctl.links.MailboxLink`) -> the CoE SDO channel
+  :class:`~akdctl.channels.coe_sdo.CoeObjectChannel`, built on first use so
+  PNU-only commands never import the CoE codecs;
+* a native SDO client -> its adapter: canopen's node ->
+  :class:`~akdctl.channels.canopen_sdo.CanopenObjectChannel`, a pysoem slave ->
+  :class:`~akdctl.channels.soem_sdo.SoemObjectChannel`.
+
+Every record and mailbox link is wrapped in the session's tracer
+(:mod:`akdctl.transport.trace`) before a channel sees it; the transport reports
+its own wire frames to the same tracer (``options.tracer``). So ``--trace``,
+``--pcap`` and the bundle's session trace are one record of one session.
+
+Importing this module is cheap (``akdctl --help`` must not load a transport):
+everything below the Connection is imported when it is first used.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import TYPE_CHECKING, TypeVar
+
+from akdctl.errors import AkdError, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel, ParameterChannel
+    from akdctl.config import Profile
+    from akdctl.drive.axis import Axis
+    from akdctl.links import MailboxLink, NativeSdoClient
+    from akdctl.transport.base import LinkOptions, Transport
+    from akdctl.transport.target import Target
+    from akdctl.transport.trace import Tracer
+
+T = TypeVar("T")
+
+
+def open_tracer(*, enabled: bool = False, pcap: str | None = None) -> "Tracer":
+    """The session's one tracer: ``--trace`` prints, ``--pcap FILE`` captures, records feed the bundle.
+
+    Close it (``tracer.close()``) after the transport so the capture file is complete.
+    """
+    from akdctl.transport.trace import Tracer
+
+    tracer = Tracer(enabled=enabled)
+    if pcap:
+        from akdctl.transport.pcap import PcapWriter
+
+        try:
+            writer = PcapWriter(pcap)
+        except OSError as exc:
+            raise UsageError(f"cannot write capture file {pcap}: {exc.strerror}") from None
+        tracer.add_sink(writer.write, close=writer.close)
+    return tracer
+
+
+class Connection:
+    """One target, opened on first use: its transport, its channels, its axis.
+
+    ``profile`` is the config file's profile (limits, units, the default axis
+    profile) or ``None``. ``transport`` injects a transport instance (not yet
+    opened) instead of the one the registry names for ``target`` -- tests and
+    tools that prepare a transport themselves.
+    """
+
+    def __init__(self, target: "Target", options: "LinkOptions", profile: "Profile | None" = None, *,
+                 transport: "Transport | None" = None) -> None:
+        self.target = target
+        self.options = options
+        self.profile = profile
+        self._given = transport
+        self._transport: "Transport | None" = None
+        self._parameters: "ParameterChannel | None" = None
+        self._objects: "ObjectChannel | None" = None
+
+    @classmethod
+    def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
+        """A Connection around a transport made elsewhere (its own target and options)."""
+        return cls(transport.target, transport.options, profile, transport=transport)
+
+    # ---------------------------------------------------------------- choices
+    @property
+    def drive_profile(self) -> str | None:
+        """Which axis profile motion uses: the target's ``?drive=``, else the config profile's ``drive``."""
+        chosen = self.target.query.get("drive")
+        if chosen is None and self.profile is not None:
+            chosen = self.profile.drive
+        return chosen
+
+    @property
+    def display(self) -> str:
+        """The target as results name it."""
+        return self.target.display
+
+    # ---------------------------------------------------------------- transport and channels
+    def new_transport(self) -> "Transport":
+        """A transport for this target, not opened: the registry's class for the target's scheme.
+
+        Bus-level commands (``ecat scan``/``state``/``sii``) open it their own way and close it
+        themselves; everything else uses :meth:`transport`.
+        """
+        from akdctl.transport.registry import transport_class
+
+        return transport_class(self.target)(self.target, self.options)
+
+    def transport(self) -> "Transport":
+        """The open transport (opened on first use, with its channels built; closed by :meth:`close`)."""
+        if self._transport is None:
+            transport = self._given if self._given is not None else self.new_transport()
+            try:
+                transport.open()
+                self._build_channels(transport)
+            except AkdError as exc:
+                with contextlib.suppress(Exception):
+                    transport.close()
+                raise exc.with_target(self.target.display)
+            except BaseException:
+                with contextlib.suppress(Exception):
+                    transport.close()
+                raise
+            self._transport = transport
+        return self._transport
+
+    def _build_channels(self, transport: "Transport") -> None:
+        from akdctl.transport.trace import TracedRecordLink, traced_mailbox_link
+
+        tracer = self.options.tracer
+        if transport.record_link is not None:
+            from akdctl.channels.bmp import BmpParameterChannel
+
+            self._parameters = BmpParameterChannel(TracedRecordLink(transport.record_link, tracer))
+        if transport.mailbox_link is not None:
+            from akdctl.channels.base import LazyObjectChannel
+
+            link = traced_mailbox_link(transport.mailbox_link, tracer)
+            self._objects = LazyObjectChannel(lambda: self._coe_channel(link))
+        elif transport.sdo_client is not None:
+            self._objects = self._native_channel(transport.sdo_client)
+        transport.parameters, transport.objects = self._parameters, self._objects
+
+    def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
+        from akdctl.channels.coe_sdo import CoeObjectChannel
+
+        return CoeObjectChannel(link, timeout=self.options.timeout, retries=self.options.retries)
+
+    def _native_channel(self, client: "NativeSdoClient") -> "ObjectChannel":
+        from akdctl.links import CanopenSdoClient, SoemSdoClient
+
+        if isinstance(client, CanopenSdoClient):
+            from akdctl.channels.canopen_sdo import CanopenObjectChannel
+
+            return CanopenObjectChannel(client.node, timeout=self.options.timeout, retries=self.options.retries,
+                                        block=client.block, where=client.where)
+        if isinstance(client, SoemSdoClient):
+            from akdctl.channels.soem_sdo import SoemObjectChannel
+
+            return SoemObjectChannel(client.slave, client.where)
+        raise TypeError(f"no object channel for an SDO client of type {type(client).__name__}")
+
+    @property
+    def has_parameters(self) -> bool:
+        """Whether the target offers PROFIdrive parameters (opens the transport)."""
+        self.transport()
+        return self._parameters is not None
+
+    @property
+    def has_objects(self) -> bool:
+        """Whether the target offers SDO object access (opens the transport)."""
+        self.transport()
+        return self._objects is not None
+
+    def parameters(self) -> "ParameterChannel":
+        """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""
+        self.transport()
+        return self._offered(self._parameters, "no PROFIdrive parameter channel (PNUs); use 'sdo' commands "
+                                               "or a sim/pn:// target")
+
+    def objects(self) -> "ObjectChannel":
+        """The SDO object channel; UsageError naming the alternatives if the target has none."""
+        self.transport()
+        return self._offered(self._objects, "no object channel (SDO); use 'pnu' commands or a sim/ecat/can target")
+
+    def _offered(self, channel: "T | None", missing: str) -> "T":
+        if channel is None:
+            raise UsageError(f"target {self.target.display} offers {missing}")
+        return channel
+
+    def axis(self) -> "Axis":
+        """The axis of this target, in the profile :func:`akdctl.drive.axis.open_axis` chooses."""
+        from akdctl.drive.axis import open_axis
+
+        return open_axis(self)
+
+    # ---------------------------------------------------------------- end
+    def close(self) -> None:
+        """Close the channels and the transport; safe to call twice and after a failed open."""
+        transport, self._transport = self._transport, None
+        channels = [c for c in (self._objects, self._parameters) if c is not None]
+        self._parameters = self._objects = None
+        for channel in channels:
+            with contextlib.suppress(Exception):
+                channel.close()
+        if transport is not None:
+            transport.parameters = transport.objects = None
+            transport.close()
+
+
+__all__ = ["Connection", "open_tracer"]
