@@ -150,7 +150,7 @@ def test_model_follows_the_esc_al_state_and_refuses_sdo_control_in_op(wire: Wire
     the assigned RxPDO (the ESI default 0x1701) an SDO controlword has no effect, as on every other link."""
     assert _model_al_state(drive) == "INIT"  # the slave powered on with the face
     t = transport(wire)
-    t.open()
+    Connection.over(t).transport()
     assert t.master is not None and t.slave is not None
     assert _model_al_state(drive) == "PREOP"
     for state in (ec.AlState.SAFEOP, ec.AlState.OP):

@@ -194,9 +194,10 @@ def _sim() -> Any:
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport
 
-    transport = SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0))
-    transport.open()
-    return transport
+    from akdctl.connection import Connection
+
+    conn = Connection.over(SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0)))
+    return conn.transport()
 
 
 def test_identity_is_read_once_and_flattened_for_backups() -> None:
