@@ -1,20 +1,25 @@
 """Shared test fixtures: every test gets its own simulator state dir and no user config.
 
-``akd`` runs the real CLI in a subprocess (``python -m akdctl``) and returns
-``(exit_code, stdout, stderr)``; ``akd_inproc`` runs the same entry point in
-this process (faster, for the many bad-input cases).
+``akd`` runs the real CLI in a subprocess (``python -m akdctl``, see :mod:`tests.harness`) and returns
+``(exit_code, stdout, stderr)``; ``akd_inproc`` runs the same entry point in this process (faster, for the many
+bad-input cases).
+
+``root`` tests skip with a visible reason when not root outside CI; in CI (CI=true) they always run.
+``slow`` is on every test that starts a subprocess; tests using a subprocess fixture get it at collection.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.harness import ROOT, run_akdctl  # noqa: F401 - re-exported: tests import the runner from here too
+
+# Fixtures whose use means the test starts a subprocess: such tests are marked slow at collection.
+SUBPROCESS_FIXTURES = frozenset({"akd"})
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -22,7 +27,10 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Root-only tests skip visibly when not root and not in CI; in CI (CI=true) they always run."""
+    """``slow`` on tests using a subprocess fixture; root-only tests skip visibly when not root and not in CI."""
+    for item in items:
+        if SUBPROCESS_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
     if os.geteuid() == 0:
         return
     if os.environ.get("CI") == "true":
@@ -40,18 +48,6 @@ def isolated_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     for var in ("AKDCTL_TARGET", "AKDCTL_PROFILE", "AKDCTL_CONFIG", "AKDCTL_DEBUG"):
         monkeypatch.delenv(var, raising=False)
     return state
-
-
-def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None = None,
-               timeout: float = 60) -> tuple[int, str, str]:
-    """The real CLI in a subprocess; the environment of the test (state dir …) is inherited."""
-    full_env = dict(os.environ)
-    full_env.setdefault("PYTHONPATH", str(ROOT))
-    if env:
-        full_env.update(env)
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], input=input, capture_output=True, text=True,
-                          env=full_env, timeout=timeout, cwd=ROOT)
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture
