@@ -24,14 +24,16 @@ Both inherit the test's environment (the autouse ``isolated_env`` fixture gives 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+import socket
 import subprocess
 import sys
 import threading
 import time
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -182,6 +184,7 @@ class SimServer:
 
     # -- lifecycle --------------------------------------------------------------------------------------------
     def start(self) -> SimServer:
+        assert self.proc is None, "a SimServer starts once"
         self.proc = subprocess.Popen(_argv(self.args, self.netns), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      stdin=subprocess.DEVNULL, text=True, env=self.env, cwd=ROOT)
         self._out, self._err = _LineReader(self.proc.stdout), _LineReader(self.proc.stderr)
@@ -254,6 +257,22 @@ class SimServer:
     @property
     def stderr(self) -> str:
         return self._err.text if self._err else ""
+
+
+@contextlib.contextmanager
+def closed_udp_port() -> Iterator[int]:
+    """A UDP port on 127.0.0.1 that nothing listens on, and nothing can take while the block runs.
+
+    The port is held by a socket bound to 127.0.0.2 (also loopback): a datagram to 127.0.0.1:PORT matches no socket
+    and bounces (ICMP port unreachable), yet neither a port-0 bind nor a wildcard bind can be given the port
+    meanwhile - unlike probing a free port and closing it, which races with every other process on the machine.
+    """
+    guard = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        guard.bind(("127.0.0.2", 0))
+        yield guard.getsockname()[1]
+    finally:
+        guard.close()
 
 
 def _ip(*args: str) -> subprocess.CompletedProcess[str]:
