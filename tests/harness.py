@@ -111,7 +111,7 @@ def finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> CliResult:
     return CliResult(proc.returncode, out, err)
 
 
-def wait_until(predicate: Callable[[], object], what: str, timeout: float = 20.0, poll: float = 0.02) -> None:
+def wait_until(predicate: Callable[[], object], what: str, timeout: float = 20.0, poll: float = 0.05) -> None:
     """Poll observable state until *predicate* holds; fail naming *what* after *timeout* seconds."""
     deadline = time.monotonic() + timeout
     while not predicate():
