@@ -4,8 +4,12 @@
 ``(exit_code, stdout, stderr)``; ``akd_inproc`` runs the same entry point in this process (faster, for the many
 bad-input cases).
 
-``root`` tests skip with a visible reason when not root outside CI; in CI (CI=true) they always run.
-``slow`` is on every test that starts a subprocess; tests using a subprocess fixture get it at collection.
+Two markers are policed here rather than trusted:
+
+* ``root`` tests skip with a visible reason when not root outside CI; in CI (CI=true) they always run.
+* ``slow`` is on every test that starts a subprocess.  Tests using a subprocess fixture get it at collection; an
+  audit hook sees every ``subprocess.Popen`` and fails a test that started one without carrying the mark, so the
+  marker cannot drift out of date (``-m "not slow"`` really is the in-process suite).
 """
 
 from __future__ import annotations
@@ -22,8 +26,28 @@ from tests.harness import ROOT, run_akdctl  # noqa: F401 - re-exported: tests im
 SUBPROCESS_FIXTURES = frozenset({"akd"})
 
 
+class _SubprocessWatch:
+    """Counts ``subprocess.Popen`` audit events (PEP 578); audit hooks cannot be removed, so one per session."""
+
+    started: list[str] = []
+    installed = False
+
+    @classmethod
+    def install(cls) -> None:
+        if cls.installed:
+            return
+        cls.installed = True
+
+        def hook(event: str, args: tuple) -> None:  # type: ignore[type-arg]
+            if event == "subprocess.Popen":
+                cls.started.append(str(args[0]))
+
+        sys.addaudithook(hook)
+
+
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "root: needs root/CAP_NET_RAW/network namespaces")
+    _SubprocessWatch.install()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -38,6 +62,17 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "root" in item.keywords:
             item.add_marker(pytest.mark.skip(reason="needs root (CAP_NET_RAW, network namespaces); runs in CI"))
+
+
+@pytest.fixture(autouse=True)
+def slow_marker_is_honest(request: pytest.FixtureRequest):
+    """Fail a test that started a subprocess (in its body or its fixtures) but is not marked ``slow``."""
+    _SubprocessWatch.started.clear()
+    yield
+    started = list(_SubprocessWatch.started)
+    if started and request.node.get_closest_marker("slow") is None:
+        pytest.fail(f"{request.node.nodeid} starts subprocesses ({', '.join(sorted(set(started)))}) "
+                    "but is not marked @pytest.mark.slow", pytrace=False)
 
 
 @pytest.fixture(autouse=True)
