@@ -10,44 +10,27 @@ Two markers are policed here rather than trusted:
 * ``slow`` is on every test that starts a subprocess.  Tests using a subprocess fixture get it at collection; an
   audit hook sees every ``subprocess.Popen`` and fails a test that started one without carrying the mark, so the
   marker cannot drift out of date (``-m "not slow"`` really is the in-process suite).
+
+The same hook fails an in-process test whose socket connects, sends or resolves a name beyond loopback, or binds to
+every interface: no test sends a packet off the machine.
 """
 
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import pytest
 
-from tests.harness import ROOT, run_akdctl  # noqa: F401 - re-exported: tests import the runner from here too
+from tests.harness import ROOT, Watch, run_akdctl  # noqa: F401 - ROOT, run_akdctl: tests import them from here
 
 # Fixtures whose use means the test starts a subprocess: such tests are marked slow at collection.
 SUBPROCESS_FIXTURES = frozenset({"akd"})
 
 
-class _SubprocessWatch:
-    """Counts ``subprocess.Popen`` audit events (PEP 578); audit hooks cannot be removed, so one per session."""
-
-    started: list[str] = []
-    installed = False
-
-    @classmethod
-    def install(cls) -> None:
-        if cls.installed:
-            return
-        cls.installed = True
-
-        def hook(event: str, args: tuple) -> None:  # type: ignore[type-arg]
-            if event == "subprocess.Popen":
-                cls.started.append(str(args[0]))
-
-        sys.addaudithook(hook)
-
-
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "root: needs root/CAP_NET_RAW/network namespaces")
-    _SubprocessWatch.install()
+    Watch.install()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -65,11 +48,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 @pytest.fixture(autouse=True)
-def slow_marker_is_honest(request: pytest.FixtureRequest):
-    """Fail a test that started a subprocess (in its body or its fixtures) but is not marked ``slow``."""
-    _SubprocessWatch.started.clear()
+def process_and_network_policy(request: pytest.FixtureRequest):
+    """Fail a test that started a subprocess (in its body or its fixtures) without ``@pytest.mark.slow``, or whose
+    in-process sockets aimed off the machine."""
+    Watch.started.clear()
+    Watch.off_machine.clear()
     yield
-    started = list(_SubprocessWatch.started)
+    started, off = list(Watch.started), list(Watch.off_machine)
+    if off:
+        pytest.fail(f"{request.node.nodeid} sends off the machine: {'; '.join(sorted(set(off)))}", pytrace=False)
     if started and request.node.get_closest_marker("slow") is None:
         pytest.fail(f"{request.node.nodeid} starts subprocesses ({', '.join(sorted(set(started)))}) "
                     "but is not marked @pytest.mark.slow", pytrace=False)

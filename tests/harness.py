@@ -25,6 +25,7 @@ Both inherit the test's environment (the autouse ``isolated_env`` fixture gives 
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import os
 import re
 import socket
@@ -42,7 +43,7 @@ READY_TIMEOUT = 20.0  # seconds for `sim serve` to print its ready line(s); inte
 STOP_TIMEOUT = 10.0  # seconds a stopped server gets before it is killed
 READY_PREFIX = "listening: "
 # "listening: profinet udp 127.0.0.1:34964", "listening: ethercat-udp udp 127.0.0.1:34980 stations ..."
-_UDP_ADDRESS = re.compile(r"\budp (?P<host>[\w.:-]+?):(?P<port>\d+)\b")
+_SOCKET_ADDRESS = re.compile(r"\b(?:udp|tcp) \[?(?P<host>[\w.:-]+?)\]?:(?P<port>\d+)\b")
 
 
 def akdctl_env(env: dict[str, str] | None = None) -> dict[str, str]:
@@ -56,9 +57,9 @@ def akdctl_env(env: dict[str, str] | None = None) -> dict[str, str]:
     return full
 
 
-def _argv(args: Sequence[str], netns: str | None) -> list[str]:
-    prefix = ["ip", "netns", "exec", netns] if netns else []
-    return [*prefix, sys.executable, "-m", "akdctl", *args]
+def _argv(args: Sequence[str], netns: str | None, prefix: Sequence[str] = ()) -> list[str]:
+    inside = ["ip", "netns", "exec", netns] if netns else []
+    return [*inside, *prefix, sys.executable, "-m", "akdctl", *args]
 
 
 class CliResult(NamedTuple):
@@ -82,13 +83,13 @@ class CliResult(NamedTuple):
 
 
 def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None = None, timeout: float = 60,
-               netns: str | None = None) -> CliResult:
+               netns: str | None = None, prefix: Sequence[str] = ()) -> CliResult:
     """The real CLI (``python -m akdctl ARGS``) in a subprocess, to completion or *timeout* seconds.
 
     stdin is *input* or empty (never the terminal pytest runs in), so a prompt cannot wait forever; *netns* runs it
-    inside that network namespace.
+    inside that network namespace; *prefix* is a command that runs it (e.g. ``setpriv`` to drop privileges).
     """
-    proc = subprocess.run(_argv(args, netns), input=input if input is not None else "", capture_output=True,
+    proc = subprocess.run(_argv(args, netns, prefix), input=input if input is not None else "", capture_output=True,
                           text=True, env=akdctl_env(env), timeout=timeout, cwd=ROOT)
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
@@ -190,10 +191,10 @@ class SimServer:
         self._out, self._err = _LineReader(self.proc.stdout), _LineReader(self.proc.stderr)
         deadline = time.monotonic() + self.ready_timeout
         if not self._out.wait_for(lambda lines: len(self._ready_lines(lines)) >= self.faces, deadline):
-            lines = self._out.text
+            exited = self.proc.poll()
             self.stop()
-            raise AssertionError(f"sim serve {' '.join(self.args[2:])} printed no ready line within "
-                                 f"{self.ready_timeout} s (exit {self.proc.returncode}):\n{lines}\n{self.stderr}")
+            why = f"exited with {exited}" if exited is not None else f"printed no ready line within {self.ready_timeout} s"
+            raise AssertionError(f"sim serve {' '.join(self.args[2:])} {why}:\n{self.stdout}\n{self.stderr}")
         self.ready = self._ready_lines(self._out.lines)[:self.faces]
         return self
 
@@ -233,14 +234,19 @@ class SimServer:
         assert self.proc is not None, "server not started"
         return self.proc.pid
 
-    @property
-    def address(self) -> tuple[str, int]:
-        """(host, port) of the first ready line naming a UDP address: what the face really bound."""
+    def address_of(self, face: str = "") -> tuple[str, int]:
+        """(host, port) the face bound, from the first ready line starting with *face* that names a ``udp``/``tcp``
+        ``host:port`` - the real port when port 0 was asked for."""
         for line in self.ready:
-            match = _UDP_ADDRESS.search(line)
+            match = _SOCKET_ADDRESS.search(line) if line.startswith(face) else None
             if match:
                 return match["host"], int(match["port"])
-        raise AssertionError(f"no ready line names a udp host:port: {self.ready}")
+        raise AssertionError(f"no ready line {'of ' + face + ' ' if face else ''}names a host:port: {self.ready}")
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """(host, port) of the first face that names one (see :meth:`address_of`)."""
+        return self.address_of()
 
     @property
     def host(self) -> str:
@@ -323,3 +329,63 @@ class LoopbackNetns:
         ns = os.stat(f"/proc/{pid}/ns/net")
         mine = os.stat(self.path)
         return (ns.st_dev, ns.st_ino) == (mine.st_dev, mine.st_ino)
+
+
+def _is_address(host: str) -> bool:
+    try:
+        ipaddress.ip_address(host.split("%")[0])
+    except ValueError:
+        return False
+    return True
+
+
+def _local_host(host: str) -> bool:
+    """Whether *host* stays on this machine: a loopback address or ``localhost``; any other name means DNS."""
+    return host == "localhost" or (_is_address(host) and ipaddress.ip_address(host.split("%")[0]).is_loopback)
+
+
+class Watch:
+    """What tests do behind their backs, seen through PEP 578 audit events: subprocesses started, and in-process
+    sockets aimed off the machine (a non-loopback connect or send, a name lookup, a bind to every interface).
+
+    conftest installs the hook once per session (audit hooks cannot be removed) and checks the lists after every
+    test.  Subprocesses are not seen inside; the harness gives them loopback targets or a namespace.
+    """
+
+    started: list[str] = []
+    off_machine: list[str] = []
+    installed = False
+    _SOCKET_EVENTS = frozenset({"socket.connect", "socket.sendto", "socket.sendmsg", "socket.bind"})
+
+    @staticmethod
+    def classify(event: str, args: tuple) -> str | None:  # type: ignore[type-arg]
+        """Why this audit event leaves the machine, or None when it stays on it (or is no network event)."""
+        if event in Watch._SOCKET_EVENTS:
+            sock, address = args[0], args[1]
+            if getattr(sock, "family", None) not in (socket.AF_INET, socket.AF_INET6) or not isinstance(address, tuple):
+                return None  # AF_UNIX paths, raw AF_PACKET/AF_CAN links: no IP route out
+            host = str(address[0])
+            if event == "socket.bind":
+                return f"bind to every interface {address}" if host in ("", "0.0.0.0", "::") else None
+            return None if _local_host(host) else f"{event} {address}"
+        if event == "socket.getaddrinfo" and args[0] is not None:
+            host = args[0].decode() if isinstance(args[0], bytes) else str(args[0])
+            if not _is_address(host) and not _local_host(host):  # a literal address is parsed, not looked up
+                return f"name lookup {host!r}"
+        return None
+
+    @classmethod
+    def install(cls) -> None:
+        if cls.installed:
+            return
+        cls.installed = True
+
+        def hook(event: str, args: tuple) -> None:  # type: ignore[type-arg]
+            if event == "subprocess.Popen":
+                cls.started.append(str(args[0]))
+            elif event.startswith("socket."):
+                why = cls.classify(event, args)
+                if why:
+                    cls.off_machine.append(why)
+
+        sys.addaudithook(hook)

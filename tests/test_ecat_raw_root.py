@@ -201,9 +201,8 @@ def test_missing_cap_net_raw_is_one_line(tmp_path: Path) -> None:
     # The unprivileged user cannot enter root's pytest tmp dirs: point every per-user path somewhere absent.
     env = dict(os.environ, AKDCTL_STATE_DIR="/nonexistent/akdctl-state", XDG_CONFIG_HOME="/nonexistent/akdctl-config",
                PYTHONPATH=str(ROOT), HOME="/nonexistent")
-    result = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-m",
-                             "akdctl", "-T", "ecat://lo", "sdo", "read", "0x1018:1"], capture_output=True, text=True,
-                            env=env, cwd=ROOT, timeout=60)
+    result = run_akdctl("-T", "ecat://lo", "sdo", "read", "0x1018:1", env=env,
+                        prefix=["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"])
     assert result.returncode == 2
     assert "needs CAP_NET_RAW" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
