@@ -193,7 +193,8 @@ class SimServer:
         if not self._out.wait_for(lambda lines: len(self._ready_lines(lines)) >= self.faces, deadline):
             exited = self.proc.poll()
             self.stop()
-            why = f"exited with {exited}" if exited is not None else f"printed no ready line within {self.ready_timeout} s"
+            why = (f"exited with {exited}" if exited is not None
+                   else f"printed no ready line within {self.ready_timeout} s")
             raise AssertionError(f"sim serve {' '.join(self.args[2:])} {why}:\n{self.stdout}\n{self.stderr}")
         self.ready = self._ready_lines(self._out.lines)[:self.faces]
         return self
