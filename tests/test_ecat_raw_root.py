@@ -12,13 +12,12 @@ import shutil
 import subprocess
 import sys
 import textwrap
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.harness import ROOT, CliResult, SimServer, run_akdctl
+from tests.harness import ROOT, CliResult, SimServer, VethPair, run_akdctl
 
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 CI = os.environ.get("CI") == "true"
@@ -42,30 +41,6 @@ def _need_pysoem() -> None:
         pytest.importorskip("pysoem", reason="optional extra akdctl[soem] not installed")
 
 
-class VethPair:
-    """Two namespaces joined by a veth pair: master side ``a``/``if_a``, slave side ``b``/``if_b``."""
-
-    def __init__(self) -> None:
-        tag = uuid.uuid4().hex[:6]
-        self.a, self.b = f"akdA{tag}", f"akdB{tag}"
-        self.if_a, self.if_b = f"ea{tag}", f"eb{tag}"
-        _run("ip", "netns", "add", self.a)
-        try:
-            _run("ip", "netns", "add", self.b)
-            _run("ip", "link", "add", self.if_a, "type", "veth", "peer", "name", self.if_b)
-            _run("ip", "link", "set", self.if_a, "netns", self.a)
-            _run("ip", "link", "set", self.if_b, "netns", self.b)
-            _run("ip", "-n", self.a, "link", "set", self.if_a, "up")
-            _run("ip", "-n", self.b, "link", "set", self.if_b, "up")
-        except BaseException:
-            self.delete()
-            raise
-
-    def delete(self) -> None:
-        for ns in (self.a, self.b):  # deleting a namespace deletes its veth end (and so the pair)
-            _run("ip", "netns", "delete", ns, check=False)
-
-
 def slave_server(pair: VethPair, *extra: str) -> SimServer:
     """The simulated AKD slave on the ``b`` end of *pair* (start it with ``with``)."""
     return SimServer("--ethercat-raw", pair.if_b, *extra, netns=pair.b)
@@ -73,11 +48,9 @@ def slave_server(pair: VethPair, *extra: str) -> SimServer:
 
 @pytest.fixture
 def pair() -> Iterator[VethPair]:
-    p = VethPair()
-    try:
+    """Master side ``a``/``if_a``, slave side ``b``/``if_b``."""
+    with VethPair() as p:
         yield p
-    finally:
-        p.delete()
 
 
 @pytest.fixture

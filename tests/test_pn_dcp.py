@@ -3,14 +3,12 @@ network namespaces with pnio-dcp and akdctl as clients."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import shutil
 import subprocess
 import sys
 import textwrap
-import uuid
 
 import pytest
 from hypothesis import given
@@ -18,7 +16,7 @@ from hypothesis import strategies as st
 
 from akdctl.protocol import dcp
 from akdctl.protocol.errors import CodecError
-from tests.harness import CliResult, SimServer, akdctl_env, run_akdctl, wait_until
+from tests.harness import CliResult, SimServer, VethPair, akdctl_env, run_akdctl
 
 
 def test_identify_request_vector() -> None:
@@ -120,17 +118,6 @@ def _need_root() -> None:
         pytest.skip(reason)
 
 
-def _run(*argv: str) -> None:
-    subprocess.run(argv, check=True, capture_output=True, timeout=30)
-
-
-def _link_up(ns: str, ifname: str) -> bool:
-    """Whether the veth end *ifname* in *ns* carries frames (operstate UP), so a DCP multicast is not lost."""
-    out = subprocess.run(["ip", "-n", ns, "-o", "link", "show", "dev", ifname], capture_output=True, text=True,
-                         timeout=30).stdout
-    return "state UP" in out
-
-
 PNIO_DCP_CLIENT = textwrap.dedent("""
     import json, sys
     from pnio_dcp import DCP
@@ -153,26 +140,12 @@ PNIO_DCP_CLIENT = textwrap.dedent("""
 def test_dcp_between_namespaces() -> None:
     _need_root()
     pytest.importorskip("pnio_dcp", reason="pnio-dcp is not installed")
-    tag = uuid.uuid4().hex[:6]
-    dev_ns, cli_ns = f"akdpnd{tag}", f"akdpnc{tag}"
-    dev_if, cli_if = f"pnd{tag}", f"pnc{tag}"
-    with contextlib.ExitStack() as cleanup:
-        for ns in (dev_ns, cli_ns):  # deleted last (after the server stops), even when a step fails
-            cleanup.callback(subprocess.run, ["ip", "netns", "del", ns], capture_output=True, timeout=30)
-        _run("ip", "netns", "add", dev_ns)
-        _run("ip", "netns", "add", cli_ns)
-        _run("ip", "link", "add", dev_if, "type", "veth", "peer", "name", cli_if)
-        _run("ip", "link", "set", dev_if, "netns", dev_ns)
-        _run("ip", "link", "set", cli_if, "netns", cli_ns)
-        for ns, ifname, addr in ((dev_ns, dev_if, "10.77.0.1/24"), (cli_ns, cli_if, "10.77.0.2/24")):
-            _run("ip", "-n", ns, "addr", "add", addr, "dev", ifname)
-            _run("ip", "-n", ns, "link", "set", ifname, "up")
-            _run("ip", "-n", ns, "link", "set", "lo", "up")
-        server = cleanup.enter_context(SimServer("--profinet", "10.77.0.1:0", "--dcp", dev_if, "--pn-station",
-                                                 "akd-sim", netns=dev_ns))
+    with VethPair(address_a="10.77.0.2/24", address_b="10.77.0.1/24") as pair, \
+            SimServer("--profinet", "10.77.0.1:0", "--dcp", pair.if_b, "--pn-station", "akd-sim",
+                      netns=pair.b) as server:
+        cli_ns, cli_if = pair.a, pair.if_a
         host, port = server.address
         assert host == "10.77.0.1", server.ready
-        wait_until(lambda: _link_up(dev_ns, dev_if) and _link_up(cli_ns, cli_if), "both veth ends to be up")
 
         # pnio-dcp, an independent client, finds, names, addresses and blinks the simulated device
         result = subprocess.run(["ip", "netns", "exec", cli_ns, sys.executable, "-c", PNIO_DCP_CLIENT, "10.77.0.2"],
