@@ -1,28 +1,43 @@
 """Shared test fixtures: every test gets its own simulator state dir and no user config.
 
-``akd`` runs the real CLI in a subprocess (``python -m akdctl``) and returns
-``(exit_code, stdout, stderr)``; ``akd_inproc`` runs the same entry point in
-this process (faster, for the many bad-input cases).
+``akd`` runs the real CLI in a subprocess (``python -m akdctl``, see :mod:`tests.harness`) and returns
+``(exit_code, stdout, stderr)``; ``akd_inproc`` runs the same entry point in this process (faster, for the many
+bad-input cases).
+
+Two markers are policed here rather than trusted:
+
+* ``root`` tests skip with a visible reason when not root outside CI; in CI (CI=true) they always run.
+* ``slow`` is on every test that starts a subprocess.  Tests using a subprocess fixture get it at collection; an
+  audit hook sees every ``subprocess.Popen`` and fails a test that started one without carrying the mark, so the
+  marker cannot drift out of date (``-m "not slow"`` really is the in-process suite).
+
+The same hook fails an in-process test whose socket connects, sends or resolves a name beyond loopback, or binds to
+every interface: no test sends a packet off the machine.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.harness import ROOT, Watch, run_akdctl  # noqa: F401 - ROOT, run_akdctl: tests import them from here
+
+# Fixtures whose use means the test starts a subprocess: such tests are marked slow at collection.
+SUBPROCESS_FIXTURES = frozenset({"akd"})
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "root: needs root/CAP_NET_RAW/network namespaces")
+    Watch.install()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Root-only tests skip visibly when not root and not in CI; in CI (CI=true) they always run."""
+    """``slow`` on tests using a subprocess fixture; root-only tests skip visibly when not root and not in CI."""
+    for item in items:
+        if SUBPROCESS_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
     if os.geteuid() == 0:
         return
     if os.environ.get("CI") == "true":
@@ -33,6 +48,21 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 @pytest.fixture(autouse=True)
+def process_and_network_policy(request: pytest.FixtureRequest):
+    """Fail a test that started a subprocess (in its body or its fixtures) without ``@pytest.mark.slow``, or whose
+    in-process sockets aimed off the machine."""
+    Watch.started.clear()
+    Watch.off_machine.clear()
+    yield
+    started, off = list(Watch.started), list(Watch.off_machine)
+    if off:
+        pytest.fail(f"{request.node.nodeid} sends off the machine: {'; '.join(sorted(set(off)))}", pytrace=False)
+    if started and request.node.get_closest_marker("slow") is None:
+        pytest.fail(f"{request.node.nodeid} starts subprocesses ({', '.join(sorted(set(started)))}) "
+                    "but is not marked @pytest.mark.slow", pytrace=False)
+
+
+@pytest.fixture(autouse=True)
 def isolated_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     state = tmp_path / "akd-state"
     monkeypatch.setenv("AKDCTL_STATE_DIR", str(state))
@@ -40,18 +70,6 @@ def isolated_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     for var in ("AKDCTL_TARGET", "AKDCTL_PROFILE", "AKDCTL_CONFIG", "AKDCTL_DEBUG"):
         monkeypatch.delenv(var, raising=False)
     return state
-
-
-def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None = None,
-               timeout: float = 60) -> tuple[int, str, str]:
-    """The real CLI in a subprocess; the environment of the test (state dir …) is inherited."""
-    full_env = dict(os.environ)
-    full_env.setdefault("PYTHONPATH", str(ROOT))
-    if env:
-        full_env.update(env)
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], input=input, capture_output=True, text=True,
-                          env=full_env, timeout=timeout, cwd=ROOT)
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture

@@ -1,11 +1,12 @@
 """End to end over CAN: ``akdctl sim serve --can ...`` and the CLI in separate processes.
 
-Two inter-process CAN buses, both without root:
-* python-can's ``udp_multicast`` interface (IPv4 group 239.74.163.2 on a free
-  UDP port per test; multicast loops back on the host), needs ``msgpack``;
-* slcan over a pseudo-terminal: the simulator plays an slcan USB adapter
-  (``--can slcan-pty:LINK``), the CLI uses python-can's slcan interface through
-  pyserial.
+Two inter-process CAN buses:
+* python-can's ``udp_multicast`` interface (IPv4 group 239.74.163.2), needs ``msgpack``.  Multicast on the host
+  would leave through the default-route interface onto the LAN, so the server and every CLI run share a network
+  namespace the test creates (only ``lo``, a multicast route on it) and removes: these tests need root
+  (``@pytest.mark.root``; CI runs them) and ``test_multicast_stays_in_its_namespace`` checks the namespace is real;
+* slcan over a pseudo-terminal (no network at all, no root): the simulator plays an slcan USB adapter
+  (``--can slcan-pty:LINK``), the CLI uses python-can's slcan interface through pyserial.
 Commands are listed in one table so later commands can be added as rows.
 """
 
@@ -13,70 +14,60 @@ from __future__ import annotations
 
 import json
 import os
-import socket
-import subprocess
-import sys
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, run_akdctl
+from tests.harness import LoopbackNetns, SimServer, run_akdctl
 
 GROUP = "239.74.163.2"
 NODE = 2
 
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("", 0))
-        return sock.getsockname()[1]
+pytestmark = pytest.mark.slow
 
 
-class Served:
-    def __init__(self, proc: subprocess.Popen, ready: str) -> None:
-        self.proc = proc
-        self.ready = ready
+@dataclass
+class UdpBus:
+    """A served drive on ``udp_multicast`` inside *netns*; ``run`` is the CLI run in that same namespace."""
 
+    target: str
+    netns: LoopbackNetns
+    server: SimServer
 
-def _serve(spec: str, *extra: str) -> Iterator[Served]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "akdctl", "sim", "serve", "--can", spec, "--duration", "120", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
-    try:
-        line = proc.stdout.readline()  # the ready line (sim serve prints it once the face is up)
-        if not line.startswith("listening: can"):
-            proc.kill()
-            pytest.fail(f"sim serve did not start: {line!r} {proc.stderr.read()}")
-        yield Served(proc, line.strip())
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+    def run(self, *args: str) -> tuple[int, str, str]:
+        return run_akdctl(*args, netns=self.netns.name)
 
 
 @pytest.fixture
-def udp_target() -> Iterator[str]:
+def udp_bus() -> Iterator[UdpBus]:
     pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack (pip install msgpack)")
-    port = _free_udp_port()
-    for _ in _serve(f"udp_multicast:{GROUP}:{NODE}?port={port}"):
-        yield f"can://udp_multicast/{GROUP}/{NODE}?port={port}"
+    # The namespace is private to this test, so python-can's default port cannot collide with another run.
+    with LoopbackNetns() as netns, SimServer("--can", f"udp_multicast:{GROUP}:{NODE}", netns=netns.name) as server:
+        assert server.ready[0].startswith("can udp_multicast"), server.ready
+        yield UdpBus(f"can://udp_multicast/{GROUP}/{NODE}", netns, server)
 
 
 @pytest.fixture
 def slcan_target(tmp_path: Path) -> Iterator[str]:
     link = tmp_path / "slcan-tty"
-    for served in _serve(f"slcan-pty:{link}:{NODE}"):
-        tty = served.ready.split()[3]
+    with SimServer("--can", f"slcan-pty:{link}:{NODE}") as server:
+        tty = server.ready[0].split()[2]  # "can slcan-pty /dev/pts/N node 2"
         assert os.path.realpath(link) == tty
         yield f"can://slcan/{link.as_posix().replace('/', '%2F')}/{NODE}?sleep_after_open=0"
     assert not link.exists()  # the face removes its symlink
+
+
+@pytest.mark.root
+def test_multicast_stays_in_its_namespace(udp_bus: UdpBus) -> None:
+    """The multicast server runs in the test's namespace (not the host's), and that namespace has no NIC but lo."""
+    assert udp_bus.netns.name in LoopbackNetns.created
+    assert udp_bus.netns.holds(udp_bus.server.pid)
+    assert os.stat(f"/proc/{udp_bus.server.pid}/ns/net").st_ino != os.stat("/proc/self/ns/net").st_ino
+    assert udp_bus.netns.links() == ["lo"]
+    rc, out, err = udp_bus.run("sdo", "read", "0x1018:1")  # the CLI reaches it from inside the namespace
+    assert rc == 0 and "106" in out, err
 
 
 # argv after -T TARGET, expected exit code, text that must be in stdout (JSON commands are parsed)
@@ -97,9 +88,9 @@ COMMANDS: list[tuple[list[str], int, str]] = [
 ]
 
 
-def _run_table(target: str) -> None:
+def _run_table(target: str, run=run_akdctl) -> None:  # noqa: ANN001 - the runner (host or namespace)
     for argv, code, text in COMMANDS:
-        rc, out, err = run_akdctl("-T", target, *argv)
+        rc, out, err = run("-T", target, *argv)
         assert rc == code, (argv, rc, out, err)
         assert text in out, (argv, out)
         if code:
@@ -108,8 +99,9 @@ def _run_table(target: str) -> None:
             assert "Traceback" not in err
 
 
-def test_cli_over_udp_multicast(udp_target: str) -> None:
-    _run_table(udp_target)
+@pytest.mark.root
+def test_cli_over_udp_multicast(udp_bus: UdpBus) -> None:
+    _run_table(udp_bus.target, udp_bus.run)
 
 
 # Motion, fault, mapping and identity commands over CANopen (CiA 402 through SDO), in order.
@@ -127,10 +119,11 @@ FEATURE_COMMANDS: list[tuple[list[str], int, str]] = [
 ]
 
 
-def test_motion_fault_pdo_commands_over_canopen(udp_target: str) -> None:
+@pytest.mark.root
+def test_motion_fault_pdo_commands_over_canopen(udp_bus: UdpBus) -> None:
     assert run_akdctl("sim", "speed", "1000")[0] == 0  # the served drive shares the state dir
     for argv, code, text in FEATURE_COMMANDS:
-        rc, out, err = run_akdctl("-T", udp_target, *argv)
+        rc, out, err = udp_bus.run("-T", udp_bus.target, *argv)
         assert rc == code, (argv, rc, out, err)
         assert text in out, (argv, out)
         assert "Traceback" not in err
@@ -140,14 +133,15 @@ def test_cli_over_slcan_pty(slcan_target: str) -> None:
     _run_table(slcan_target)
 
 
-def test_scan_json_and_block_transfer(udp_target: str) -> None:
-    rc, out, err = run_akdctl("-T", udp_target, "--json", "can", "scan", "--wait", "0.5")
+@pytest.mark.root
+def test_scan_json_and_block_transfer(udp_bus: UdpBus) -> None:
+    rc, out, err = udp_bus.run("-T", udp_bus.target, "--json", "can", "scan", "--wait", "0.5")
     assert rc == 0, err
     nodes = json.loads(out)["nodes"]
     assert [(n["node"], n["vendor_id"], n["nmt_state"]) for n in nodes] == [(NODE, 0x6A, "PRE-OPERATIONAL")]
-    block = udp_target + "&block=1"
+    block = udp_bus.target + "?block=1"
     value = "block-transfer-over-udp-multicast"[:32]
-    rc, out, err = run_akdctl("-T", block, "sdo", "write", "0x2032:0", "vs", value, "--verify")
+    rc, out, err = udp_bus.run("-T", block, "sdo", "write", "0x2032:0", "vs", value, "--verify")
     assert rc == 0, err
 
 

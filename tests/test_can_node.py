@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import struct
 import threading
-import time
 import uuid
 from collections.abc import Iterator
 
@@ -25,6 +24,7 @@ from akdctl.transport.base import LinkOptions
 from akdctl.transport.canopen_bus import CanopenTransport
 from akdctl.transport.registry import parse_target
 from akdctl.transport.trace import Tracer
+from tests.harness import wait_until
 
 NODE = 3
 
@@ -54,15 +54,6 @@ def link(face: CanFace, channel: str) -> Iterator[CanopenTransport]:
     transport = _transport(channel)
     yield transport
     transport.close()
-
-
-def _wait(predicate, timeout: float = 3.0) -> bool:  # noqa: ANN001
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
 
 
 # ------------------------------------------------------------------ SDO through akdctl's channel
@@ -128,11 +119,11 @@ def test_nmt_states_by_guarding_and_heartbeat(face: CanFace, link: CanopenTransp
     link.objects.download(0x1017, 0, struct.pack("<H", 50))  # heartbeat producer on
     beats: list[bytes] = []
     link.network.subscribe(0x700 + NODE, lambda cid, data, ts: beats.append(bytes(data)))
-    assert _wait(lambda: len(beats) >= 2)
+    wait_until(lambda: len(beats) >= 2, "two heartbeats", timeout=3.0)
     assert beats[-1] == b"\x05"
     link.nmt("reset-comm")
     assert link.nmt_state(fresh=True) == "PRE-OPERATIONAL"
-    assert _wait(lambda: b"\x00" in beats)  # boot-up message
+    wait_until(lambda: b"\x00" in beats, "the boot-up message", timeout=3.0)  # boot-up message
 
 
 def test_scan_reports_identity(face: CanFace, link: CanopenTransport) -> None:
@@ -154,7 +145,7 @@ def test_emergencies_reach_the_channel(face: CanFace, link: CanopenTransport, mo
 
     monkeypatch.setattr(face.drive, "take_emergencies", take)
     got = link.objects.wait_emergencies(3.0)
-    assert _wait(lambda: len(got) + len(link.objects._emcy) >= 2)
+    wait_until(lambda: len(got) + len(link.objects._emcy) >= 2, "two emergencies", timeout=3.0)
     got += link.objects.take_emergencies()
     assert got == [Emergency(0x4310, 0x09, b"\x01\x02\x03\x04\x05"), Emergency(0, 0, bytes(5))]
     assert got[1].is_reset
@@ -171,14 +162,13 @@ def test_pdos_follow_the_mapping(face: CanFace, link: CanopenTransport) -> None:
     link.nmt("start")
     assert link.nmt_state(fresh=True) == "OPERATIONAL"
     tpdo.clear()
-    for _ in range(3):
+    for sent in range(1, 4):  # one SYNC at a time: each answered by its TPDO before the next goes out
         link.network.send_message(0x080, b"")
-        time.sleep(0.05)
-    assert _wait(lambda: len(tpdo) >= 3)
+        wait_until(lambda: len(tpdo) >= sent, f"TPDO {sent}", timeout=3.0)  # noqa: B023 - used at once
     assert all(len(p) == 2 for p in tpdo)
     # RPDO1 carries the controlword (0x1600:01 = 0x60400010)
     link.network.send_message(0x200 + NODE, b"\x06\x00")
-    assert _wait(lambda: o.upload(0x6040, 0) == b"\x06\x00")
+    wait_until(lambda: o.upload(0x6040, 0) == b"\x06\x00", "the RPDO to set the controlword", timeout=3.0)
     link.network.send_message(0x200 + NODE, b"\x07")  # too short: EMCY 0x8210
     emcy = o.wait_emergencies(3.0)
     assert any(e.error_code == 0x8210 for e in emcy)

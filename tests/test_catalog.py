@@ -208,6 +208,7 @@ def test_search_and_params() -> None:
     assert objects.indices()[0] == 0x0002
 
 
+@pytest.mark.slow
 def test_import_is_cheap() -> None:
     code = (
         "import sys, akdctl.catalog.objects as o, akdctl.catalog.faults as f, akdctl.catalog.texts\n"

@@ -12,13 +12,13 @@ import shutil
 import subprocess
 import sys
 import textwrap
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.harness import ROOT, CliResult, SimServer, VethPair, run_akdctl
+
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 CI = os.environ.get("CI") == "true"
 
@@ -41,78 +41,30 @@ def _need_pysoem() -> None:
         pytest.importorskip("pysoem", reason="optional extra akdctl[soem] not installed")
 
 
-class VethPair:
-    """Two namespaces joined by a veth pair: master side ``a``/``if_a``, slave side ``b``/``if_b``."""
-
-    def __init__(self) -> None:
-        tag = uuid.uuid4().hex[:6]
-        self.a, self.b = f"akdA{tag}", f"akdB{tag}"
-        self.if_a, self.if_b = f"ea{tag}", f"eb{tag}"
-        _run("ip", "netns", "add", self.a)
-        try:
-            _run("ip", "netns", "add", self.b)
-            _run("ip", "link", "add", self.if_a, "type", "veth", "peer", "name", self.if_b)
-            _run("ip", "link", "set", self.if_a, "netns", self.a)
-            _run("ip", "link", "set", self.if_b, "netns", self.b)
-            _run("ip", "-n", self.a, "link", "set", self.if_a, "up")
-            _run("ip", "-n", self.b, "link", "set", self.if_b, "up")
-        except BaseException:
-            self.delete()
-            raise
-
-    def delete(self) -> None:
-        for ns in (self.a, self.b):  # deleting a namespace deletes its veth end (and so the pair)
-            _run("ip", "netns", "delete", ns, check=False)
-
-
-class Slave:
-    def __init__(self, pair: VethPair, state: Path, *extra: str) -> None:
-        self.env = dict(os.environ, AKDCTL_STATE_DIR=str(state), PYTHONPATH=str(ROOT))
-        self.proc = subprocess.Popen(
-            ["ip", "netns", "exec", pair.b, sys.executable, "-m", "akdctl", "sim", "serve", "--ethercat-raw",
-             pair.if_b, "--duration", "120", *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=self.env, cwd=ROOT)
-        assert self.proc.stdout is not None
-        line = self.proc.stdout.readline()
-        assert line.startswith("listening: ethercat-raw"), (line, self.proc.poll())
-
-    def stop(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream:
-                stream.close()
+def slave_server(pair: VethPair, *extra: str) -> SimServer:
+    """The simulated AKD slave on the ``b`` end of *pair* (start it with ``with``)."""
+    return SimServer("--ethercat-raw", pair.if_b, *extra, netns=pair.b)
 
 
 @pytest.fixture
 def pair() -> Iterator[VethPair]:
-    p = VethPair()
-    try:
+    """Master side ``a``/``if_a``, slave side ``b``/``if_b``."""
+    with VethPair() as p:
         yield p
-    finally:
-        p.delete()
 
 
 @pytest.fixture
-def slave(pair: VethPair, tmp_path: Path) -> Iterator[Slave]:
-    s = Slave(pair, tmp_path)
-    try:
-        yield s
-    finally:
-        s.stop()
+def slave(pair: VethPair) -> Iterator[SimServer]:
+    with slave_server(pair) as server:
+        assert server.ready[0].startswith("ethercat-raw"), server.ready
+        yield server
 
 
-def cli(pair: VethPair, env: dict[str, str], *args: str, position: int = 0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        ["ip", "netns", "exec", pair.a, sys.executable, "-m", "akdctl", "-T", f"ecat://{pair.if_a}/{position}",
-         "--timeout", "1", *args], capture_output=True, text=True, env=env, cwd=ROOT, timeout=60)
+def cli(pair: VethPair, *args: str, position: int = 0) -> CliResult:
+    return run_akdctl("-T", f"ecat://{pair.if_a}/{position}", "--timeout", "1", *args, netns=pair.a)
 
 
-def test_pysoem_master_against_sim_slave(pair: VethPair, slave: Slave) -> None:
+def test_pysoem_master_against_sim_slave(pair: VethPair, slave: SimServer) -> None:
     _need_pysoem()
     script = textwrap.dedent(f"""
         import json, pysoem
@@ -164,20 +116,20 @@ COMMANDS = [
 ]
 
 
-def test_our_master_through_the_cli(pair: VethPair, slave: Slave) -> None:
+def test_our_master_through_the_cli(pair: VethPair, slave: SimServer) -> None:
     for argv, code, text in COMMANDS:
-        result = cli(pair, slave.env, *argv)
+        result = cli(pair, *argv)
         assert result.returncode == code, (argv, result.stdout, result.stderr)
         if text is not None:
             assert text in result.stdout, (argv, result.stdout)
-    result = cli(pair, slave.env, "sdo", "read", "0x1018:1", position=3)
+    result = cli(pair, "sdo", "read", "0x1018:1", position=3)
     assert result.returncode == 2 and "no slave at position 3" in result.stderr
 
 
 @pytest.mark.skipif(shutil.which("tshark") is None and not CI, reason="tshark not installed")
-def test_tshark_dissects_raw_pcap(pair: VethPair, slave: Slave, tmp_path: Path) -> None:
+def test_tshark_dissects_raw_pcap(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
     pcap = tmp_path / "raw.pcap"
-    result = cli(pair, slave.env, "--pcap", str(pcap), "sdo", "read", "0x1018:1")
+    result = cli(pair, "--pcap", str(pcap), "sdo", "read", "0x1018:1")
     assert result.returncode == 0, result.stderr
     fields = _run("tshark", "-r", str(pcap), "-T", "fields", "-e", "ecat.cmd", "-e", "ecat_mailbox.type", "-e",
                   "ecat_mailbox.coe.sdoidx", "-e", "ecat_mailbox.coe.sdosub", "-e", "ecat_mailbox.coe.sdodata",
@@ -196,22 +148,18 @@ def test_tshark_dissects_raw_pcap(pair: VethPair, slave: Slave, tmp_path: Path) 
     ("abort=1", 1, "general error"),
     ("mbxerr=1", (1, 3), "mailbox"),
 ])
-def test_fault_injection(pair: VethPair, tmp_path: Path, inject: str, code: object, words: str | None) -> None:
-    s = Slave(pair, tmp_path, "--ecat-raw-inject", inject)
-    try:
+def test_fault_injection(pair: VethPair, inject: str, code: object, words: str | None) -> None:
+    with slave_server(pair, "--ecat-raw-inject", inject):
         for _ in range(3 if inject.startswith("drop") else 1):
-            result = cli(pair, s.env, "sdo", "read", "0x1018:1")
+            result = cli(pair, "sdo", "read", "0x1018:1")
             assert result.returncode in (code if isinstance(code, tuple) else (code,)), result.stderr
             if words:
                 assert words in result.stderr.lower()
             assert "Traceback" not in result.stderr
-    finally:
-        s.stop()
 
 
-def test_vanished_slave_exits_3(pair: VethPair, tmp_path: Path) -> None:
-    env = dict(os.environ, AKDCTL_STATE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
-    result = cli(pair, env, "sdo", "read", "0x1018:1")
+def test_vanished_slave_exits_3(pair: VethPair) -> None:
+    result = cli(pair, "sdo", "read", "0x1018:1")
     assert result.returncode == 3, result.stderr
     assert "no EtherCAT frame came back" in result.stderr or "no EtherCAT slave" in result.stderr
 
@@ -226,20 +174,17 @@ def test_missing_cap_net_raw_is_one_line(tmp_path: Path) -> None:
     # The unprivileged user cannot enter root's pytest tmp dirs: point every per-user path somewhere absent.
     env = dict(os.environ, AKDCTL_STATE_DIR="/nonexistent/akdctl-state", XDG_CONFIG_HOME="/nonexistent/akdctl-config",
                PYTHONPATH=str(ROOT), HOME="/nonexistent")
-    result = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-m",
-                             "akdctl", "-T", "ecat://lo", "sdo", "read", "0x1018:1"], capture_output=True, text=True,
-                            env=env, cwd=ROOT, timeout=60)
+    result = run_akdctl("-T", "ecat://lo", "sdo", "read", "0x1018:1", env=env,
+                        prefix=["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"])
     assert result.returncode == 2
     assert "needs CAP_NET_RAW" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
-def test_soem_transport_through_the_cli(pair: VethPair, slave: Slave) -> None:
+def test_soem_transport_through_the_cli(pair: VethPair, slave: SimServer) -> None:
     _need_pysoem()
     for argv, code, text in [(["sdo", "read", "0x1018:1"], 0, "106"), (["sdo", "read", "0x5FFF:0", "u8"], 1, None),
                              (["sdo", "write", "0x6060:0", "3"], 0, None)]:
-        result = subprocess.run(
-            ["ip", "netns", "exec", pair.a, sys.executable, "-m", "akdctl", "-T", f"ecat+soem://{pair.if_a}/0",
-             "--timeout", "1", *argv], capture_output=True, text=True, env=slave.env, cwd=ROOT, timeout=60)
+        result = run_akdctl("-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "1", *argv, netns=pair.a)
         assert result.returncode == code, (argv, result.stdout, result.stderr)
         if text:
             assert text in result.stdout

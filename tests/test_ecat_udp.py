@@ -10,66 +10,34 @@ import os
 import shutil
 import socket
 import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.harness import CliResult, SimServer, closed_udp_port, run_akdctl
+
+pytestmark = pytest.mark.slow
 # Reference notes (ethercat-mailbox.md), ETG.8200 worked example: upload 0x1018:01 from station 4
 GW_REQUEST = bytes.fromhex("10 50 0a 00 04 00 00 03 00 20 40 18 10 01 00 00 00 00")
 GW_REPLY_HEAD = bytes.fromhex("10 50 0a 00 04 00 00")  # then type/counter, CoE 0x3000, 0x43 18 10 01, value
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+class Gateway(SimServer):
+    """The ETG.8200 face on a port it binds itself (reported on its ready line), three stations."""
 
+    def __init__(self, *extra: str) -> None:
+        super().__init__("--ethercat-udp", "127.0.0.1:0", "--ecat-stations", "4=default,1001=default,1002=axis2",
+                         *extra, duration=60)
 
-def _env(tmp: Path) -> dict[str, str]:
-    env = dict(os.environ, AKDCTL_STATE_DIR=str(tmp), PYTHONPATH=str(ROOT))
-    env.pop("AKDCTL_TARGET", None)
-    return env
-
-
-class Gateway:
-    def __init__(self, tmp: Path, *extra: str) -> None:
-        self.port = _free_port()
-        self.env = _env(tmp)
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "akdctl", "sim", "serve", "--ethercat-udp", f"127.0.0.1:{self.port}",
-             "--ecat-stations", "4=default,1001=default,1002=axis2", "--duration", "60", *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=self.env, cwd=ROOT)
-        assert self.proc.stdout is not None
-        line = self.proc.stdout.readline()
-        assert line.startswith("listening: ethercat-udp"), (line, self.proc.stderr.read() if self.proc.poll() else "")
-
-    def cli(self, station: int, *args: str, timeout: str = "0.5") -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "akdctl", "-T", f"ecat-udp://127.0.0.1:{self.port}/{station}", "--timeout",
-             timeout, *args], capture_output=True, text=True, env=self.env, cwd=ROOT, timeout=60)
-
-    def stop(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream:
-                stream.close()
+    def cli(self, station: int, *args: str, timeout: str = "0.5") -> CliResult:
+        return run_akdctl("-T", f"ecat-udp://127.0.0.1:{self.port}/{station}", "--timeout", timeout, *args)
 
 
 @pytest.fixture
-def gateway(tmp_path: Path) -> Iterator[Gateway]:
-    gw = Gateway(tmp_path)
-    try:
+def gateway() -> Iterator[Gateway]:
+    with Gateway() as gw:
         yield gw
-    finally:
-        gw.stop()
 
 
 # argv, station, expected exit code, text expected on stdout (or None)
@@ -91,7 +59,6 @@ COMMANDS = [
 ]
 
 
-@pytest.mark.slow
 def test_cli_commands_over_gateway(gateway: Gateway) -> None:
     for argv, station, code, text in COMMANDS:
         result = gateway.cli(station, *argv)
@@ -102,7 +69,6 @@ def test_cli_commands_over_gateway(gateway: Gateway) -> None:
             assert "Traceback" not in result.stderr and result.stderr.startswith("akdctl: error:")
 
 
-@pytest.mark.slow
 def test_worked_example_bytes_against_face(gateway: Gateway) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.settimeout(5)
@@ -114,39 +80,28 @@ def test_worked_example_bytes_against_face(gateway: Gateway) -> None:
     assert reply[14:18] == (0x6A).to_bytes(4, "little")  # Kollmorgen's vendor id
 
 
-@pytest.mark.slow
-def test_lost_replies_are_recovered(tmp_path: Path) -> None:
-    gw = Gateway(tmp_path, "--ecat-inject", "drop=2")
-    try:
+def test_lost_replies_are_recovered() -> None:
+    with Gateway("--ecat-inject", "drop=2") as gw:
         for _ in range(3):
             result = gw.cli(1001, "sdo", "read", "0x1018:1", timeout="0.3")
             assert result.returncode == 0, result.stderr
-    finally:
-        gw.stop()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("inject, code, words", [("mbxerr=1", (1, 3), "mailbox"), ("abort=1", (1,), "General error")])
-def test_mailbox_error_and_abort(tmp_path: Path, inject: str, code: tuple[int, ...], words: str) -> None:
-    gw = Gateway(tmp_path, "--ecat-inject", inject)
-    try:
+def test_mailbox_error_and_abort(inject: str, code: tuple[int, ...], words: str) -> None:
+    with Gateway("--ecat-inject", inject) as gw:
         result = gw.cli(1001, "sdo", "read", "0x1018:1")
         assert result.returncode in code, result.stderr
         assert words.lower() in result.stderr.lower() and "Traceback" not in result.stderr
-    finally:
-        gw.stop()
 
 
-@pytest.mark.slow
-def test_vanished_gateway_exits_3(tmp_path: Path) -> None:
-    port = _free_port()  # nothing listens there
-    result = subprocess.run([sys.executable, "-m", "akdctl", "-T", f"ecat-udp://127.0.0.1:{port}/1001", "--timeout",
-                             "0.2", "sdo", "read", "0x1018:1"], capture_output=True, text=True, env=_env(tmp_path),
-                            cwd=ROOT, timeout=30)
+def test_vanished_gateway_exits_3() -> None:
+    with closed_udp_port() as port:  # nothing listens there: the datagrams bounce
+        result = run_akdctl("-T", f"ecat-udp://127.0.0.1:{port}/1001", "--timeout", "0.2", "sdo", "read", "0x1018:1",
+                            timeout=30)
     assert result.returncode == 3 and "no answer" in result.stderr
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("tshark") is None and os.environ.get("CI") != "true", reason="tshark not installed")
 def test_tshark_dissects_gateway_pcap(gateway: Gateway, tmp_path: Path) -> None:
     pcap = tmp_path / "gw.pcap"

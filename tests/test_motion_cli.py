@@ -8,36 +8,23 @@ for a state with a deadline.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import os
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from akdctl.sim.drive import SimDrive
+from tests.harness import finish, wait_until
+from tests.harness import run_akdctl as run
+from tests.harness import start_akdctl as popen
 
-ROOT = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.slow
 PROFILES = ["sim?drive=profidrive", "sim?drive=cia402"]
-
-
-def run(*args: str, timeout: float = 60) -> tuple[int, str, str]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], capture_output=True, text=True, env=env,
-                          timeout=timeout, cwd=ROOT, stdin=subprocess.DEVNULL)
-    return proc.returncode, proc.stdout, proc.stderr
-
-
-def popen(*args: str) -> subprocess.Popen[str]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "akdctl", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, cwd=ROOT, stdin=subprocess.DEVNULL)
 
 
 def ok(*args: str) -> dict:
@@ -51,24 +38,6 @@ def motion_state() -> dict:
         motion = model.component("motion")
         return {"standstill": motion.standstill, "activity": motion.activity, "state": motion.state,
                 "velocity_rpm": motion.velocity_rpm, "pos": motion.pos}
-
-
-def wait_until(predicate, what: str, timeout: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-
-
-def finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[int, str, str]:
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.communicate()
-        raise
-    return proc.returncode, out, err
 
 
 @pytest.fixture
@@ -241,9 +210,8 @@ def test_drive_that_stops_answering_mid_move_exits_3(realtime: None) -> None:
         fd = os.open(drive.lock_path, os.O_RDWR)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
-            started = time.monotonic()
-            while proc.poll() is None and time.monotonic() - started < 7.0:
-                time.sleep(0.1)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=7.0)  # the tool gives up (exit 3) while the lock is held
         finally:
             os.close(fd)
         code, _, err = finish(proc)

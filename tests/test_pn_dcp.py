@@ -5,14 +5,10 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import subprocess
 import sys
 import textwrap
-import time
-import uuid
-from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -20,6 +16,7 @@ from hypothesis import strategies as st
 
 from akdctl.protocol import dcp
 from akdctl.protocol.errors import CodecError
+from tests.harness import CliResult, SimServer, VethPair, akdctl_env, run_akdctl
 
 
 def test_identify_request_vector() -> None:
@@ -121,18 +118,6 @@ def _need_root() -> None:
         pytest.skip(reason)
 
 
-def _run(*argv: str) -> None:
-    subprocess.run(argv, check=True, capture_output=True, timeout=30)
-
-
-def _env(state: Path) -> dict[str, str]:
-    env = dict(os.environ)
-    env["AKDCTL_STATE_DIR"] = str(state)
-    root = str(Path(__file__).resolve().parents[1])
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
-
-
 PNIO_DCP_CLIENT = textwrap.dedent("""
     import json, sys
     from pnio_dcp import DCP
@@ -151,47 +136,28 @@ PNIO_DCP_CLIENT = textwrap.dedent("""
 
 
 @pytest.mark.root
-def test_dcp_between_namespaces(tmp_path) -> None:
+@pytest.mark.slow
+def test_dcp_between_namespaces() -> None:
     _need_root()
     pytest.importorskip("pnio_dcp", reason="pnio-dcp is not installed")
-    tag = uuid.uuid4().hex[:6]
-    dev_ns, cli_ns = f"akdpnd{tag}", f"akdpnc{tag}"
-    dev_if, cli_if = f"pnd{tag}", f"pnc{tag}"
-    server = None
-    try:
-        _run("ip", "netns", "add", dev_ns)
-        _run("ip", "netns", "add", cli_ns)
-        _run("ip", "link", "add", dev_if, "type", "veth", "peer", "name", cli_if)
-        _run("ip", "link", "set", dev_if, "netns", dev_ns)
-        _run("ip", "link", "set", cli_if, "netns", cli_ns)
-        for ns, ifname, addr in ((dev_ns, dev_if, "10.77.0.1/24"), (cli_ns, cli_if, "10.77.0.2/24")):
-            _run("ip", "-n", ns, "addr", "add", addr, "dev", ifname)
-            _run("ip", "-n", ns, "link", "set", ifname, "up")
-            _run("ip", "-n", ns, "link", "set", "lo", "up")
-        env = _env(tmp_path / "state")
-        server = subprocess.Popen(
-            ["ip", "netns", "exec", dev_ns, sys.executable, "-m", "akdctl", "sim", "serve",
-             "--profinet", "10.77.0.1:0", "--dcp", dev_if, "--pn-station", "akd-sim"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-        assert server.stdout is not None
-        line = server.stdout.readline()
-        match = re.search(r"udp 10\.77\.0\.1:(\d+)", line)
-        assert match, line + (server.stderr.read() if server.stderr else "")
-        port = int(match.group(1))
-        time.sleep(0.2)
+    with VethPair(address_a="10.77.0.2/24", address_b="10.77.0.1/24") as pair, \
+            SimServer("--profinet", "10.77.0.1:0", "--dcp", pair.if_b, "--pn-station", "akd-sim",
+                      netns=pair.b) as server:
+        cli_ns, cli_if = pair.a, pair.if_a
+        host, port = server.address
+        assert host == "10.77.0.1", server.ready
 
         # pnio-dcp, an independent client, finds, names, addresses and blinks the simulated device
         result = subprocess.run(["ip", "netns", "exec", cli_ns, sys.executable, "-c", PNIO_DCP_CLIENT, "10.77.0.2"],
-                                capture_output=True, text=True, timeout=60, env=env)
+                                capture_output=True, text=True, timeout=60, env=akdctl_env())
         assert result.returncode == 0, result.stderr
         out = json.loads(result.stdout.strip().splitlines()[-1])
         assert out["found"] and out["found"][0][0] == "akd-sim" and out["found"][0][2] == "10.77.0.1"
         assert out["set_name"] == 0 and out["set_ip"] == 0 and out["blink"] == 0
         assert out["name_after"] == "akd-axis1"
 
-        def cli(*argv: str) -> subprocess.CompletedProcess:
-            return subprocess.run(["ip", "netns", "exec", cli_ns, sys.executable, "-m", "akdctl", "--timeout", "1",
-                                   *argv], capture_output=True, text=True, timeout=60, env=env)
+        def cli(*argv: str) -> CliResult:
+            return run_akdctl("--timeout", "1", *argv, netns=cli_ns)
 
         scan = cli("--json", "pn", "scan", "--iface", cli_if)
         assert scan.returncode == 0, scan.stderr
@@ -209,19 +175,6 @@ def test_dcp_between_namespaces(tmp_path) -> None:
         got = cli("-T", f"pn://akd-axis2:{port}?iface={cli_if}", "pnu", "get", "930")
         assert got.returncode == 0, got.stderr
         assert "Operating mode" in got.stdout
-    finally:
-        if server is not None:
-            server.terminate()
-            try:
-                server.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                server.kill()
-                server.wait()
-            for stream in (server.stdout, server.stderr):
-                if stream is not None:
-                    stream.close()
-        for ns in (dev_ns, cli_ns):
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
 
 
 def test_get_request_is_option_pairs() -> None:

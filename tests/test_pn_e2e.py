@@ -6,6 +6,7 @@ line; rows whose command group is not part of this version of akdctl are left ou
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import os
@@ -13,77 +14,29 @@ import re
 import shutil
 import socket
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
+from tests.harness import CliResult, SimServer, run_akdctl
+
 pytestmark = pytest.mark.slow
-READY = re.compile(r"listening: profinet udp ([\d.]+):(\d+)")
-
-
-def _env(state: Path) -> dict[str, str]:
-    env = dict(os.environ)
-    env["AKDCTL_STATE_DIR"] = str(state)
-    env.pop("AKDCTL_TARGET", None)
-    root = str(Path(__file__).resolve().parents[1])
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
-
-
-class Server:
-    def __init__(self, state: Path, *extra: str) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "akdctl", "sim", "serve", "--profinet", "127.0.0.1:0", *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(state))
-        deadline = time.monotonic() + 20
-        assert self.proc.stdout is not None
-        while True:
-            line = self.proc.stdout.readline()
-            match = READY.search(line)
-            if match:
-                self.port = int(match.group(2))
-                break
-            if not line or time.monotonic() > deadline:
-                self.stop()
-                raise AssertionError(f"sim serve did not start: {line!r} {self.proc.stderr.read() if self.proc.stderr else ''}")
-
-    @property
-    def target(self) -> str:
-        return f"pn://127.0.0.1:{self.port}"
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream is not None:
-                stream.close()
 
 
 @pytest.fixture
-def serve(tmp_path) -> Iterator:
-    servers: list[Server] = []
-
-    def start(*extra: str) -> Server:
-        server = Server(tmp_path / "state", *extra)
-        servers.append(server)
-        return server
-
-    yield start
-    for server in servers:
-        server.stop()
+def serve() -> Iterator:
+    """Start PROFINET faces on ports they bind themselves; every one is stopped after the test."""
+    with contextlib.ExitStack() as stack:
+        yield lambda *extra: stack.enter_context(SimServer("--profinet", "127.0.0.1:0", *extra))
 
 
-def akdctl(tmp_path: Path, target: str, *argv: str, timeout: float = 2.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "akdctl", "-T", target, "--timeout", str(timeout), *argv],
-                          capture_output=True, text=True, env=_env(tmp_path / "state"), timeout=120)
+def target(server: SimServer) -> str:
+    return f"pn://{server.host}:{server.port}"
+
+
+def akdctl(target: str, *argv: str, timeout: float = 2.0) -> CliResult:
+    return run_akdctl("-T", target, "--timeout", str(timeout), *argv, timeout=120)
 
 
 def _group_exists(argv: tuple[str, ...]) -> bool:
@@ -107,33 +60,33 @@ COMMANDS: list[tuple[tuple[str, ...], int, str]] = [
 ACTIVE = [c for c in COMMANDS if _group_exists(c[0])]
 
 
-def test_command_table_over_pn(serve, tmp_path) -> None:
+def test_command_table_over_pn(serve) -> None:
     server = serve()
     failures = []
     for argv, code, pattern in ACTIVE:
-        result = akdctl(tmp_path, server.target, *argv)
+        result = akdctl(target(server), *argv)
         if result.returncode != code or (pattern and not re.search(pattern, result.stdout)):
             failures.append(f"{argv}: exit {result.returncode} (want {code})\n{result.stdout}\n{result.stderr}")
         assert "Traceback" not in result.stderr
     assert not failures, "\n".join(failures)
 
 
-def test_faults_injected_by_the_server(serve, tmp_path) -> None:
+def test_faults_injected_by_the_server(serve) -> None:
     server = serve("--pn-inject", "drop=3,dup=4,delay=5:0.3,rxdrop=7", "--pn-delay", "0.05")
     for value in (2, 0, 1, 2):
-        result = akdctl(tmp_path, server.target, "pnu", "set", f"930={value}", "--verify", timeout=3)
+        result = akdctl(target(server), "pnu", "set", f"930={value}", "--verify", timeout=3)
         assert result.returncode == 0, result.stderr
-    result = akdctl(tmp_path, server.target, "--json", "pnu", "get", "930", "964[0..4]", timeout=3)
+    result = akdctl(target(server), "--json", "pnu", "get", "930", "964[0..4]", timeout=3)
     assert result.returncode == 0, result.stderr
     assert re.search(r'"values": \[\s*2\s*\]', result.stdout), result.stdout
 
 
-def test_silent_device_exits_3_within_timeout(tmp_path) -> None:
+def test_silent_device_exits_3_within_timeout() -> None:
     silent = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     silent.bind(("127.0.0.1", 0))
     try:
         start = time.monotonic()
-        result = akdctl(tmp_path, f"pn://127.0.0.1:{silent.getsockname()[1]}", "pnu", "get", "930", timeout=0.5)
+        result = akdctl(f"pn://127.0.0.1:{silent.getsockname()[1]}", "pnu", "get", "930", timeout=0.5)
         elapsed = time.monotonic() - start
     finally:
         silent.close()
@@ -142,9 +95,9 @@ def test_silent_device_exits_3_within_timeout(tmp_path) -> None:
     assert elapsed < 15        # bounded by --timeout (plus interpreter start), never a hang
 
 
-def test_refused_ar_in_words(serve, tmp_path) -> None:
+def test_refused_ar_in_words(serve) -> None:
     server = serve("--pn-refuse-ar")
-    result = akdctl(tmp_path, server.target, "pnu", "get", "930")
+    result = akdctl(target(server), "pnu", "get", "930")
     assert result.returncode == 1
     assert "device refuses device-access AR" in result.stderr and "DB 81 01 04" in result.stderr
 
@@ -183,10 +136,10 @@ def test_tshark_dissects_a_pcap_of_a_session(serve, tmp_path) -> None:
         pytest.skip("tshark is not installed (apt-get install tshark); CI runs this test")
     server = serve()
     capture = tmp_path / "session.pcap"
-    result = akdctl(tmp_path, server.target, "--pcap", str(capture), "pnu", "set", "930=2")
+    result = akdctl(target(server), "--pcap", str(capture), "pnu", "set", "930=2")
     assert result.returncode == 0, result.stderr
     capture2 = tmp_path / "session2.pcap"
-    result = akdctl(tmp_path, server.target, "--pcap", str(capture2), "pnu", "get", "930", "964[0..4]")
+    result = akdctl(target(server), "--pcap", str(capture2), "pnu", "get", "930", "964[0..4]")
     assert result.returncode == 0, result.stderr
     docs = []
     for path in (capture, capture2):

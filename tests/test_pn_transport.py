@@ -17,6 +17,7 @@ from akdctl.transport.base import LinkOptions
 from akdctl.transport.profinet import PnioRecordLink, ProfinetTransport
 from akdctl.transport.target import split_target
 from akdctl.transport.trace import TracedRecordLink, Tracer
+from tests.harness import wait_until
 
 READ_930 = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")
 
@@ -209,10 +210,12 @@ def test_stale_and_foreign_replies_are_ignored() -> None:
 
 def test_ar_timeout_and_keepalive(face_factory, drive) -> None:
     face = face_factory()
-    # a keep-alive every third of 300 ms keeps the AR through a longer pause
+    # a keep-alive every third of 300 ms keeps the AR through a longer pause: each keep-alive goes out only after
+    # 100 ms of silence, so six of them in a row span at least 600 ms, twice the AR's timeout
     t = transport(face.port, query="ar_timeout=3")
     try:
-        time.sleep(0.8)
+        quiet_from = face.stats.received
+        wait_until(lambda: face.stats.received >= quiet_from + 6, "six keep-alives", timeout=10)
         assert t.record_link.exchange(READ_930)[:2] == READ_930[:2]
     finally:
         t.close()
@@ -222,7 +225,7 @@ def test_ar_timeout_and_keepalive(face_factory, drive) -> None:
     t._stop.set()
     t._keepalive.join()
     try:
-        time.sleep(0.6)
+        wait_until(lambda: face.stats.ars_timed_out == 1, "the device to end the silent AR", timeout=10)
         with pytest.raises(RecordError, match="access denied"):
             t.record_link.exchange(READ_930)
     finally:

@@ -3,18 +3,14 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
 from akdctl.errors import EXIT_CHECK, EXIT_DRIVE, EXIT_OK
+from tests.harness import ROOT, finish, start_akdctl, wait_until
 
-ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "commission-sim.toml"
 
 
@@ -97,6 +93,7 @@ def test_failed_check_stops_the_run_reports_it_and_skips_the_rest(akd_inproc, tm
     assert cases[0].is_passed and not cases[1].is_passed and cases[2].is_skipped
 
 
+@pytest.mark.slow
 def test_injected_fault_mid_recipe_stops_it_makes_the_axis_safe_and_names_the_step(tmp_path: Path) -> None:
     recipe = tmp_path / "long.toml"
     recipe.write_text('[recipe]\nname = "long move"\n\n'
@@ -106,28 +103,21 @@ def test_injected_fault_mid_recipe_stops_it_makes_the_axis_safe_and_names_the_st
                       '[[step]]\naction = "move"\nname = "long move"\ntarget = 100\nvelocity = 60\n\n'
                       '[[step]]\naction = "backup"\nfile = "never.toml"\n')
     report = tmp_path / "r.json"
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "akdctl", "--yes", "commission", str(recipe), "--report",
-                             str(report), "--output-dir", str(tmp_path)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+    proc = start_akdctl("--yes", "commission", str(recipe), "--report", str(report), "--output-dir", str(tmp_path))
     try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and proc.poll() is None:
-            if abs(sim_model_values()["velocity"]) > 1.0:
-                break
-            time.sleep(0.05)
+        wait_until(lambda: proc.poll() is not None or abs(sim_model_values()["velocity"]) > 1.0,
+                   "the long move to start", timeout=30)
         assert proc.poll() is None, proc.communicate()
         from akdctl.sim.drive import SimDrive
 
         with SimDrive("default").transaction() as model:
             model.component("faults").raise_fault("F501")
-        out, err = proc.communicate(timeout=60)
+        code, out, err = finish(proc, timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
-    assert proc.returncode == EXIT_DRIVE, err
+    assert code == EXIT_DRIVE, err
     assert "step 4 (long move)" in err and "F501" in err
     data = json.loads(report.read_text())
     assert data["failed_step"]["step"] == 4 and data["failed_step"]["action"] == "move"

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from akdctl.errors import EXIT_CODES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -37,12 +39,14 @@ def test_readme_exit_code_table_matches_the_code() -> None:
     assert documented == set(EXIT_CODES) | {70}
 
 
+@pytest.mark.slow
 def test_completions_and_man_pages_are_generated_from_the_click_tree() -> None:
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "gen_docs.py"), "--check"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
+@pytest.mark.slow
 def test_help_imports_no_transport_rich_or_canopen() -> None:
     code = (
         "import sys; sys.argv = ['akdctl', '--help']\n"
