@@ -11,6 +11,14 @@ from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, ParameterRefused
 
 
+def _gate(app: Any, gated: list[Any]) -> None:
+    """Consent before a write that can power or move the axis (akdctl.drive.gate)."""
+    from akdctl.cli.consent import require_consent
+    from akdctl.drive import gate as write_gate
+
+    write_gate.check_write(app, gated, lambda action: require_consent(app, action))
+
+
 @click.group()
 def pnu() -> None:
     """Read, write, describe and list PROFIdrive parameters (PNUs).
@@ -78,11 +86,13 @@ def get(addresses: tuple[str, ...]) -> None:
 @click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
 def set_(assignments: tuple[str, ...], verify: bool) -> None:
     """Change one or more PNUs (all are checked before anything is sent)."""
+    from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment, read_pnus, write_pnus
 
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
     channel = app.parameters()
+    _gate(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
     results = write_pnus(channel, parsed)
     mismatches: list[str] = []
     if verify and all(r.ok for r in results):

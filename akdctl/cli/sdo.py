@@ -13,6 +13,15 @@ from akdctl.errors import CheckFailed, UsageError
 TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
 
 
+def _gate(app: object, addr: object, entry: object) -> None:
+    """Consent before a write that can power or move the axis (akdctl.drive.gate)."""
+    from akdctl.cli.consent import require_consent
+    from akdctl.drive import gate
+
+    gated = [gate.classify_object(addr.index, addr.subindex, getattr(entry, "name", ""))]  # type: ignore[attr-defined]
+    gate.check_write(app, gated, lambda action: require_consent(app, action))
+
+
 @click.group()
 def sdo() -> None:
     """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0)."""
@@ -74,6 +83,7 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
         raise UsageError(f"object {addr.label} ({entry.name}) is read-only")
     value, data = encode(dtype, value_text)
     channel = app.objects()
+    _gate(app, addr, entry)
     channel.download(addr.index, addr.subindex, data)
     if verify:
         back = channel.upload(addr.index, addr.subindex)
