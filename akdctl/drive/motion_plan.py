@@ -322,7 +322,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any) -> MotionPla
     # ---- positions that need no drive
     plan.unit = r.unit or default_unit(conn)
     if plan.unit not in UNITS:
-        raise UsageError(f"unknown unit {plan.unit!r}: expected one of {', '.join(UNITS)}")
+        raise UsageError(f"'unit' {plan.unit!r} is not a unit: expected one of {', '.join(UNITS)}")
     if plan.unit == "user" and not per_rev_of(conn):
         raise UsageError("--units user needs [units] per_rev in the config profile")
     if r.kind == "move" and not r.relative and plan.unit != "counts":
