@@ -406,6 +406,18 @@ class EthercatRawTransport(Transport):
         self.objects = CoeObjectChannel(self.link, timeout=self.options.timeout, retries=self.options.retries,
                                         tracer=self.options.tracer, station=0)
 
+    def al_state(self) -> str | None:
+        """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
+
+        Rules that depend on it (SPEC-NOTES 23: an SDO controlword does nothing while process data owns it
+        in OP; PDO mapping only in PRE-OP) ask every transport the same way; None before the bus is open.
+        """
+        if self.master is None or self.slave is None:
+            return None
+        status, code = self.master.al_status(self.slave.station)
+        self.slave.al_status, self.slave.al_code = status, code
+        return ec.al_state_name(status)
+
     def close(self) -> None:
         if self.master is not None:
             self.master.close()
