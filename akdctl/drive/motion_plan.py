@@ -195,7 +195,7 @@ def quantise(scale: Any, value: float, what: str, *, explicit: bool = True) -> Q
     largest = scale.raw_max * scale.step
     if mag / scale.step > scale.raw_max * (1 + 1e-12):
         raise UsageError(f"{what} {mag:g} {unit} is outside the range of {scale.name}: the largest representable "
-                         f"value is {largest:.9g} {unit}")
+                         f"value is {largest:.12g} {unit}")
     raw = math.floor(mag / scale.step * (1 + 1e-12))
     if raw < scale.raw_min:
         smallest = scale.raw_min * scale.step
