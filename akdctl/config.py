@@ -139,7 +139,8 @@ def _profile(where: _Where, name: str, body: dict[str, Any]) -> Profile:
     def typed(key: str, kind: type | tuple[type, ...], words: str) -> Any:
         value = body.get(key)
         if value is not None and not isinstance(value, kind):
-            raise where.error(prefix + key, f"must be {words}, got {type(value).__name__} {value!r}")
+            raise UsageError(f"config file {where.file}: {prefix}{key} has the wrong type: must be {words}, got "
+                             f"{type(value).__name__} {value!r}")
         return value
 
     timeout = body.get("timeout")

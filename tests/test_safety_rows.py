@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from akdctl.sim.drive import SimDrive
+from test_motion_cli import finish, ok, run, wait_until  # the motion tests' CLI runner and waits
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "commission-sim.toml"
@@ -30,12 +31,6 @@ def _env() -> dict[str, str]:
     return env
 
 
-def run(*args: str, timeout: float = 60) -> tuple[int, str, str]:
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], capture_output=True, text=True, env=_env(),
-                          timeout=timeout, cwd=ROOT, stdin=subprocess.DEVNULL)
-    return proc.returncode, proc.stdout, proc.stderr
-
-
 def popen(*args: str, ignore_sigint: bool = False) -> subprocess.Popen[str]:
     def preexec() -> None:  # a background job: SIGINT inherited as ignored
         signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -45,12 +40,6 @@ def popen(*args: str, ignore_sigint: bool = False) -> subprocess.Popen[str]:
                             preexec_fn=preexec if ignore_sigint else None)
 
 
-def ok(*args: str) -> dict:
-    code, out, err = run("--json", *args)
-    assert code == 0, (args, code, err)
-    return json.loads(out)
-
-
 def sim() -> dict:
     """writes, enabling control words, and the axis's motion state of the default simulated drive."""
     state = SimDrive("default").snapshot()
@@ -58,24 +47,6 @@ def sim() -> dict:
     return {"writes": state["writes"], "enabling": motion["enabling_words"], "state": motion["state"],
             "mode": motion["mode"], "standstill": abs(motion["vel"]) < 1e-9 and motion["gen"] is None,
             "pos": motion["pos"]}
-
-
-def wait_until(predicate, what: str, timeout: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-
-
-def finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[int, str, str]:
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    return proc.returncode, out, err
 
 
 @pytest.fixture

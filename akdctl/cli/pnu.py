@@ -16,7 +16,7 @@ def _gate(app: Any, gated: list[Any]) -> None:
     from akdctl.cli.consent import require_consent
     from akdctl.drive import gate as write_gate
 
-    write_gate.check_write(app, gated, lambda action: require_consent(app, action))
+    write_gate.check_write(app, gated, lambda action: require_consent(app, action), given=app.yes)
 
 
 @click.group()

@@ -19,7 +19,8 @@ def _gate(app: object, addr: object, entry: object) -> None:
     from akdctl.drive import gate
 
     gated = [gate.classify_object(addr.index, addr.subindex, getattr(entry, "name", ""))]  # type: ignore[attr-defined]
-    gate.check_write(app, gated, lambda action: require_consent(app, action))
+    gate.check_write(app, gated, lambda action: require_consent(app, action),
+                     given=app.yes)  # type: ignore[attr-defined]
 
 
 @click.group()

@@ -89,10 +89,13 @@ def consent_action(needing: list[Gated]) -> str:
     return "write " + "; ".join(g.text() for g in needing)
 
 
-def check_write(conn: Any, gated: list[Gated | None], consent: Any) -> None:
-    """Ask ``consent(action)`` when a write touches gated addresses (the drive's state read only if it matters)."""
+def check_write(conn: Any, gated: list[Gated | None], consent: Any, given: bool = False) -> None:
+    """Ask ``consent(action)`` when a write touches gated addresses (the drive's state read only if it matters).
+
+    ``given``: consent was already given (``--yes``), so nothing needs to be read or asked.
+    """
     present = [g for g in gated if g is not None]
-    if not present:
+    if not present or given:
         return
     enabled = drive_enabled(conn) if any(g.when_enabled for g in present) else None
     needing = needing_consent(present, enabled)
