@@ -60,8 +60,48 @@ class Config:
     profiles: dict[str, Profile]
 
 
+TOP_KEYS = ("default_profile", "profiles")
+PROFILE_KEYS = ("target", "timeout", "drive", "limits", "units")
+LIMIT_KEYS = ("max_velocity", "max_acceleration", "travel")
+UNIT_KEYS = ("name", "per_rev")
+DRIVE_PROFILES = ("profidrive", "cia402")
+
+
+class _Where:
+    """Names file, profile and key in every config error (exit 2)."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+
+    def error(self, key: str, problem: str) -> UsageError:
+        return UsageError(f"config file {self.file}: {key}: {problem}")
+
+    def unknown(self, prefix: str, data: dict[str, Any], allowed: tuple[str, ...]) -> None:
+        import difflib
+
+        for key in data:
+            if key not in allowed:
+                close = difflib.get_close_matches(str(key), allowed, n=1)
+                hint = f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(allowed)}"
+                raise self.error(f"{prefix}{key}", f"unknown key; {hint}")
+
+    def number(self, key: str, value: Any, *, positive: bool = False) -> float:
+        import math
+
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(key, f"must be a number, got {type(value).__name__} {value!r}")
+        if not math.isfinite(float(value)):
+            raise self.error(key, f"must be a finite number, got {value!r}")
+        if positive and value <= 0:
+            raise self.error(key, f"must be greater than 0, got {value!r}")
+        return float(value)
+
+
 def load_config(path: str | os.PathLike[str] | None) -> Config:
-    """Load the config file. An explicit path must exist; the default one may be absent."""
+    """Load and validate the config file (unknown keys, types, NaN/inf, signs: exit 2 naming file and key).
+
+    An explicit path must exist; the default one may be absent.
+    """
     explicit = path is not None or bool(os.environ.get("AKDCTL_CONFIG"))
     file = Path(path) if path is not None else Path(os.environ.get("AKDCTL_CONFIG") or default_config_path())
     try:
@@ -76,6 +116,8 @@ def load_config(path: str | os.PathLike[str] | None) -> Config:
         raise UsageError(f"config file {file} is not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
         raise UsageError(f"config file {file}: {exc}") from None
+    where = _Where(file)
+    where.unknown("", data, TOP_KEYS)
     profiles_data = data.get("profiles", {})
     if not isinstance(profiles_data, dict):
         raise UsageError(f"config file {file}: [profiles] must be a table of profiles")
@@ -83,33 +125,58 @@ def load_config(path: str | os.PathLike[str] | None) -> Config:
     for name, body in profiles_data.items():
         if not isinstance(body, dict):
             raise UsageError(f"config file {file}: profile {name!r} must be a table")
-        profiles[name] = _profile(file, name, body)
+        profiles[name] = _profile(where, name, body)
     default = data.get("default_profile")
     if default is not None and not isinstance(default, str):
         raise UsageError(f"config file {file}: default_profile must be a string")
     return Config(file, default, profiles)
 
 
-def _profile(file: Path, name: str, body: dict[str, Any]) -> Profile:
-    def typed(key: str, kind: type | tuple[type, ...]) -> Any:
+def _profile(where: _Where, name: str, body: dict[str, Any]) -> Profile:
+    prefix = f"profiles.{name}."
+    where.unknown(prefix, body, PROFILE_KEYS)
+
+    def typed(key: str, kind: type | tuple[type, ...], words: str) -> Any:
         value = body.get(key)
         if value is not None and not isinstance(value, kind):
-            raise UsageError(f"config file {file}: profiles.{name}.{key} has the wrong type")
+            raise UsageError(f"config file {where.file}: {prefix}{key} has the wrong type: must be {words}, got "
+                             f"{type(value).__name__} {value!r}")
         return value
 
-    timeout = typed("timeout", (int, float))
-    if timeout is not None and timeout <= 0:
-        raise UsageError(f"config file {file}: profiles.{name}.timeout must be positive")
-    drive = typed("drive", str)
-    if drive is not None and drive not in ("profidrive", "cia402"):
-        raise UsageError(f"config file {file}: profiles.{name}.drive must be 'profidrive' or 'cia402'")
+    timeout = body.get("timeout")
+    if timeout is not None:
+        timeout = where.number(prefix + "timeout", timeout, positive=True)
+    drive = typed("drive", str, "text")
+    if drive is not None and drive not in DRIVE_PROFILES:
+        raise where.error(prefix + "drive", f"must be one of {', '.join(repr(d) for d in DRIVE_PROFILES)}, "
+                                            f"got {drive!r}")
+    limits = dict(typed("limits", dict, "a table") or {})
+    where.unknown(prefix + "limits.", limits, LIMIT_KEYS)
+    for key in ("max_velocity", "max_acceleration"):
+        if key in limits:
+            limits[key] = where.number(f"{prefix}limits.{key}", limits[key], positive=True)
+    if "travel" in limits:
+        travel = limits["travel"]
+        key = f"{prefix}limits.travel"
+        if not isinstance(travel, list) or len(travel) != 2:
+            raise where.error(key, f"must be [min, max] in revolutions, got {travel!r}")
+        lo, hi = (where.number(key, v) for v in travel)
+        if lo >= hi:
+            raise where.error(key, f"min {lo:g} must be less than max {hi:g}")
+        limits["travel"] = [lo, hi]
+    units = dict(typed("units", dict, "a table") or {})
+    where.unknown(prefix + "units.", units, UNIT_KEYS)
+    if "per_rev" in units:
+        units["per_rev"] = where.number(f"{prefix}units.per_rev", units["per_rev"], positive=True)
+    if "name" in units and not isinstance(units["name"], str):
+        raise where.error(f"{prefix}units.name", f"must be text, got {units['name']!r}")
     return Profile(
         name=name,
-        target=typed("target", str),
-        timeout=float(timeout) if timeout is not None else None,
+        target=typed("target", str, "text"),
+        timeout=timeout,
         drive=drive,
-        limits=dict(typed("limits", dict) or {}),
-        units=dict(typed("units", dict) or {}),
+        limits=limits,
+        units=units,
         raw=dict(body),
     )
 

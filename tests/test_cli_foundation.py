@@ -24,7 +24,7 @@ def one_line_error(err: str) -> str:
 
 # ---------------------------------------------------------------------------- happy paths
 def test_pnu_set_then_get_persists_between_invocations(akd) -> None:
-    code, out, err = akd("pnu", "set", "930=2", "1004=-500")
+    code, out, err = akd("--yes", "pnu", "set", "930=2", "1004=-500")  # 1004: a gated set point
     assert code == EXIT_OK, err
     code, out, err = akd("--json", "pnu", "get", "930", "1004", "964[0..4]")
     assert code == EXIT_OK, err
@@ -56,7 +56,7 @@ def test_sdo_write_read_with_and_without_type(akd_inproc) -> None:
 
 
 def test_sdo_write_value_from_stdin(akd) -> None:
-    code, _, err = akd("sdo", "write", "0x607A:0", "-", input="123456\n")
+    code, _, err = akd("--yes", "sdo", "write", "0x607A:0", "-", input="123456\n")  # a gated set point
     assert code == EXIT_OK, err
     code, out, _ = akd("--json", "sdo", "read", "0x607A")
     assert json.loads(out)["value"] == 123456
@@ -314,7 +314,7 @@ def test_verify_mismatch_is_exit_5(akd_inproc, fake_scheme) -> None:
 
     _FakeTransport.open = open_scripted  # type: ignore[method-assign]
     try:
-        code, _, err = akd_inproc("-T", "fake", "pnu", "set", "--verify", "930=2")
+        code, _, err = akd_inproc("-T", "fake", "--yes", "pnu", "set", "--verify", "930=2")
     finally:
         _FakeTransport.open = original_open  # type: ignore[method-assign]
     assert code == EXIT_CHECK, err

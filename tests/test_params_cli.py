@@ -33,7 +33,7 @@ def test_backup_change_diff_restore_diff_empty(akd_inproc, tmp_path: Path, suffi
     assert backup.exists()
     assert akd_inproc("params", "diff", str(backup))[0] == EXIT_OK
 
-    assert akd_inproc("pnu", "set", "930=2", "1004=-500", "922=7")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "930=2", "1004=-500", "922=7")[0] == EXIT_OK
     code, out, err = akd_inproc("--json", "params", "diff", str(backup))
     assert code == EXIT_CHECK, err
     changed = {d["key"]: (d["a"], d["b"]) for d in json.loads(out)["differences"]}
@@ -66,7 +66,7 @@ def test_backup_file_has_target_identity_firmware_time(akd_inproc, tmp_path: Pat
 def test_dry_run_prints_old_to_new_and_writes_nothing(akd_inproc, tmp_path: Path) -> None:
     backup = tmp_path / "b.json"
     assert akd_inproc("params", "backup", "-o", str(backup))[0] == EXIT_OK
-    assert akd_inproc("pnu", "set", "1006=1234")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "1006=1234")[0] == EXIT_OK
     before = writes()
     code, out, err = akd_inproc("params", "restore", "--dry-run", str(backup))
     assert code == EXIT_OK, err
@@ -80,7 +80,7 @@ def test_restore_writes_only_differences_and_never_stw1(akd_inproc, tmp_path: Pa
     assert akd_inproc("params", "backup", "-o", str(backup))[0] == EXIT_OK
     text = backup.read_text().replace('"1" = 0', '"1" = 1151')  # STW1 in a file is never restored
     backup.write_text(text)
-    assert akd_inproc("pnu", "set", "1005=-100")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "1005=-100")[0] == EXIT_OK
     before = writes()
     code, out, err = akd_inproc("--json", "params", "restore", str(backup))
     assert code == EXIT_OK, err
@@ -91,11 +91,11 @@ def test_restore_writes_only_differences_and_never_stw1(akd_inproc, tmp_path: Pa
 
 
 def test_restore_free_telegram_writes_telegram_before_its_mapping(akd_inproc, tmp_path: Path) -> None:
-    assert akd_inproc("pnu", "set", "922=0")[0] == EXIT_OK
-    assert akd_inproc("pnu", "set", "915=1,5", "916=2,6")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "922=0")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "915=1,5", "916=2,6")[0] == EXIT_OK
     backup = tmp_path / "free.toml"
     assert akd_inproc("params", "backup", "-o", str(backup), "--group", "telegram")[0] == EXIT_OK
-    assert akd_inproc("pnu", "set", "922=1")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "922=1")[0] == EXIT_OK
     code, out, err = akd_inproc("--json", "params", "restore", str(backup))
     assert code == EXIT_OK, err
     keys = [c["key"] for c in json.loads(out)["changes"]]
@@ -107,7 +107,7 @@ def test_identity_mismatch_refused_unless_force(akd_inproc, tmp_path: Path) -> N
     backup = tmp_path / "b.toml"
     assert akd_inproc("params", "backup", "-o", str(backup))[0] == EXIT_OK
     backup.write_text(backup.read_text().replace("drive_unit_type = 1", "drive_unit_type = 7"))
-    assert akd_inproc("pnu", "set", "1004=-300")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "1004=-300")[0] == EXIT_OK
     before = writes()
     code, _, err = akd_inproc("params", "restore", str(backup))
     assert code == EXIT_SAFETY
@@ -132,7 +132,7 @@ def test_objects_backup_restores_pdo_mapping_in_manual_sequence(akd_inproc, tmp_
     data = json.loads(backup.read_text())
     assert "0x1600:1" in data["objects"] and "pnus" not in data
     for args in (("0x1600:0", "0"), ("0x1600:2", "0x60600008")):
-        assert akd_inproc("sdo", "write", *args)[0] == EXIT_OK
+        assert akd_inproc("--yes", "sdo", "write", *args)[0] == EXIT_OK
     assert akd_inproc("params", "diff", str(backup))[0] == EXIT_CHECK
     code, out, err = akd_inproc("--json", "params", "restore", str(backup))
     assert code == EXIT_OK, err
@@ -144,7 +144,7 @@ def test_objects_backup_restores_pdo_mapping_in_manual_sequence(akd_inproc, tmp_
 def test_diff_file_against_file(akd_inproc, tmp_path: Path) -> None:
     a, b = tmp_path / "a.toml", tmp_path / "b.json"
     assert akd_inproc("params", "backup", "-o", str(a))[0] == EXIT_OK
-    assert akd_inproc("pnu", "set", "1007=2000")[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "1007=2000")[0] == EXIT_OK
     assert akd_inproc("params", "backup", "-o", str(b))[0] == EXIT_OK
     code, out, _ = akd_inproc("--json", "params", "diff", str(a), str(b))
     assert code == EXIT_CHECK

@@ -79,7 +79,7 @@ def test_failed_check_stops_the_run_reports_it_and_skips_the_rest(akd_inproc, tm
     recipe.write_text('[recipe]\nname = "check"\n\n'
                       '[[step]]\naction = "set"\npnu = "930"\nvalue = 2\n\n'
                       '[[step]]\naction = "expect"\nname = "telegram is 9"\npnu = "922"\nvalue = 9\n\n'
-                      '[[step]]\naction = "set"\npnu = "1004"\nvalue = 50\n')
+                      '[[step]]\naction = "set"\npnu = "1001"\nvalue = 3\n')  # not gated
     xml_path, json_path = tmp_path / "j.xml", tmp_path / "r.json"
     code, out, err = akd_inproc("commission", str(recipe), "--report", str(xml_path), "--report", str(json_path))
     assert code == EXIT_CHECK

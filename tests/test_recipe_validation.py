@@ -18,7 +18,7 @@ def writes() -> int:
 @pytest.fixture
 def primed(akd_inproc) -> int:
     """A sim that has seen one write, so 'unchanged' is a real comparison."""
-    assert akd_inproc("pnu", "set", "1004=100")[0] == EXIT_OK
+    assert akd_inproc("pnu", "set", "1001=3")[0] == EXIT_OK  # not a gated address (akdctl.drive.gate)
     return writes()
 
 

@@ -12,12 +12,15 @@ refusal (no consent, a limit), 130 interrupted.
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 import click
 
+from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc, message
-from akdctl.errors import SafetyRefusal
+from akdctl.cli.signals import stop_signals
+from akdctl.errors import Interrupted
 
 
 @click.command("commission")
@@ -44,9 +47,8 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
     app = get_app()
     for path in reports:
         report.kind_of(path)  # a bad suffix is a usage error before anything runs
-    limits = app.profile.limits if app.profile is not None else {}
     try:
-        raw, steps = load_and_validate(recipe, allow_outside=allow_outside, limits=limits)
+        raw, steps = load_and_validate(recipe, allow_outside=allow_outside, conn=app)
     except RecipeError as exc:
         if len(exc.problems) > 1:
             message("akdctl: the recipe has these problems:")
@@ -62,13 +64,21 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
             report.write(result, path)
         app.emit(result.to_json(), lambda: _plan_doc(result))
         return
-    _consent(app, steps, target)
+    _consent(app, steps)
     progress = message if (sys.stderr.isatty() or app.verbose) else None
-    interrupted = [False]
-    session = Session(app.connection, runner.output_dir_for(output_dir), lambda: interrupted[0])
-    result = runner.run(steps, session, progress, **meta)
-    for path in reports:
-        report.write(result, path)
+    with stop_signals() as stop:
+        session = Session(app.connection, runner.output_dir_for(output_dir), stop)
+        result = runner.run(steps, session, progress, **meta)
+        if isinstance(result.error, Interrupted):
+            stop.mark(result.error)
+            result.exit_code = result.error.exit_code
+        for path in reports:
+            report.write(result, path)
+        _finish(app, result)
+
+
+def _finish(app: Any, result: Any) -> None:
+    """Print the result; a failed run raises its error (already reported) with the step and the axis state."""
     app.emit(result.to_json(), lambda: _result_doc(result))
     if result.error is not None:
         failed = result.failed_step
@@ -81,18 +91,18 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
         raise exc
 
 
-def _consent(app: object, steps: list, target: str) -> None:
-    """Motion needs consent: --yes, or a yes at a TTY prompt naming the target and the motions."""
-    motions = [s for s in steps if s.motion]
-    if not motions or getattr(app, "yes", False):
+def _consent(app: Any, steps: list[Any]) -> None:
+    """Steps that power or move the axis (motion steps, set steps writing gated addresses) need the one consent."""
+    from akdctl.drive import gate
+
+    enabled: bool | None = False
+    if any(g.when_enabled for s in steps for g in s.gated):
+        enabled = gate.drive_enabled(app.connection)  # reads only; a mode/mapping change matters on an enabled drive
+    asking = [s for s in steps if s.motion or gate.needing_consent(s.gated, enabled)]
+    if not asking:
         return
-    what = "; ".join(f"step {s.number}: {s.plan}" for s in motions)
-    if not sys.stdin.isatty():
-        raise SafetyRefusal(f"the recipe powers or moves the axis of {target} ({what}); pass --yes to consent "
-                            "(no terminal to ask)")
-    if not click.confirm(f"The recipe will power and move the axis of {target}:\n  {what}\nProceed?", default=False,
-                         err=True):
-        raise SafetyRefusal("no consent to motion; nothing was done")
+    what = "; ".join(f"step {s.number}: {s.plan}" for s in asking)
+    require_consent(app, f"run the recipe, which powers or moves the axis ({what})")
 
 
 def _plan_doc(result: object) -> Doc:

@@ -1,13 +1,13 @@
 """``status``, ``enable``, ``disable``, ``stop``, ``jog``, ``home``, ``move``: the axis from the shell, safely.
 
-The safety model (README "Safety model", docs/motion.md):
+The safety model (README "Safety model"): every command that powers or moves the
+axis runs :func:`_plan_and_run` — the one planner (:mod:`akdctl.drive.motion_plan`:
+input, the drive's quantisation, limits as executed, travel, homed, the drive's
+state; reads only), then the one consent (:mod:`akdctl.cli.consent`), then the
+execution under the stop signals (:mod:`akdctl.cli.signals`):
 
-* consent: anything that powers or moves the axis asks on the terminal, naming the
-  target, the mode and the motion; without a terminal it needs ``--yes`` (exit 4);
-* limits: velocity, acceleration and travel from the config profile's ``[limits]``
-  are checked before anything is sent (exit 4);
-* Ctrl-C / SIGTERM / any error while the axis moves: the axis is stopped (ramp,
-  then quick stop if the ramp is not obeyed) before the tool exits (130 on Ctrl-C);
+* SIGINT / SIGTERM / SIGHUP / any error while the axis moves: the axis is stopped
+  (ramp, then quick stop if the ramp is not obeyed) before the tool exits (128 + signal);
 * bounded motion: jog needs ``--for`` or ``--distance``; moves are finite; the
   simulated drive's watchdog stops the axis when the tool stops talking.
 
@@ -18,21 +18,19 @@ from __future__ import annotations
 
 import contextlib
 import re
-import signal
 import sys
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import click
 
+from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
-from akdctl.cli.output import Doc
-from akdctl.errors import SafetyRefusal, UsageError
+from akdctl.cli.output import Doc, message
+from akdctl.cli.signals import stop_signals
+from akdctl.errors import Interrupted, UsageError
 
-UNIT_CHOICES = ("counts", "rev", "deg", "user")
-DEFAULT_RPM = 100.0
-DEFAULT_ACC = 1000.0
+from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 
 
 # ---------------------------------------------------------------------- helpers
@@ -64,8 +62,10 @@ def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None 
     return doc
 
 
-def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None = None, bits: bool = False) -> None:
-    data = {"target": app.target.display, **(extra or {}), "status": status.to_json()}
+def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None = None, bits: bool = False,
+                 plan: dict[str, Any] | None = None) -> None:
+    data = {"target": app.target.display, **(extra or {}), **({"plan": plan} if plan else {}),
+            "status": status.to_json()}
 
     def human() -> Doc:
         doc = _status_doc(app, status, title, extra)
@@ -78,65 +78,6 @@ def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None
     app.emit(data, human)
 
 
-def _consent(app: Any, what: str, mode: str) -> None:
-    """Ask before powering or moving the axis; --yes answers for scripts."""
-    text = f"{what} on {app.target.display} (mode: {mode})"
-    if app.yes:
-        return
-    if not sys.stdin.isatty():
-        raise SafetyRefusal(f"refusing to {text}: no terminal to ask for consent and --yes was not given")
-    if not click.confirm(f"About to {text}. Proceed?", default=False, err=True):
-        raise SafetyRefusal(f"not confirmed: {text}")
-
-
-def _limits(app: Any) -> dict[str, Any]:
-    profile = app.profile
-    return dict(profile.limits) if profile is not None else {}
-
-
-def _check_limits(app: Any, rpm: float | None = None, acc: float | None = None,
-                  final_rev: float | None = None) -> None:
-    """Refuse (exit 4) before anything is sent when a profile limit would be exceeded."""
-    limits = _limits(app)
-    max_v, max_a, travel = limits.get("max_velocity"), limits.get("max_acceleration"), limits.get("travel")
-    if rpm is not None and max_v is not None and abs(rpm) > float(max_v):
-        raise SafetyRefusal(f"refusing: velocity {abs(rpm):g} rpm exceeds the profile limit max_velocity = {max_v} rpm")
-    if acc is not None and max_a is not None and abs(acc) > float(max_a):
-        raise SafetyRefusal(f"refusing: acceleration {abs(acc):g} rpm/s exceeds the profile limit "
-                            f"max_acceleration = {max_a} rpm/s")
-    if travel is not None and final_rev is not None:
-        try:
-            lo, hi = float(travel[0]), float(travel[1])
-        except (TypeError, ValueError, IndexError):
-            raise UsageError("config: limits.travel must be [min, max] in revolutions") from None
-        if not lo <= final_rev <= hi:
-            raise SafetyRefusal(f"refusing: the axis would end at {final_rev:.4f} rev, outside the profile's travel "
-                                f"[{lo:g}, {hi:g}] rev")
-
-
-def _travel_needs_position(app: Any, status: Any) -> None:
-    if _limits(app).get("travel") is not None and status.position_rev is None:
-        raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
-
-
-def _default_units(app: Any) -> str:
-    profile = app.profile
-    return "user" if profile is not None and profile.units.get("per_rev") else "rev"
-
-
-def _to_rev(app: Any, value: float, unit: str, counts_per_rev: int) -> float:
-    if unit == "rev":
-        return value
-    if unit == "deg":
-        return value / 360.0
-    if unit == "counts":
-        return value / counts_per_rev
-    per_rev = (app.profile.units.get("per_rev") if app.profile is not None else None)
-    if not per_rev:
-        raise UsageError("--units user needs [units] per_rev in the config profile")
-    return value / float(per_rev)
-
-
 _DURATION = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|m|min)?\s*$")
 
 
@@ -147,27 +88,6 @@ def _duration(text: str) -> float:
     value = float(match.group(1))
     unit = match.group(2) or "s"
     return value / 1000.0 if unit == "ms" else value * 60.0 if unit in ("m", "min") else value
-
-
-@contextlib.contextmanager
-def _interrupt_guard() -> Iterator[list[bool]]:
-    """Turn SIGINT/SIGTERM into a flag checked between requests, so the axis is stopped cleanly."""
-    flag = [False]
-
-    def handler(signum: int, frame: Any) -> None:
-        flag[0] = True
-
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, handler)
-        except ValueError:  # not the main thread (tests calling commands in a thread)
-            pass
-    try:
-        yield flag
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def _progress(app: Any) -> Any:
@@ -188,27 +108,28 @@ def _end_progress(app: Any) -> None:
         sys.stderr.write("\n")
 
 
-def _prepare(axis: Any, kind: str, check: Any = None) -> Any:
-    from akdctl.drive.axis import prepare_motion
+def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
+                  wait: bool = True) -> None:
+    """The one path of every command that powers or moves the axis: plan (checks, reads only),
+    consent, then execute under the stop signals; prints the final state."""
+    from akdctl.drive import motion_plan
+    from akdctl.drive.axis import axis_class
 
-    return prepare_motion(axis, kind, check)
-
-
-def _run(app: Any, axis: Any, start: Any, finished: Any, deadline: float, what: str,
-         on_deadline: str = "error") -> Any:
-    from akdctl.drive.axis import MotionRun
-
-    with _interrupt_guard() as flag:
-        runner = MotionRun(axis, lambda: flag[0], _progress(app))
+    conn = app.connection
+    motion_plan.check_request(conn, request, axis_class(conn))  # no drive needed: bad input exits 2 first
+    axis = conn.axis()
+    plan = motion_plan.plan(conn, axis, request)
+    require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
+    with stop_signals() as stop:
         try:
-            return runner.run(start, finished, deadline_s=deadline, what=what, on_deadline=on_deadline)
+            result = motion_plan.execute(axis, plan, stop, _progress(app), wait=wait)
         finally:
             _end_progress(app)
-
-
-def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float:
-    v = max(abs(rpm) / 60.0, 1e-6)
-    return abs(distance_rev) / v + v / max(acc / 60.0, 1e-6) + v / max(dec / 60.0, 1e-6)
+    extra = dict(extra or {})
+    if not wait:
+        extra["note"] = motion_plan.wait_hint(conn)
+        message(f"akdctl: {extra['note']}")
+    _emit_status(app, result, title, extra, plan=plan.to_json())
 
 
 def _common(func: Any) -> Any:
@@ -240,12 +161,12 @@ def status(watch: bool, interval: float) -> None:
     if not watch:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
         return
-    with _interrupt_guard() as flag:
-        while not flag[0]:
+    with contextlib.suppress(Interrupted), stop_signals() as stop:
+        while not stop():
             _emit_status(app, axis.read_status(), f"axis status {time.strftime('%H:%M:%S')}", bits=not app.json)
             sys.stdout.flush()
             end = time.monotonic() + interval
-            while time.monotonic() < end and not flag[0]:
+            while time.monotonic() < end and not stop():
                 time.sleep(0.05)
 
 
@@ -253,12 +174,9 @@ def status(watch: bool, interval: float) -> None:
 @_common
 def enable() -> None:
     """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded."""
-    app = get_app()
-    axis = _axis(app)
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    _consent(app, "enable the power stage (no motion commanded)", status.mode_text)
-    _emit_status(app, axis.enable(), "drive enabled")
+    from akdctl.drive.motion_plan import MotionRequest
+
+    _plan_and_run(get_app(), MotionRequest("enable"), "drive enabled")
 
 
 @click.command()
@@ -281,140 +199,57 @@ def stop(quick: bool) -> None:
 
 @click.command(context_settings={"ignore_unknown_options": True})
 @click.argument("velocity", type=float)
-@click.option("--for", "duration", metavar="DURATION", help="Jog for this long (e.g. 2s, 500ms), then stop.")
+@click.option("--for", "duration", metavar="DURATION",
+              help=f"Jog for this long (e.g. 2s, 500ms; at most {MAX_JOG_S:g} s), then stop.")
 @click.option("--distance", type=float, help="Jog this far (in --units), a finite move; sign gives the direction.")
-@click.option("--accel", type=click.FloatRange(min=1), default=DEFAULT_ACC, show_default=True, help="rpm/s.")
-@click.option("--units", "unit", type=click.Choice(UNIT_CHOICES), help="Units of --distance (default: rev, or user).")
+@click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
+@click.option("--units", "unit", type=click.Choice(UNITS), help="Units of --distance (default: rev, or user).")
 @_common
-def jog(velocity: float, duration: str | None, distance: float | None, accel: float, unit: str | None) -> None:
+def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None) -> None:
     """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance)."""
-    from akdctl.drive.axis import MoveSpec
+    from akdctl.drive.motion_plan import MotionRequest
 
-    app = get_app()
-    if (duration is None) == (distance is None):
+    if duration is not None and distance is not None:
         raise UsageError("jog needs exactly one of --for DURATION or --distance D, so the motion is bounded")
-    if velocity == 0:
-        raise UsageError("jog velocity must not be 0")
-    _check_limits(app, rpm=velocity, acc=accel)
-    axis = _axis(app)
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    if duration is not None:
-        seconds = _duration(duration)
-        if seconds <= 0:
-            raise UsageError("--for must be positive")
-        if status.position_rev is not None:
-            _check_limits(app, final_rev=status.position_rev + velocity / 60.0 * seconds
-                          + (velocity / 60.0) ** 2 / (2 * accel / 60.0) * (1 if velocity > 0 else -1))
-        else:
-            _travel_needs_position(app, status)
-        _consent(app, f"jog at {velocity:g} rpm for {seconds:g} s", axis.mode_name("velocity"))
-        _prepare(axis, "velocity")
-        result = _run(app, axis, lambda: axis.start_jog(velocity, accel), lambda s: None, seconds,
-                      "jog", on_deadline="stop")
-        axis.end_jog()
-        result = axis.wait_for(lambda s: s.standstill, "standstill after jog", timeout=axis.timeout + 5.0)
-        _emit_status(app, result, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds})
+    if distance is not None:
+        request = MotionRequest("jog", velocity=abs(velocity), distance=distance, accel=accel, unit=unit)
+        _plan_and_run(get_app(), request, "jog finished", {"distance": distance})
         return
-    assert distance is not None
-    unit = unit or _default_units(app)
-    rev = _to_rev(app, distance, unit, status.counts_per_rev)
-    if status.position_rev is not None:
-        _check_limits(app, final_rev=status.position_rev + rev)
-    else:
-        _travel_needs_position(app, status)
-    _consent(app, f"jog {distance:g} {unit} at {abs(velocity):g} rpm", axis.mode_name("position"))
-    _prepare(axis, "position", lambda: _require_homed(axis, True))
-    move = MoveSpec(rev, True, abs(velocity), accel, accel)
-    result = _run(app, axis, lambda: axis.start_move(move), lambda s: s.target_reached and s.standstill or None,
-                  _move_time(rev, velocity, accel, accel) + 2 * axis.timeout + 1.0, "jog")
-    _emit_status(app, result, "jog finished", {"distance": distance, "units": unit})
+    seconds = _duration(duration) if duration is not None else None
+    request = MotionRequest("jog", velocity=velocity, duration_s=seconds, accel=accel)
+    _plan_and_run(get_app(), request, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds})
 
 
 @click.command()
 @click.option("--mode", "home_mode", type=int, help="Homing mode: PNU 1001 (HOME.MODE) or 0x6098 method.")
-@click.option("--timeout", "home_timeout", type=click.FloatRange(min=0.1), default=60.0, show_default=True,
+@click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
               help="Seconds the whole homing may take before the axis is stopped.")
 @_common
 def home(home_mode: int | None, home_timeout: float) -> None:
     """Run the drive's homing procedure and wait until the home position is set."""
-    app = get_app()
-    axis = _axis(app)
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    mode_text = axis.mode_name("homing") + (f", homing mode {home_mode}" if home_mode is not None else "")
-    _consent(app, "run the homing procedure (the axis searches for its reference)", mode_text)
-    _prepare(axis, "homing")
-    result = _run(app, axis, lambda: axis.start_home(home_mode), axis.home_finished, home_timeout, "homing")
-    _emit_status(app, result, "homing finished", {"homed": True})
+    from akdctl.drive.motion_plan import MotionRequest
+
+    _plan_and_run(get_app(), MotionRequest("home", home_mode=home_mode, timeout_s=home_timeout), "homing finished",
+                  {"homed": True})
 
 
 @click.command(context_settings={"ignore_unknown_options": True})
 @click.argument("target", type=float)
 @click.option("--relative/--absolute", default=False, help="Relative to the current position (default absolute).")
-@click.option("--velocity", type=click.FloatRange(min=0.001), help=f"rpm (default {DEFAULT_RPM:g}, capped by the profile).")
-@click.option("--accel", type=click.FloatRange(min=1), help=f"rpm/s (default {DEFAULT_ACC:g}, capped by the profile).")
-@click.option("--decel", type=click.FloatRange(min=1), help="rpm/s (default: --accel).")
-@click.option("--units", "unit", type=click.Choice(UNIT_CHOICES), help="Units of TARGET (default: rev, or user).")
-@click.option("--no-wait", is_flag=True, help="Return once the drive accepted the move (it is finite).")
+@click.option("--velocity", type=float, help=f"rpm (default {DEFAULT_RPM:g}, capped by the profile).")
+@click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
+@click.option("--decel", type=float, help="rpm/s (default: --accel).")
+@click.option("--units", "unit", type=click.Choice(UNITS), help="Units of TARGET (default: rev, or user).")
+@click.option("--no-wait", is_flag=True,
+              help="Return once the drive accepted the move; the simulator's watchdog then stops it within about "
+                   "1 s unless something keeps polling (a real AKD finishes the task).")
 @_common
 def move(target: float, relative: bool, velocity: float | None, accel: float | None, decel: float | None,
          unit: str | None, no_wait: bool) -> None:
     """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move)."""
-    from akdctl.drive.axis import MoveSpec
+    from akdctl.drive.motion_plan import MotionRequest
 
-    app = get_app()
-    limits = _limits(app)
-    rpm = velocity if velocity is not None else min(DEFAULT_RPM, float(limits.get("max_velocity", DEFAULT_RPM)))
-    acc = accel if accel is not None else min(DEFAULT_ACC, float(limits.get("max_acceleration", DEFAULT_ACC)))
-    dec = decel if decel is not None else acc
-    _check_limits(app, rpm=rpm, acc=max(acc, dec))
-    axis = _axis(app)
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    unit = unit or _default_units(app)
-    rev = _to_rev(app, target, unit, status.counts_per_rev)
-    if relative:
-        if status.position_rev is not None:
-            _check_limits(app, final_rev=status.position_rev + rev)
-        else:
-            _travel_needs_position(app, status)
-    else:
-        _check_limits(app, final_rev=rev)
-    distance = rev if relative else (rev - status.position_rev if status.position_rev is not None else rev)
-    how = "by" if relative else "to"
-    _consent(app, f"move {how} {target:g} {unit} at {rpm:g} rpm (accel {acc:g}, decel {dec:g} rpm/s)",
-             axis.mode_name("position"))
-    _prepare(axis, "position", lambda: _require_homed(axis, relative))
-    spec = MoveSpec(rev, relative, rpm, acc, dec)
-    if no_wait:
-        with _interrupt_guard():
-            axis.start_move(spec)
-        _emit_status(app, axis.read_status(), "move started (not waiting)", {"target": target, "units": unit})
-        return
-    result = _run(app, axis, lambda: axis.start_move(spec), lambda s: s.target_reached and s.standstill or None,
-                  _move_time(distance, rpm, acc, dec) + 2 * axis.timeout + 1.0, "move")
-    _emit_status(app, result, "target reached", {"target": target, "units": unit})
-
-
-def _is_homed(axis: Any) -> bool:
-    """Homed? ZSW1 bit 11 in position mode; CiA 402 shows 'homing attained' only in homing mode."""
-    status = axis.read_status()
-    if not status.standstill:
-        return bool(status.homed)
-    if status.profile == "profidrive":
-        axis.ensure_mode("position")
-    else:
-        axis.ensure_mode("homing")
-    return bool(axis.read_status().homed)
-
-
-def _require_homed(axis: Any, relative: bool) -> None:
-    """Absolute moves need a homed axis; PROFIdrive MDI needs one even for relative moves."""
-    if not relative:
-        if not _is_homed(axis):
-            raise SafetyRefusal("refusing: the axis is not homed, so an absolute position means nothing yet; "
-                                "run 'akdctl home' first (or use --relative)")
-    elif axis.profile == "profidrive" and not _is_homed(axis):
-        raise SafetyRefusal("refusing: the axis is not homed (ZSW1 bit 11 clear); the AKD runs MDI traversing "
-                            "tasks only on a homed axis (PROFINET manual 5.10.2); run 'akdctl home' first")
+    request = MotionRequest("move", target=target, relative=relative, velocity=velocity, accel=accel, decel=decel,
+                            unit=unit)
+    title = "move started (not waiting)" if no_wait else "target reached"
+    _plan_and_run(get_app(), request, title, {"target": target, "units": unit}, wait=not no_wait)

@@ -13,6 +13,14 @@ from akdctl.errors import CheckFailed, UsageError
 TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
 
 
+def _gate(app: object, addr: object, entry: object) -> None:
+    """Consent before a write that can power or move the axis (akdctl.drive.gate)."""
+    from akdctl.cli.consent import consent_to_writes
+    from akdctl.drive import gate
+
+    consent_to_writes(app, [gate.classify_object(addr.index, addr.subindex, getattr(entry, "name", ""))])  # type: ignore[attr-defined]
+
+
 @click.group()
 def sdo() -> None:
     """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0)."""
@@ -74,6 +82,7 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
         raise UsageError(f"object {addr.label} ({entry.name}) is read-only")
     value, data = encode(dtype, value_text)
     channel = app.objects()
+    _gate(app, addr, entry)
     channel.download(addr.index, addr.subindex, data)
     if verify:
         back = channel.upload(addr.index, addr.subindex)

@@ -98,15 +98,49 @@ class AxisStatus:
         }
 
 
-@dataclass
-class MoveSpec:
-    """A checked point-to-point move: target in revolutions (absolute or relative), rpm, rpm/s."""
+@dataclass(frozen=True)
+class Scale:
+    """How the drive represents one quantity: ``raw`` integers ``raw_min..raw_max``, each ``step`` ``unit``.
 
-    target_rev: float
+    The planner (:mod:`akdctl.drive.motion_plan`) quantises every request on these
+    grids and compares the limits with the executed values; the Axis writes the raw
+    integers it is handed and converts nothing itself.
+    """
+
+    name: str
+    unit: str
+    step: float
+    raw_min: int
+    raw_max: int
+
+
+@dataclass(frozen=True)
+class MotionScales:
+    """The scales of the set points one motion kind writes (velocity, accelerations)."""
+
+    velocity: Scale
+    accel: Scale
+    decel: Scale
+
+
+@dataclass(frozen=True)
+class MoveSpec:
+    """A planned point-to-point move in raw drive units (position counts, the profile's velocity/ramp raw values)."""
+
+    target_raw: int
     relative: bool
-    rpm: float
-    acc_rpm_s: float
-    dec_rpm_s: float
+    velocity_raw: int
+    acc_raw: int
+    dec_raw: int
+
+
+@dataclass(frozen=True)
+class JogSpec:
+    """A planned timed jog in raw drive units (signed velocity raw, ramp raws)."""
+
+    velocity_raw: int
+    acc_raw: int
+    dec_raw: int
 
 
 def _fault_entries(numbers: list[int]) -> list[dict[str, Any]]:
@@ -121,9 +155,36 @@ def _fault_entries(numbers: list[int]) -> list[dict[str, Any]]:
 
 
 class Axis(ABC):
-    """One axis over one profile. ``timeout`` bounds each wait for a state change."""
+    """One axis over one profile. ``timeout`` bounds each wait for a state change.
+
+    The contract a profile implements (PROFIdrive and CiA 402 here; a new profile, e.g.
+    EtherNet/IP, implements the same):
+
+    * state: :meth:`read_status` (reads only), the state-machine primitives
+      (``_enable_steps``, ``_disable_command``, ``_ramp_stop_command``, ``_quick_stop_command``,
+      ``_ack_command``), :meth:`ensure_mode`;
+    * what the drive can represent, for the planner: :meth:`motion_scales` (classmethod, no
+      drive needed: velocity and ramp grids of a motion kind), :meth:`position_scale` and
+      :meth:`counts_per_rev` (may depend on the drive's configuration, from a status),
+      ``HOME_MODE_RANGE`` / ``HOME_MODE_FIELD``;
+    * the facts behind the homed rule: ``RELATIVE_MOVES_NEED_HOME``, ``HOMED_SOURCE``,
+      :meth:`homed_reading` (from a status, no write; None = not visible in this mode) and
+      :meth:`confirm_homed` (after consent; may switch the mode, restores it when not homed);
+      :meth:`check_home` (reads only: a homing the drive could not run);
+    * :meth:`refuse_if_not_commandable`: a read-only check that this link's commands will be
+      obeyed (PROFIdrive: STW1 bit 10; CiA 402: the controlword not owned by process data in OP);
+    * motion: ``start_jog(JogSpec)``, ``end_jog``, ``start_home``, ``home_finished``,
+      ``start_move(MoveSpec)`` write the raw values they are handed, nothing else.
+    """
 
     profile = "?"
+    #: True when the drive positions (even relatively) only once homed (AKD MDI, PROFINET manual 5.10.2).
+    RELATIVE_MOVES_NEED_HOME = False
+    #: Where the homed state comes from, for refusals.
+    HOMED_SOURCE = ""
+    #: The homing modes/methods the drive accepts, and where they go.
+    HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
+    HOME_MODE_FIELD = ""
 
     def __init__(self, timeout: float = 2.0, target: str = "") -> None:
         self.timeout = timeout
@@ -149,7 +210,7 @@ class Axis(ABC):
     def _ack_command(self) -> None: ...
 
     @abstractmethod
-    def start_jog(self, rpm: float, acc_rpm_s: float) -> None: ...
+    def start_jog(self, jog: JogSpec) -> None: ...
 
     @abstractmethod
     def end_jog(self) -> None: ...
@@ -168,8 +229,37 @@ class Axis(ABC):
     def ensure_mode(self, kind: str) -> None:
         """Switch to the mode a motion needs ('velocity', 'position', 'homing') at standstill."""
 
+    @classmethod
     @abstractmethod
-    def mode_name(self, kind: str) -> str: ...
+    def mode_name(cls, kind: str) -> str:
+        """The operating mode a motion kind uses, in words (for the consent prompt)."""
+
+    @classmethod
+    @abstractmethod
+    def motion_scales(cls, kind: str) -> MotionScales:
+        """The grids of velocity and ramps for motion ``kind`` ('velocity' = timed jog, 'position')."""
+
+    @abstractmethod
+    def position_scale(self, status: AxisStatus) -> Scale:
+        """The grid of the position set point (counts; range of the target object/PNU)."""
+
+    def counts_per_rev(self, status: AxisStatus) -> int:
+        return status.counts_per_rev
+
+    def homed_reading(self, status: AxisStatus) -> bool | None:
+        """Homed as far as ``status`` shows it without any write; None when this mode does not show it."""
+        return status.homed
+
+    def confirm_homed(self) -> bool:
+        """Homed? After consent only: may switch to the mode in which the drive shows it."""
+        self.ensure_mode("position")
+        return bool(self.read_status().homed)
+
+    def check_home(self, mode: int | None) -> None:
+        """Refuse (reads only) a homing the drive could not run, e.g. no method configured."""
+
+    def refuse_if_not_commandable(self, status: AxisStatus) -> None:
+        """SafetyRefusal when it is already visible that this link's commands would be ignored (reads only)."""
 
     # ---------------------------------------------------------------- shared behaviour
     def wait_for(self, predicate: Callable[[AxisStatus], bool], what: str, timeout: float | None = None,
@@ -340,7 +430,8 @@ class ProfidriveAxis(Axis):
         self.stw1(base)
 
     # ---------------------------------------------------------------- modes
-    def mode_name(self, kind: str) -> str:
+    @classmethod
+    def mode_name(cls, kind: str) -> str:
         return {"velocity": "velocity (PNU 930 = 1), jog via STW1 bit 8",
                 "position": "position (PNU 930 = 2), MDI via SATZANW bit 15",
                 "homing": "position (PNU 930 = 2), homing via STW1 bit 11"}[kind]
@@ -353,12 +444,51 @@ class ProfidriveAxis(Axis):
     def _operating_word(self) -> int:
         return self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION  # 0x040F
 
-    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
-        value = units.rpm_to_x(rpm, 15)
-        if not -32768 <= value <= 32767:
-            raise UsageError(f"jog velocity {rpm:g} rpm is outside the drive's range (±12000 rpm)")
-        acc = max(1, min(65535, round(acc_rpm_s)))
-        self._write((1004, value), (1006, acc), (1007, acc))
+    # SPEC-NOTES 13: jog velocity PNU 1004 is N2 (x = 15, 2^15 = 12000 rpm), MDI_VELOCITY X4 (x = 32),
+    # MDI_ACC/MDI_DEC X2 (x = 16, 2^16 = 50,000,000 rpm/s: one step is ~763 rpm/s); jog ramps PNU 1006/1007 rpm/s.
+    _JOG_VELOCITY = Scale("the jog velocity PNU 1004 (N2: 2^15 = 12000 rpm)", "rpm", units.MAX_RPM / (1 << 15),
+                          1, 32767)
+    _JOG_ACC = Scale("the jog ramp PNU 1006", "rpm/s", 1.0, 1, 65535)
+    _JOG_DEC = Scale("the jog ramp PNU 1007", "rpm/s", 1.0, 1, 65535)
+    _MDI_VELOCITY = Scale("MDI_VELOCITY (PNU 35, X4: 2^32 = 12000 rpm)", "rpm", units.MAX_RPM / (1 << 32), 1,
+                          (1 << 32) - 1)
+    _MDI_ACC = Scale("MDI_ACC (PNU 36, X2: 2^16 = 50,000,000 rpm/s)", "rpm/s", units.MAX_ACC_RPM_S / (1 << 16),
+                     1, 65535)
+    _MDI_DEC = Scale("MDI_DEC (PNU 37, X2: 2^16 = 50,000,000 rpm/s)", "rpm/s", units.MAX_ACC_RPM_S / (1 << 16),
+                     1, 65535)
+    RELATIVE_MOVES_NEED_HOME = True
+    HOMED_SOURCE = "ZSW1 bit 11; PROFINET manual 5.10.2"
+    HOME_MODE_RANGE = (0, 20)
+    HOME_MODE_FIELD = "HOME.MODE (PNU 1001)"
+
+    @classmethod
+    def motion_scales(cls, kind: str) -> MotionScales:
+        if kind == "velocity":
+            return MotionScales(cls._JOG_VELOCITY, cls._JOG_ACC, cls._JOG_DEC)
+        return MotionScales(cls._MDI_VELOCITY, cls._MDI_ACC, cls._MDI_DEC)
+
+    def position_scale(self, status: AxisStatus) -> Scale:
+        return Scale(f"MDI_TARPOS (PNU 34, {status.counts_per_rev} counts/rev)", "counts", 1.0, -(1 << 31),
+                     (1 << 31) - 1)
+
+    def homed_reading(self, status: AxisStatus) -> bool | None:
+        return status.homed if status.mode == 2 else None  # ZSW1 bit 11 means "home position set" in mode 2
+
+    def confirm_homed(self) -> bool:
+        before = self._read(930)[930][0]
+        self.ensure_mode("position")
+        homed = bool(self.read_status().homed)
+        if not homed and before != 2:
+            self._write((930, before))  # leave the mode as it was: the refusal changes nothing
+        return homed
+
+    def refuse_if_not_commandable(self, status: AxisStatus) -> None:
+        # ZSW1 bit 9 is only meaningful once STW1 bit 10 was written; before that, enable checks it.
+        if status.control & sw.STW1_CONTROL_BY_PLC and not status.control_honoured:
+            self._refuse_if_not_honoured()
+
+    def start_jog(self, jog: JogSpec) -> None:
+        self._write((1004, jog.velocity_raw), (1006, jog.acc_raw), (1007, jog.dec_raw))
         self.stw1(self._operating_word())  # bits 4/5/6 = 0: the jog prerequisite
         self.stw1(self._operating_word() | sw.STW1_JOG1)
 
@@ -382,18 +512,8 @@ class ProfidriveAxis(Axis):
         return None
 
     def start_move(self, move: MoveSpec) -> None:
-        status = self.read_status()
-        if not status.homed:
-            raise SafetyRefusal(
-                "refusing: the axis is not homed (ZSW1 bit 11 clear); the AKD runs MDI traversing tasks only on a "
-                "homed axis (PROFINET manual 5.10.2); run 'akdctl home' first")
-        counts = round(move.target_rev * status.counts_per_rev)
-        if not -(1 << 31) <= counts < (1 << 31):
-            raise UsageError("target is outside the 32-bit position range of MDI_TARPOS")
-        self._write((32, 0x8000), (34, counts), (35, max(1, units.rpm_to_x(move.rpm, 32))),
-                    (36, max(1, min(65535, units.rpm_s_to_acc(move.acc_rpm_s)))),
-                    (37, max(1, min(65535, units.rpm_s_to_acc(move.dec_rpm_s)))),
-                    (38, 0 if move.relative else 1))
+        self._write((32, 0x8000), (34, move.target_raw), (35, move.velocity_raw), (36, move.acc_raw),
+                    (37, move.dec_raw), (38, 0 if move.relative else 1))
         ready = self._operating_word() | sw.STW1_BIT4 | sw.STW1_BIT5
         self.stw1(ready)
         self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the MDI task
@@ -534,7 +654,8 @@ class Cia402Axis(Axis):
         self.controlword(sw.CW_FAULT_RESET)  # rising edge of bit 7
         self.controlword(0x0000)
 
-    def mode_name(self, kind: str) -> str:
+    @classmethod
+    def mode_name(cls, kind: str) -> str:
         return {"velocity": "profile velocity (0x6060 = 3)", "position": "profile position (0x6060 = 1)",
                 "homing": "homing (0x6060 = 6)"}[kind]
 
@@ -548,24 +669,66 @@ class Cia402Axis(Axis):
                     raise DriveError(f"the drive did not switch to mode {wanted} (0x6061) within {self.timeout:g} s")
                 time.sleep(POLL_S)
 
-    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
-        acc = round(acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)
-        self._down(0x6083, 0, acc)
-        self._down(0x6084, 0, acc)
-        self._down(0x60FF, 0, round(rpm / 60.0 * CIA_COUNTS_PER_REV))
+    # Object ranges (EtherCAT manual, CiA 402): 0x60FF i32, 0x6081/0x6083/0x6084 u32, 0x607A i32; the
+    # simulator's scaling of 65536 counts/rev, counts/s, counts/s² (module docstring).
+    _STEP_RPM = 60.0 / CIA_COUNTS_PER_REV
+    RELATIVE_MOVES_NEED_HOME = False
+    HOMED_SOURCE = "statusword bit 12 in homing mode"
+    HOME_MODE_RANGE = (-128, 127)
+    HOME_MODE_FIELD = "the homing method 0x6098"
+
+    @classmethod
+    def motion_scales(cls, kind: str) -> MotionScales:
+        acc = Scale("profile acceleration 0x6083 (counts/s², 65536 counts/rev)", "rpm/s", cls._STEP_RPM, 1,
+                    (1 << 32) - 1)
+        dec = Scale("profile deceleration 0x6084 (counts/s², 65536 counts/rev)", "rpm/s", cls._STEP_RPM, 1,
+                    (1 << 32) - 1)
+        if kind == "velocity":
+            return MotionScales(Scale("target velocity 0x60FF (counts/s, 65536 counts/rev)", "rpm", cls._STEP_RPM,
+                                      1, (1 << 31) - 1), acc, dec)
+        return MotionScales(Scale("profile velocity 0x6081 (counts/s, 65536 counts/rev)", "rpm", cls._STEP_RPM,
+                                  1, (1 << 32) - 1), acc, dec)
+
+    def position_scale(self, status: AxisStatus) -> Scale:
+        return Scale("target position 0x607A (65536 counts/rev)", "counts", 1.0, -(1 << 31), (1 << 31) - 1)
+
+    def homed_reading(self, status: AxisStatus) -> bool | None:
+        # Bit 12 means "homing attained" only in homing mode and with the drive enabled.
+        return status.homed if status.mode == 6 and status.enabled else None
+
+    def confirm_homed(self) -> bool:
+        self.ensure_mode("homing")
+        status = self.read_status()
+        if status.enabled:
+            return bool(status.homed)
+        status = self.enable()
+        homed = bool(status.homed)
+        if not homed:
+            self.disable()  # it was disabled before the check: leave it so
+        return homed
+
+    def refuse_if_not_commandable(self, status: AxisStatus) -> None:
+        self._refuse_pdo_override(observed=False)
+
+    def start_jog(self, jog: JogSpec) -> None:
+        self._down(0x6083, 0, jog.acc_raw)
+        self._down(0x6084, 0, jog.dec_raw)
+        self._down(0x60FF, 0, jog.velocity_raw)
         self.controlword(sw.CW_ENABLE_OPERATION_CMD)  # halt clear: follow 0x60FF
 
     def end_jog(self) -> None:
         self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)
         self._down(0x60FF, 0, 0)
 
-    def start_home(self, mode: int | None) -> None:
-        if mode is not None:
-            self._down(0x6098, 0, mode)
-        elif self._up(0x6098, 0) == 0:
+    def check_home(self, mode: int | None) -> None:
+        if mode is None and self._up(0x6098, 0) == 0:
             # Method 0 means "no homing method": the drive would only report a homing error.
             raise UsageError("homing method 0x6098 is 0 (none configured); choose one with --mode, "
                              "e.g. 35 = current position, 19..30 = home switch, 1/2 = limit switch and index")
+
+    def start_home(self, mode: int | None) -> None:
+        if mode is not None:
+            self._down(0x6098, 0, mode)
         self.controlword(sw.CW_ENABLE_OPERATION_CMD)
         self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_NEW_SETPOINT)  # homing operation start
 
@@ -579,11 +742,10 @@ class Cia402Axis(Axis):
         return None
 
     def start_move(self, move: MoveSpec) -> None:
-        counts = round(move.target_rev * CIA_COUNTS_PER_REV)
-        self._down(0x607A, 0, counts)
-        self._down(0x6081, 0, max(1, round(move.rpm / 60.0 * CIA_COUNTS_PER_REV)))
-        self._down(0x6083, 0, max(1, round(move.acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
-        self._down(0x6084, 0, max(1, round(move.dec_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x607A, 0, move.target_raw)
+        self._down(0x6081, 0, move.velocity_raw)
+        self._down(0x6083, 0, move.acc_raw)
+        self._down(0x6084, 0, move.dec_raw)
         base = sw.CW_ENABLE_OPERATION_CMD | (sw.CW_RELATIVE if move.relative else 0) | sw.CW_CHANGE_IMMEDIATELY
         self.controlword(base)
         self.controlword(base | sw.CW_NEW_SETPOINT)
@@ -599,21 +761,35 @@ class Cia402Axis(Axis):
 
 
 # ====================================================================== choosing
-def prepare_motion(axis: Axis, kind: str, check: Callable[[], object] | None = None) -> Any:
-    """The one preparation before any motion (commands and recipes alike).
+def target_channels(conn: Any) -> set[str] | None:
+    """The channels ('parameters', 'objects') the target offers, known without connecting; None if unknown."""
+    from akdctl.transport.registry import BUILTIN
 
-    Refuse a faulted or moving axis, run ``check`` (e.g. "homed?"), switch the mode, enable;
-    returns the status after enabling. Runs only after consent: switching the mode is
-    already a change on the drive.
-    """
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    if not status.standstill:
-        raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
-    if check is not None:
-        check()
-    axis.ensure_mode(kind)
-    return axis.enable()
+    spec = BUILTIN.get(conn.target.scheme)
+    if spec is None:
+        return None
+    return {part.strip() for part in spec.channels.split(",")}
+
+
+def profile_name(conn: Any) -> str:
+    """The axis profile of this invocation: ``conn.drive_profile`` if set, else PROFIdrive when the
+    target has a parameter channel, else CiA 402 (decided without connecting when the registry knows)."""
+    chosen = conn.drive_profile
+    if chosen is not None:
+        return str(chosen)
+    channels = target_channels(conn)
+    if channels is None:
+        return "profidrive" if conn.has_parameters else "cia402"
+    return "profidrive" if "parameters" in channels else "cia402"
+
+
+def axis_class(conn: Any) -> type[Axis]:
+    """The Axis subclass of this invocation's profile (the planner reads its scales before connecting)."""
+    chosen = profile_name(conn)
+    classes: dict[str, type[Axis]] = {"profidrive": ProfidriveAxis, "cia402": Cia402Axis}
+    if chosen not in classes:
+        raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
+    return classes[chosen]
 
 
 if TYPE_CHECKING:  # beside its one user, so this hunk stays apart from the module's import block
@@ -621,13 +797,10 @@ if TYPE_CHECKING:  # beside its one user, so this hunk stays apart from the modu
 
 
 def open_axis(conn: "Connection") -> Axis:
-    """The axis of this connection: ``conn.drive_profile`` if set, else PROFIdrive when the
-    target has a parameter channel, else CiA 402."""
-    chosen = conn.drive_profile
+    """The axis of this connection (:func:`profile_name` chooses the profile)."""
+    chosen = profile_name(conn)
     timeout = conn.options.timeout
     target = conn.target.display
-    if chosen is None:
-        chosen = "profidrive" if conn.has_parameters else "cia402"
     if chosen == "profidrive":
         return ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)

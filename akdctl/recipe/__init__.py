@@ -12,11 +12,14 @@ from pathlib import Path
 from typing import Any
 
 
-def load_and_validate(path: str | Path, *, allow_outside: bool = False,
-                      limits: dict[str, Any] | None = None) -> tuple[Any, list[Any]]:
-    """(RawRecipe, [PlannedStep]); raises RecipeError listing every problem."""
+def load_and_validate(path: str | Path, *, allow_outside: bool = False, conn: Any = None) -> tuple[Any, list[Any]]:
+    """(RawRecipe, [PlannedStep]); raises RecipeError listing every problem.
+
+    ``conn`` (the connection; nothing is read from the drive) gives the config profile's limits and units and
+    the target's axis profile and channels, so motion steps and channels are checked as the commands check them.
+    """
     from akdctl.recipe import loader, schema
 
     recipe, structural = loader.load(path, allow_outside=allow_outside)
-    ctx = schema.Context(Path(path).resolve().parent, allow_outside, dict(limits or {}))
+    ctx = schema.Context(Path(path).resolve().parent, allow_outside, conn)
     return recipe, schema.validate(recipe, ctx, structural)

@@ -193,8 +193,18 @@ def _axis_with_timeout(session: Session, timeout: float | None) -> Any:
     return axis
 
 
+def _motion(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """enable/home/move: the one planner and execution the commands use (consent was given for the recipe)."""
+    from akdctl.drive import motion_plan
+
+    axis = _axis_with_timeout(session, params.get("timeout"))
+    accepted = motion_plan.plan(session.conn, axis, params["request"])
+    final = motion_plan.execute(axis, accepted, session.interrupted)
+    return {**final.to_json(), "plan": accepted.to_json()}
+
+
 def do_enable(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    return _axis_with_timeout(session, params.get("timeout")).enable().to_json()
+    return _motion(session, params)
 
 
 def do_disable(session: Session, params: dict[str, Any]) -> dict[str, Any]:
@@ -210,51 +220,11 @@ def do_acknowledge(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
 
 def do_home(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    axis = session.axis()
-    from akdctl.drive.axis import MotionRun
-
-    _prepare(axis, "homing")
-    final = MotionRun(axis, session.interrupted).run(lambda: axis.start_home(params["mode"]), axis.home_finished,
-                                                     deadline_s=params["timeout"], what="homing")
-    return final.to_json()
+    return _motion(session, params)
 
 
 def do_move(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    axis = session.axis()
-    from akdctl.drive.axis import MotionRun, MoveSpec
-
-    status = axis.read_status()
-    axis.refuse_if_fault(status)
-    _refuse_if_moving(status)
-    per_rev = status.counts_per_rev or 65536
-    target = params["target"]
-    rev = target / 360.0 if params["unit"] == "deg" else target / per_rev if params["unit"] == "counts" else target
-    spec = MoveSpec(rev, params["relative"], params["velocity"], params["accel"], params["decel"])
-    _prepare(axis, "position")
-    distance = abs(rev - (0 if params["relative"] else (status.position_rev or 0.0)))
-    # Trapezoid time with margin: the move must finish well inside this, else it is stopped.
-    estimate = distance / (spec.rpm / 60.0) + spec.rpm / spec.acc_rpm_s + spec.rpm / spec.dec_rpm_s
-    deadline = params["timeout"] or max(10.0, 3 * estimate + 5.0)
-    final = MotionRun(axis, session.interrupted).run(lambda: axis.start_move(spec), _move_done, deadline_s=deadline,
-                                                     what="move")
-    return final.to_json()
-
-
-def _refuse_if_moving(status: Any) -> None:
-    if not status.standstill:
-        from akdctl.errors import SafetyRefusal
-
-        raise SafetyRefusal("refusing: the axis is moving; a recipe starts a motion only from standstill")
-
-
-def _prepare(axis: Any, kind: str) -> None:
-    from akdctl.drive.axis import prepare_motion
-
-    prepare_motion(axis, kind)
-
-
-def _move_done(status: Any) -> bool | None:
-    return True if status.target_reached and status.standstill else None
+    return _motion(session, params)
 
 
 def do_check_faults(session: Session, params: dict[str, Any]) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from akdctl.errors import EXIT_INTERRUPTED, EXIT_OK, AkdError, CommError
+from akdctl.errors import EXIT_INTERRUPTED, EXIT_OK, AkdError, CommError, Interrupted
 from akdctl.recipe.ops import Session, run_step
 from akdctl.recipe.schema import PlannedStep
 
@@ -66,6 +66,11 @@ class RunResult:
         return self.exit_code == EXIT_OK
 
     @property
+    def interrupted(self) -> bool:
+        """Stopped by a signal (SIGINT, SIGTERM, SIGHUP): the report says so."""
+        return isinstance(self.error, Interrupted)
+
+    @property
     def failed_step(self) -> StepResult | None:
         return next((r for r in self.results if r.status == FAILED), None)
 
@@ -74,7 +79,8 @@ class RunResult:
         data: dict[str, Any] = {
             "recipe": self.recipe, "description": self.description, "file": self.file, "target": self.target,
             "started": self.started, "duration_s": round(self.duration, 3), "dry_run": self.dry_run,
-            "result": "planned" if self.dry_run else ("passed" if self.passed else "failed"),
+            "result": "planned" if self.dry_run else ("passed" if self.passed else
+                                                       "interrupted" if self.interrupted else "failed"),
             "exit_code": self.exit_code,
             "counts": {status: sum(1 for r in self.results if r.status == status)
                        for status in (PASSED, FAILED, SKIPPED, PLANNED)},
@@ -131,10 +137,10 @@ def run(steps: list[PlannedStep], session: Session, progress: Callable[[str], No
             progress(f"[{step.number}/{total}] {step.name} …")
         begin = time.monotonic()
         try:
+            if session.interrupted():
+                raise KeyboardInterrupt
             details = run_step(session, step)
         except KeyboardInterrupt:
-            from akdctl.errors import Interrupted
-
             error = Interrupted(f"interrupted during step {step.number} ({step.name})")
             exit_code = EXIT_INTERRUPTED
         except AkdError as exc:

@@ -48,9 +48,6 @@ ACTIONS: dict[str, dict[str, Any]] = {
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
-UNITS = ("rev", "deg", "counts")
-DEFAULT_VELOCITY_RPM = 60.0
-DEFAULT_ACCEL_RPM_S = 1000.0
 MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
            "enable": ("akdctl.drive.axis",), "disable": ("akdctl.drive.axis",), "stop": ("akdctl.drive.axis",),
            "acknowledge": ("akdctl.drive.axis",), "home": ("akdctl.drive.axis",), "move": ("akdctl.drive.axis",),
@@ -71,6 +68,7 @@ class PlannedStep:
     motion: bool = False
     available: bool = True
     unavailable_reason: str = ""
+    gated: list[Any] = field(default_factory=list)  # gate.Gated addresses a set step writes (akdctl.drive.gate)
 
     @property
     def where(self) -> str:
@@ -83,11 +81,13 @@ class PlannedStep:
 
 @dataclass
 class Context:
-    """What validation may consult: the recipe's folder, the include/restore policy, the motion limits."""
+    """What validation may consult: the recipe's folder, the include/restore policy, the connection
+    (its config profile — limits, units — and target: the axis profile and the channels it offers;
+    nothing is read from the drive)."""
 
     folder: Path
     allow_outside: bool = False
-    limits: dict[str, Any] = field(default_factory=dict)
+    conn: Any = None
 
 
 class StepProblem(Exception):
@@ -344,23 +344,24 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
             raise StepProblem(f"telegram {number} is not one the AKD offers; expected one of "
                               f"{', '.join(str(t) for t in TELEGRAMS)}", "telegram")
         return {"telegram": number}, f"select telegram {number} (PNU 922) and read it back"
-    if action in ("enable", "disable"):
+    if action == "enable":
         timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
-        return {"timeout": timeout}, ("enable the drive (operation enabled)" if action == "enable"
-                                      else "disable the power stage (ramp to standstill first)")
+        return _motion(ctx, {"kind": "enable"}, {"timeout": timeout})
+    if action == "disable":
+        timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
+        return {"timeout": timeout}, "disable the power stage (ramp to standstill first)"
     if action == "stop":
         quick = data.get("quick", False)
         return {"quick": quick}, "stop the axis" + (" (quick stop)" if quick else " (ramp)")
     if action == "acknowledge":
         return {}, "acknowledge faults"
     if action == "home":
-        mode = data.get("mode")
-        if mode is not None and not -128 <= mode <= 127:
-            raise StepProblem(f"'mode' {mode} is out of range: expected a homing mode -128..127", "mode")
-        timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S, default=60.0)
-        return {"mode": mode, "timeout": timeout}, f"home the axis{f' (mode {mode})' if mode is not None else ''}"
+        return _motion(ctx, {"kind": "home", "home_mode": data.get("mode"), "timeout_s": data.get("timeout")})
     if action == "move":
-        return _check_move(data, ctx)
+        return _motion(ctx, {"kind": "move", "target": data["target"], "unit": data.get("unit"),
+                             "relative": data.get("relative", False), "velocity": data.get("velocity"),
+                             "accel": data.get("accel"), "decel": data.get("decel"),
+                             "timeout_s": data.get("timeout")})
     if action == "check_faults":
         allow = data.get("allow_warnings", True)
         return {"allow_warnings": allow}, "check that no fault" + ("" if allow else " or warning") + " is active"
@@ -442,33 +443,28 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
     return {"pdo": plan}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
 
 
-def _check_move(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
-    target = _number(data, "target")
-    unit = data.get("unit", "rev")
-    if unit not in UNITS:
-        raise StepProblem(f"'unit' {unit!r}: expected one of {', '.join(UNITS)}", "unit")
-    relative = data.get("relative", False)
-    velocity = _number(data, "velocity", positive=True, default=DEFAULT_VELOCITY_RPM)
-    accel = _number(data, "accel", positive=True, default=DEFAULT_ACCEL_RPM_S)
-    decel = _number(data, "decel", positive=True, default=accel)
-    timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
-    limits = ctx.limits or {}
-    vmax, amax = limits.get("max_velocity"), limits.get("max_acceleration")
-    if isinstance(vmax, NUMBER) and velocity > vmax:
-        raise StepProblem(f"velocity {velocity:g} rpm exceeds the profile's max_velocity {vmax:g} rpm", "velocity")
-    if isinstance(amax, NUMBER) and max(accel, decel) > amax:
-        raise StepProblem(f"acceleration {max(accel, decel):g} rpm/s exceeds the profile's max_acceleration "
-                          f"{amax:g} rpm/s", "accel")
-    travel = limits.get("travel")
-    if not relative and unit != "counts" and isinstance(travel, list) and len(travel) == 2:
-        rev = target / 360.0 if unit == "deg" else target
-        if not travel[0] <= rev <= travel[1]:
-            raise StepProblem(f"target {rev:g} rev is outside the profile's travel {travel[0]:g}..{travel[1]:g} rev",
-                              "target")
-    params = {"target": target, "unit": unit, "relative": relative, "velocity": velocity, "accel": accel,
-              "decel": decel, "timeout": timeout}
-    return params, (f"move {'by' if relative else 'to'} {target:g} {unit} at {velocity:g} rpm "
-                    f"(acc {accel:g}, dec {decel:g} rpm/s), wait for target reached")
+# Which recipe key a planner refusal points at (for FILE:LINE).
+_PROBLEM_KEYS = (("velocity", "velocity"), ("deceleration", "decel"), ("acceleration", "accel"),
+                 ("homing mode", "mode"), ("timeout", "timeout"), ("unit", "unit"), ("travel", "target"),
+                 ("target", "target"))
+
+
+def _motion(ctx: Context, fields: dict[str, Any], extra: dict[str, Any] | None = None) -> tuple[dict[str, Any], str]:
+    """enable/home/move: the motion planner's drive-free stage (the same as the commands'), so a recipe
+    step is refused exactly when the command line would be."""
+    from akdctl.drive import motion_plan
+    from akdctl.drive.axis import axis_class
+
+    request = motion_plan.MotionRequest(**fields)
+    if ctx.conn is None:
+        return {"request": request, **(extra or {})}, request.kind
+    try:
+        accepted = motion_plan.check_request(ctx.conn, request, axis_class(ctx.conn))
+    except AkdError as exc:
+        key = next((k for word, k in _PROBLEM_KEYS if word in exc.message), None)
+        raise StepProblem(exc.message, key) from None
+    text = accepted.what + ("" if request.kind == "enable" else ", wait until it ends")
+    return {"request": request, **(extra or {})}, text
 
 
 # ---------------------------------------------------------------------------- the whole recipe
@@ -496,8 +492,10 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
         if key not in data:
             raise StepProblem(f"missing key {key!r} for a {action} step")
     params, plan = _check(action, data, ctx)
+    _check_channels(action, params, ctx)
     name = data.get("name") or plan
-    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION)
+    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION,
+                       gated=_gated(action, params))
     for module in MODULES.get(action, ()):
         if action == "map" and module != _map_module(params):
             continue
@@ -506,6 +504,55 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
             step.unavailable_reason = f"the {action} step is not available in this version of akdctl " \
                                       f"({module} is missing)"
     return step
+
+
+CHANNEL_WORDS = {"parameters": "a PROFIdrive parameter channel (PNUs)", "objects": "an object channel (SDO)"}
+
+
+def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> set[str]:
+    """The channels a step uses on the drive, known from the step and the target alone."""
+    if action in ("set", "expect", "wait"):
+        targets = params.get("targets") or ([params["target"]] if "target" in params else [])
+        return {"parameters" if t["kind"] == "pnu" else "objects" for t in targets}
+    if action == "map":
+        return {"parameters" if "telegram_map" in params else "objects"}
+    if action == "telegram":
+        return {"parameters"}
+    if action in ("enable", "disable", "stop", "acknowledge", "home", "move"):
+        from akdctl.drive.axis import profile_name
+
+        return {"parameters" if profile_name(ctx.conn) == "profidrive" else "objects"}
+    return set()
+
+
+def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
+    """Each step's channel must exist on the selected target — checked before the first write, dry runs too."""
+    if ctx.conn is None:
+        return
+    from akdctl.drive.axis import target_channels
+
+    offered = target_channels(ctx.conn)
+    if offered is None:
+        return
+    for channel in sorted(_needed_channels(action, params, ctx) - offered):
+        offers = " and ".join(CHANNEL_WORDS[c] for c in sorted(offered)) or "no channel"
+        raise StepProblem(f"this step needs {CHANNEL_WORDS[channel]}, which target {ctx.conn.target.display} does "
+                          f"not offer (it has {offers})")
+
+
+def _gated(action: str, params: dict[str, Any]) -> list[Any]:
+    """The addresses of a set step that can power or move the axis: the recipe then needs consent."""
+    if action != "set":
+        return []
+    from akdctl.drive import gate
+
+    found = []
+    for t in params["targets"]:
+        if t["kind"] == "pnu":
+            found.append(gate.classify_pnu(t["spec"].pnu, t["spec"].info.name))
+        else:
+            found.append(gate.classify_object(t["entry"].index, t["entry"].subindex, t["entry"].name))
+    return [g for g in found if g is not None]
 
 
 def _map_module(params: dict[str, Any]) -> str:

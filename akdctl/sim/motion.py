@@ -118,6 +118,7 @@ class MotionComponent(Component):
         self.stopping_to: str | None = None  # state to enter when a ramp stop reaches standstill
         self.stw1 = 0
         self.controlword = 0
+        self.enabling_words = 0  # control words with "enable operation" received (tests: none without consent)
         self.plc_control_allowed = True  # False simulates a drive that does not honour STW1 bit 10
         self.mode = 3  # 0x6060 (3 profile velocity ↔ PNU 930 = 1, the PNU's documented default)
         self.pos = 0.0  # physical position, rev
@@ -567,6 +568,7 @@ class MotionComponent(Component):
         self._last_writer = "pd"
         old, new = self.stw1, values[0] & 0xFFFF
         self.stw1 = new
+        self.enabling_words += new & (sw.STW1_ON | sw.STW1_ENABLE_OPERATION) == sw.STW1_ON | sw.STW1_ENABLE_OPERATION
         if not (new & sw.STW1_CONTROL_BY_PLC and self.plc_control_allowed):
             return  # SPEC-NOTES 7: without bit 10 the drive ignores the control word
         self.watchdog_tripped = False
@@ -828,6 +830,7 @@ class MotionComponent(Component):
         self._last_writer = "cia"
         old, new = self.controlword, struct.unpack("<H", data)[0]
         self.controlword = new
+        self.enabling_words += new & sw.CW_ENABLE_OPERATION_CMD == sw.CW_ENABLE_OPERATION_CMD
         self.watchdog_tripped = False
         if new & sw.CW_FAULT_RESET and not old & sw.CW_FAULT_RESET:
             self._acknowledge()
@@ -1064,7 +1067,7 @@ class MotionComponent(Component):
         return max(-1.0, min(1.0, frac))
 
     # ================================================================== persistence
-    _FIELDS = ("state", "stopping_to", "stw1", "controlword", "plc_control_allowed", "mode", "pos", "vel",
+    _FIELDS = ("state", "stopping_to", "stw1", "controlword", "enabling_words", "plc_control_allowed", "mode", "pos", "vel",
                "acc_now", "offset", "gen", "activity", "task", "task_paused", "last_target", "task_ack", "aktsatz",
                "homed", "homing", "homing_error", "homing_done", "internal_limit", "frozen_vel", "watchdog_s",
                "since_access", "watchdog_tripped", "quick_stop_option", "quick_stop_code", "own_faults", "tasks")

@@ -393,6 +393,18 @@ class EthercatRawTransport(Transport):
             sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
 
+    def al_state(self) -> str | None:
+        """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
+
+        Rules that depend on it (SPEC-NOTES 23: an SDO controlword does nothing while process data owns it
+        in OP; PDO mapping only in PRE-OP) ask every transport the same way; None before the bus is open.
+        """
+        if self.master is None or self.slave is None:
+            return None
+        status, code = self.master.al_status(self.slave.station)
+        self.slave.al_status, self.slave.al_code = status, code
+        return ec.al_state_name(status)
+
     def close(self) -> None:
         self.mailbox_link = None
         if self.master is not None:

@@ -1,0 +1,103 @@
+"""The write gate: which raw writes can power or move the axis, and so need consent like ``enable``.
+
+Why a gate: ``pnu set 1=0x047F`` or ``sdo write 0x6040:0 15`` reach the state
+machine without the motion commands' consent. Every raw write path (``pnu set``,
+``sdo write``, recipe ``set`` steps) classifies its addresses here; the caller asks
+for consent (:func:`akdctl.cli.consent.require_consent`) when :func:`needing_consent`
+returns anything. README "Safety model" lists the same addresses.
+
+* always gated — the control words and the set points the drive acts on:
+  PNU 1 (STW1), 5 (NSOLL_A), 32 (SATZANW), 34..38 (MDI_*), 1004..1007 (jog set points
+  and ramps); objects 0x6040 (controlword), 0x607A, 0x60FF, 0x6071, 0x60C1 (target
+  position/velocity/torque, interpolation set points), 0x60B1/0x60B2 (velocity/torque
+  offsets), 0x6081/0x6083/0x6084 (profile velocity and ramps);
+* gated while the drive is enabled (or its state cannot be read) — what changes
+  the meaning of the running set points: the operating mode (PNU 930, 0x6060) and
+  the telegram / process-data mapping (PNU 915, 916, 922; 0x1600..0x17FF,
+  0x1A00..0x1BFF, 0x1C12, 0x1C13).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+_CONTROL = "the control word powers and moves the axis"
+_SETPOINT = "a set point the drive acts on"
+_MODE = "the operating mode of an enabled drive changes what its set points mean"
+_MAPPING = "the process-data mapping of an enabled drive changes which set points it follows"
+
+PNU_ALWAYS: dict[int, str] = {1: _CONTROL, 5: _SETPOINT, 32: _SETPOINT, 34: _SETPOINT, 35: _SETPOINT,
+                              36: _SETPOINT, 37: _SETPOINT, 38: _SETPOINT, 1004: _SETPOINT, 1005: _SETPOINT,
+                              1006: _SETPOINT, 1007: _SETPOINT}
+PNU_WHEN_ENABLED: dict[int, str] = {930: _MODE, 915: _MAPPING, 916: _MAPPING, 922: _MAPPING}
+OBJECT_ALWAYS: dict[int, str] = {0x6040: _CONTROL, 0x607A: _SETPOINT, 0x60FF: _SETPOINT, 0x6071: _SETPOINT,
+                                 0x60C1: _SETPOINT, 0x60B1: _SETPOINT, 0x60B2: _SETPOINT, 0x6081: _SETPOINT,
+                                 0x6083: _SETPOINT, 0x6084: _SETPOINT}
+OBJECT_WHEN_ENABLED: dict[int, str] = {0x6060: _MODE, 0x1C12: _MAPPING, 0x1C13: _MAPPING}
+MAPPING_RANGES = ((0x1600, 0x17FF), (0x1A00, 0x1BFF))
+
+
+@dataclass(frozen=True)
+class Gated:
+    """One gated address of a write: what it is, why it is gated, whether only while enabled."""
+
+    address: str
+    reason: str
+    when_enabled: bool = False
+
+    def text(self) -> str:
+        return f"{self.address}: {self.reason}"
+
+
+def classify_pnu(pnu: int, name: str = "") -> Gated | None:
+    label = f"PNU {pnu}" + (f" ({name})" if name else "")
+    if pnu in PNU_ALWAYS:
+        return Gated(label, PNU_ALWAYS[pnu])
+    if pnu in PNU_WHEN_ENABLED:
+        return Gated(label, PNU_WHEN_ENABLED[pnu], when_enabled=True)
+    return None
+
+
+def classify_object(index: int, subindex: int, name: str = "") -> Gated | None:
+    label = f"0x{index:04X}:{subindex}" + (f" ({name})" if name else "")
+    if index in OBJECT_ALWAYS:
+        return Gated(label, OBJECT_ALWAYS[index])
+    if index in OBJECT_WHEN_ENABLED or any(lo <= index <= hi for lo, hi in MAPPING_RANGES):
+        return Gated(label, OBJECT_WHEN_ENABLED.get(index, _MAPPING), when_enabled=True)
+    return None
+
+
+def needing_consent(gated: list[Gated | None], enabled: bool | None) -> list[Gated]:
+    """The gated addresses that need consent now; ``enabled`` None (unknown) counts as enabled."""
+    return [g for g in gated if g is not None and (not g.when_enabled or enabled is not False)]
+
+
+def drive_enabled(conn: Any) -> bool | None:
+    """Is the power stage enabled? Reads only; None when the drive's state cannot be read."""
+    from akdctl.drive.axis import open_axis
+    from akdctl.errors import AkdError
+
+    try:
+        return bool(open_axis(conn).read_status().enabled)
+    except AkdError:
+        return None
+
+
+def consent_action(needing: list[Gated]) -> str:
+    """The consent prompt's words for a gated write."""
+    return "write " + "; ".join(g.text() for g in needing)
+
+
+def check_write(conn: Any, gated: list[Gated | None], consent: Any, given: bool = False) -> None:
+    """Ask ``consent(action)`` when a write touches gated addresses (the drive's state read only if it matters).
+
+    ``given``: consent was already given (``--yes``), so nothing needs to be read or asked.
+    """
+    present = [g for g in gated if g is not None]
+    if not present or given:
+        return
+    enabled = drive_enabled(conn) if any(g.when_enabled for g in present) else None
+    needing = needing_consent(present, enabled)
+    if needing:
+        consent(consent_action(needing))

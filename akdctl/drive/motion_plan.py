@@ -1,0 +1,466 @@
+"""The one motion planner: every path that powers or moves the axis asks it first.
+
+Why one planner: the CLI commands (``enable``, ``jog``, ``home``, ``move``) and the
+recipe steps (``enable``, ``home``, ``move``) must refuse the same requests for the
+same reasons, and the drive must execute exactly what was checked. So a request
+(target or distance, velocity, accelerations, units, duration) becomes a
+:class:`MotionPlan` in *drive units after the drive's own quantisation and ranges*
+(the :class:`~akdctl.drive.axis.Scale` each Axis profile declares), and the limits
+of the config profile are compared with those executed values — not with what the
+user typed.
+
+Two stages, both here:
+
+* :func:`check_request` needs no drive: NaN/inf, signs, the jog duration bound,
+  units, quantisation of velocity and accelerations for the axis profile, the
+  profile limits as executed, an absolute target against the travel window.
+  Recipes run it at validation time; commands before opening the transport.
+* :func:`plan` reads (never writes) the drive: fault, standstill, whether the
+  drive will obey this link (STW1 bit 10, controlword owned by process data in
+  OP), the homed rule, the current position for relative moves and jogs against
+  the travel window, and the position quantisation (counts per revolution).
+
+Only after the plan is accepted and consent given does :func:`execute` change
+anything on the drive (mode, enable, set points), always through the Axis.
+
+Representability: a value is executed as the largest representable value at or
+below the request when that is within :data:`REL_TOL` of it; otherwise the request
+is refused (exit 2) naming the nearest representable values. Values are never
+rounded up. Defaults (no value given) take the largest representable value at or
+below the default, capped by the profile's limit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from akdctl.errors import Interrupted, SafetyRefusal, UsageError
+
+#: A request within this fraction above a representable value is executed as that value.
+REL_TOL = 0.02
+DEFAULT_RPM = 100.0
+DEFAULT_ACC_RPM_S = 1000.0
+#: ``jog --for`` longer than this is refused: the tool, not the drive, ends such a jog (README "Safety model").
+MAX_JOG_S = 60.0
+#: Homing, moves and waits are bounded by this many seconds at most.
+MAX_WAIT_S = 3600.0
+UNITS = ("counts", "rev", "deg", "user")
+KINDS = ("enable", "home", "move", "jog")
+
+
+@dataclass(frozen=True)
+class MotionRequest:
+    """What a command line or a recipe step asks for, in the user's words and units.
+
+    ``kind``: enable, home, move (``target``, ``relative``) or jog (``velocity`` signed,
+    and exactly one of ``duration_s`` / ``distance``). ``unit`` None means the profile's
+    default (user units when ``[units] per_rev`` is set, else rev). ``velocity`` /
+    ``accel`` / ``decel`` None mean the defaults.
+    """
+
+    kind: str
+    target: float | None = None
+    relative: bool = False
+    velocity: float | None = None
+    accel: float | None = None
+    decel: float | None = None
+    unit: str | None = None
+    duration_s: float | None = None
+    distance: float | None = None
+    home_mode: int | None = None
+    timeout_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One value as requested and as the drive will execute it (``raw`` is what is written)."""
+
+    what: str
+    requested: float
+    executed: float
+    raw: int
+    unit: str
+    field_name: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"requested": self.requested, "executed": round(self.executed, 6), "raw": self.raw,
+                "unit": self.unit, "field": self.field_name}
+
+
+@dataclass
+class MotionPlan:
+    """An accepted request: the mode it needs, the raw values to write, the consent text."""
+
+    request: MotionRequest
+    profile: str
+    mode_kind: str  # 'velocity', 'position', 'homing' or '' (enable)
+    unit: str = "rev"
+    velocity: Quantity | None = None
+    accel: Quantity | None = None
+    decel: Quantity | None = None
+    target_raw: int | None = None  # position counts written (absolute target or relative distance)
+    move_rev: float | None = None  # the same in revolutions
+    start_rev: float | None = None
+    end_rev: float | None = None
+    duration_s: float | None = None
+    deadline_s: float = 0.0
+    needs_homed: bool = False
+    homed: bool | None = None  # as read before consent (None: only visible after the mode switch)
+    mode_text: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def what(self) -> str:
+        """The motion in words, for the consent prompt and the reports."""
+        r = self.request
+        if r.kind == "enable":
+            return "enable the power stage (no motion commanded)"
+        if r.kind == "home":
+            return "run the homing procedure (the axis searches for its reference)" + (
+                f", homing mode {r.home_mode}" if r.home_mode is not None else "")
+        assert self.velocity is not None and self.accel is not None
+        v, a = self.velocity.executed, self.accel.executed
+        if r.kind == "jog" and r.duration_s is not None:
+            return f"jog at {v:g} rpm for {r.duration_s:g} s (accel {a:.6g} rpm/s)"
+        if r.kind == "jog":
+            return f"jog {r.distance:g} {self.unit} at {abs(v):g} rpm (accel {a:.6g} rpm/s)"
+        assert self.decel is not None
+        how = "by" if r.relative else "to"
+        return (f"move {how} {r.target:g} {self.unit} at {v:.6g} rpm "
+                f"(accel {a:.6g}, decel {self.decel.executed:.6g} rpm/s)")
+
+    def to_json(self) -> dict[str, Any]:
+        data: dict[str, Any] = {"kind": self.request.kind, "profile": self.profile, "mode": self.mode_text,
+                                "what": self.what}
+        for name in ("velocity", "accel", "decel"):
+            q = getattr(self, name)
+            if q is not None:
+                data[name] = q.to_json()
+        for name in ("target_raw", "start_rev", "end_rev", "duration_s"):
+            value = getattr(self, name)
+            if value is not None:
+                data[name] = round(value, 6) if isinstance(value, float) else value
+        return data
+
+
+# ====================================================================== helpers
+def finite(value: Any, what: str) -> float:
+    """A finite number or exit 2 (NaN, inf and non-numbers never reach a drive)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+        raise UsageError(f"{what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def limits_of(conn: Any) -> dict[str, Any]:
+    profile = conn.profile
+    return dict(profile.limits) if profile is not None else {}
+
+
+def per_rev_of(conn: Any) -> float | None:
+    profile = conn.profile
+    value = profile.units.get("per_rev") if profile is not None else None
+    return float(value) if value else None
+
+
+def default_unit(conn: Any) -> str:
+    return "user" if per_rev_of(conn) else "rev"
+
+
+def to_rev(conn: Any, value: float, unit: str, counts_per_rev: int | None) -> float:
+    """A position or distance in ``unit`` → motor revolutions (the one conversion)."""
+    if unit == "rev":
+        return value
+    if unit == "deg":
+        return value / 360.0
+    if unit == "counts":
+        if counts_per_rev is None:
+            raise UsageError("positions in counts need the drive's counts per revolution")
+        return value / counts_per_rev
+    if unit == "user":
+        per_rev = per_rev_of(conn)
+        if not per_rev:
+            raise UsageError("--units user needs [units] per_rev in the config profile")
+        return value / per_rev
+    raise UsageError(f"unknown unit {unit!r}: expected one of {', '.join(UNITS)}")
+
+
+def quantise(scale: Any, value: float, what: str, *, explicit: bool = True) -> Quantity:
+    """``value`` (sign kept) on the drive's grid ``scale``; never rounded up (module docstring)."""
+    sign = -1 if value < 0 else 1
+    mag = abs(value)
+    unit = scale.unit
+    largest = scale.raw_max * scale.step
+    if mag / scale.step > scale.raw_max * (1 + 1e-12):
+        raise UsageError(f"{what} {mag:g} {unit} is outside the range of {scale.name}: the largest representable "
+                         f"value is {largest:.12g} {unit}")
+    raw = math.floor(mag / scale.step * (1 + 1e-12))
+    if raw < scale.raw_min:
+        smallest = scale.raw_min * scale.step
+        raise UsageError(f"{what} {mag:g} {unit} cannot be represented by {scale.name} (steps of "
+                         f"{scale.step:.6g} {unit}); the nearest representable value is {smallest:.6g} {unit}")
+    executed = raw * scale.step
+    if explicit and mag - executed > REL_TOL * mag:
+        above = min(raw + 1, scale.raw_max) * scale.step
+        raise UsageError(f"{what} {mag:g} {unit} cannot be represented by {scale.name} (steps of "
+                         f"{scale.step:.6g} {unit}); the nearest representable values are {executed:.6g} and "
+                         f"{above:.6g} {unit}")
+    return Quantity(what, mag, executed, sign * raw, unit, scale.name)
+
+
+def _limit(limits: dict[str, Any], key: str) -> float | None:
+    value = limits.get(key)
+    return None if value is None else float(value)
+
+
+def _refuse_over_limit(what: str, value: float | None, limit: float | None, key: str, unit: str,
+                       executed_by: str = "") -> None:
+    if value is not None and limit is not None and value > limit:
+        how = f" (as {executed_by} executes it)" if executed_by else ""
+        raise SafetyRefusal(f"refusing: {what} {value:.6g} {unit}{how} exceeds the profile's {key} {limit:g} {unit}")
+
+
+def _check_travel(limits: dict[str, Any], end_rev: float, how: str = "would end at") -> None:
+    travel = limits.get("travel")
+    if travel is None:
+        return
+    lo, hi = float(travel[0]), float(travel[1])
+    if not lo <= end_rev <= hi:
+        raise SafetyRefusal(f"refusing: the axis {how} {end_rev:.4f} rev, outside the profile's travel "
+                            f"[{lo:g}, {hi:g}] rev")
+
+
+def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float:
+    """Trapezoid time (s) of a move; an upper bound, so the wait for it is finite but sufficient."""
+    v = max(abs(rpm) / 60.0, 1e-6)
+    return abs(distance_rev) / v + v / max(acc / 60.0, 1e-6) + v / max(dec / 60.0, 1e-6)
+
+
+# ====================================================================== stage 1: no drive needed
+def check_request(conn: Any, request: MotionRequest, axis_cls: Any) -> MotionPlan:
+    """Everything that can be decided without the drive (module docstring); exit 2 / 4 on a problem.
+
+    ``axis_cls`` is the Axis subclass of the target's profile (:func:`akdctl.drive.axis.axis_class`):
+    its scales say what the drive can represent.
+    """
+    r = request
+    if r.kind not in KINDS:
+        raise UsageError(f"unknown motion {r.kind!r}")
+    limits = limits_of(conn)
+    plan = MotionPlan(request=r, profile=axis_cls.profile, mode_kind="")
+    if r.timeout_s is not None:
+        timeout = finite(r.timeout_s, "timeout")
+        if not 0 < timeout <= MAX_WAIT_S:
+            raise UsageError(f"timeout must be in (0, {MAX_WAIT_S:g}] s, got {timeout:g}")
+    if r.kind == "enable":
+        plan.mode_text = "current mode"
+        return plan
+    if r.kind == "home":
+        plan.mode_kind = "homing"
+        plan.mode_text = axis_cls.mode_name("homing")
+        if r.home_mode is not None:
+            lo, hi = axis_cls.HOME_MODE_RANGE
+            if isinstance(r.home_mode, bool) or not isinstance(r.home_mode, int) or not lo <= r.home_mode <= hi:
+                raise UsageError(f"homing mode {r.home_mode!r} is out of range for {axis_cls.HOME_MODE_FIELD}: "
+                                 f"expected {lo}..{hi}")
+        plan.deadline_s = r.timeout_s if r.timeout_s is not None else 60.0
+        return plan
+    kind = "velocity" if r.kind == "jog" and r.duration_s is not None else "position"
+    plan.mode_kind = kind
+    plan.mode_text = axis_cls.mode_name(kind)
+    scales = axis_cls.motion_scales(kind)
+    vmax, amax = _limit(limits, "max_velocity"), _limit(limits, "max_acceleration")
+    if r.kind == "jog":
+        if (r.duration_s is None) == (r.distance is None):
+            raise UsageError("jog needs exactly one of --for DURATION or --distance D, so the motion is bounded")
+        velocity = finite(r.velocity, "jog velocity")
+        if velocity == 0:
+            raise UsageError("jog velocity must not be 0")
+        if r.duration_s is not None:
+            seconds = finite(r.duration_s, "jog duration")
+            if not 0 < seconds <= MAX_JOG_S:
+                raise UsageError(f"jog --for must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
+                                 f"jog; use --distance for a move the drive ends itself), got {seconds:g} s")
+            plan.duration_s = seconds
+        else:
+            finite(r.distance, "jog distance")
+    else:
+        finite(r.target, "move target")
+        velocity = finite(r.velocity, "velocity") if r.velocity is not None else None
+    # ---- velocity and accelerations as the drive will execute them
+    if velocity is not None and r.kind == "move" and velocity <= 0:
+        raise UsageError(f"velocity must be greater than 0, got {velocity:g} rpm")
+    _refuse_over_limit("velocity", None if velocity is None else abs(velocity), vmax, "max_velocity", "rpm")
+    for name, value in (("acceleration", r.accel), ("deceleration", r.decel)):
+        if value is not None:
+            _refuse_over_limit(name, abs(finite(value, name)), amax, "max_acceleration", "rpm/s")
+    if velocity is None:
+        wanted = min(DEFAULT_RPM, vmax) if vmax is not None else DEFAULT_RPM
+        plan.velocity = quantise(scales.velocity, wanted, "velocity", explicit=False)
+    else:
+        signed = velocity if r.kind == "jog" and r.duration_s is not None else abs(velocity)
+        plan.velocity = quantise(scales.velocity, signed, "velocity")
+    accels = []
+    for name, value, scale in (("acceleration", r.accel, scales.accel), ("deceleration", r.decel, scales.decel)):
+        if value is None and name == "deceleration" and r.accel is not None:
+            value = r.accel  # decel defaults to accel
+        if value is not None:
+            value = finite(value, name)
+            if value <= 0:
+                raise UsageError(f"{name} must be greater than 0, got {value:g} rpm/s")
+            accels.append(quantise(scale, value, name))
+        else:
+            wanted = min(DEFAULT_ACC_RPM_S, amax) if amax is not None else DEFAULT_ACC_RPM_S
+            accels.append(quantise(scale, wanted, name, explicit=False))
+    plan.accel, plan.decel = accels
+    # The limits hold for what the drive executes (a default or a quantised value), not only for the request.
+    _refuse_over_limit("velocity", abs(plan.velocity.executed), vmax, "max_velocity", "rpm", plan.velocity.field_name)
+    for q in accels:
+        _refuse_over_limit(q.what, q.executed, amax, "max_acceleration", "rpm/s", q.field_name)
+    # ---- positions that need no drive
+    plan.unit = r.unit or default_unit(conn)
+    if plan.unit not in UNITS:
+        raise UsageError(f"'unit' {plan.unit!r} is not a unit: expected one of {', '.join(UNITS)}")
+    if plan.unit == "user" and not per_rev_of(conn):
+        raise UsageError("--units user needs [units] per_rev in the config profile")
+    if r.kind == "move" and not r.relative and plan.unit != "counts":
+        _check_travel(limits, to_rev(conn, float(r.target), plan.unit, None))  # type: ignore[arg-type]
+    positioning = r.kind == "move" or r.distance is not None
+    plan.needs_homed = (r.kind == "move" and not r.relative) or (positioning and axis_cls.RELATIVE_MOVES_NEED_HOME)
+    return plan
+
+
+# ====================================================================== stage 2: the drive's state (reads only)
+def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
+    """:func:`check_request`, then the drive's state (module docstring); nothing is written."""
+    accepted = check_request(conn, request, type(axis))
+    r = request
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    accepted.mode_text = axis.mode_name(accepted.mode_kind) if accepted.mode_kind else status.mode_text
+    if r.kind != "enable" and not status.standstill:
+        raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
+    axis.refuse_if_not_commandable(status)
+    if r.kind == "home":
+        axis.check_home(r.home_mode)
+    if r.kind in ("enable", "home"):
+        return accepted
+    limits = limits_of(conn)
+    cpr = axis.counts_per_rev(status)
+    if accepted.needs_homed:
+        accepted.homed = axis.homed_reading(status)
+        if accepted.homed is False:
+            raise SafetyRefusal(_not_homed_text(axis, r))
+    pos = status.position_rev
+    if r.kind == "jog" and r.duration_s is not None:
+        assert accepted.velocity is not None and accepted.accel is not None
+        rps = accepted.velocity.executed / 60.0
+        braking = rps * abs(rps) / (2 * accepted.accel.executed / 60.0)
+        accepted.start_rev = pos
+        if pos is not None:
+            accepted.end_rev = pos + rps * r.duration_s + braking
+            _check_travel(limits, accepted.end_rev, "would reach")
+        elif limits.get("travel") is not None:
+            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
+        accepted.deadline_s = r.duration_s
+        return accepted
+    value = r.distance if r.kind == "jog" else r.target
+    rev = to_rev(conn, float(value), accepted.unit, cpr)  # type: ignore[arg-type]
+    relative = r.kind == "jog" or r.relative
+    scale = axis.position_scale(status)
+    counts = round(rev * cpr)
+    if not scale.raw_min <= counts <= scale.raw_max:
+        raise UsageError(f"{'distance' if relative else 'target'} {value:g} {accepted.unit} is outside the range of "
+                         f"{scale.name} ({scale.raw_min}..{scale.raw_max} counts)")
+    accepted.target_raw = counts
+    accepted.move_rev = counts / cpr
+    accepted.start_rev = pos
+    if relative:
+        if pos is not None:
+            accepted.end_rev = pos + accepted.move_rev
+        elif limits.get("travel") is not None:
+            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
+    else:
+        accepted.end_rev = accepted.move_rev
+    if accepted.end_rev is not None:
+        _check_travel(limits, accepted.end_rev)
+    assert accepted.velocity and accepted.accel and accepted.decel
+    distance = accepted.move_rev if relative else (accepted.move_rev - (pos or 0.0))
+    estimate = _move_time(distance, accepted.velocity.executed, accepted.accel.executed, accepted.decel.executed)
+    accepted.deadline_s = r.timeout_s if r.timeout_s is not None else estimate + 2 * axis.timeout + 1.0
+    return accepted
+
+
+def _not_homed_text(axis: Any, request: MotionRequest) -> str:
+    if axis.RELATIVE_MOVES_NEED_HOME:
+        return ("refusing: the axis is not homed; the drive runs positioning tasks (absolute and relative) only on a "
+                f"homed axis ({axis.HOMED_SOURCE}); run 'akdctl home' first")
+    return ("refusing: the axis is not homed, so an absolute position means nothing yet; run 'akdctl home' first "
+            "(or move with --relative)")
+
+
+# ====================================================================== running an accepted plan
+def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
+            progress: Callable[[Any], None] | None = None, wait: bool = True) -> Any:
+    """Carry out an accepted plan (after consent): mode, enable, set points, wait; stops the axis on errors.
+
+    ``wait=False`` (``move --no-wait``) returns once the drive acknowledged the move.
+    """
+    from akdctl.drive.axis import JogSpec, MotionRun, MoveSpec
+
+    r = accepted.request
+    if r.kind == "enable":
+        return axis.enable()
+    _prepare(axis, accepted, interrupted)
+    run = MotionRun(axis, interrupted, progress)
+    if r.kind == "home":
+        return run.run(lambda: axis.start_home(r.home_mode), axis.home_finished, deadline_s=accepted.deadline_s,
+                       what="homing")
+    assert accepted.velocity and accepted.accel and accepted.decel
+    if r.kind == "jog" and r.duration_s is not None:
+        spec = JogSpec(accepted.velocity.raw, accepted.accel.raw, accepted.decel.raw)
+        run.run(lambda: axis.start_jog(spec), lambda s: None, deadline_s=accepted.deadline_s, what="jog",
+                on_deadline="stop")
+        axis.end_jog()
+        return axis.wait_for(lambda s: s.standstill, "standstill after jog", timeout=axis.timeout + 5.0)
+    assert accepted.target_raw is not None
+    move = MoveSpec(accepted.target_raw, r.kind == "jog" or r.relative, accepted.velocity.raw, accepted.accel.raw,
+                    accepted.decel.raw)
+    if not wait:
+        try:
+            axis.start_move(move)
+        except BaseException:
+            axis.safe_stop()
+            raise
+        return axis.read_status()
+    return run.run(lambda: axis.start_move(move), lambda s: True if s.target_reached and s.standstill else None,
+                   deadline_s=accepted.deadline_s, what="jog" if r.kind == "jog" else "move")
+
+
+def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
+    """Re-check (the drive may have changed since the plan), confirm homed, switch the mode, enable."""
+    status = axis.read_status()
+    axis.refuse_if_fault(status)
+    if not status.standstill:
+        raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
+    if accepted.needs_homed and accepted.homed is None and not axis.confirm_homed():
+        raise SafetyRefusal(_not_homed_text(axis, accepted.request))
+    axis.ensure_mode(accepted.mode_kind)
+    if interrupted():
+        raise Interrupted("interrupted before the motion started; nothing moved")
+    axis.enable()
+    if interrupted():
+        _, outcome = axis.safe_stop()
+        raise Interrupted(f"interrupted before the motion started; {outcome}")
+
+
+def wait_hint(conn: Any) -> str:
+    """What happens to a move the tool does not wait for (``move --no-wait``), in words."""
+    if conn.target.scheme == "sim":
+        return ("not waiting: the simulated drive's watchdog stops the axis about 'sim speed --watchdog' seconds "
+                "(default 1 s) of wall time after the last access, so keep polling ('akdctl status --watch') if "
+                "the move must finish")
+    return ("not waiting: the drive runs the finite positioning task to its end on its own (acyclic access has no "
+            "watchdog on the AKD); check the result with 'akdctl status'")
