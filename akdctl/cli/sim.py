@@ -22,6 +22,7 @@ FACES = (
     "akdctl.sim.face_ethercat_udp",
     "akdctl.sim.face_ethercat_raw",
     "akdctl.sim.face_can",
+    "akdctl.sim.face_ethernetip",
 )
 
 SIM_COMMANDS = {
@@ -150,7 +151,7 @@ def _build_serve() -> click.Command:
         "serve",
         callback=_serve_callback,
         params=params,
-        help="Serve the simulated drive on the network (PROFINET, EtherCAT, CANopen faces).\n\n"
+        help="Serve the simulated drive on the network (PROFINET, EtherCAT, CANopen, EtherNet/IP faces).\n\n"
         "Each face prints one 'listening: ...' line on stdout when ready.",
         short_help="Serve the simulated drive on the network.",
     )
