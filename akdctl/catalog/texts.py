@@ -20,7 +20,7 @@ __all__ = [
     "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text",
     "ERROR_REGISTER_BITS", "error_register_text",
     "MAILBOX_ERROR_TEXTS", "mailbox_error_text",
-    "CIP_STATUS_TEXTS", "CIP_CM_EXTENDED_TEXTS", "ENIP_STATUS_TEXTS", "cip_status_text", "enip_status_text",
+    "CIP_STATUS_TEXTS", "CIP_CM_EXTENDED_TEXTS", "ENIP_STATUS_TEXTS", "cip_status_text", "enip_status_text", "CIP_VENDORS", "cip_vendor_name",
 ]
 
 # --- CoE / CANopen SDO abort codes (CiA 301, ETG.1000.6) --------------------------------
@@ -511,3 +511,12 @@ def cip_status_text(status: int, extended: tuple[int, ...] | list[int] = ()) -> 
 
 def enip_status_text(status: int) -> str:
     return ENIP_STATUS_TEXTS.get(status, f"unknown encapsulation status 0x{status:08X}") + f" (0x{status:04X})"
+
+
+# CIP vendor IDs an AKD may report (pycomm3 1.2.16 cip/status_info.py; reference/ethernetip.md 1.2).
+CIP_VENDORS: dict[int, str] = {1: "Rockwell Automation/Allen-Bradley", 103: "Pacific Scientific (API Controls Inc.)",
+                               452: "Kollmorgen", 503: "Danaher Controls"}
+
+
+def cip_vendor_name(vendor: int) -> str:
+    return CIP_VENDORS.get(vendor, f"vendor {vendor}")

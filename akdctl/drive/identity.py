@@ -64,6 +64,9 @@ def read_identity(transport: Any) -> dict[str, Any]:
         result["profidrive"] = _pnu_identity(transport.parameters)
     if transport.objects is not None:
         result["canopen"] = _object_identity(transport.objects)
+    read_cip = getattr(transport, "read_cip_identity", None)
+    if read_cip is not None:
+        result["cip_identity"] = read_cip()
     read_im0 = getattr(transport, "read_im0", None)
     if read_im0 is not None:
         result["im0"] = read_im0()
