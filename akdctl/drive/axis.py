@@ -642,19 +642,28 @@ def prepare_motion(axis: Axis, kind: str, check: Callable[[], object] | None = N
 
 
 def open_axis(app: Any) -> Axis:
-    """The axis of this invocation: ``app.drive_profile`` if set, else PROFIdrive when the
-    transport has a parameter channel, else CiA 402."""
+    """The axis of this invocation: ``app.drive_profile`` if set, else the CIP Position Controller
+    when the transport has a CIP attribute channel (eip://), PROFIdrive when it has a parameter
+    channel, else CiA 402."""
     transport = app.transport()
     chosen = app.drive_profile
     timeout = app.options.timeout
     target = app.target.display
+    if chosen is None and getattr(transport, "cip", None) is not None:
+        chosen = "cip"
     if chosen is None:
         chosen = "profidrive" if transport.parameters is not None else "cia402"
+    if chosen == "cip":
+        from akdctl.drive.cip_axis import CipAxis
+
+        if getattr(transport, "cip", None) is None:
+            raise UsageError(f"target {target} offers no CIP attribute channel for drive profile 'cip'; use eip://HOST")
+        return CipAxis(transport.cip, timeout=timeout, target=target)
     if chosen == "profidrive":
         return ProfidriveAxis(app.parameters(), transport.objects, timeout=timeout, target=target)
     if chosen == "cia402":
         return Cia402Axis(app.objects(), transport, timeout=timeout, target=target)
-    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
+    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
 
 
 # ====================================================================== running a motion safely
