@@ -115,3 +115,94 @@ def param_run(name: str) -> None:
     app = get_app()
     result = eip_params.run_command(_channel(app), ref)
     app.emit({"target": app.target.display, **result}, f"{ref.name or ref.instance}: command executed")
+
+
+IO_TYPES = {"position": 0x01, "torque": 0x05, "move": 0x06, "jog": 0x07, "velocity": 0x08}
+
+
+@eip.command("io", context_settings={"ignore_unknown_options": True})
+@click.argument("kind", type=click.Choice(list(IO_TYPES)), metavar="TYPE")
+@click.argument("value", type=int)
+@click.option("--velocity", type=int, default=None, help="move: velocity in EIP.PROFUNIT units per second.")
+@click.option("--accel", type=int, default=0, help="move/jog: acceleration (EIP.PROFUNIT units/s², 0: drive's).")
+@click.option("--decel", type=int, default=0, help="move/jog: deceleration (0: drive's).")
+@click.option("--relative", is_flag=True, help="position/move: VALUE is relative to the current position.")
+@click.option("--for", "hold", type=click.FloatRange(0.05, 3600), default=None, metavar="SECONDS",
+              help="jog/velocity/torque: keep the connection (and the motion) this long, then close it.")
+@click.option("--rpi", type=click.FloatRange(10, 10000), default=20.0, show_default=True, metavar="MS",
+              help="Requested packet interval (the AKD needs >= 10 ms, >= 20 ms beside WorkBench).")
+@click.option("--port", "io_port", type=click.IntRange(1, 65535), default=2222, show_default=True,
+              help="The drive's UDP I/O port.")
+@click.option("--local-port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="Our UDP port for T->O data (0: any free port).")
+@click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent without a prompt.")
+def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, relative: bool, hold: float | None,
+       rpi: float, io_port: int, local_port: int, yes_flag: bool) -> None:
+    """Run ONE command through the I/O assemblies over a class-1 connection akdctl opens itself.
+
+    Explicit opt-in: a PLC normally owns this connection (akdctl refuses if one does). akdctl runs
+    the Load/Start -> Load Complete handshake, waits for the move (or --for), then closes the
+    connection - and the drive disables the axis when the connection ends (the Enable bit drops).
+    VALUE is in EIP.POSUNIT units (position, move), EIP.PROFUNIT units/s (jog, velocity) or mA (torque).
+    """
+    import time
+
+    from akdctl.cli.motion import _check_limits, _consent
+    from akdctl.drive.cip_axis import CipAxis
+    from akdctl.drive.eip_io import run_command
+    from akdctl.protocol import akd_assembly as asm
+    from akdctl.transport.eip_io import IoConnection
+
+    app = get_app()
+    app.yes = app.yes or yes_flag
+    timed = kind in ("jog", "velocity", "torque")
+    if timed and hold is None:
+        raise UsageError(f"eip io {kind} needs --for SECONDS, so the motion is bounded")
+    if kind == "move" and not velocity:
+        raise UsageError("eip io move needs --velocity (EIP.PROFUNIT units per second)")
+    channel = _channel(app)
+    transport = app.transport()
+    axis = CipAxis(channel, timeout=app.options.timeout, target=app.target.display)
+    posunit, profunit = axis.units()
+    speed = value if kind in ("jog", "velocity") else (velocity or 0)
+    _check_limits(app, rpm=speed * 60.0 / profunit if speed else None,
+                  acc=max(accel, decel) * 60.0 / profunit if (accel or decel) else None,
+                  final_rev=value / posunit if kind in ("position", "move") and not relative else None)
+    _consent(app, f"run an I/O {kind} command ({value}) over a class-1 connection akdctl opens; when the "
+             "connection ends the drive sees Enable drop and disables the axis", f"command type 0x{IO_TYPES[kind]:02X}")
+    direction = asm.CTL_DIRECTION if kind in ("jog", "velocity") and value >= 0 else 0   # velocity mode only [M-12]
+    control = asm.CTL_ENABLE | (asm.CTL_RELATIVE if relative else 0) | direction
+    command = asm.Command(control=control, command_type=IO_TYPES[kind],
+                          data=value if kind in ("position", "velocity", "torque") else 0,
+                          position=value if kind == "move" else 0,
+                          velocity=(velocity or 0) if kind == "move" else abs(value) if kind == "jog" else 0,
+                          acceleration=accel, deceleration=decel)
+    session = transport.session  # type: ignore[attr-defined]
+    with IoConnection(session, app.target.host, rpi_ms=rpi, port=io_port, local_port=local_port,
+                      timeout=app.options.timeout, tracer=app.options.tracer) as conn:
+        result = run_command(conn, command, timeout=app.options.timeout)
+        if timed:
+            time.sleep(hold)  # type: ignore[arg-type]
+            final = conn.wait_input(lambda r: True, "a response", app.options.timeout)
+        else:
+            final = conn.wait_input(lambda r: bool(r.status1 & asm.ST1_IN_POSITION)
+                                    and not r.status1 & asm.ST1_IN_MOTION, "In Position",
+                                    timeout=max(app.options.timeout, 60.0))
+        stats = conn.stats
+    data = {"target": app.target.display, "type": kind, "command_type": IO_TYPES[kind], "value": value,
+            "sent": [b.hex(" ") for b in result.sent], "responses": [b.hex(" ") for b in result.seen],
+            "final": final.encode().hex(" "), "actual_position": final.actual_position,
+            "actual_velocity": final.actual_velocity, "produced": stats.produced, "consumed": stats.consumed,
+            "connection": "closed (the drive disables the axis)"}
+
+    def human() -> Doc:
+        doc = Doc(f"I/O {kind} command", app.target.display)
+        for n, raw in enumerate(result.sent, 1):
+            doc.kv(f"C{n}", raw[:8].hex(" "))
+        for n, raw in enumerate(result.seen, 1):
+            doc.kv(f"R{n}", raw[:8].hex(" "))
+        doc.kv("actual position", final.actual_position).kv("actual velocity", final.actual_velocity)
+        doc.kv("connection", "closed; the drive disables the axis")
+        return doc
+
+    app.emit(data, human)

@@ -215,13 +215,16 @@ def unconnected(message: bytes, timeout: int = 0) -> RRData:
 
 
 def unconnected_message(rr: RRData) -> bytes:
-    """The CIP message of a UCMM SendRRData: exactly a Null address and an unconnected data item."""
-    if len(rr.items) != 2 or rr.items[0].type_id != ITEM_NULL or rr.items[1].type_id != ITEM_UNCONNECTED_DATA:
-        kinds = ", ".join(f"0x{i.type_id:04X}" for i in rr.items)
+    """The CIP message of a UCMM SendRRData: a Null address item and an unconnected data item,
+    optionally followed by socket-address items (a Forward_Open names its T->O port in one)."""
+    items = rr.items
+    if len(items) < 2 or items[0].type_id != ITEM_NULL or items[1].type_id != ITEM_UNCONNECTED_DATA or any(
+            i.type_id not in (ITEM_SOCKADDR_O2T, ITEM_SOCKADDR_T2O) for i in items[2:]):
+        kinds = ", ".join(f"0x{i.type_id:04X}" for i in items)
         raise CodecError(f"expected a Null address item and an unconnected data item, got items [{kinds}]")
-    if rr.items[0].data:
+    if items[0].data:
         raise CodecError("the Null address item must be empty")
-    return rr.items[1].data
+    return items[1].data
 
 
 # ---------------------------------------------------------------- socket address item

@@ -352,9 +352,8 @@ class CipDevice:
             if motion is not None and not motion.homed:
                 raise CipRefusal(cip.DEVICE_STATE_CONFLICT)   # must be homed before position moves [M-11]
             self._ensure_mode(model, 1)
-            speed = velocity if velocity else self.pc.target_velocity
-            if not speed:
-                raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE)
+            # type 1 carries no velocity: the attribute-7 target velocity, else the simulator's 1 rev/s
+            speed = velocity or self.pc.target_velocity or self.pc.profunit
             self._write(model, 0x607A, "<i", _clamp32(self._cia_pos(target or 0)))
             self._write(model, 0x6081, "<I", min(0xFFFFFFFF, abs(self._cia_vel(speed))))
             self._write(model, 0x6083, "<I", abs(self._cia_vel(acceleration or self.pc.acceleration)))

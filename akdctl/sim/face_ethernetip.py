@@ -219,7 +219,7 @@ class EthernetIpFace:
             thread.join(timeout=2)
 
     def describe(self) -> str:
-        return f"ethernetip {self.host}:{self.port}"
+        return f"ethernetip {self.host}:{self.port} (class-1 I/O on udp {self.host}:{self.io_port})"
 
     # ------------------------------------------------------------- TCP
     def _accept_loop(self) -> None:

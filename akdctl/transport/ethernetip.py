@@ -117,12 +117,15 @@ class EnipSession:
             raise MalformedReply(f"{self.label}: RegisterSession reply carries no session handle")
         self.session = reply.session
 
-    def request(self, req: cip.Request) -> cip.Response:
-        """One UCMM request; the CIP reply (any general status) or a link error."""
+    def request(self, req: cip.Request, extra_items: tuple[enip.Item, ...] = ()) -> cip.Response:
+        """One UCMM request; the CIP reply (any general status) or a link error. ``extra_items``
+        (socket-address items) follow the unconnected data item, as a Forward_Open may need."""
         from akdctl.catalog.texts import enip_status_text
 
         what = f"{req.name} {_path_label(req.path)}"
-        reply = self.exchange(enip.SEND_RR_DATA, enip.unconnected(req.encode()).encode(), what)
+        rr = enip.unconnected(req.encode())
+        rr = enip.RRData(rr.items + tuple(extra_items), rr.timeout, rr.interface)
+        reply = self.exchange(enip.SEND_RR_DATA, rr.encode(), what)
         if reply.status != 0:
             raise CommError(f"{self.label}: the target refused {what} at the encapsulation layer: "
                             f"{enip_status_text(reply.status)}", code=reply.status)
