@@ -94,6 +94,8 @@ def test_send_rr_data_ucmm_vector() -> None:
 def test_paths() -> None:
     assert cip.Path(0x0F, 205, 1).encode() == bytes.fromhex("20 0F 24 CD 30 01")
     assert cip.Path(0x04, 1, None, (101, 102)).encode() == bytes.fromhex("20 04 24 01 2C 65 2C 66")
+    keyed = bytes.fromhex("34 04 00 00 00 00 00 00 00 00 20 04 24 64 2C 65 2C 66")   # as the ethernetip package sends
+    assert cip.decode_path(keyed) == cip.Path(4, 100, None, (101, 102), cip.ElectronicKey())
     assert cip.decode_path(bytes.fromhex("21 00 0F 01 25 00 1C 03 31 00 00 01")) == cip.Path(0x10F, 796, 256)
     with pytest.raises(CodecError):
         cip.decode_path(bytes.fromhex("24 01"))        # no class
@@ -137,7 +139,8 @@ def test_rr_data_round_trip(items: list[enip.Item], timeout: int, interface: int
     assert enip.RRData.decode(rr.encode()) == rr
 
 
-@given(st.builds(cip.Path, u16, st.none() | u32, st.none() | u16, st.lists(u16, max_size=3).map(tuple)))
+@given(st.builds(cip.Path, u16, st.none() | u32, st.none() | u16, st.lists(u16, max_size=3).map(tuple),
+                 st.none() | st.builds(cip.ElectronicKey, u16, u16, u16, u8, u8)))
 def test_path_round_trip(path: cip.Path) -> None:
     assert cip.decode_path(path.encode()) == path
 

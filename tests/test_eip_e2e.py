@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 pytestmark = pytest.mark.slow
-READY = re.compile(r"listening: ethernetip ([\d.]+):(\d+)")
+READY = re.compile(r"listening: ethernetip ([\d.]+):(\d+) \(class-1 I/O on udp [\d.]+:(\d+)\)")
 
 
 def _env(state: Path) -> dict[str, str]:
@@ -44,7 +44,7 @@ class Server:
             line = self.proc.stdout.readline()
             match = READY.search(line)
             if match:
-                self.port = int(match.group(2))
+                self.port, self.io_port = int(match.group(2)), int(match.group(3))
                 break
             if not line or time.monotonic() > deadline:
                 self.stop()

@@ -80,9 +80,11 @@ class Path:
     instance: int | None = None
     attribute: int | None = None
     points: tuple[int, ...] = ()
+    key: "ElectronicKey | None" = None
 
     def encode(self) -> bytes:
-        out = _segment(0x20, self.class_id, "class")
+        out = self.key.encode() if self.key is not None else b""
+        out += _segment(0x20, self.class_id, "class")
         if self.instance is not None:
             out += _segment(0x24, self.instance, "instance")
         for point in self.points:
@@ -112,16 +114,43 @@ def _segment(base: int, value: int, what: str) -> bytes:
     raise CodecError(f"{what} {value} is too large for a logical segment")
 
 
+@dataclass(frozen=True)
+class ElectronicKey:
+    """Logical electronic key segment (0x34, key format 4); zeros are wildcards."""
+
+    vendor: int = 0
+    device_type: int = 0
+    product_code: int = 0
+    major: int = 0            # bit 7 = compatibility bit
+    minor: int = 0
+
+    def encode(self) -> bytes:
+        try:
+            return bytes([0x34, 0x04]) + struct.pack("<HHHBB", self.vendor, self.device_type, self.product_code,
+                                                     self.major, self.minor)
+        except struct.error as exc:
+            raise CodecError(f"electronic key field out of range: {exc}") from None
+
+
 _KINDS = {0x20: "class", 0x24: "instance", 0x2C: "point", 0x30: "attribute"}
 
 
 def decode_path(data: bytes) -> Path:
-    """Logical segments in padded format; other segment types raise CodecError."""
+    """Logical segments in padded format (and an electronic key); other segment types raise CodecError."""
     pos = 0
     found: dict[str, int] = {}
     points: list[int] = []
+    key: ElectronicKey | None = None
     while pos < len(data):
         seg = data[pos]
+        if seg == 0x34:
+            if pos + 10 > len(data) or data[pos + 1] != 0x04:
+                raise CodecError(f"electronic key segment at byte {pos} is truncated or not key format 4")
+            if key is not None:
+                raise CodecError("path carries two electronic keys")
+            key = ElectronicKey(*struct.unpack_from("<HHHBB", data, pos + 2))
+            pos += 10
+            continue
         kind = _KINDS.get(seg & 0xFC)
         fmt = seg & 0x03
         if kind is None or fmt == 3:
@@ -142,7 +171,7 @@ def decode_path(data: bytes) -> Path:
             found[kind] = value
     if "class" not in found:
         raise CodecError("path has no class segment")
-    return Path(found["class"], found.get("instance"), found.get("attribute"), tuple(points))
+    return Path(found["class"], found.get("instance"), found.get("attribute"), tuple(points), key)
 
 
 # ---------------------------------------------------------------- requests / responses

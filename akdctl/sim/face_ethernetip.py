@@ -365,6 +365,15 @@ class EthernetIpFace:
             path = cip.decode_path(fo.path)
         except CodecError:
             return fail(cip.EXT_INVALID_CONSUMING_PATH)
+        key = path.key
+        ident = self.device.identity
+        if key is not None:
+            if (key.vendor and key.vendor != ident.vendor) or (key.product_code and key.product_code != ident.product_code):
+                return fail(0x0114)
+            if key.device_type and key.device_type != ident.device_type:
+                return fail(0x0115)
+            if key.major & 0x7F and (key.major & 0x7F, key.minor) != tuple(ident.revision):
+                return fail(0x0116)
         if fo.transport & 0x0F != 1:
             return fail(0x0103)                          # only class 1 (no class-3 in the AKD manual)
         if path.class_id != cip.ASSEMBLY or path.instance != asm.CONFIG_INSTANCE:
