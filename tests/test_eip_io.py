@@ -31,6 +31,19 @@ def drive(tmp_path: Path):
         server.stop()
 
 
+@pytest.fixture
+def session(drive):
+    """A second client's registered encapsulation session to the served drive."""
+    from akdctl.transport.base import LinkOptions
+    from akdctl.transport.ethernetip import EnipSession
+
+    server, _ = drive
+    sess = EnipSession("127.0.0.1", server.port, LinkOptions(timeout=2.0), "plc")
+    sess.register()
+    yield sess
+    sess.close()
+
+
 def test_seed_handshake_byte_for_byte_over_a_class1_connection(drive, tmp_path) -> None:
     server, io_port = drive
     result = akdctl(tmp_path, server.target, "--json", "eip", "io", "position", "1000", "-y", "--port", str(io_port))
@@ -59,55 +72,37 @@ def test_io_command_error_comes_back_as_type_0x14(tmp_path) -> None:
         server.stop()
 
 
-def test_refuses_when_another_scanner_owns_the_drive(drive, tmp_path) -> None:
-    from akdctl.transport.base import LinkOptions
+def test_refuses_when_another_scanner_owns_the_drive(drive, session, tmp_path) -> None:
     from akdctl.transport.eip_io import IoConnection
-    from akdctl.transport.ethernetip import EnipSession
 
     server, io_port = drive
-    session = EnipSession("127.0.0.1", server.port, LinkOptions(timeout=2.0), "plc")
-    session.register()
-    try:
-        with IoConnection(session, "127.0.0.1", rpi_ms=20, port=io_port, timeout=2.0):
-            result = akdctl(tmp_path, server.target, "eip", "io", "position", "10", "-y", "--port", str(io_port))
-            assert result.returncode == 4 and "another scanner" in result.stderr
-    finally:
-        session.close()
+    with IoConnection(session, "127.0.0.1", rpi_ms=20, port=io_port, timeout=2.0):
+        result = akdctl(tmp_path, server.target, "eip", "io", "position", "10", "-y", "--port", str(io_port))
+        assert result.returncode == 4 and "another scanner" in result.stderr
 
 
-def test_forward_open_refusals_in_words(drive, tmp_path) -> None:
+def test_forward_open_refusals_in_words(drive, session, tmp_path) -> None:
     from akdctl.protocol import cip
-    from akdctl.transport.base import LinkOptions
-    from akdctl.transport.eip_io import IoConnection
-    from akdctl.transport.ethernetip import EnipSession
+    from akdctl.protocol import akd_assembly as asm
 
-    server, io_port = drive
-    session = EnipSession("127.0.0.1", server.port, LinkOptions(timeout=2.0), "t")
-    session.register()
-    try:
-        conn = IoConnection(session, "127.0.0.1", rpi_ms=20, port=io_port)
-        fo = cip.ForwardOpen(0, 5, 1, 0xFFFF, 2, 5000, cip.NetParams(70), 5000, cip.NetParams(66), conn._path())
+    server, _ = drive
+    path = cip.Path(cip.ASSEMBLY, asm.CONFIG_INSTANCE, None, (asm.OUTPUT_INSTANCE, asm.INPUT_INSTANCE)).encode()
+    for rpi, ot_size, path_, ext in ((5000, 70, path, cip.EXT_RPI_NOT_SUPPORTED),
+                                     (20000, 40, path, cip.EXT_INVALID_OT_SIZE),
+                                     (20000, 70, cip.Path(4, 100, None, (150, 102)).encode(),
+                                      cip.EXT_INVALID_CONSUMING_PATH)):
+        fo = cip.ForwardOpen(0, 5, 1, 0xFFFF, 2, rpi, cip.NetParams(ot_size), rpi, cip.NetParams(66), path_)
         reply = session.request(cip.Request(cip.FORWARD_OPEN, cip.Path(6, 1).encode(), fo.encode()))
-        assert reply.status == 0x01 and reply.extended == (cip.EXT_RPI_NOT_SUPPORTED,)
-        fo = cip.ForwardOpen(0, 5, 1, 0xFFFF, 2, 20000, cip.NetParams(40), 20000, cip.NetParams(66), conn._path())
-        reply = session.request(cip.Request(cip.FORWARD_OPEN, cip.Path(6, 1).encode(), fo.encode()))
-        assert reply.extended == (cip.EXT_INVALID_OT_SIZE,)
-        conn.sock.close()
-    finally:
-        session.close()
+        assert reply.status == 0x01 and reply.extended == (ext,)
     low = akdctl(tmp_path, server.target, "eip", "io", "position", "1", "-y", "--rpi", "5")
     assert low.returncode == 2
 
 
-def test_consumer_timeout_disables_the_axis(drive, tmp_path) -> None:
+def test_consumer_timeout_disables_the_axis(drive, session, tmp_path) -> None:
     from akdctl.protocol import akd_assembly as asm
-    from akdctl.transport.base import LinkOptions
     from akdctl.transport.eip_io import IoConnection
-    from akdctl.transport.ethernetip import EnipSession
 
     server, io_port = drive
-    session = EnipSession("127.0.0.1", server.port, LinkOptions(timeout=2.0), "t")
-    session.register()
     conn = IoConnection(session, "127.0.0.1", rpi_ms=10, port=io_port, timeout=2.0)
     try:
         conn.open()
@@ -125,7 +120,6 @@ def test_consumer_timeout_disables_the_axis(drive, tmp_path) -> None:
             time.sleep(0.1)
     finally:
         conn.close()
-        session.close()
 
 
 ORIGINATOR = textwrap.dedent("""

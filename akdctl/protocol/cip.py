@@ -70,6 +70,35 @@ EXT_INVALID_CONSUMING_PATH = 0x012A
 EXT_INVALID_PRODUCING_PATH = 0x012B
 
 
+def _pack(fmt: str, what: str, *values: int) -> bytes:
+    """struct.pack with out-of-range fields reported as CodecError (one place for every CM structure)."""
+    try:
+        return struct.pack(fmt, *values)
+    except struct.error as exc:
+        raise CodecError(f"{what} field out of range: {exc}") from None
+
+
+def _words(payload: bytes, what: str) -> bytes:
+    """A trailing path / application reply: whole 16-bit words, at most 255 of them."""
+    if len(payload) % 2 or len(payload) > 510:
+        raise CodecError(f"{what} must be whole words (at most 255)")
+    return payload
+
+
+def _unpack_sized(data: bytes, fmt: str, what: str) -> tuple[tuple[int, ...], bytes]:
+    """Fixed fields whose last value counts the 16-bit words that must follow exactly."""
+    size = struct.calcsize(fmt)
+    if len(data) < size:
+        raise CodecError(f"{what} needs {size} bytes, got {len(data)}")
+    values = struct.unpack_from(fmt, data)
+    if len(data) != size + 2 * values[-1]:
+        raise CodecError(f"{what} announces {values[-1]} words, {len(data) - size} bytes follow")
+    return values, bytes(data[size:])
+
+
+_TRIAD = "<HHIBx"      # serial, vendor, originator serial, word count, reserved
+
+
 # ---------------------------------------------------------------- paths
 
 @dataclass(frozen=True)
@@ -125,11 +154,8 @@ class ElectronicKey:
     minor: int = 0
 
     def encode(self) -> bytes:
-        try:
-            return bytes([0x34, 0x04]) + struct.pack("<HHHBB", self.vendor, self.device_type, self.product_code,
-                                                     self.major, self.minor)
-        except struct.error as exc:
-            raise CodecError(f"electronic key field out of range: {exc}") from None
+        return bytes([0x34, 0x04]) + _pack("<HHHBB", "electronic key", self.vendor, self.device_type,
+                                           self.product_code, self.major, self.minor)
 
 
 _KINDS = {0x20: "class", 0x24: "instance", 0x2C: "point", 0x30: "attribute"}
@@ -247,6 +273,7 @@ class Response:
 
 # ---------------------------------------------------------------- Connection Manager
 
+
 # network connection parameter fields
 TYPE_NULL, TYPE_MULTICAST, TYPE_P2P = 0, 1, 2
 PRIORITY_LOW, PRIORITY_HIGH, PRIORITY_SCHEDULED, PRIORITY_URGENT = 0, 1, 2, 3
@@ -306,33 +333,24 @@ class ForwardOpen:
     def service(self) -> int:
         return LARGE_FORWARD_OPEN if self.large else FORWARD_OPEN
 
+    @staticmethod
+    def _fmt(large: bool) -> str:
+        pfmt = "I" if large else "H"
+        return f"<BBIIHHIB3xI{pfmt}I{pfmt}BB"
+
     def encode(self) -> bytes:
-        if len(self.path) % 2 or len(self.path) > 510:
-            raise CodecError("connection path must be whole words (<= 255)")
-        pfmt = "I" if self.large else "H"
-        try:
-            head = struct.pack(f"<BBIIHHIB3xI{pfmt}I{pfmt}BB", self.tick, self.timeout_ticks, self.ot_connection_id,
-                               self.to_connection_id, self.serial, self.vendor, self.originator_serial,
-                               self.timeout_multiplier, self.ot_rpi_us, self.ot_params.encode(self.large),
-                               self.to_rpi_us, self.to_params.encode(self.large), self.transport, len(self.path) // 2)
-        except struct.error as exc:
-            raise CodecError(f"Forward_Open field out of range: {exc}") from None
-        return head + self.path
+        path = _words(self.path, "connection path")
+        return _pack(self._fmt(self.large), "Forward_Open", self.tick, self.timeout_ticks, self.ot_connection_id,
+                     self.to_connection_id, self.serial, self.vendor, self.originator_serial,
+                     self.timeout_multiplier, self.ot_rpi_us, self.ot_params.encode(self.large), self.to_rpi_us,
+                     self.to_params.encode(self.large), self.transport, len(path) // 2) + path
 
     @classmethod
     def decode(cls, data: bytes, large: bool = False) -> "ForwardOpen":
-        pfmt = "I" if large else "H"
-        fmt = f"<BBIIHHIB3xI{pfmt}I{pfmt}BB"
-        size = struct.calcsize(fmt)
-        if len(data) < size:
-            raise CodecError(f"{'Large_' if large else ''}Forward_Open needs {size} bytes before the path, "
-                             f"got {len(data)}")
-        (tick, ticks, ot_id, to_id, serial, vendor, oserial, mult, ot_rpi, ot_p, to_rpi, to_p, transport,
-         words) = struct.unpack_from(fmt, data)
-        if len(data) != size + 2 * words:
-            raise CodecError(f"Forward_Open path announces {words} words, {len(data) - size} bytes follow")
+        values, path = _unpack_sized(data, cls._fmt(large), f"{'Large_' if large else ''}Forward_Open")
+        tick, ticks, ot_id, to_id, serial, vendor, oserial, mult, ot_rpi, ot_p, to_rpi, to_p, transport, _ = values
         return cls(ot_id, to_id, serial, vendor, oserial, ot_rpi, NetParams.decode(ot_p, large), to_rpi,
-                   NetParams.decode(to_p, large), bytes(data[size:]), transport, mult, tick, ticks, large)
+                   NetParams.decode(to_p, large), path, transport, mult, tick, ticks, large)
 
 
 @dataclass(frozen=True)
@@ -347,23 +365,14 @@ class ForwardOpenReply:
     application: bytes = b""
 
     def encode(self) -> bytes:
-        if len(self.application) % 2 or len(self.application) > 510:
-            raise CodecError("application reply must be whole words")
-        try:
-            return struct.pack("<IIHHIIIBx", self.ot_connection_id, self.to_connection_id, self.serial, self.vendor,
-                               self.originator_serial, self.ot_api_us, self.to_api_us,
-                               len(self.application) // 2) + self.application
-        except struct.error as exc:
-            raise CodecError(f"Forward_Open reply field out of range: {exc}") from None
+        app = _words(self.application, "application reply")
+        return _pack("<IIHHIIIBx", "Forward_Open reply", self.ot_connection_id, self.to_connection_id, self.serial,
+                     self.vendor, self.originator_serial, self.ot_api_us, self.to_api_us, len(app) // 2) + app
 
     @classmethod
     def decode(cls, data: bytes) -> "ForwardOpenReply":
-        if len(data) < 26:
-            raise CodecError(f"Forward_Open reply needs 26 bytes, got {len(data)}")
-        ot_id, to_id, serial, vendor, oserial, ot_api, to_api, words = struct.unpack_from("<IIHHIIIBx", data)
-        if len(data) != 26 + 2 * words:
-            raise CodecError(f"Forward_Open reply announces {words} application words, {len(data) - 26} bytes follow")
-        return cls(ot_id, to_id, serial, vendor, oserial, ot_api, to_api, bytes(data[26:]))
+        values, app = _unpack_sized(data, "<IIHHIIIBx", "Forward_Open reply")
+        return cls(*values[:7], app)
 
 
 @dataclass(frozen=True)
@@ -389,22 +398,14 @@ class ForwardClose:
         return ConnectionTriad(self.serial, self.vendor, self.originator_serial)
 
     def encode(self) -> bytes:
-        if len(self.path) % 2 or len(self.path) > 510:
-            raise CodecError("connection path must be whole words")
-        try:
-            return struct.pack("<BBHHIBx", self.tick, self.timeout_ticks, self.serial, self.vendor,
-                               self.originator_serial, len(self.path) // 2) + self.path
-        except struct.error as exc:
-            raise CodecError(f"Forward_Close field out of range: {exc}") from None
+        path = _words(self.path, "connection path")
+        return _pack("<BB" + _TRIAD[1:], "Forward_Close", self.tick, self.timeout_ticks, self.serial, self.vendor,
+                     self.originator_serial, len(path) // 2) + path
 
     @classmethod
     def decode(cls, data: bytes) -> "ForwardClose":
-        if len(data) < 12:
-            raise CodecError(f"Forward_Close needs 12 bytes, got {len(data)}")
-        tick, ticks, serial, vendor, oserial, words = struct.unpack_from("<BBHHIBx", data)
-        if len(data) != 12 + 2 * words:
-            raise CodecError(f"Forward_Close path announces {words} words, {len(data) - 12} bytes follow")
-        return cls(serial, vendor, oserial, bytes(data[12:]), tick, ticks)
+        (tick, ticks, serial, vendor, oserial, _), path = _unpack_sized(data, "<BB" + _TRIAD[1:], "Forward_Close")
+        return cls(serial, vendor, oserial, path, tick, ticks)
 
 
 @dataclass(frozen=True)
@@ -415,22 +416,14 @@ class ForwardCloseReply:
     application: bytes = b""
 
     def encode(self) -> bytes:
-        if len(self.application) % 2 or len(self.application) > 510:
-            raise CodecError("application reply must be whole words")
-        try:
-            return struct.pack("<HHIBx", self.serial, self.vendor, self.originator_serial,
-                               len(self.application) // 2) + self.application
-        except struct.error as exc:
-            raise CodecError(f"Forward_Close reply field out of range: {exc}") from None
+        app = _words(self.application, "application reply")
+        return _pack(_TRIAD, "Forward_Close reply", self.serial, self.vendor, self.originator_serial,
+                     len(app) // 2) + app
 
     @classmethod
     def decode(cls, data: bytes) -> "ForwardCloseReply":
-        if len(data) < 10:
-            raise CodecError(f"Forward_Close reply needs 10 bytes, got {len(data)}")
-        serial, vendor, oserial, words = struct.unpack_from("<HHIBx", data)
-        if len(data) != 10 + 2 * words:
-            raise CodecError(f"Forward_Close reply announces {words} application words, {len(data) - 10} follow")
-        return cls(serial, vendor, oserial, bytes(data[10:]))
+        (serial, vendor, oserial, _), app = _unpack_sized(data, _TRIAD, "Forward_Close reply")
+        return cls(serial, vendor, oserial, app)
 
 
 @dataclass(frozen=True)
@@ -443,17 +436,14 @@ class ConnectionFailure:
     remaining_path_words: int = 0
 
     def encode(self) -> bytes:
-        try:
-            return struct.pack("<HHIBx", self.serial, self.vendor, self.originator_serial, self.remaining_path_words)
-        except struct.error as exc:
-            raise CodecError(f"connection failure field out of range: {exc}") from None
+        return _pack(_TRIAD, "connection failure", self.serial, self.vendor, self.originator_serial,
+                     self.remaining_path_words)
 
     @classmethod
     def decode(cls, data: bytes) -> "ConnectionFailure":
         if len(data) < 10:
             raise CodecError(f"unsuccessful Forward_Open reply needs 10 bytes, got {len(data)}")
-        serial, vendor, oserial, words = struct.unpack_from("<HHIBx", data)
-        return cls(serial, vendor, oserial, words)
+        return cls(*struct.unpack_from(_TRIAD, data))
 
 
 # ---------------------------------------------------------------- elementary data types
@@ -500,11 +490,8 @@ class IdentityAttributes:
     product_name: str
 
     def encode(self) -> bytes:
-        try:
-            return struct.pack("<HHHBBHI", self.vendor, self.device_type, self.product_code, self.revision[0],
-                               self.revision[1], self.status, self.serial) + short_string(self.product_name)
-        except struct.error as exc:
-            raise CodecError(f"identity field out of range: {exc}") from None
+        return _pack("<HHHBBHI", "identity", self.vendor, self.device_type, self.product_code, self.revision[0],
+                     self.revision[1], self.status, self.serial) + short_string(self.product_name)
 
     @classmethod
     def decode(cls, data: bytes) -> "IdentityAttributes":

@@ -19,6 +19,7 @@ import ipaddress
 import struct
 from dataclasses import dataclass, field
 
+from akdctl.protocol.cip import IdentityAttributes
 from akdctl.protocol.errors import CodecError
 
 TCP_PORT = 44818                 # encapsulation and explicit messaging (also UDP ListIdentity)
@@ -66,6 +67,10 @@ _HEADER = struct.Struct("<HHII8sI")
 
 # ---------------------------------------------------------------- header
 
+def command_name(command: int) -> str:
+    return COMMAND_NAMES.get(command, f"command 0x{command:04X}")
+
+
 @dataclass(frozen=True)
 class Header:
     command: int
@@ -74,10 +79,6 @@ class Header:
     status: int = 0
     context: bytes = bytes(8)
     options: int = 0
-
-    @property
-    def name(self) -> str:
-        return COMMAND_NAMES.get(self.command, f"command 0x{self.command:04X}")
 
 
 @dataclass(frozen=True)
@@ -90,10 +91,6 @@ class Packet:
     status: int = 0
     context: bytes = bytes(8)
     options: int = 0
-
-    @property
-    def name(self) -> str:
-        return COMMAND_NAMES.get(self.command, f"command 0x{self.command:04X}")
 
     def encode(self) -> bytes:
         if len(self.data) > MAX_DATA:
@@ -258,7 +255,8 @@ class SockAddr:
 
 @dataclass(frozen=True)
 class Identity:
-    """The CIP identity item a ListIdentity reply carries (and Identity object attributes 1-7)."""
+    """The CIP identity item a ListIdentity reply carries: encapsulation version, socket address, the
+    Identity object's attributes 1-7 (the layout of its Get_Attributes_All) and the state byte."""
 
     vendor: int
     device_type: int
@@ -271,20 +269,16 @@ class Identity:
     address: SockAddr = field(default_factory=SockAddr)
     version: int = PROTOCOL_VERSION
 
+    @property
+    def attributes(self) -> IdentityAttributes:
+        return IdentityAttributes(self.vendor, self.device_type, self.product_code, self.revision, self.status,
+                                  self.serial, self.product_name)
+
     def encode(self) -> bytes:
-        name = self.product_name.encode("ascii", "replace")
-        if len(name) > 255:
-            raise CodecError("product name longer than 255 bytes")
-        for label, value, bits in (("vendor", self.vendor, 16), ("device type", self.device_type, 16),
-                                   ("product code", self.product_code, 16), ("status", self.status, 16),
-                                   ("serial", self.serial, 32), ("state", self.state, 8),
-                                   ("major revision", self.revision[0], 8), ("minor revision", self.revision[1], 8),
-                                   ("version", self.version, 16)):
-            _check_uint(label, value, bits)
-        return (struct.pack("<H", self.version) + self.address.encode()
-                + struct.pack("<HHHBBHIB", self.vendor, self.device_type, self.product_code, self.revision[0],
-                              self.revision[1], self.status, self.serial, len(name))
-                + name + bytes([self.state]))
+        _check_uint("version", self.version, 16)
+        _check_uint("state", self.state, 8)
+        return (struct.pack("<H", self.version) + self.address.encode() + self.attributes.encode()
+                + bytes([self.state]))
 
     @classmethod
     def decode(cls, data: bytes) -> "Identity":
@@ -292,13 +286,12 @@ class Identity:
             raise CodecError(f"ListIdentity item of {len(data)} bytes is too short")
         (version,) = struct.unpack_from("<H", data)
         address = SockAddr.decode(data[2:18])
-        vendor, dtype, code, major, minor, status, serial, nlen = struct.unpack_from("<HHHBBHIB", data, 18)
-        end = 33 + nlen
-        if len(data) != end + 1:
-            raise CodecError(f"ListIdentity item: product name of {nlen} bytes and a state byte need "
-                             f"{end + 1} bytes, got {len(data)}")
-        name = data[33:end].decode("ascii", "replace")
-        return cls(vendor, dtype, code, (major, minor), status, serial, name, data[end], address, version)
+        if len(data) != 34 + data[32]:
+            raise CodecError(f"ListIdentity item: product name of {data[32]} bytes and a state byte need "
+                             f"{34 + data[32]} bytes, got {len(data)}")
+        attrs = IdentityAttributes.decode(data[18:-1])
+        return cls(attrs.vendor, attrs.device_type, attrs.product_code, attrs.revision, attrs.status, attrs.serial,
+                   attrs.product_name, data[-1], address, version)
 
     def to_json(self) -> dict[str, object]:
         return {"vendor": self.vendor, "device_type": self.device_type, "product_code": self.product_code,

@@ -191,9 +191,9 @@ class CipDevice:
     # ---------------------------------------------------------------- standard objects
     def identity_attributes(self) -> cip.IdentityAttributes:
         ident = self.identity
-        status = 0x0030 if self._fault() else 0x0060     # [I] owned/configured bits, major fault bit 0x0004 below
-        if self._fault():
-            status |= 0x0004
+        # [I] status word: 0x0060 = configured, "at least one I/O connection in run" style bits as OpENer sets
+        # them; 0x0004 = recoverable major fault while the drive reports a fault
+        status = 0x0060 | (0x0004 if self._fault() else 0)
         return cip.IdentityAttributes(ident.vendor, ident.device_type, ident.product_code, ident.revision,
                                       status, ident.serial, ident.product_name)
 

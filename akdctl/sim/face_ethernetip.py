@@ -84,19 +84,6 @@ class Injection:
         return every > 0 and count % every == 0
 
 
-def parse_address(text: str, default_port: int = enip.TCP_PORT, option: str = "--ethernetip") -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep:
-        host, port = text, str(default_port)
-    try:
-        number = int(port)
-        if not 0 <= number <= 65535:
-            raise ValueError
-    except ValueError:
-        raise UsageError(f"{option} {text!r}: expected HOST:PORT, e.g. 127.0.0.1:44818") from None
-    return host.strip("[]") or "127.0.0.1", number
-
-
 def click_options() -> list[click.Option]:
     return [
         click.Option(["--ethernetip"], is_flag=False, flag_value=DEFAULT_ADDRESS, default=None, metavar="[ADDR]",
@@ -117,7 +104,9 @@ def from_options(drive: Any, **kwargs: Any) -> "EthernetIpFace | None":
     address = kwargs.get("ethernetip")
     if address is None:
         return None
-    host, port = parse_address(address)
+    from akdctl.sim.face_profinet import parse_address
+
+    host, port = parse_address(address, enip.TCP_PORT, "--ethernetip")
     return EthernetIpFace(drive, host, port, io_port=int(kwargs.get("eip_io_port", enip.IO_PORT)),
                           injection=Injection.parse(kwargs.get("eip_inject")),
                           identity=IdentitySettings.parse(kwargs.get("eip_identity")),
@@ -268,9 +257,10 @@ class EthernetIpFace:
 
     def _handle_tcp(self, header: enip.Header, body: bytes, sessions: set[int],
                     peer: tuple[str, int]) -> bytes | object | None:
-        self.stats.requests += 1
-        self._counter += 1
-        count = self._counter
+        with self._lock:            # one count across client threads: injection hits every Nth request
+            self.stats.requests += 1
+            self._counter += 1
+            count = self._counter
         inj = self.injection
         if inj.hits(inj.close, count):
             self.stats.closed += 1

@@ -93,7 +93,7 @@ class EnipSession:
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed encapsulation header in the reply to {what}: {exc}") from None
         if head.command != command:
-            raise MalformedReply(f"{self.label}: reply to {what} is a {head.name} packet")
+            raise MalformedReply(f"{self.label}: reply to {what} is a {enip.command_name(head.command)} packet")
         if head.length > enip.MAX_DATA:
             raise MalformedReply(f"{self.label}: reply to {what} announces {head.length} bytes")
         body = self._recv_exact(head.length, what) if head.length else b""
