@@ -167,3 +167,32 @@ def test_ethernetip_package_as_class1_originator(drive) -> None:
     assert out["r1"] == "84 00 00 20 00 00 00 00"              # seed step 2, seen by an independent originator
     assert int(out["r2"].split()[2], 16) & 0x80                 # Load Complete after the 0 -> 1 edge
     assert not int(out["r3"].split()[2], 16) & 0x80
+
+
+def test_tshark_cipcm_dissects_the_io_session(drive, tmp_path) -> None:
+    import os
+    import shutil
+
+    tshark = shutil.which("tshark")
+    if tshark is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("tshark is required in CI")
+        pytest.skip("tshark is not installed (apt-get install tshark); CI runs this test")
+    server, io_port = drive
+    capture = tmp_path / "io.pcap"
+    result = akdctl(tmp_path, server.target, "--pcap", str(capture), "eip", "io", "position", "1000", "-y",
+                    "--port", str(io_port), "--rpi", "20")
+    assert result.returncode == 0, result.stderr
+    out = subprocess.run([tshark, "-r", str(capture), "-d", f"tcp.port=={server.port},enip",
+                          "-d", f"udp.port=={io_port},cipio", "-T", "fields", "-e", "frame.protocols",
+                          "-e", "cip.service", "-e", "cip.cm.otrpi", "-e", "cip.cm.fwo.consize",
+                          "-e", "cipio.data"], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "HOME": str(tmp_path)})
+    assert out.returncode == 0, out.stderr
+    rows = [line.split("\t") for line in out.stdout.strip().splitlines()]
+    forward_open = [r for r in rows if r[0].endswith(":cipcm") and r[1] == "0x54"]
+    assert forward_open and forward_open[0][2] == "20000" and forward_open[0][3] == "70,66"   # 64 + 6, 64 + 2
+    assert any(r[0].endswith(":cipcm") and r[1] == "0x4e" for r in rows)                       # Forward_Close
+    io_data = [r[4] for r in rows if ":udp:cipio" in r[0] and r[4]]
+    assert len(io_data) >= 4
+    assert any(d[4:20] == "8400002000000000" for d in io_data)     # seed step 2 after the 16-bit sequence count

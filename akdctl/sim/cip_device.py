@@ -191,9 +191,10 @@ class CipDevice:
     # ---------------------------------------------------------------- standard objects
     def identity_attributes(self) -> cip.IdentityAttributes:
         ident = self.identity
-        # [I] status word: 0x0060 = configured, "at least one I/O connection in run" style bits as OpENer sets
-        # them; 0x0004 = recoverable major fault while the drive reports a fault
-        status = 0x0060 | (0x0004 if self._fault() else 0)
+        # CIP Identity status word (standard meaning; what an AKD sets is not documented [I]): bit 2 configured,
+        # bits 4-7 extended status (3 = no I/O connection, 6 = an I/O connection in run), bit 10 major
+        # recoverable fault while the drive reports a fault
+        status = 0x0004 | (0x0060 if self.io.last_control is not None else 0x0030) | (0x0400 if self._fault() else 0)
         return cip.IdentityAttributes(ident.vendor, ident.device_type, ident.product_code, ident.revision,
                                       status, ident.serial, ident.product_name)
 
