@@ -14,6 +14,8 @@ What is built from what:
 * a mailbox link (:class:`~akdctl.links.MailboxLink`) -> the CoE SDO channel
   :class:`~akdctl.channels.coe_sdo.CoeObjectChannel`, built on first use so
   PNU-only commands never import the CoE codecs;
+* a message link (:class:`~akdctl.links.MessageLink`, EtherNet/IP) -> the CIP
+  attribute channel :class:`~akdctl.channels.cip.CipAttributes`;
 * a native SDO client -> its adapter: canopen's node ->
   :class:`~akdctl.channels.canopen_sdo.CanopenObjectChannel`, a pysoem slave ->
   :class:`~akdctl.channels.soem_sdo.SoemObjectChannel`.
@@ -36,6 +38,7 @@ from akdctl.errors import AkdError, UsageError
 
 if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel, ParameterChannel
+    from akdctl.channels.cip import CipAttributes
     from akdctl.config import Profile
     from akdctl.drive.axis import Axis
     from akdctl.links import MailboxLink, NativeSdoClient
@@ -83,6 +86,7 @@ class Connection:
         self._transport: "Transport | None" = None
         self._parameters: "ParameterChannel | None" = None
         self._objects: "ObjectChannel | None" = None
+        self._cip: "CipAttributes | None" = None
 
     @classmethod
     def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
@@ -147,6 +151,10 @@ class Connection:
             self._objects = LazyObjectChannel(lambda: self._coe_channel(link))
         elif transport.sdo_client is not None:
             self._objects = self._native_channel(transport.sdo_client)
+        if transport.message_link is not None:
+            from akdctl.channels.cip import CipAttributes
+
+            self._cip = CipAttributes(transport.message_link, self.target.display)
         transport.parameters, transport.objects = self._parameters, self._objects
 
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
@@ -180,6 +188,17 @@ class Connection:
         self.transport()
         return self._objects is not None
 
+    @property
+    def has_cip(self) -> bool:
+        """Whether the target offers CIP explicit messaging (opens the transport)."""
+        self.transport()
+        return self._cip is not None
+
+    def cip(self) -> "CipAttributes":
+        """The CIP attribute channel; UsageError naming the alternative if the target has none."""
+        self.transport()
+        return self._offered(self._cip, "no CIP attribute channel (EtherNet/IP); use an eip://HOST target")
+
     def parameters(self) -> "ParameterChannel":
         """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""
         self.transport()
@@ -207,7 +226,7 @@ class Connection:
         """Close the channels and the transport; safe to call twice and after a failed open."""
         transport, self._transport = self._transport, None
         channels = [c for c in (self._objects, self._parameters) if c is not None]
-        self._parameters = self._objects = None
+        self._parameters = self._objects = self._cip = None
         for channel in channels:
             with contextlib.suppress(Exception):
                 channel.close()

@@ -11,7 +11,7 @@ Exit codes (README "Exit codes" lists the same table; a test keeps them equal):
 ====  ==========================================================================
 0     success
 1     the drive refused: negative PROFIdrive response, SDO abort, record-layer
-      error, drive fault
+      error, CIP error status, drive fault
 2     usage or input error: bad argument, unknown PNU/object, bad value, bad
       target, bad config or recipe file
 3     communication: no answer, timeout, malformed or inconsistent reply,
@@ -134,6 +134,12 @@ class SdoAborted(DriveError):
     """An SDO abort from the drive (CiA 301 / ETG.1000.6 abort code)."""
 
     kind = "sdo-abort"
+
+
+class CipRefused(DriveError):
+    """A CIP error reply (general status, with additional status) from an EtherNet/IP target."""
+
+    kind = "cip-status"
 
 
 class RecordError(DriveError):

@@ -13,6 +13,8 @@ A transport offers any of:
   out (PROFINET record 47, the simulator) -> the PROFIdrive parameter channel;
 * a :class:`MailboxLink` -- EtherCAT mailboxes (raw master, ETG.8200 gateway, the
   simulator) -> the CoE SDO channel;
+* a :class:`MessageLink` -- CIP explicit messages (EtherNet/IP UCMM) -> the CIP
+  attribute channel;
 * a native SDO client a library already implements (:class:`CanopenSdoClient`,
   :class:`SoemSdoClient`) -> the adapter channel for that library.
 """
@@ -63,6 +65,19 @@ class MailboxLink(ABC):
         """Next mailbox from the slave, or ``None`` if nothing came in ``timeout`` s."""
 
 
+class MessageLink(ABC):
+    """Carries one CIP explicit message (EtherNet/IP unconnected messaging) and returns the CIP reply.
+
+    ``req`` is a :class:`akdctl.protocol.cip.Request`; the reply a :class:`akdctl.protocol.cip.Response`
+    whatever its general status (the channel turns a refusal into words). Link failures raise
+    :class:`akdctl.errors.CommError` subclasses. The transport traces its own wire frames (TCP segments
+    for ``--pcap``), so the Connection does not wrap this link.
+    """
+
+    @abstractmethod
+    def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
+
+
 @dataclass(frozen=True)
 class CanopenSdoClient:
     """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives."""
@@ -82,4 +97,4 @@ class SoemSdoClient:
 
 NativeSdoClient = CanopenSdoClient | SoemSdoClient
 
-__all__ = ["RecordLink", "MailboxLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient"]
+__all__ = ["RecordLink", "MailboxLink", "MessageLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient"]

@@ -27,6 +27,8 @@ _akdctl() {
             ":pn") path="pn" ;;
             ":ecat") path="ecat" ;;
             ":can") path="can" ;;
+            ":cip") path="cip" ;;
+            ":eip") path="eip" ;;
             ":sim") path="sim" ;;
             "pnu:describe") path="pnu describe" ;;
             "pnu:get") path="pnu get" ;;
@@ -59,6 +61,14 @@ _akdctl() {
             "ecat:state") path="ecat state" ;;
             "can:nmt") path="can nmt" ;;
             "can:scan") path="can scan" ;;
+            "cip:get") path="cip get" ;;
+            "cip:set") path="cip set" ;;
+            "eip:io") path="eip io" ;;
+            "eip:param") path="eip param" ;;
+            "eip:scan") path="eip scan" ;;
+            "eip param:get") path="eip param get" ;;
+            "eip param:run") path="eip param run" ;;
+            "eip param:set") path="eip param set" ;;
             "sim:fault") path="sim fault" ;;
             "sim:clear") path="sim clear" ;;
             "sim:speed") path="sim speed" ;;
@@ -68,7 +78,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move pnu sdo pdo telegram fault support params commission info targets pn ecat can sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --json --watch --yes -y" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help --json --yes -y" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help --json --yes -y" -- "$cur")) ;;
@@ -120,12 +130,22 @@ _akdctl() {
         "can") COMPREPLY=($(compgen -W "nmt scan --help" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
         "can scan") COMPREPLY=($(compgen -W "--help --nodes --wait" -- "$cur")) ;;
+        "cip") COMPREPLY=($(compgen -W "get set --help" -- "$cur")) ;;
+        "cip get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "cip set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "eip") COMPREPLY=($(compgen -W "io param scan --help" -- "$cur")) ;;
+        "eip io") COMPREPLY=($(compgen -W "--accel --decel --for --help --local-port --port --relative --rpi --velocity --yes -y" -- "$cur")) ;;
+        "eip param") COMPREPLY=($(compgen -W "get run set --help" -- "$cur")) ;;
+        "eip param get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "eip param set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "eip scan") COMPREPLY=($(compgen -W "--help --iface --port --wait" -- "$cur")) ;;
         "sim") COMPREPLY=($(compgen -W "fault clear speed reset serve show --help" -- "$cur")) ;;
         "sim fault") COMPREPLY=($(compgen -W "--after-reads --help --name --persist" -- "$cur")) ;;
         "sim clear") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
-        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --ethercat-raw --ethercat-udp --help --name --pn-api --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
+        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
     esac
 }

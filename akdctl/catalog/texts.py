@@ -21,6 +21,7 @@ __all__ = [
     "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text",
     "ERROR_REGISTER_BITS", "error_register_text",
     "MAILBOX_ERROR_TEXTS", "mailbox_error_text",
+    "CIP_STATUS_TEXTS", "CIP_CM_EXTENDED_TEXTS", "ENIP_STATUS_TEXTS", "cip_status_text", "enip_status_text", "CIP_VENDORS", "cip_vendor_name",
 ]
 
 # --- CoE / CANopen SDO abort codes (CiA 301, ETG.1000.6) --------------------------------
@@ -427,3 +428,112 @@ def mailbox_error_text(code: int) -> str:
     if text is not None:
         return text
     return f"unknown mailbox error 0x{code & 0xFFFF:04X}"
+
+
+# --- CIP general status (CIP Vol. 1 appendix B) and EtherNet/IP ------------------------
+# Codes 0x0B-0x20 with the AKD EtherNet/IP manual's own names (seed 002, p. 16, error codes of
+# I/O response type 0x14, additional code 0xFF); the rest as CIP Vol. 1 names them.
+
+CIP_STATUS_TEXTS: dict[int, str] = {
+    0x00: "success",
+    0x01: "connection failure",
+    0x02: "resource unavailable",
+    0x03: "invalid parameter value",
+    0x04: "path segment error",
+    0x05: "path destination unknown (class or instance does not exist)",
+    0x06: "partial transfer",
+    0x07: "connection lost",
+    0x08: "service not supported",
+    0x09: "invalid attribute value (value out of range)",
+    0x0A: "attribute list error",
+    0x0B: "already in requested mode/state (ALREADY_IN_STATE)",
+    0x0C: "object state conflict (OBJ_STATE_CONFLICT)",
+    0x0D: "object already exists (OBJECT_ALREADY_EXISTS)",
+    0x0E: "attribute not settable (ATTRIBUTE_NOT_SETTABLE)",
+    0x0F: "privilege violation (ACCESS_DENIED)",
+    0x10: "device state conflict (DEVICE_STATE_CONFLICT)",
+    0x11: "reply data too large (REPLY_DATA_TOO_LARGE)",
+    0x12: "fragmentation of a primitive value",
+    0x13: "not enough data (NOT_ENOUGH_DATA)",
+    0x14: "attribute not supported (ATTRIBUTE_NOT_SUPP)",
+    0x15: "too much data (TOO_MUCH_DATA)",
+    0x16: "object does not exist (OBJECT_DOES_NOT_EXIST; the AKD manual: class not supported)",
+    0x17: "service fragmentation sequence not in progress (FRAGMENTATION_SEQ_ERR)",
+    0x18: "no stored attribute data",
+    0x19: "store operation failure",
+    0x1A: "routing failure, request packet too large",
+    0x1B: "routing failure, response packet too large",
+    0x1C: "missing attribute list entry data",
+    0x1D: "invalid attribute value list",
+    0x1E: "embedded service error",
+    0x1F: "vendor specific error",
+    0x20: "invalid parameter (INVALID_PARAMETER)",
+    0x21: "write-once value or medium already written",
+    0x22: "invalid reply received",
+    0x25: "key failure in path",
+    0x26: "path size invalid",
+    0x27: "unexpected attribute in list",
+    0x28: "invalid member ID",
+    0x29: "member not settable",
+}
+
+# Connection Manager extended status (general status 0x01), CIP Vol. 1 table 3-5.29.
+CIP_CM_EXTENDED_TEXTS: dict[int, str] = {
+    0x0100: "connection in use or duplicate Forward_Open",
+    0x0103: "transport class and trigger combination not supported",
+    0x0106: "ownership conflict (another scanner owns the connection)",
+    0x0107: "target connection not found",
+    0x0108: "invalid network connection parameter",
+    0x0109: "invalid connection size",
+    0x0110: "target for connection not configured",
+    0x0111: "RPI not supported",
+    0x0113: "out of connections",
+    0x0114: "vendor ID or product code mismatch",
+    0x0115: "device type mismatch",
+    0x0116: "revision mismatch",
+    0x0117: "invalid produced or consumed application path",
+    0x0118: "invalid or inconsistent configuration application path",
+    0x0127: "invalid O->T connection size",
+    0x0128: "invalid T->O connection size",
+    0x0129: "invalid configuration application path",
+    0x012A: "invalid consuming application path",
+    0x012B: "invalid producing application path",
+    0x0203: "connection timed out",
+    0x0204: "unconnected request timed out",
+    0x0315: "invalid segment in connection path",
+}
+
+# EtherNet/IP encapsulation status (CIP Vol. 2 table 2-3.3).
+ENIP_STATUS_TEXTS: dict[int, str] = {
+    0x0000: "success",
+    0x0001: "invalid or unsupported encapsulation command",
+    0x0002: "insufficient memory in the target",
+    0x0003: "poorly formed or incorrect data",
+    0x0064: "invalid session handle",
+    0x0065: "invalid length",
+    0x0069: "unsupported encapsulation protocol revision",
+}
+
+
+def cip_status_text(status: int, extended: tuple[int, ...] | list[int] = ()) -> str:
+    """Words for a CIP general status with its additional status; unknown codes name themselves."""
+    text = CIP_STATUS_TEXTS.get(status, f"unknown CIP general status 0x{status:02X}")
+    if status == 0x01 and extended:
+        ext = extended[0]
+        text += f": {CIP_CM_EXTENDED_TEXTS.get(ext, f'extended status 0x{ext:04X}')}"
+    elif extended:
+        text += " (additional status " + " ".join(f"0x{w:04X}" for w in extended) + ")"
+    return f"{text} (0x{status:02X})"
+
+
+def enip_status_text(status: int) -> str:
+    return ENIP_STATUS_TEXTS.get(status, f"unknown encapsulation status 0x{status:08X}") + f" (0x{status:04X})"
+
+
+# CIP vendor IDs an AKD may report (pycomm3 1.2.16 cip/status_info.py; reference/ethernetip.md 1.2).
+CIP_VENDORS: dict[int, str] = {1: "Rockwell Automation/Allen-Bradley", 103: "Pacific Scientific (API Controls Inc.)",
+                               452: "Kollmorgen", 503: "Danaher Controls"}
+
+
+def cip_vendor_name(vendor: int) -> str:
+    return CIP_VENDORS.get(vendor, f"vendor {vendor}")

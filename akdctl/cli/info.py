@@ -26,7 +26,7 @@ def info() -> None:
     from akdctl.drive.identity import read_identity
 
     app = get_app()
-    identity = read_identity(app.transport())
+    identity = read_identity(app.connection)
 
     def human() -> Doc:
         doc = Doc("drive identity", app.target.display)

@@ -40,6 +40,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "pn": ("akdctl.cli.pn", "pn", "PROFINET: discover (DCP), name, address and blink devices."),
     "ecat": ("akdctl.cli.ecat", "ecat", "EtherCAT: scan slaves, change AL state, read the SII."),
     "can": ("akdctl.cli.can", "can", "CANopen: scan nodes, send NMT commands."),
+    "cip": ("akdctl.cli.cip", "cip", "Read and write CIP attributes (EtherNet/IP explicit messaging)."),
+    "eip": ("akdctl.cli.eip", "eip", "EtherNet/IP: ListIdentity scan, AKD parameters by the Parameter object."),
     "sim": ("akdctl.cli.sim", "sim", "The simulated AKD: reset, show, inject faults, serve on the network."),
 }
 
@@ -86,7 +88,7 @@ class LazyGroup(click.Group):
 
 EPILOG = (
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
-    "can://INTERFACE/CHANNEL/NODE. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
+    "can://INTERFACE/CHANNEL/NODE, eip://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
     "4 safety refusal, 5 check failed, 130 interrupted."
 )
 

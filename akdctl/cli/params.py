@@ -41,16 +41,16 @@ def backup(output: str, source: str, groups: tuple[str, ...], only: tuple[str, .
         from akdctl.errors import UsageError
 
         raise UsageError(f"backup file {output}: use a .toml or .json suffix (the format follows it)")
-    transport = app.transport()
+    conn = app.connection
     if only:
         items = snapshot.select_items([], only=only)
         sources = sorted({"pnu" if i.kind == "pnu" else "objects" for i in items})
     else:
-        sources = snapshot.choose_sources(transport, source)
+        sources = snapshot.choose_sources(conn, source)
         items = snapshot.select_items(sources, groups)
-    before = _round_trips(transport)
-    snap = snapshot.take(transport, items, app.target.display, sources)
-    trips = {k: v - before.get(k, 0) for k, v in _round_trips(transport).items()}
+    before = _round_trips(conn)
+    snap = snapshot.take(conn, items, app.target.display, sources)
+    trips = {k: v - before.get(k, 0) for k, v in _round_trips(conn).items()}
     path = snapshot.write_file(snap, output)
     data = {"target": app.target.display, "file": str(path), "time": snap.time, "identity": snap.identity,
             "pnus": len(snap.pnus), "objects": len(snap.objects), "refused": snap.refused, "round_trips": trips}
@@ -67,12 +67,12 @@ def backup(output: str, source: str, groups: tuple[str, ...], only: tuple[str, .
     app.emit(data, human)
 
 
-def _round_trips(transport: Any) -> dict[str, int]:
+def _round_trips(conn: Any) -> dict[str, int]:
     out = {}
-    if transport.parameters is not None:
-        out["pnu requests"] = int(getattr(transport.parameters, "requests", 0))
-    if transport.objects is not None and getattr(transport.objects, "requests", None) is not None:
-        out["sdo transfers"] = int(getattr(transport.objects, "requests", 0))
+    if conn.has_parameters:
+        out["pnu requests"] = conn.parameters().requests
+    if conn.has_objects:
+        out["sdo transfers"] = conn.objects().requests
     return out
 
 
@@ -91,7 +91,7 @@ def restore(file: str, dry_run: bool, force: bool, save: bool) -> None:
 
     app = get_app()
     snap = snapshot.load_file(file)
-    result = snapshot.restore(app.transport(), snap, dry_run=dry_run, force=force, save=save)
+    result = snapshot.restore(app.connection, snap, dry_run=dry_run, force=force, save=save)
     data = {"target": app.target.display, "file": file, "dry_run": dry_run, **result.to_json()}
 
     def human() -> Doc:
@@ -136,7 +136,7 @@ def diff(a: str, b: str | None, include_all: bool) -> None:
         items = [snapshot.resolve_item(k) for k in first.values()]
         if not include_all:
             items = [i for i in items if i.restorable]
-        actual, _ = snapshot.read_values(app.transport(), items)
+        actual, _ = snapshot.read_values(app.connection, items)
         other = app.target.display
     differences = snapshot.compare(first.values(), actual, include_all=include_all)
     only_a, only_b = snapshot.one_sided(first.values(), actual, include_all=include_all)

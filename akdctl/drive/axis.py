@@ -772,23 +772,30 @@ def target_channels(conn: Any) -> set[str] | None:
 
 
 def profile_name(conn: Any) -> str:
-    """The axis profile of this invocation: ``conn.drive_profile`` if set, else PROFIdrive when the
-    target has a parameter channel, else CiA 402 (decided without connecting when the registry knows)."""
+    """The axis profile of this invocation: ``conn.drive_profile`` if set, else the CIP Position
+    Controller on an EtherNet/IP target, PROFIdrive when the target has a parameter channel, else
+    CiA 402 (decided without connecting when the registry knows)."""
     chosen = conn.drive_profile
     if chosen is not None:
         return str(chosen)
     channels = target_channels(conn)
     if channels is None:
         return "profidrive" if conn.has_parameters else "cia402"
+    if "attributes" in channels:
+        return "cip"
     return "profidrive" if "parameters" in channels else "cia402"
 
 
 def axis_class(conn: Any) -> type[Axis]:
     """The Axis subclass of this invocation's profile (the planner reads its scales before connecting)."""
     chosen = profile_name(conn)
+    if chosen == "cip":
+        from akdctl.drive.cip_axis import CipAxis
+
+        return CipAxis
     classes: dict[str, type[Axis]] = {"profidrive": ProfidriveAxis, "cia402": Cia402Axis}
     if chosen not in classes:
-        raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
+        raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
     return classes[chosen]
 
 
@@ -801,12 +808,16 @@ def open_axis(conn: "Connection") -> Axis:
     chosen = profile_name(conn)
     timeout = conn.options.timeout
     target = conn.target.display
+    if chosen == "cip":
+        from akdctl.drive.cip_axis import CipAxis
+
+        return CipAxis(conn.cip(), timeout=timeout, target=target)
     if chosen == "profidrive":
         return ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)
     if chosen == "cia402":
         return Cia402Axis(conn.objects(), conn.transport(), timeout=timeout, target=target)
-    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive' or 'cia402'")
+    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
 
 
 # ====================================================================== running a motion safely

@@ -153,7 +153,7 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
             bundle[key] = {"error": errors["transport"]}
     else:
         sources = faults._sources(conn)
-        bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(transport))
+        bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(conn))
         bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
         params: dict[str, Any] = {"round_trips": {}}
         pnus = None

@@ -10,9 +10,12 @@ PNU 964 from its own batched read when it has it: :func:`drive_unit`).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, CommError, MalformedReply
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 #: Identity PNUs: drive unit (964), profile (965), drive object (975).
 PNU_DRIVE_UNIT = 964
@@ -73,14 +76,16 @@ def _object_identity(channel: Any) -> dict[str, Any]:
     return out
 
 
-def read_identity(transport: Any, *, pnus: bool = True, objects: bool = True, im0: bool = True) -> dict[str, Any]:
-    """Everything the transport's channels (those asked for) can tell about the drive's identity."""
+def read_identity(conn: "Connection", *, pnus: bool = True, objects: bool = True, im0: bool = True) -> dict[str, Any]:
+    """Everything the connection's channels (those asked for) can tell about the drive's identity."""
     result: dict[str, Any] = {}
-    if pnus and transport.parameters is not None:
-        result["profidrive"] = _pnu_identity(transport.parameters)
-    if objects and transport.objects is not None:
-        result["canopen"] = _object_identity(transport.objects)
-    read_im0 = getattr(transport, "read_im0", None)
+    if pnus and conn.has_parameters:
+        result["profidrive"] = _pnu_identity(conn.parameters())
+    if objects and conn.has_objects:
+        result["canopen"] = _object_identity(conn.objects())
+    if conn.has_cip:
+        result["cip_identity"] = conn.cip().identity_json()
+    read_im0 = getattr(conn.transport(), "read_im0", None)
     if im0 and read_im0 is not None:
         result["im0"] = read_im0()
     return result

@@ -27,7 +27,7 @@ import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.values import (
     PnuSpec,
@@ -44,6 +44,9 @@ from akdctl.drive.values import (
 )
 from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
 from akdctl.io.atomic import write_user_file
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 SNAPSHOT_FORMAT = 1
 
@@ -215,11 +218,11 @@ def select_items(sources: Sequence[str], groups: Sequence[str] = (), only: Seque
     return items
 
 
-def choose_sources(transport: Any, source: str) -> list[str]:
+def choose_sources(conn: "Connection", source: str) -> list[str]:
     """Which channels a backup reads: ``auto`` = PNUs where the target has them, else objects."""
     if source not in SOURCES:
         raise UsageError(f"unknown source {source!r}; choose one of {', '.join(SOURCES)}")
-    has_pnu, has_obj = transport.parameters is not None, transport.objects is not None
+    has_pnu, has_obj = conn.has_parameters, conn.has_objects
     wanted = {"auto": ["pnu"] if has_pnu else ["objects"], "pnu": ["pnu"], "objects": ["objects"],
               "all": ["pnu", "objects"]}[source]
     if "pnu" in wanted and not has_pnu:
@@ -269,21 +272,21 @@ def read_object_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, V
     return values, errors
 
 
-def read_values(transport: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+def read_values(conn: "Connection", items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
     pnu_items = [i for i in items if i.kind == "pnu"]
     obj_items = [i for i in items if i.kind == "object"]
     values: dict[str, Value] = {}
     errors: dict[str, str] = {}
     if pnu_items:
-        if transport.parameters is None:
+        if not conn.has_parameters:
             raise UsageError("this target offers no PROFIdrive parameter channel; PNUs cannot be read")
-        v, e = read_pnu_values(transport.parameters, pnu_items)
+        v, e = read_pnu_values(conn.parameters(), pnu_items)
         values.update(v)
         errors.update(e)
     if obj_items:
-        if transport.objects is None:
+        if not conn.has_objects:
             raise UsageError("this target offers no object channel (SDO); objects cannot be read")
-        v, e = read_object_values(transport.objects, obj_items)
+        v, e = read_object_values(conn.objects(), obj_items)
         values.update(v)
         errors.update(e)
     return values, errors
@@ -303,11 +306,11 @@ def identity_from_pnus(values: dict[str, Value]) -> dict[str, Any]:
     return backup_drive_unit(drive_unit(du))
 
 
-def read_identity(transport: Any, use_pnu: bool, use_objects: bool) -> dict[str, Any]:
+def read_identity(conn: "Connection", use_pnu: bool, use_objects: bool) -> dict[str, Any]:
     """The identity fields of the drive from the channels a backup uses (the one identity reader, flattened)."""
     from akdctl.drive import identity
 
-    reading = identity.read_identity(transport, pnus=use_pnu, objects=use_objects, im0=False)
+    reading = identity.read_identity(conn, pnus=use_pnu, objects=use_objects, im0=False)
     return identity.backup_identity(reading)
 
 
@@ -415,12 +418,12 @@ def now_iso() -> str:
     return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
-def take(transport: Any, items: Sequence[Item], target: str, sources: Sequence[str]) -> Snapshot:
+def take(conn: "Connection", items: Sequence[Item], target: str, sources: Sequence[str]) -> Snapshot:
     """Read every item (one batched PNU read, one SDO upload per object) into a snapshot."""
-    values, errors = read_values(transport, items)
+    values, errors = read_values(conn, items)
     identity = identity_from_pnus(values) if "964" in values else {}
     need_pnu_identity = "pnu" in sources and not identity
-    extra = read_identity(transport, need_pnu_identity, "objects" in sources)
+    extra = read_identity(conn, need_pnu_identity, "objects" in sources)
     identity.update(extra)
     snap = Snapshot(target, now_iso(), identity, refused=errors)
     for item in items:
@@ -606,15 +609,15 @@ def restorable_items(snapshot: Snapshot) -> list[Item]:
     return [item for item in (resolve_item(k) for k in snapshot.values()) if item.restorable]
 
 
-def drive_enabled(transport: Any) -> bool:
+def drive_enabled(conn: "Connection") -> bool:
     """Operation enabled (ZSW1 / statusword bit 2): a restore then could change a running axis."""
     try:
-        if transport.parameters is not None:
-            (zsw1,) = read_pnus(transport.parameters, [pnu_spec(2)])
+        if conn.has_parameters:
+            (zsw1,) = read_pnus(conn.parameters(), [pnu_spec(2)])
             if zsw1.ok and zsw1.values:
                 return bool(zsw1.values[0] & 0x0004)
-        if transport.objects is not None:
-            return (read_object(transport.objects, 0x6041, 0) & 0x006F) == 0x0027
+        if conn.has_objects:
+            return (read_object(conn.objects(), 0x6041, 0) & 0x006F) == 0x0027
     except CommError:
         raise
     except AkdError:
@@ -622,7 +625,7 @@ def drive_enabled(transport: Any) -> bool:
     return False
 
 
-def apply_changes(transport: Any, changes: Sequence[Change]) -> list[dict[str, Any]]:
+def apply_changes(conn: "Connection", changes: Sequence[Change]) -> list[dict[str, Any]]:
     """Write the changes in order, then read every one back; CheckFailed when a value did not stick."""
 
     done: list[dict[str, Any]] = []
@@ -636,7 +639,7 @@ def apply_changes(transport: Any, changes: Sequence[Change]) -> list[dict[str, A
             info = change.item.info
             values = change.new if isinstance(change.new, list) else [change.new]
             assignments.append((PnuSpec(info.pnu, 0, len(values), info), [int(v) for v in values]))
-        results = write_pnus(transport.parameters, assignments)
+        results = write_pnus(conn.parameters(), assignments)
         for change, result in zip(pnu_batch, results):
             if not result.ok:
                 raise DriveError(f"drive refused PNU {change.item.key} ({change.item.name}) = {change.new}: "
@@ -651,23 +654,23 @@ def apply_changes(transport: Any, changes: Sequence[Change]) -> list[dict[str, A
             flush()  # a later phase depends on the earlier one having been accepted
             phase = change.item.phase
         if change.item.kind == "pnu":
-            if transport.parameters is None:
+            if not conn.has_parameters:
                 raise UsageError("this target offers no PROFIdrive parameter channel; the backup holds PNUs")
             pnu_batch.append(change)
             continue
         flush()
     flush()
-    _write_objects(transport, [c for c in changes if c.item.kind == "object"], done)
-    verify(transport, changes)
+    _write_objects(conn, [c for c in changes if c.item.kind == "object"], done)
+    verify(conn, changes)
     return done
 
 
-def _write_objects(transport: Any, changes: Sequence[Change], done: list[dict[str, Any]]) -> None:
+def _write_objects(conn: "Connection", changes: Sequence[Change], done: list[dict[str, Any]]) -> None:
     if not changes:
         return
-    if transport.objects is None:
+    if not conn.has_objects:
         raise UsageError("this target offers no object channel (SDO); the backup holds objects")
-    channel = transport.objects
+    channel = conn.objects()
     by_index: dict[int, list[Change]] = {}
     order: list[int] = []
     for change in changes:
@@ -709,12 +712,12 @@ def _download(channel: Any, entry: Any, value: Any, done: list[dict[str, Any]], 
         done.append({"key": object_key(entry.index, entry.subindex), "name": entry.name, "new": value, "note": label})
 
 
-def verify(transport: Any, changes: Sequence[Change]) -> None:
+def verify(conn: "Connection", changes: Sequence[Change]) -> None:
     """Read every changed item back (one batched PNU read + SDO uploads) and compare."""
     if not changes:
         return
     items = [c.item for c in changes]
-    values, errors = read_values(transport, items)
+    values, errors = read_values(conn, items)
     bad = []
     for change in changes:
         key = change.item.key
@@ -726,11 +729,11 @@ def verify(transport: Any, changes: Sequence[Change]) -> None:
         raise CheckFailed("read-back differs: " + "; ".join(bad), details={"mismatches": bad})
 
 
-def save_nonvolatile(transport: Any) -> None:
+def save_nonvolatile(conn: "Connection") -> None:
     """DRV.NVSAVE: 0x1010:1 = "save" (0x65766173); the AKD keeps the values over a power cycle."""
-    if transport.objects is None:
+    if not conn.has_objects:
         raise UsageError("saving to non-volatile memory needs the object channel (0x1010); this target has none")
-    write_object(transport.objects, NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE)
+    write_object(conn.objects(), NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE)
 
 
 @dataclass
@@ -745,27 +748,27 @@ class RestoreResult:
                 "identity_mismatches": self.identity_warnings}
 
 
-def restore(transport: Any, snapshot: Snapshot, *, dry_run: bool = False, force: bool = False,
+def restore(conn: "Connection", snapshot: Snapshot, *, dry_run: bool = False, force: bool = False,
             save: bool = False) -> RestoreResult:
     """Make the drive equal the snapshot's configuration values (see the module docstring)."""
     items = restorable_items(snapshot)
-    use_pnu = any(i.kind == "pnu" for i in items) or transport.objects is None
-    use_obj = any(i.kind == "object" for i in items) or transport.parameters is None
-    actual_identity = read_identity(transport, use_pnu, use_obj)
+    use_pnu = any(i.kind == "pnu" for i in items) or not conn.has_objects
+    use_obj = any(i.kind == "object" for i in items) or not conn.has_parameters
+    actual_identity = read_identity(conn, use_pnu, use_obj)
     mismatches = identity_mismatches(snapshot.identity, actual_identity)
     if mismatches and not force:
         raise SafetyRefusal("the backup is of a different drive type (" + "; ".join(mismatches)
                             + "); refusing to restore (use --force to restore anyway)",
                             details={"mismatches": mismatches})
-    current, _ = read_values(transport, items)
+    current, _ = read_values(conn, items)
     changes = plan_restore(snapshot, current)
     if dry_run:
         return RestoreResult(changes, [], False, mismatches)
-    if changes and drive_enabled(transport):
+    if changes and drive_enabled(conn):
         raise SafetyRefusal("the drive is enabled (operation enabled); disable it before restoring parameters")
-    written = apply_changes(transport, changes)
+    written = apply_changes(conn, changes)
     if save:
-        save_nonvolatile(transport)
+        save_nonvolatile(conn)
     return RestoreResult(changes, written, save, mismatches)
 
 

@@ -243,21 +243,21 @@ def do_check_faults(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 def do_save(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive.snapshot import save_nonvolatile
 
-    save_nonvolatile(session.transport)
+    save_nonvolatile(session.conn)
     return {"saved": True}
 
 
 def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import snapshot
 
-    transport = session.transport
+    conn = session.conn
     if params["only"]:
         items = snapshot.select_items([], only=params["only"])
         sources = sorted({"pnu" if i.kind == "pnu" else "objects" for i in items})
     else:
-        sources = snapshot.choose_sources(transport, params["source"])
+        sources = snapshot.choose_sources(conn, params["source"])
         items = snapshot.select_items(sources, params["groups"])
-    snap = snapshot.take(transport, items, session.conn.target.display, sources)
+    snap = snapshot.take(conn, items, conn.target.display, sources)
     snapshot.write_file(snap, session.output_dir / params["file"])
     session.files.append(str(params["file"]))
     return {"file": params["file"], "pnus": len(snap.pnus), "objects": len(snap.objects), "refused": snap.refused}
@@ -266,7 +266,7 @@ def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 def do_restore(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import snapshot
 
-    result = snapshot.restore(session.transport, params["snapshot"], force=params["force"])
+    result = snapshot.restore(session.conn, params["snapshot"], force=params["force"])
     return result.to_json()
 
 

@@ -79,7 +79,8 @@ class Injection:
         return result
 
 
-def parse_address(text: str, default_port: int = pnio.PNIO_PORT) -> tuple[str, int]:
+def parse_address(text: str, default_port: int = pnio.PNIO_PORT, option: str = "--profinet") -> tuple[str, int]:
+    """HOST[:PORT] of a face option (port 0: any free port); shared by the faces that listen on IP."""
     host, sep, port = text.rpartition(":")
     if not sep:
         host, port = text, str(default_port)
@@ -88,7 +89,7 @@ def parse_address(text: str, default_port: int = pnio.PNIO_PORT) -> tuple[str, i
         if not 0 <= number <= 65535:
             raise ValueError
     except ValueError:
-        raise UsageError(f"--profinet {text!r}: expected HOST:PORT, e.g. 127.0.0.1:34964") from None
+        raise UsageError(f"{option} {text!r}: expected HOST:PORT, e.g. 127.0.0.1:{default_port}") from None
     return host.strip("[]") or "127.0.0.1", number
 
 

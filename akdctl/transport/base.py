@@ -20,7 +20,7 @@ from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel, ParameterChannel
-    from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
+    from akdctl.links import MailboxLink, MessageLink, NativeSdoClient, RecordLink
     from akdctl.transport.target import Target
 
 
@@ -60,6 +60,7 @@ class Transport(ABC):
         self.record_link: "RecordLink | None" = None
         self.mailbox_link: "MailboxLink | None" = None
         self.sdo_client: "NativeSdoClient | None" = None
+        self.message_link: "MessageLink | None" = None
         self.parameters: "ParameterChannel | None" = None
         self.objects: "ObjectChannel | None" = None
 

@@ -6,6 +6,8 @@ frames. So this sink synthesises the lower headers from the record's ``meta``:
 
 * ``{"proto": "udp", "src": (ip, port), "dst": (ip, port)}``: Ethernet + IPv4
   (or IPv6) + UDP with correct checksums around ``data``;
+* ``{"proto": "tcp", "src": ..., "dst": ...}``: Ethernet + IPv4 + TCP (one data segment, sequence
+  numbers counted per direction) around ``data`` (EtherNet/IP encapsulation);
 * ``{"proto": "ethernet", "ethertype": T[, "src_mac": b6, "dst_mac": b6]}``: an
   Ethernet header in front of ``data``;
 * ``{"proto": "ethernet"}`` without an EtherType: ``data`` is already a whole frame.
@@ -86,6 +88,23 @@ def udp_frame(src: tuple[object, int], dst: tuple[object, int], payload: bytes, 
     return _mac_for(dip) + _mac_for(sip) + struct.pack("!H", ethertype) + head + udp
 
 
+def tcp_frame(src: tuple[object, int], dst: tuple[object, int], payload: bytes, seq: int, ack: int,
+              ident: int = 0) -> bytes:
+    """Ethernet/IPv4/TCP (PSH+ACK) around ``payload`` with valid checksums (EtherNet/IP explicit messaging)."""
+    sip, dip = _address(src[0]), _address(dst[0])
+    if sip.version != 4 or dip.version != 4:
+        sip, dip = ipaddress.IPv4Address("0.0.0.0"), ipaddress.IPv4Address("0.0.0.0")
+    sport, dport = int(src[1]) & 0xFFFF, int(dst[1]) & 0xFFFF
+    head = struct.pack("!HHIIBBHHH", sport, dport, seq & 0xFFFFFFFF, ack & 0xFFFFFFFF, 5 << 4, 0x18, 65535, 0, 0)
+    pseudo = sip.packed + dip.packed + struct.pack("!BBH", 0, socket.IPPROTO_TCP, len(head) + len(payload))
+    tcp_sum = internet_checksum(pseudo + head + payload)
+    tcp = head[:16] + struct.pack("!H", tcp_sum) + head[18:] + payload
+    ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(tcp), ident & 0xFFFF, 0x4000, 64, socket.IPPROTO_TCP, 0,
+                     sip.packed, dip.packed)
+    ip = ip[:10] + struct.pack("!H", internet_checksum(ip)) + ip[12:]
+    return _mac_for(dip) + _mac_for(sip) + struct.pack("!H", ETHERTYPE_IPV4) + ip + tcp
+
+
 class PcapWriter:
     """A pcap file that grows one flushed frame at a time. Use ``write`` as a tracer sink."""
 
@@ -98,6 +117,7 @@ class PcapWriter:
         self.frames = 0
         self.skipped = 0
         self._ident = 0
+        self._tcp_seq: dict[tuple[str, int, str, int], int] = {}
         self._lock = threading.Lock()
         self._file.write(struct.pack("<IHHiIII", PCAP_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_ETHERNET))
         self._file.flush()
@@ -109,6 +129,14 @@ class PcapWriter:
         if proto == "udp" and isinstance(meta.get("src"), (tuple, list)) and isinstance(meta.get("dst"), (tuple, list)):
             self._ident = (self._ident + 1) & 0xFFFF
             return udp_frame(meta["src"], meta["dst"], record.data, self._ident)  # type: ignore[arg-type]
+        if proto == "tcp" and isinstance(meta.get("src"), (tuple, list)) and isinstance(meta.get("dst"), (tuple, list)):
+            src, dst = meta["src"], meta["dst"]  # type: ignore[index]
+            key = (str(src[0]), int(src[1]), str(dst[0]), int(dst[1]))
+            back = (key[2], key[3], key[0], key[1])
+            seq = self._tcp_seq.setdefault(key, 1)
+            self._tcp_seq[key] = seq + len(record.data)
+            self._ident = (self._ident + 1) & 0xFFFF
+            return tcp_frame(src, dst, record.data, seq, self._tcp_seq.get(back, 1), self._ident)  # type: ignore[arg-type]
         if proto == "ethernet":
             ethertype = meta.get("ethertype")
             if ethertype is None:

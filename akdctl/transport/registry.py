@@ -114,6 +114,9 @@ BUILTIN: dict[str, TransportSpec] = {
                       "CANopen over any python-can interface (socketcan, slcan, pcan, kvaser, virtual, ...)",
                       "can://INTERFACE/CHANNEL/NODE[?bitrate=500000]", "objects",
                       requires=("can", "canopen"), check=_check_can),
+        TransportSpec("eip", "akdctl.transport.ethernetip", "EthernetIpTransport",
+                      "EtherNet/IP: CIP explicit messaging (UCMM over TCP), Parameter and Position Controller objects",
+                      "eip://HOST[:44818]", "attributes", check=_need_host),
     )
 }
 

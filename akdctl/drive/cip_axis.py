@@ -1,0 +1,193 @@
+"""The third axis profile: the AKD's CIP Position Controller object 0x25 over explicit messaging.
+
+Attributes used (AKD EtherNet/IP manual appendix A [M-37]; reference/ethernetip.md 1.8):
+3 mode (0 position, 1 velocity, 2 torque), 4/5 position/profile units, 6 target position,
+7 target velocity, 10 incremental flag, 11 load data/profile handshake, 17 enable, 58 load data
+complete, 100 home mode, 101 home move [V]. Read only where available, because they are
+*inferred* from the ODVA position-controller profile and not in the AKD's list [I]: 12 on target
+position, 13 actual position, 14 actual velocity, and the Supervisor 0x24 attribute 5 general fault.
+A drive that answers "attribute not supported" for them leaves those fields unknown.
+
+Units: positions are 32-bit integers in EIP.POSUNIT units and velocities 32-bit integers in
+EIP.PROFUNIT units [V: M-25]; akdctl takes POSUNIT counts as one revolution and PROFUNIT counts/s
+as one rev/s [I], which is the simulator's scaling and the drive's default of 65536 for both.
+
+What explicit messaging cannot do on an AKD (no attribute for it in appendix A): a ramp stop of a
+position move (the stop disables the drive, which ramps down and then switches the power stage
+off), reading the homed state, and acknowledging faults (DRV.CLRFAULTS has no cited instance).
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+from akdctl.drive import statusword as sw
+from akdctl.drive.axis import Axis, AxisStatus, MoveSpec
+from akdctl.errors import CipRefused, DriveError, MalformedReply, UsageError
+from akdctl.protocol import cip
+
+PC = cip.POSITION_CONTROLLER
+MODES = {0: "position (0x25 attribute 3 = 0)", 1: "velocity (0x25 attribute 3 = 1)", 2: "torque (0x25 attribute 3 = 2)"}
+STATUS_BITS = {0: "enabled (0x25/1/17)", 1: "on target position (0x25/1/12, inferred)",
+               2: "load data complete (0x25/1/58)", 3: "general fault (0x24/1/5, inferred)",
+               4: "load data handshake (0x25/1/11)", 5: "incremental position (0x25/1/10)"}
+NOT_AVAILABLE = (cip.ATTRIBUTE_NOT_SUPPORTED, cip.PATH_DESTINATION_UNKNOWN, cip.OBJECT_DOES_NOT_EXIST,
+                 cip.SERVICE_NOT_SUPPORTED)
+INT32 = (-(1 << 31), (1 << 31) - 1)
+
+
+class CipAxis(Axis):
+    profile = "cip"
+
+    def __init__(self, channel: Any, timeout: float = 2.0, target: str = "") -> None:
+        super().__init__(timeout, target)
+        self.channel = channel
+
+    # ---------------------------------------------------------------- access
+    def _get(self, attribute: int, fmt: str, class_id: int = PC) -> int:
+        data = self.channel.get(class_id, 1, attribute)
+        try:
+            return struct.unpack(fmt, data)[0]
+        except struct.error:
+            raise MalformedReply(f"attribute 0x{class_id:02X}/1/{attribute} answered {len(data)} bytes "
+                                 f"({data.hex(' ') or 'empty'})") from None
+
+    def _optional(self, attribute: int, fmt: str, class_id: int = PC) -> int | None:
+        try:
+            return self._get(attribute, fmt, class_id)
+        except CipRefused as exc:
+            if exc.code in NOT_AVAILABLE:
+                return None
+            raise
+
+    def _set(self, attribute: int, fmt: str, value: int) -> None:
+        try:
+            data = struct.pack(fmt, value)
+        except struct.error:
+            raise UsageError(f"value {value} does not fit attribute 0x25/1/{attribute} ({fmt[1:]})") from None
+        self.channel.set(PC, 1, attribute, data)
+
+    def units(self) -> tuple[int, int]:
+        """(EIP.POSUNIT, EIP.PROFUNIT) as the Position Controller reports them (attributes 4 and 5)."""
+        posunit, profunit = self._get(4, "<i"), self._get(5, "<i")
+        if posunit <= 0 or profunit <= 0:
+            raise DriveError(f"the drive reports position/profile units {posunit}/{profunit}; akdctl needs both > 0")
+        return posunit, profunit
+
+    # ---------------------------------------------------------------- planner contract (quantisation, ranges)
+    def position_quantum_rev(self) -> float:
+        """One position unit: 1 / EIP.POSUNIT rev [I scaling]."""
+        return 1.0 / self.units()[0]
+
+    def position_range_rev(self) -> tuple[float, float]:
+        """Target position is a 32-bit DINT in EIP.POSUNIT units."""
+        posunit = self.units()[0]
+        return INT32[0] / posunit, INT32[1] / posunit
+
+    def velocity_quantum_rpm(self) -> float:
+        return 60.0 / self.units()[1]
+
+    def velocity_range_rpm(self) -> tuple[float, float]:
+        """Target velocity is a 32-bit DINT in EIP.PROFUNIT units per second."""
+        profunit = self.units()[1]
+        return INT32[0] * 60.0 / profunit, INT32[1] * 60.0 / profunit
+
+    # ---------------------------------------------------------------- status
+    def read_status(self) -> AxisStatus:
+        mode = self._get(3, "<B")
+        enabled = bool(self._get(17, "<B"))
+        load_complete = bool(self._get(58, "<B"))
+        handshake = bool(self._get(11, "<B"))
+        incremental = bool(self._get(10, "<B"))
+        posunit, profunit = self.units()
+        on_target = self._optional(12, "<B")
+        position = self._optional(13, "<i")
+        velocity = self._optional(14, "<i")
+        fault = bool(self._optional(5, "<B", cip.POSITION_CONTROLLER_SUPERVISOR) or 0)
+        word = (enabled | (bool(on_target) << 1) | (load_complete << 2) | (fault << 3) | (handshake << 4)
+                | (incremental << 5))
+        standstill = velocity == 0 if velocity is not None else bool(on_target)
+        state = "fault" if fault else ("enabled" if enabled else "disabled")
+        return AxisStatus(
+            profile=self.profile, state=state, state_text=state, word=word, control=0, mode=mode,
+            mode_text=MODES.get(mode, f"mode {mode}"), enabled=enabled and not fault, fault=fault, warning=False,
+            faults=[], homed=None, target_reached=bool(on_target), standstill=standstill, task_ack=load_complete,
+            position_rev=None if position is None else position / posunit, counts_per_rev=posunit,
+            velocity_rpm=None if velocity is None else velocity * 60.0 / profunit, current_pct=None,
+            bits=[sw.Bit(n, name, bool(word >> n & 1)) for n, name in STATUS_BITS.items()],
+        )
+
+    # ---------------------------------------------------------------- state
+    def _enable_steps(self, status: AxisStatus) -> None:
+        self._set(17, "<B", 1)
+
+    def _disable_command(self) -> None:
+        self._set(17, "<B", 0)
+
+    def _ramp_stop_command(self) -> None:
+        if self._get(3, "<B") == 1:
+            self._load_velocity(0)
+        else:
+            self._disable_command()     # no stop attribute for a position move: the drive ramps down, then disables
+
+    def _quick_stop_command(self) -> None:
+        self._disable_command()
+
+    def _ack_command(self) -> None:
+        raise UsageError("acknowledging faults over eip:// needs DRV.CLRFAULTS, and akdctl has no cited Parameter "
+                         "object instance for it; acknowledge through WorkBench or another target")
+
+    # ---------------------------------------------------------------- modes and motion
+    def mode_name(self, kind: str) -> str:
+        return {"velocity": MODES[1], "position": MODES[0], "homing": MODES[0] + ", home move 0x25/1/101"}[kind]
+
+    def ensure_mode(self, kind: str) -> None:
+        wanted = 1 if kind == "velocity" else 0
+        if self._get(3, "<B") != wanted:
+            self._set(3, "<B", wanted)
+
+    def _handshake(self) -> None:
+        """Load Data: 0 -> 1 on attribute 11, check Load Data Complete (58), then back to 0."""
+        self._set(11, "<B", 0)
+        self._set(11, "<B", 1)
+        try:
+            if not self._get(58, "<B"):
+                raise DriveError("the drive did not confirm the loaded data (0x25/1/58 Load Data Complete stayed 0)")
+        finally:
+            self._set(11, "<B", 0)
+
+    def _velocity_units(self, rpm: float) -> int:
+        value = round(rpm / 60.0 * self.units()[1])
+        if not INT32[0] <= value <= INT32[1]:
+            raise UsageError(f"{rpm:g} rpm is outside the 32-bit target velocity range")
+        return value
+
+    def _load_velocity(self, rpm: float) -> None:
+        self._set(7, "<i", self._velocity_units(rpm))
+        self._handshake()
+
+    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
+        self._load_velocity(rpm)     # attributes 8/9 (acceleration) are "not used yet" [M-37]
+
+    def end_jog(self) -> None:
+        self._load_velocity(0)
+
+    def start_home(self, mode: int | None) -> None:
+        if mode is not None:
+            self._set(100, "<h", mode)
+        self._set(101, "<B", 1)
+
+    def home_finished(self, status: AxisStatus) -> bool | None:
+        # Only "on target" [I] tells that the homing move ended; a homing error is not observable here.
+        return True if status.target_reached and status.standstill else None
+
+    def start_move(self, move: MoveSpec) -> None:
+        posunit = self.units()[0]
+        counts = round(move.target_rev * posunit)
+        if not INT32[0] <= counts <= INT32[1]:
+            raise UsageError("target is outside the 32-bit range of the target position (0x25/1/6)")
+        self._set(10, "<B", 1 if move.relative else 0)
+        self._set(6, "<i", counts)
+        self._set(7, "<i", max(1, abs(self._velocity_units(move.rpm))))
+        self._handshake()

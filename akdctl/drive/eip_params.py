@@ -1,0 +1,110 @@
+"""AKD parameters through the CIP Parameter object (class 0x0F), the way the AKD manual prescribes.
+
+Rules from the manual [M-25], [M-26] (reference/ethernetip.md 1.9), kept in this one place:
+
+* the instance is the parameter number (``catalog/eip_parameters.py``, each row with its source);
+  a name not in that table is refused locally rather than guessed;
+* attribute 5 is the data type (CIP type code), attribute 6 the length in bytes: both are read
+  before every write and the value is packed to exactly that length (a 64-bit parameter also
+  accepts a 32-bit write, which is what is sent when the value fits);
+* float parameters travel as integers x1000 (1.001 -> 1001);
+* a command (HOME.MOVE, AIN.ZERO ...) runs on a 1-byte Set of attribute 1; reading never runs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from akdctl.catalog import eip_parameters as table
+from akdctl.errors import MalformedReply, UsageError
+from akdctl.protocol import cip
+
+FLOAT_SCALE = 1000
+
+
+@dataclass(frozen=True)
+class ParameterRef:
+    instance: int
+    name: str
+    kind: str          # int, float, position, velocity, command, or "?" for a bare instance number
+
+
+def resolve(text: str) -> ParameterRef:
+    """A parameter name from the cited table, or a bare instance number (decimal or 0x-hex)."""
+    try:
+        instance = int(text, 0)
+    except ValueError:
+        entry = table.by_name(text)
+        if entry is None:
+            raise UsageError(f"unknown AKD parameter {text!r} for EtherNet/IP: akdctl knows the instance numbers "
+                             f"of {', '.join(p.name for p in table.PARAMETERS)} (each from a cited manual page); "
+                             "give the instance number from the AKD manual's appendix B instead") from None
+        return ParameterRef(entry.instance, entry.name, entry.kind)
+    if not 1 <= instance <= 0xFFFF:
+        raise UsageError(f"parameter instance {instance} is outside 1..65535")
+    entry = table.by_instance(instance)
+    return ParameterRef(instance, entry.name if entry else "", entry.kind if entry else "?")
+
+
+def describe(channel: Any, ref: ParameterRef) -> tuple[int, int]:
+    """(CIP type code, length in bytes) from attributes 5 and 6."""
+    type_raw = channel.get(cip.PARAMETER, ref.instance, 5)
+    size_raw = channel.get(cip.PARAMETER, ref.instance, 6)
+    if len(type_raw) != 1 or len(size_raw) != 1:
+        raise MalformedReply(f"parameter {ref.instance}: attributes 5/6 must be one byte each "
+                             f"(got {type_raw.hex()} / {size_raw.hex()})")
+    return type_raw[0], size_raw[0]
+
+
+def _signed(type_code: int) -> bool:
+    return type_code in (0xC2, 0xC3, 0xC4, 0xC5)
+
+
+def read(channel: Any, ref: ParameterRef) -> dict[str, Any]:
+    type_code, size = describe(channel, ref)
+    raw = channel.get(cip.PARAMETER, ref.instance, 1)
+    if not raw or len(raw) > 8:
+        raise MalformedReply(f"parameter {ref.instance}: value of {len(raw)} bytes")
+    number = int.from_bytes(raw, "little", signed=_signed(type_code))
+    value: Any = number / FLOAT_SCALE if ref.kind == "float" else number
+    ctype = cip.CIP_TYPES.get(type_code)
+    return {"instance": ref.instance, "name": ref.name, "kind": ref.kind, "type": ctype.name if ctype else
+            f"0x{type_code:02X}", "length": size, "raw": raw.hex(), "value": value}
+
+
+def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
+    if ref.kind == "command":
+        raise UsageError(f"{ref.name} is a command: run it with 'akdctl eip param run {ref.name}'")
+    type_code, size = describe(channel, ref)
+    try:
+        value = float(text) if ref.kind == "float" else int(text, 0)
+    except ValueError:
+        raise UsageError(f"bad value {text!r} for parameter {ref.name or ref.instance}: expected "
+                         f"{'a number' if ref.kind == 'float' else 'an integer (decimal or 0x-hex)'}") from None
+    number = round(value * FLOAT_SCALE) if ref.kind == "float" else int(value)
+    signed = _signed(type_code)
+    for length in ((size, 4) if size == 8 else (size,)):
+        if length not in (1, 2, 4, 8):
+            raise MalformedReply(f"parameter {ref.instance}: the drive reports a length of {size} bytes")
+        low, high = (-(1 << (8 * length - 1)), (1 << (8 * length - 1)) - 1) if signed else (0, (1 << (8 * length)) - 1)
+        if low <= number <= high:
+            data = number.to_bytes(length, "little", signed=signed)
+            break
+    else:
+        raise UsageError(f"value {text} does not fit parameter {ref.name or ref.instance} "
+                         f"({size} bytes, {'signed' if signed else 'unsigned'})")
+    if size == 8 and len(data) == 8 and -(1 << 31) <= number < (1 << 31):
+        data = data[:4]      # 64-bit parameters also take a 32-bit value [M-26]
+    channel.set(cip.PARAMETER, ref.instance, 1, data)
+    return {"instance": ref.instance, "name": ref.name, "written": data.hex(), "value": value, "length": size}
+
+
+def run_command(channel: Any, ref: ParameterRef) -> dict[str, Any]:
+    if ref.kind not in ("command", "?"):
+        raise UsageError(f"{ref.name} is not a command parameter")
+    channel.set(cip.PARAMETER, ref.instance, 1, b"\x01")
+    return {"instance": ref.instance, "name": ref.name, "executed": True}
+
+
+__all__ = ["ParameterRef", "resolve", "describe", "read", "write", "run_command"]
