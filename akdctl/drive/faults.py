@@ -28,16 +28,13 @@ from typing import Any
 
 from akdctl.catalog import faults as catalog
 from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, UsageError
+from akdctl.profiles.statusword import SW_FAULT, SW_WARNING, ZSW1_FAULT, ZSW1_WARNING
 
 MAX_ATTEMPTS = 5  # consistent-read attempts before reporting an inconsistent dump
 PNU_FAULT_COUNTER = 944
 PNU_FAULT_BUFFER = 947
 PNU_ZSW1 = 2
 SITUATION_SIZE = 8
-ZSW1_FAULT = 1 << 3
-ZSW1_WARNING = 1 << 7
-SW_FAULT = 1 << 3
-SW_WARNING = 1 << 7
 
 
 # ---------------------------------------------------------------------------- decoding

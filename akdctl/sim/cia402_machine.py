@@ -12,13 +12,13 @@ in OP, an SDO write of it has no effect.
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from akdctl.profiles import statusword as sw
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.component import ABORT_DEVICE_STATE, ABORT_NO_SUBINDEX, ABORT_VALUE_RANGE
+from akdctl.sim.component import ABORT_DEVICE_STATE, ABORT_NO_SUBINDEX, ABORT_VALUE_RANGE, FieldState
 from akdctl.sim.errors import SdoAccessError
-from akdctl.sim.kinematics import COAST_RPM_S, DEFAULT_RAMP_RPM_S, EPS, QUICK_STOP_RPM_S, rpm_s
+from akdctl.sim.kinematics import DEFAULT_RAMP_RPM_S, EPS, QUICK_STOP_RPM_S, rpm_s
 from akdctl.sim.power_states import (
     CIA_WORD,
     ENABLED,
@@ -48,7 +48,7 @@ MODES = (1, 3, 4, 6, 7, 8)
 QUICK_STOP_CODES = (0, 1, 2, 5, 6)
 
 
-class Cia402Machine:
+class Cia402Machine(FieldState):
     """Controlword, mode and target velocity writes, and the statusword they produce."""
 
     FIELDS = ("controlword", "quick_stop_code")
@@ -82,20 +82,13 @@ class Cia402Machine:
         d.watchdog_tripped = False
         if new & sw.CW_FAULT_RESET and not old & sw.CW_FAULT_RESET:
             d.acknowledge()
-        if d.state in (FAULT, FAULT_REACTION):
-            return
-        self._general(new)
-        if d.state == ENABLED and d.stopping_to is None:
-            self._mode_bits(old, new)
+        d.apply_control_word(old, new, self._general, self._mode_bits)
 
     def _general(self, word: int) -> None:
         d, axis = self.drive, self.drive.axis
         state = d.state
         if not word & sw.CW_ENABLE_VOLTAGE:  # disable voltage
-            if state in (ENABLED, QUICK_STOP) and not axis.at_rest():
-                axis.abort_tasks()
-                axis.ramp_to_zero(COAST_RPM_S, "coast")
-            d.state, d.stopping_to = SOD, None
+            d.coast_off()
             return
         if not word & sw.CW_QUICK_STOP:  # quick stop
             if state == ENABLED:
@@ -151,13 +144,9 @@ class Cia402Machine:
             if not new & sw.CW_NEW_SETPOINT:
                 axis.task_ack = False
             if halt:
-                if axis.task is not None and not axis.task_paused:
-                    axis.task_paused = True
-                    axis.stop_motion(quick=False, activity="stop")
+                axis.pause_task()
                 return
-            if axis.task is not None and axis.task_paused:
-                axis.task_paused = False
-                axis.run_task(axis.task)
+            axis.resume_task()
             if rising4:
                 relative = bool(new & sw.CW_RELATIVE)
                 acc, dec = self._ramps()
@@ -250,12 +239,3 @@ class Cia402Machine:
                 if abs(axis.vel - goal) < 1e-6:
                     word |= sw.SW_TARGET_REACHED
         return word
-
-    # ------------------------------------------------------------------ persistence
-    def to_state(self) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self.FIELDS}
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        for name in self.FIELDS:
-            if name in state:
-                setattr(self, name, state[name])

@@ -26,6 +26,7 @@ import math
 from typing import Any, Protocol
 
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
+from akdctl.sim.component import FieldState
 
 EPS = 1e-9  # rev, rev/s: below this the axis is at its target / at standstill
 POSITION_WINDOW_REV = 1.0 / CIA_COUNTS_PER_REV  # "target reached": within one count of the task's target
@@ -73,7 +74,7 @@ class KinematicsHost(Protocol):
         """A stop ramp reached standstill: the power stage takes its next state."""
 
 
-class Kinematics:
+class Kinematics(FieldState):
     """Position, velocity and the active set point generator of one axis, plus its task and homing state."""
 
     FIELDS = ("pos", "vel", "acc_now", "offset", "gen", "activity", "task", "task_paused", "last_target",
@@ -168,6 +169,25 @@ class Kinematics:
             return None
         self.internal_limit = False
         return {"target": target, "v": v, "acc": acc, "dec": dec}
+
+    def pause_task(self) -> None:
+        """Intermediate stop (STW1 bit 5 = 0, CiA 402 halt): brake along the ramp, keep the task."""
+        if self.task is not None and not self.task_paused:
+            self.task_paused = True
+            self.stop_motion(quick=False, activity="stop")
+
+    def resume_task(self) -> None:
+        """The intermediate stop was lifted: continue the kept task."""
+        if self.task is not None and self.task_paused:
+            self.task_paused = False
+            self.run_task(self.task)
+
+    def reject_task(self) -> None:
+        """Reject the traversing task (STW1 bit 4 = 0): brake along the ramp, drop the task."""
+        if self.task is not None:
+            self.task = None
+            self.task_paused = False
+            self.stop_motion(quick=False, activity="stop")
 
     def run_task(self, task: dict[str, Any]) -> None:
         self.task = task
@@ -413,12 +433,3 @@ class Kinematics:
         self.homing_error = True
         self.homed = False
         self.stop_motion(quick=False, activity="stop")
-
-    # ------------------------------------------------------------------ persistence
-    def to_state(self) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self.FIELDS}
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        for name in self.FIELDS:
-            if name in state:
-                setattr(self, name, state[name])

@@ -29,12 +29,13 @@ arrived at the wrong position afterwards (docs/simulator.md).
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 from akdctl.sim.cia402_machine import Cia402Machine
-from akdctl.sim.component import ABORT_NO_SUBINDEX, Component
+from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.kinematics import (
     COAST_RPM_S,
@@ -151,6 +152,23 @@ class MotionComponent(Component):
         if self.state in (FAULT, FAULT_REACTION) and not self.fault_present and self.axis.at_rest():
             self.state = SOD
             self.axis.activity = "idle"
+
+    def apply_control_word(self, old: int, new: int, general: Callable[[int], None],
+                           mode_bits: Callable[[int, int], None]) -> None:
+        """The order both word machines share once a word is honoured (and acknowledge handled): no transition
+        in fault; the general state transitions; then, in operation, the mode-specific bits."""
+        if self.state in (FAULT, FAULT_REACTION):
+            return
+        general(new)
+        if self.state == ENABLED and self.stopping_to is None:
+            mode_bits(old, new)
+
+    def coast_off(self) -> None:
+        """OFF2 / disable voltage: pulses off, a moving motor coasts down, switch on disabled."""
+        if self.state in (ENABLED, QUICK_STOP) and not self.axis.at_rest():
+            self.axis.abort_tasks()
+            self.axis.ramp_to_zero(COAST_RPM_S, "coast")
+        self.state, self.stopping_to = SOD, None
 
     def enter_enabled(self) -> None:
         self.state = ENABLED
@@ -292,7 +310,7 @@ class MotionComponent(Component):
     # ================================================================== persistence
     def to_state(self) -> dict[str, Any]:
         """One flat dict (the keys of the state files written before the split, so old files load)."""
-        data = {name: getattr(self, name) for name in self.FIELDS}
+        data = FieldState.to_state(self)
         data.update(self.pd.to_state())
         data.update(self.cia.to_state())
         data.update(self.axis.to_state())
@@ -302,9 +320,7 @@ class MotionComponent(Component):
         return data
 
     def load_state(self, state: dict[str, Any]) -> None:
-        for name in self.FIELDS:
-            if name in state:
-                setattr(self, name, state[name])
+        FieldState.load_state(self, state)
         self.pd.load_state(state)
         self.cia.load_state(state)
         self.axis.load_state(state)

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
-from akdctl.sim.component import PE_OPERATING_STATE
+from akdctl.sim.component import PE_OPERATING_STATE, FieldState
 from akdctl.sim.errors import PnuAccessError
-from akdctl.sim.kinematics import COAST_RPM_S, DEFAULT_RAMP_RPM_S, EPS, QUICK_STOP_RPM_S, rpm_s
+from akdctl.sim.kinematics import DEFAULT_RAMP_RPM_S, EPS, QUICK_STOP_RPM_S, rpm_s
 from akdctl.sim.power_states import ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, READY, SOD, SWITCHED_ON
 
 if TYPE_CHECKING:
@@ -38,7 +38,7 @@ DEFAULT_TASKS = {
 OPMODE_TO_CIA = {0: 4, 1: 3, 2: 1}
 
 
-class Stw1Machine:
+class Stw1Machine(FieldState):
     """STW1 writes, NSOLL_A and PNU 930 writes, and the ZSW1 they produce."""
 
     FIELDS = ("stw1", "plc_control_allowed", "aktsatz", "frozen_vel", "tasks")
@@ -71,11 +71,7 @@ class Stw1Machine:
         if new & sw.STW1_FAULT_ACK and not old & sw.STW1_FAULT_ACK:
             d.acknowledge()
             return  # SPEC-NOTES 7: after the acknowledge the drive is in S1; the next word moves on
-        if d.state in (FAULT, FAULT_REACTION):
-            return
-        self._general(new)
-        if d.state == ENABLED and d.stopping_to is None:
-            self._mode_bits(old, new)
+        d.apply_control_word(old, new, self._general, self._mode_bits)
 
     def _general(self, word: int) -> None:
         d, axis = self.drive, self.drive.axis
@@ -85,10 +81,7 @@ class Stw1Machine:
         enable = bool(word & sw.STW1_ENABLE_OPERATION)
         state = d.state
         if not no_coast:  # OFF2: pulses off, the motor coasts, S1
-            if state in (ENABLED, QUICK_STOP) and not axis.at_rest():
-                axis.abort_tasks()
-                axis.ramp_to_zero(COAST_RPM_S, "coast")
-            d.state, d.stopping_to = SOD, None
+            d.coast_off()
             return
         if not no_quick:  # OFF3: quick stop (S5), then S1
             if state in (ENABLED, QUICK_STOP) and not axis.at_rest():
@@ -187,19 +180,12 @@ class Stw1Machine:
         if not new & sw.STW1_BIT6:
             axis.task_ack = False
         if not new & sw.STW1_BIT4:  # reject traversing task: brake with ramp
-            if axis.task is not None:
-                axis.task = None
-                axis.task_paused = False
-                axis.stop_motion(quick=False, activity="stop")
+            axis.reject_task()
             return
         if not new & sw.STW1_BIT5:  # intermediate stop: brake, keep the task
-            if axis.task is not None and not axis.task_paused:
-                axis.task_paused = True
-                axis.stop_motion(quick=False, activity="stop")
+            axis.pause_task()
             return
-        if axis.task is not None and axis.task_paused:
-            axis.task_paused = False
-            axis.run_task(axis.task)
+        axis.resume_task()
         if new & sw.STW1_BIT6 and not old & sw.STW1_BIT6:
             task = self._load_task()
             if task is not None:
@@ -283,12 +269,3 @@ class Stw1Machine:
             if state == ENABLED and abs(axis.vel - goal) < 1e-6:
                 word |= sw.ZSW1_BIT10  # set point reached
         return word
-
-    # ------------------------------------------------------------------ persistence
-    def to_state(self) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self.FIELDS}
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        for name in self.FIELDS:
-            if name in state:
-                setattr(self, name, state[name])
