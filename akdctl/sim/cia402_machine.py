@@ -72,9 +72,7 @@ class Cia402Machine(FieldState):
         d.feed()
         if sub != 0:
             raise SdoAccessError(ABORT_NO_SUBINDEX)
-        pdo = d.model.component("pdo")
-        check = getattr(pdo, "controlword_in_active_rxpdo", None)
-        if check is not None and check():
+        if d.model.pdo.controlword_in_active_rxpdo():
             return  # SPEC-NOTES 23: the cyclic controlword wins; an SDO write has no effect
         d.last_writer = "cia"
         old, new = self.controlword, struct.unpack("<H", data)[0]

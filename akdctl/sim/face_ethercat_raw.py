@@ -108,7 +108,7 @@ class AlStateBinding:
     def pull(self) -> None:
         """Model -> ESC, when someone other than the master changed the model's AL state."""
         with self.drive.transaction() as model:
-            name = model.component("pdo").al_state  # type: ignore[union-attr]
+            name = model.pdo.al_state
         state = AL_STATE_CODES[name]
         if state != self.known:
             self.esc.follow_al_state(state)
@@ -127,7 +127,7 @@ class AlStateBinding:
 
     def _write_model(self, state: int) -> None:
         with self.drive.transaction() as model:
-            model.component("pdo").set_al_state(state)  # type: ignore[union-attr]
+            model.pdo.set_al_state(state)
 
 
 class EthercatRawFace(Face):

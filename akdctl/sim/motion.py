@@ -62,8 +62,7 @@ class MotionComponent(Component):
     """Power stage, word machines and axis of the simulated drive (contract: docs/internals.md)."""
 
     name = "motion"
-    FIELDS = ("state", "stopping_to", "mode", "watchdog_s", "since_access", "watchdog_tripped", "quick_stop_option",
-              "own_faults")
+    FIELDS = ("state", "stopping_to", "mode", "watchdog_s", "since_access", "watchdog_tripped", "quick_stop_option")
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
@@ -74,7 +73,6 @@ class MotionComponent(Component):
         self.since_access = 0.0
         self.watchdog_tripped = False
         self.quick_stop_option = 2  # the option code of the quick stop in progress (0x605A when CiA 402 began it)
-        self.own_faults: list[str] = []  # used only when no fault component exists
         self.last_writer = "pd"  # "pd" or "cia": whose ramps and homing speeds apply
         self.axis = Kinematics(self)
         self.pd = Stw1Machine(self)
@@ -96,8 +94,6 @@ class MotionComponent(Component):
 
     def on_fault(self, code: str) -> None:
         """A fault was raised: react at once (fault reaction = quick stop, then power off)."""
-        if self._faults() is None and code not in self.own_faults and not code.lower().startswith("n"):
-            self.own_faults.append(code)
         if code.lower().startswith("n"):
             return
         axis = self.axis
@@ -122,19 +118,13 @@ class MotionComponent(Component):
         """PNU 930 (DRV.OPMODE) derived from the CiA 402 mode."""
         return {4: 0, 3: 1}.get(self.mode, 2)
 
-    def _faults(self) -> Any:
-        return self.model.component("faults")
-
     @property
     def fault_present(self) -> bool:
-        faults = self._faults()
-        return bool(faults.fault_present) if faults is not None else bool(self.own_faults)
+        return bool(self.model.faults.fault_present)
 
     @property
     def warning_present(self) -> bool:
-        faults = self._faults()
-        warn = bool(faults.warning_present) if faults is not None else False
-        return warn or self.watchdog_tripped
+        return bool(self.model.faults.warning_present) or self.watchdog_tripped
 
     def feed(self, writer: str | None = None) -> None:
         """An access to the axis: feed the watchdog; a control word write also says whose ramps apply."""
@@ -143,11 +133,7 @@ class MotionComponent(Component):
             self.last_writer = writer
 
     def acknowledge(self) -> None:
-        faults = self._faults()
-        if faults is not None:
-            faults.acknowledge()
-        else:
-            self.own_faults.clear()
+        self.model.faults.acknowledge()
         self.watchdog_tripped = False
         if self.state in (FAULT, FAULT_REACTION) and not self.fault_present and self.axis.at_rest():
             self.state = SOD
@@ -229,12 +215,12 @@ class MotionComponent(Component):
 
     # ================================================================== time
     def tick(self, dt: float) -> None:
-        faults = self._faults()
-        if faults is not None and faults.fault_present and self.state not in (FAULT, FAULT_REACTION):
+        faults = self.model.faults
+        if faults.fault_present and self.state not in (FAULT, FAULT_REACTION):
             codes = [c for c in faults.active() if not c.lower().startswith("n")]
             self.on_fault(codes[0] if codes else "F0")
         axis = self.axis
-        threshold = self.watchdog_s * float(getattr(self.model, "time_scale", 1.0) or 1.0)
+        threshold = self.watchdog_s * float(self.model.time_scale or 1.0)
         if axis.at_rest():
             # The watchdog only guards motion; a resting axis keeps a constant state, so an idle
             # drive's state file need not be rewritten on every read (SimDrive saves on change).
