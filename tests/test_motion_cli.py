@@ -36,8 +36,8 @@ def ok(*args: str) -> dict:
 def motion_state() -> dict:
     with SimDrive("default").transaction() as model:
         motion = model.component("motion")
-        return {"standstill": motion.standstill, "activity": motion.activity, "state": motion.state,
-                "velocity_rpm": motion.velocity_rpm, "pos": motion.pos}
+        return {"standstill": motion.standstill, "activity": motion.axis.activity, "state": motion.state,
+                "velocity_rpm": motion.velocity_rpm, "pos": motion.axis.pos}
 
 
 @pytest.fixture
@@ -143,7 +143,7 @@ def test_refuses_absolute_move_when_not_homed(fast: None) -> None:
 
 def test_refuses_when_stw1_bit10_not_honoured(fast: None) -> None:
     with SimDrive("default").transaction() as model:
-        model.component("motion").plc_control_allowed = False
+        model.component("motion").pd.plc_control_allowed = False
     code, _, err = run("-T", "sim?drive=profidrive", "--yes", "enable")
     assert code == 4 and "bit 10" in err
 
@@ -169,7 +169,7 @@ def test_sigint_stops_the_axis_and_exits_130(realtime: None, target: str, comman
         args = ["jog", "60", "--for", "60s"]
     else:
         with SimDrive("default").transaction() as model:
-            model.component("motion").pos = -100.0  # far from the home switch: a long search
+            model.component("motion").axis.pos = -100.0  # far from the home switch: a long search
         args = ["home", "--mode", "3" if "profidrive" in target else "19"]
     proc = popen(*t, *args)
     try:

@@ -162,7 +162,7 @@ def _position_mode(pd: Bmp) -> None:
 def test_homing_zsw1_bits(model: DriveModel, pd: Bmp, home_mode: int) -> None:
     """SPEC-NOTES 9: bit 11 starts HOME.MOVE; bits 10/11/13 clear while running, all set when done."""
     _position_mode(pd)
-    model.component("motion").pos = -0.8
+    model.component("motion").axis.pos = -0.8
     pd.write(1001, home_mode)
     pd.write(1, 0x040F | sw.STW1_START_HOMING)
     if home_mode != 0:
@@ -232,7 +232,7 @@ def test_program_mode_reject_and_intermediate_stop(model: DriveModel, pd: Bmp) -
     model.advance(0.2)
     pd.write(1, 0x046F)  # bit 4 = 0: reject the task, brake with ramp
     model.advance(5.0)
-    assert motion.standstill and motion.task is None and motion.position_counts > 0
+    assert motion.standstill and motion.axis.task is None and motion.position_counts > 0
 
 
 def test_mdi_handshake(model: DriveModel, pd: Bmp) -> None:
@@ -390,7 +390,7 @@ def test_watchdog_stops_motion_after_silence(model: DriveModel, pd: Bmp) -> None
     model.advance(1500.0)  # then silence longer than the watchdog
     assert motion.standstill and motion.watchdog_tripped
     assert pd.zsw1() & sw.ZSW1_WARNING
-    assert abs(motion.pos) < 600 / 60.0 * (500 + 1001)  # stopped 1000 s after the last request, not 1500 s
+    assert abs(motion.axis.pos) < 600 / 60.0 * (500 + 1001)  # stopped 1000 s after the last request, not 1500 s
     pd.write(1, 0x047F)  # a new control word clears the warning and resumes the level-triggered set point
     assert not pd.zsw1() & sw.ZSW1_WARNING
 
@@ -403,7 +403,7 @@ def test_watchdog_aborted_task_is_not_target_reached(model: DriveModel, pd: Bmp)
     _home(model, pd)
     motion.watchdog_s = 1.0
     model.time_scale = 1.0
-    motion.tasks["4"]["rpm"] = 60.0  # the simulator's task 4 (absolute 5 rev), slowed to 5 s
+    motion.pd.tasks["4"]["rpm"] = 60.0  # the simulator's task 4 (absolute 5 rev), slowed to 5 s
     pd.write(32, 4)
     pd.write(1, 0x043F)
     pd.write(1, 0x047F)
@@ -421,7 +421,7 @@ def test_watchdog_aborted_task_is_not_target_reached(model: DriveModel, pd: Bmp)
 
 def test_cia402_watchdog_aborted_move_is_not_target_reached(model: DriveModel) -> None:
     motion = model.component("motion")
-    motion.homed = True
+    motion.axis.homed = True
     _cia_enable(model, 1)
     obj(model, 0x607A, "<i", 3 * 65536)
     obj(model, 0x6081, "<I", 1 * 65536)
@@ -444,7 +444,7 @@ def test_state_round_trip(model: DriveModel, pd: Bmp) -> None:
     again = DriveModel.from_state(model.to_state())
     again.component("motion").watchdog_s = 0
     a, b = model.component("motion"), again.component("motion")
-    assert (a.pos, a.vel, a.state, a.task) == (b.pos, b.vel, b.state, b.task)
+    assert (a.axis.pos, a.axis.vel, a.state, a.axis.task) == (b.axis.pos, b.axis.vel, b.state, b.axis.task)
     model.advance(10.0)
     again.advance(10.0)
     assert a.position_counts == b.position_counts == 5 * 65536
@@ -459,16 +459,17 @@ def test_position_generator_reaches_target_without_overshoot(target: float, rpm:
     m = DriveModel()
     motion = m.component("motion")
     motion.watchdog_s = 0
-    motion.vel = start_v if abs(start_v) > 1e-3 else 0.0
-    motion.gen = {"kind": "position", "target": target, "v": rpm / 60, "acc": acc / 60, "dec": dec / 60}
-    motion.activity = "task"
+    axis = motion.axis
+    axis.vel = start_v if abs(start_v) > 1e-3 else 0.0
+    axis.gen = {"kind": "position", "target": target, "v": rpm / 60, "acc": acc / 60, "dec": dec / 60}
+    axis.activity = "task"
     for h in steps:
         m.advance(h)
     # Braking from start_v at a low deceleration can overshoot by hundreds of revolutions, which
     # takes hours at 1 rpm to come back from: advance until the move ends (bounded).
     for _ in range(1000):
         m.advance(10_000.0)
-        if motion.gen is None:
+        if axis.gen is None:
             break
-    assert motion.gen is None and motion.vel == 0.0
-    assert motion.pos == pytest.approx(target, abs=1e-6)
+    assert axis.gen is None and axis.vel == 0.0
+    assert axis.pos == pytest.approx(target, abs=1e-6)

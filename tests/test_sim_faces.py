@@ -50,3 +50,31 @@ def test_serve_help_says_udp_multicast_reaches_the_lan() -> None:
     result = CliRunner().invoke(cli_sim.sim, ["serve", "--help"], terminal_width=200)
     assert result.exit_code == 0
     assert "udp_multicast listens on all interfaces" in " ".join(result.output.split())
+
+
+class _LanFace(Face):
+    def start(self) -> None:
+        pass
+
+    def stop(self) -> None:
+        pass
+
+    def describe(self) -> str:
+        return "can udp_multicast 239.74.163.2 node 1"
+
+    def warnings(self) -> list[str]:
+        return ["this CAN bus is reachable from the LAN"]
+
+
+def test_serve_prints_ready_line_on_stdout_and_face_warnings_on_stderr(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The real udp_multicast face would join a multicast group on the LAN, so a stand-in face carries the warning."""
+    from types import SimpleNamespace
+
+    from akdctl.cli.main import cli
+
+    fake = SimpleNamespace(OPTIONS=face_can.OPTIONS, from_options=lambda drive, **kw: _LanFace())
+    monkeypatch.setattr(cli_sim, "FACES", (fake,))
+    result = CliRunner().invoke(cli, ["sim", "serve", "--can", "udp_multicast:239.74.163.2:1", "--duration", "0"])
+    assert result.exit_code == 0, result.output
+    assert "listening: can udp_multicast 239.74.163.2 node 1\n" in result.stdout
+    assert "akdctl: warning: this CAN bus is reachable from the LAN" in result.stderr

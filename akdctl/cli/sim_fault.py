@@ -17,10 +17,7 @@ from akdctl.errors import UsageError
 
 
 def _component(model: Any) -> Any:
-    comp = model.component("faults")
-    if comp is None:
-        raise UsageError("this simulator has no fault component")
-    return comp
+    return model.faults
 
 
 @click.command("fault")

@@ -36,13 +36,10 @@ def speed(factor: float | None, realtime: bool, watchdog: float | None, name: st
     with drive.transaction() as model:
         if factor is not None:
             drive.meta["time_scale"] = float(factor)
-        motion = model.component("motion")
         if watchdog is not None:
-            if motion is None:
-                raise UsageError("this simulator has no motion component, so no watchdog")
-            motion.watchdog_s = float(watchdog)
+            model.motion.watchdog_s = float(watchdog)
         scale = float(drive.meta.get("time_scale", 1.0))
-        wd = getattr(motion, "watchdog_s", None)
+        wd = model.motion.watchdog_s
     data = {"drive": drive.name, "time_scale": scale, "watchdog_s": wd}
     get_app().emit(data, lambda: Doc(f"simulated drive {drive.name!r}", f"sim://{drive.name}")
                    .kv("time scale", f"{scale:g}× wall time" + (" (real time)" if scale == 1 else ""))

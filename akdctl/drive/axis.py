@@ -27,12 +27,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
+from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
-from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
+from akdctl.profiles.units import CIA_COUNTS_PER_REV
 
 POLL_S = 0.05
-CIA_COUNTS_PER_REV = 65536
 
 
 @dataclass

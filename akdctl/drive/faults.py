@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import faults as catalog
 from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, UsageError
+from akdctl.profiles.statusword import SW_FAULT, SW_WARNING, ZSW1_FAULT, ZSW1_WARNING
 
 if TYPE_CHECKING:
     from akdctl.connection import Connection
@@ -37,10 +38,6 @@ PNU_FAULT_COUNTER = 944
 PNU_FAULT_BUFFER = 947
 PNU_ZSW1 = 2
 SITUATION_SIZE = 8
-ZSW1_FAULT = 1 << 3
-ZSW1_WARNING = 1 << 7
-SW_FAULT = 1 << 3
-SW_WARNING = 1 << 7
 
 
 # ---------------------------------------------------------------------------- decoding

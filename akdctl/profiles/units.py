@@ -55,3 +55,9 @@ def describe_scaled(unit: str, value: int) -> str:
     if unit == "N2:DRV.IPEAK":
         return f"{value * 100 / (1 << 14):.3g} % of DRV.IPEAK"
     return ""
+
+
+#: CiA 402 position/velocity/acceleration units of the AKD as akdctl uses it: counts of 2^16 per revolution
+#: (FBUS.PARAM05 bit 4 scaling, one count per encoder increment), counts/s, counts/s². The client's CiA 402 axis
+#: and the simulated drive use this one value.
+CIA_COUNTS_PER_REV = 65536

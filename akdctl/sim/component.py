@@ -61,3 +61,23 @@ class Component:
 
     def load_state(self, state: dict[str, Any]) -> None:
         """Restore what :meth:`to_state` returned (may be missing keys after an upgrade)."""
+
+
+class FieldState:
+    """State kept as named attributes and persisted as a flat dict of them (``FIELDS``).
+
+    Why: the motion component's parts (power stage, word machines, axis) each own
+    some of the fields of one persisted ``motion`` state; each lists its names
+    once and shares this one way to save and restore them.
+    """
+
+    FIELDS: tuple[str, ...] = ()
+
+    def to_state(self) -> dict[str, Any]:
+        return {name: getattr(self, name) for name in self.FIELDS}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore the fields present in ``state`` (a missing one keeps its default)."""
+        for name in self.FIELDS:
+            if name in state:
+                setattr(self, name, state[name])

@@ -218,8 +218,7 @@ class SimDrive:
 
 
 def _take_emergencies(model: DriveModel) -> list[Any]:
-    take = getattr(model.component("faults"), "take_emergencies", None)
-    return list(take()) if take else []
+    return list(model.faults.take_emergencies())
 
 
 class _ModelProxy:

@@ -108,7 +108,7 @@ class AlStateBinding:
     def pull(self) -> None:
         """Model -> ESC, when someone other than the master changed the model's AL state."""
         with self.drive.transaction() as model:
-            name = model.component("pdo").al_state  # type: ignore[union-attr]
+            name = model.pdo.al_state
         state = AL_STATE_CODES[name]
         if state != self.known:
             self.esc.follow_al_state(state)
@@ -127,7 +127,7 @@ class AlStateBinding:
 
     def _write_model(self, state: int) -> None:
         with self.drive.transaction() as model:
-            model.component("pdo").set_al_state(state)  # type: ignore[union-attr]
+            model.pdo.set_al_state(state)
 
 
 class EthercatRawFace(Face):
@@ -138,7 +138,8 @@ class EthercatRawFace(Face):
         image = akd_sii_image(mailbox_size=SIM_MAILBOX, **({"serial": serial} if serial is not None else {}))
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
-        self.al = AlStateBinding(self.esc, drive)
+        # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
+        self.al = AlStateBinding(self.esc, drive) if drive is not None else None
         self.injector = injector
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -160,12 +161,12 @@ class EthercatRawFace(Face):
             return None
         if src[0] & 0x02:
             return None  # already passed a slave's port 0 (our own echo on a shared segment)
-        al = self.al.touches(datagrams)
-        if al:
-            self.al.pull()
+        al = self.al if self.al is not None and self.al.touches(datagrams) else None
+        if al is not None:
+            al.pull()
         self.esc.process(datagrams)
-        if al:
-            self.al.push()
+        if al is not None:
+            al.push()
         if self.esc.lost_frame:
             return None
         # an ESC sets bit 1 of the source MAC's first byte when the frame leaves port 0
@@ -196,7 +197,8 @@ class EthercatRawFace(Face):
         if self._sock is not None:
             self._sock.close()
             self._sock = None
-        self.al.leave_bus()
+        if self.al is not None:
+            self.al.leave_bus()
 
     def describe(self) -> str:
         inject = self.injector.describe()

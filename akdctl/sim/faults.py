@@ -159,10 +159,7 @@ class FaultComponent(Component):
             self._emergency(fault)
         if persist:
             self._keep_cause(fault.code)
-        motion = self.model.component("motion") if hasattr(self.model, "components") else None
-        on_fault = getattr(motion, "on_fault", None)
-        if on_fault is not None:
-            on_fault(fault.code)
+        self.model.motion.on_fault(fault.code)
 
     def acknowledge(self) -> bool:
         """Move the active situation into the acknowledged section; False if none is active.

@@ -65,22 +65,24 @@ class _ObjectBinding:
     write: ObjectWriter | None
 
 
-#: The model's components, in tick order (motion integrates before faults and PDOs look at it).
-#: Listed by import, so a component missing from a package fails at import time, not silently.
-COMPONENTS: tuple[type[Component], ...] = (MotionComponent, FaultComponent, PdoComponent)
-
-
 class DriveModel:
     """One simulated AKD: every PNU and object, with the drive's access checks."""
 
     def __init__(self) -> None:
         self.clock = 0.0
+        self.time_scale = 1.0  # virtual seconds per wall second (SimDrive sets it; the watchdog counts wall time)
         self.pnu_values: dict[int, list[int]] = {}
         self.object_values: dict[tuple[int, int], bytes] = {}
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
         self._pnu_bindings: dict[int, _PnuBinding] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
-        self.components: list[Component] = [cls(self) for cls in COMPONENTS]
+        # The components, imported and named here (a missing one fails at import, not silently), as typed
+        # handles for each other and for the faces; ``components`` is their tick order (motion integrates
+        # before faults and PDOs look at it).
+        self.motion = MotionComponent(self)
+        self.faults = FaultComponent(self)
+        self.pdo = PdoComponent(self)
+        self.components: list[Component] = [self.motion, self.faults, self.pdo]
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:

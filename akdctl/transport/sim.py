@@ -66,6 +66,4 @@ class SimTransport(Transport):
         """The simulated drive's EtherCAT AL state (its ``pdo`` component), so commands whose rules
         depend on it (PDO mapping only in PRE-OP) can check before writing; None if unknown."""
         with self.drive.transaction() as model:
-            component = model.component("pdo")
-            state = getattr(component, "al_state", None)
-        return None if state is None else str(state)
+            return str(model.pdo.al_state)
