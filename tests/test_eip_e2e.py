@@ -297,3 +297,43 @@ def test_tshark_dissects_enip_and_cip_in_the_pcap(serve, tmp_path) -> None:
     request = next(r for r in rows if r[1] == "0x0e")
     assert request[2] == "0x0f" and int(request[3], 0) == 796
     assert any(r[1] == "0x8e" and r[4] == "0x00" for r in rows)
+
+
+@pytest.mark.root
+def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(tmp_path) -> None:
+    """A namespace of its own with a veth pair: the broadcast never leaves it, and is removed afterwards."""
+    ns = f"akdeip{os.getpid()}"
+
+    def ip(*args: str) -> None:
+        subprocess.run(["ip", *args], check=True, capture_output=True, timeout=30)
+
+    ip("netns", "add", ns)
+    server = None
+    try:
+        for args in (("link", "set", "lo", "up"), ("link", "add", "veth0", "type", "veth", "peer", "name", "veth1"),
+                     ("addr", "add", "10.213.0.1/24", "brd", "10.213.0.255", "dev", "veth0"),
+                     ("link", "set", "veth0", "up"), ("link", "set", "veth1", "up")):
+            ip("netns", "exec", ns, "ip", *args)
+        server = subprocess.Popen(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "sim", "serve",
+                                   "--ethernetip", "0.0.0.0:44818", "--eip-io-port", "0"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                  env=_env(tmp_path / "state"))
+        assert server.stdout is not None and READY.search(server.stdout.readline())
+        result = subprocess.run(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "--json", "eip", "scan",
+                                 "--iface", "veth0", "--wait", "1"], capture_output=True, text=True,
+                                env=_env(tmp_path / "state"), timeout=60)
+        assert result.returncode == 0, result.stderr
+        data = json.loads(result.stdout)
+        assert data["query"] == "10.213.0.255"
+        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
+    finally:
+        if server is not None:
+            server.terminate()
+            try:
+                server.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                server.kill()
+                server.wait()
+            if server.stdout is not None:
+                server.stdout.close()
+        subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
