@@ -137,6 +137,10 @@ def test_server_closing_mid_request_and_injected_status(serve, tmp_path) -> None
     server = serve("--eip-inject", "status=2:0x10")
     result = akdctl(tmp_path, server.target, "cip", "get", "1/1/7")
     assert result.returncode == 1 and "device state conflict" in result.stderr.lower()
+    server = serve("--eip-inject", "drop=2")
+    started = time.monotonic()
+    result = akdctl(tmp_path, server.target, "cip", "get", "1/1/7", timeout=0.5)
+    assert result.returncode == 3 and "no answer" in result.stderr and time.monotonic() - started < 20
 
 
 def _fake_server(behaviour) -> tuple[socket.socket, threading.Thread]:
@@ -189,6 +193,9 @@ def test_motion_over_the_position_controller_acts_on_the_one_drive(serve, tmp_pa
                          env=_env(tmp_path / "state"), timeout=60)
     status = json.loads(sim.stdout)["status"]
     assert status["enabled"] and status["position_counts"] == 98304
+    # no attribute tells the homed state over explicit messaging: absolute moves are refused (exit 4)
+    absolute = akdctl(tmp_path, server.target, "-y", "move", "0")
+    assert absolute.returncode == 4 and "not homed" in absolute.stderr
     assert akdctl(tmp_path, server.target, "disable").returncode == 0
 
 
