@@ -137,6 +137,10 @@ def test_server_closing_mid_request_and_injected_status(serve, tmp_path) -> None
     server = serve("--eip-inject", "status=2:0x10")
     result = akdctl(tmp_path, server.target, "cip", "get", "1/1/7")
     assert result.returncode == 1 and "device state conflict" in result.stderr.lower()
+    server = serve("--eip-inject", "drop=2")
+    started = time.monotonic()
+    result = akdctl(tmp_path, server.target, "cip", "get", "1/1/7", timeout=0.5)
+    assert result.returncode == 3 and "no answer" in result.stderr and time.monotonic() - started < 20
 
 
 def _fake_server(behaviour) -> tuple[socket.socket, threading.Thread]:
@@ -189,6 +193,9 @@ def test_motion_over_the_position_controller_acts_on_the_one_drive(serve, tmp_pa
                          env=_env(tmp_path / "state"), timeout=60)
     status = json.loads(sim.stdout)["status"]
     assert status["enabled"] and status["position_counts"] == 98304
+    # no attribute tells the homed state over explicit messaging: absolute moves are refused (exit 4)
+    absolute = akdctl(tmp_path, server.target, "-y", "move", "0")
+    assert absolute.returncode == 4 and "not homed" in absolute.stderr
     assert akdctl(tmp_path, server.target, "disable").returncode == 0
 
 
@@ -297,3 +304,43 @@ def test_tshark_dissects_enip_and_cip_in_the_pcap(serve, tmp_path) -> None:
     request = next(r for r in rows if r[1] == "0x0e")
     assert request[2] == "0x0f" and int(request[3], 0) == 796
     assert any(r[1] == "0x8e" and r[4] == "0x00" for r in rows)
+
+
+@pytest.mark.root
+def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(tmp_path) -> None:
+    """A namespace of its own with a veth pair: the broadcast never leaves it, and is removed afterwards."""
+    ns = f"akdeip{os.getpid()}"
+
+    def ip(*args: str) -> None:
+        subprocess.run(["ip", *args], check=True, capture_output=True, timeout=30)
+
+    ip("netns", "add", ns)
+    server = None
+    try:
+        for args in (("link", "set", "lo", "up"), ("link", "add", "veth0", "type", "veth", "peer", "name", "veth1"),
+                     ("addr", "add", "10.213.0.1/24", "brd", "10.213.0.255", "dev", "veth0"),
+                     ("link", "set", "veth0", "up"), ("link", "set", "veth1", "up")):
+            ip("netns", "exec", ns, "ip", *args)
+        server = subprocess.Popen(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "sim", "serve",
+                                   "--ethernetip", "0.0.0.0:44818", "--eip-io-port", "0"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                  env=_env(tmp_path / "state"))
+        assert server.stdout is not None and READY.search(server.stdout.readline())
+        result = subprocess.run(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "--json", "eip", "scan",
+                                 "--iface", "veth0", "--wait", "1"], capture_output=True, text=True,
+                                env=_env(tmp_path / "state"), timeout=60)
+        assert result.returncode == 0, result.stderr
+        data = json.loads(result.stdout)
+        assert data["query"] == "10.213.0.255"
+        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
+    finally:
+        if server is not None:
+            server.terminate()
+            try:
+                server.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                server.kill()
+                server.wait()
+            if server.stdout is not None:
+                server.stdout.close()
+        subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)

@@ -48,7 +48,7 @@ def scan(host: str | None, iface: str | None, port: int, wait: float | None) -> 
     app = get_app()
     address = host if host is not None else _broadcast_address(iface)  # type: ignore[arg-type]
     found = list_identity(address, port, app.options, broadcast=iface is not None, wait=wait)
-    rows = [{"address": peer, **ident.to_json(), "vendor_name": cip_vendor_name(ident.vendor)} for peer, ident in found]
+    rows = [{**ident.to_json(), "address": peer, "vendor_name": cip_vendor_name(ident.vendor)} for peer, ident in found]
 
     def human() -> Doc:
         doc = Doc("EtherNet/IP devices (ListIdentity)", address)

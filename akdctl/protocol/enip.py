@@ -297,7 +297,7 @@ class Identity:
         return {"vendor": self.vendor, "device_type": self.device_type, "product_code": self.product_code,
                 "revision": f"{self.revision[0]}.{self.revision[1]:03d}", "status": self.status,
                 "serial": self.serial, "product_name": self.product_name, "state": self.state,
-                "address": f"{self.address.host}:{self.address.port}"}
+                "socket_address": f"{self.address.host}:{self.address.port}"}
 
 
 def list_identity_reply(identity: Identity) -> bytes:
