@@ -192,6 +192,9 @@ class SimServer:
         deadline = time.monotonic() + self.ready_timeout
         if not self._out.wait_for(lambda lines: len(self._ready_lines(lines)) >= self.faces, deadline):
             exited = self.proc.poll()
+            if exited is None and self._out.closed:  # stdout ended: the process is exiting, let it be reaped
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    exited = self.proc.wait(timeout=STOP_TIMEOUT)
             self.stop()
             why = (f"exited with {exited}" if exited is not None
                    else f"printed no ready line within {self.ready_timeout} s")
