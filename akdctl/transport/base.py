@@ -69,13 +69,6 @@ class Transport(ABC):
     @abstractmethod
     def close(self) -> None: ...
 
-    def __enter__(self) -> "Transport":
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     @property
     def display_name(self) -> str:
         """Human name of the target, shown with results (a transport may add what it resolved)."""
