@@ -19,12 +19,13 @@ from akdctl.protocol.coe import (
     SdoUploadResponse,
     SdoUploadSegment,
     SdoUploadSegmentResponse,
-    abort_text,
     decode_coe,
     decode_sdo,
     encode_coe,
     encode_sdo,
 )
+from akdctl.catalog.texts import mailbox_error_text
+from akdctl.catalog.texts import sdo_abort_text as abort_text
 from akdctl.protocol.emcy import Emergency, EmcyError, decode_emcy, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.mailbox import (
@@ -252,10 +253,10 @@ def test_mailbox_error_reply() -> None:
     data = encode_error_reply(MailboxErrorReply(2))
     assert data == bytes.fromhex("01000200")
     reply = decode_error_reply(data)
-    assert reply.code == 2 and "not supported" in reply.text.lower()
+    assert reply.code == 2 and "not supported" in mailbox_error_text(reply.code).lower()
     for code in range(1, 9):
-        assert MailboxErrorReply(code).text
-    assert "0x0063" in MailboxErrorReply(0x63).text
+        assert mailbox_error_text(MailboxErrorReply(code).code)
+    assert "0x0063" in mailbox_error_text(MailboxErrorReply(0x63).code)
     with pytest.raises(MailboxError):
         decode_error_reply(b"\x01\x00")
     with pytest.raises(MailboxError):

@@ -133,3 +133,65 @@ def test_silent_bus_is_no_answer(drive: SimDrive) -> None:
         t.close()
     finally:
         w.close()
+
+
+def _model_al_state(drive: SimDrive) -> str:
+    with drive.transaction() as model:
+        return str(model.component("pdo").al_state)  # type: ignore[union-attr]
+
+
+def _statusword(t: EthercatRawTransport) -> int:
+    assert t.objects is not None
+    return int.from_bytes(t.objects.upload(0x6041, 0), "little")
+
+
+def test_model_follows_the_esc_al_state_and_refuses_sdo_control_in_op(wire: Wire, drive: SimDrive) -> None:
+    """One AL state (SPEC-NOTES 23): the master's AL transitions reach the model, so in OP with the controlword in
+    the assigned RxPDO (the ESI default 0x1701) an SDO controlword has no effect, as on every other link."""
+    assert _model_al_state(drive) == "INIT"  # the slave powered on with the face
+    t = transport(wire)
+    t.open()
+    assert t.master is not None and t.slave is not None
+    assert _model_al_state(drive) == "PREOP"
+    for state in (ec.AlState.SAFEOP, ec.AlState.OP):
+        status, code = t.master.request_state(t.slave.station, state)
+        assert status & 0x0F == state and code == 0
+    assert _model_al_state(drive) == "OP"
+    assert t.objects is not None
+    before = _statusword(t)
+    for word in (0x06, 0x07, 0x0F):
+        t.objects.download(0x6040, 0, word.to_bytes(2, "little"))
+    assert _statusword(t) == before and before & 0x6F != 0x27  # not "operation enabled"
+    t.master.request_state(t.slave.station, ec.AlState.PREOP)
+    assert _model_al_state(drive) == "PREOP"
+    for word in (0x06, 0x07, 0x0F):
+        t.objects.download(0x6040, 0, word.to_bytes(2, "little"))
+    assert _statusword(t) & 0x6F == 0x27  # in PRE-OP the SDO controlword is obeyed
+    t.close()
+
+
+def test_esc_al_status_shows_the_models_al_state(wire: Wire, drive: SimDrive) -> None:
+    """A change of the model's AL state made elsewhere (another process, a test) is what AL status 0x0130 shows."""
+    t = transport(wire)
+    t.open()
+    assert t.master is not None and t.slave is not None
+    with drive.transaction() as model:
+        model.component("pdo").set_al_state("SAFEOP")  # type: ignore[union-attr]
+    status, code = t.master.al_status(t.slave.station)
+    assert status & 0x0F == ec.AlState.SAFEOP and code == 0
+    t.close()
+
+
+def test_face_stop_leaves_the_model_in_preop(drive: SimDrive) -> None:
+    w = Wire(drive)
+    try:
+        t = transport(w)
+        t.open()
+        assert t.master is not None and t.slave is not None
+        t.master.request_state(t.slave.station, ec.AlState.SAFEOP)
+        assert _model_al_state(drive) == "SAFEOP"
+        t.close()
+    finally:
+        w.close()
+    w.face.stop()
+    assert _model_al_state(drive) == "PREOP"

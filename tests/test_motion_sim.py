@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.protocol import profidrive as bmp
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer
@@ -393,6 +393,45 @@ def test_watchdog_stops_motion_after_silence(model: DriveModel, pd: Bmp) -> None
     assert abs(motion.pos) < 600 / 60.0 * (500 + 1001)  # stopped 1000 s after the last request, not 1500 s
     pd.write(1, 0x047F)  # a new control word clears the warning and resumes the level-triggered set point
     assert not pd.zsw1() & sw.ZSW1_WARNING
+
+
+def test_watchdog_aborted_task_is_not_target_reached(model: DriveModel, pd: Bmp) -> None:
+    """ZSW1 bit 10 means "target reached" only at the target: a task the watchdog stopped (the tool of a
+    ``move --no-wait`` exited) leaves bit 10 clear at standstill; the next completed task sets it again."""
+    motion = model.component("motion")
+    _position_mode(pd)
+    _home(model, pd)
+    motion.watchdog_s = 1.0
+    model.time_scale = 1.0
+    motion.tasks["4"]["rpm"] = 60.0  # the simulator's task 4 (absolute 5 rev), slowed to 5 s
+    pd.write(32, 4)
+    pd.write(1, 0x043F)
+    pd.write(1, 0x047F)
+    model.advance(30.0)  # nobody asks: the watchdog stops the axis after 1 s
+    assert motion.standstill and motion.watchdog_tripped
+    assert motion.position_counts != 5 * 65536
+    zsw1 = pd.zsw1()
+    assert zsw1 & sw.ZSW1_DRIVE_STOPPED and not zsw1 & sw.ZSW1_BIT10
+    motion.watchdog_s = 0
+    pd.write(1, 0x043F)
+    pd.write(1, 0x047F)  # the same task again, this time to its end
+    model.advance(30.0)
+    assert motion.position_counts == 5 * 65536 and pd.zsw1() & sw.ZSW1_BIT10
+
+
+def test_cia402_watchdog_aborted_move_is_not_target_reached(model: DriveModel) -> None:
+    motion = model.component("motion")
+    motion.homed = True
+    _cia_enable(model, 1)
+    obj(model, 0x607A, "<i", 3 * 65536)
+    obj(model, 0x6081, "<I", 1 * 65536)
+    motion.watchdog_s = 1.0
+    model.time_scale = 1.0
+    cw(model, 0x001F)
+    cw(model, 0x000F)
+    model.advance(30.0)
+    assert motion.standstill and motion.watchdog_tripped
+    assert model.object_value(0x6064, 0) != 3 * 65536 and not sword(model) & sw.SW_TARGET_REACHED
 
 
 def test_state_round_trip(model: DriveModel, pd: Bmp) -> None:

@@ -36,7 +36,6 @@ from akdctl.protocol.profidrive import (
     ParameterRequest,
     ParameterResponse,
     ParameterValue,
-    chunk_value,
     decode_description,
     decode_request,
     decode_response,
@@ -45,12 +44,8 @@ from akdctl.protocol.profidrive import (
     encode_request,
     encode_response,
     format_size,
-    merge_values,
     next_reference,
-    plan_batches,
     request_size,
-    response_block_size,
-    split_requests,
     to_signed,
     to_unsigned,
 )
@@ -326,53 +321,6 @@ def test_request_value_count_must_match_elements() -> None:
 def test_unencodable_values(value: ParameterValue) -> None:
     with pytest.raises(BmpError):
         encode_request(ParameterRequest(1, REQ_CHANGE, 0, (ParameterAddress(930, 0, max(value.count, 1)),), (value,)))
-
-
-# --- batching --------------------------------------------------------------------------------------------------
-
-
-def test_plan_batches_by_parameter_count() -> None:
-    addresses = [ParameterAddress(p) for p in range(1, 101)]
-    assert plan_batches(addresses) == [(0, 39), (39, 78), (78, 100)]
-    requests = split_requests(addresses, reference_start=254)
-    assert [r.reference for r in requests] == [254, 255, 1]
-    for request in requests:
-        encode_request(request)
-
-
-def test_plan_batches_by_response_size() -> None:
-    # 20 elements × 4 bytes = 82-byte response blocks: two fit (4 + 164), three do not (4 + 246).
-    addresses = [ParameterAddress(947, 0, 20) for _ in range(5)]
-    assert plan_batches(addresses) == [(0, 2), (2, 4), (4, 5)]
-    assert plan_batches(addresses, element_size=2) == [(0, 5)]
-    descriptions = [ParameterAddress(p, attribute=ATTR_DESCRIPTION) for p in range(1, 11)]
-    assert plan_batches(descriptions) == [(0, 4), (4, 8), (8, 10)]   # 48 bytes each
-
-
-def test_plan_batches_by_request_size() -> None:
-    value = ParameterValue.of(Format.WORD, *range(50))       # block of 102 bytes + 6 address bytes
-    addresses = [ParameterAddress(947, 0, 50)] * 3
-    batches = plan_batches(addresses, [value] * 3)
-    assert batches == [(0, 2), (2, 3)]
-    for request in split_requests(addresses, [value] * 3):
-        assert request_size(request) <= MAX_BLOCK
-        assert len(encode_request(request)) == request_size(request)
-
-
-def test_plan_batches_refuses_an_oversized_single_parameter() -> None:
-    with pytest.raises(BmpError, match="alone"):
-        plan_batches([ParameterAddress(947, 0, 100)])
-    assert response_block_size(ParameterAddress(947, 0, 58)) == 234
-
-
-def test_chunk_and_merge() -> None:
-    value = ParameterValue.of(Format.WORD, *range(10))
-    assert merge_values(chunk_value(value, 3)) == value
-    text = ParameterValue.of(Format.VISIBLE_STRING, "ABCDEFG")
-    assert [p.values[0] for p in chunk_value(text, 3)] == ["ABC", "DEF", "G"]
-    assert merge_values(chunk_value(text, 3)) == text
-    with pytest.raises(BmpError):
-        merge_values([ParameterValue.of(Format.WORD, 1), ParameterValue.of(Format.DWORD, 2)])
 
 
 def test_next_reference_never_zero() -> None:

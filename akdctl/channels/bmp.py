@@ -5,9 +5,10 @@ write record 47, read record 47; the simulator: an in-process call). Everything
 a technician relies on lives here, once for all links:
 
 * batching: parameters are packed into as few requests as the limits allow
-  (39 parameters, 240 bytes for the request *and* the worst-case response,
-  :func:`~akdctl.protocol.profidrive.plan_batches`); an array too long for one
-  block is read/written in element ranges and joined again;
+  (39 parameters, 240 bytes for the request *and* the worst-case response; the
+  rule is :mod:`akdctl.channels.batching`); an array too long for one block is
+  read/written in element ranges and joined again; every address is checked
+  once, on entry, before anything is sent;
 * request references count 1..255 (never 0) and every response must carry the
   reference, axis and a response ID belonging to its request, with one result
   per parameter -- anything else is a :class:`~akdctl.errors.MalformedReply`
@@ -22,20 +23,28 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from akdctl.channels.base import ParameterChannel
+from akdctl.channels.batching import (
+    Batch,
+    ElementSize,
+    chunk_value,
+    element_bytes,
+    element_ranges,
+    max_elements_per_block,
+    merge_values,
+    plan_batches,
+    response_block_size,
+)
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.profidrive import (
     ATTR_DESCRIPTION,
-    ATTR_TEXT,
     ATTR_VALUE,
     DEFAULT_ELEMENT_SIZE,
     ERR_RESPONSE_TOO_LONG,
     HEADER_SIZE,
     MAX_BLOCK,
-    MAX_SUBINDEX,
     REQ_CHANGE,
     REQ_READ,
     BmpError,
-    ElementSize,
     Format,
     ParameterAddress,
     ParameterDescription,
@@ -43,23 +52,18 @@ from akdctl.protocol.profidrive import (
     ParameterRequest,
     ParameterResult,
     ParameterValue,
-    chunk_value,
+    check_address,
     decode_description,
     decode_response,
     encode_request,
     encode_value_block,
     format_size,
-    max_elements_per_block,
-    merge_values,
     next_reference,
-    plan_batches,
-    response_block_size,
 )
 from akdctl.links import RecordLink
 
 #: Widest element any numeric format has: the retry size when a 4-byte estimate proved too small.
 _WIDEST_ELEMENT = 8
-_TEXT_ELEMENT = 16
 
 
 def catalogue_element_size(address: ParameterAddress) -> int:
@@ -127,9 +131,11 @@ class BmpParameterChannel(ParameterChannel):
                 owners.append(i)
         addresses = [a for a, _ in pieces]
         values = [v for _, v in pieces]
-        results: list[ParameterResult] = []
-        for start, stop in self._plan(addresses, values):
-            results.extend(self._exchange(REQ_CHANGE, addresses[start:stop], values[start:stop]))
+        results: list[ParameterResult] = [None] * len(pieces)
+        for batch in self._plan(addresses, values):
+            got = self._exchange(REQ_CHANGE, [addresses[i] for i in batch], [values[i] for i in batch])
+            for i, result in zip(batch, got):
+                results[i] = result
         merged: list[ParameterFailure | None] = [None] * len(items)
         for owner, result in zip(owners, results):
             if isinstance(result, ParameterFailure) and merged[owner] is None:
@@ -173,15 +179,17 @@ class BmpParameterChannel(ParameterChannel):
         return [parts[0] if len(parts) == 1 else self._merge(parts, addresses[i]) for i, parts in enumerate(grouped)]
 
     def _read_batches(self, addresses: list[ParameterAddress], element_size: ElementSize) -> list[ParameterResult]:
-        results: list[ParameterResult] = []
-        for start, stop in self._plan(addresses, None, element_size):
-            batch = addresses[start:stop]
-            got = self._exchange(REQ_READ, batch)
-            if len(batch) > 1 and all(_too_long(r) for r in got):
+        """One result per address, in order, from the requests :func:`plan_batches` groups them into."""
+        results: list[ParameterResult] = [None] * len(addresses)
+        for batch in self._plan(addresses, None, element_size):
+            asked = [addresses[i] for i in batch]
+            got = self._exchange(REQ_READ, asked)
+            if len(asked) > 1 and all(_too_long(r) for r in got):
                 # The drive refused the whole request as too long: our size estimate was short. Halve it.
-                half = len(batch) // 2
-                got = self._read_batches(batch[:half], element_size) + self._read_batches(batch[half:], element_size)
-            results.extend(got)
+                half = len(asked) // 2
+                got = self._read_batches(asked[:half], element_size) + self._read_batches(asked[half:], element_size)
+            for i, result in zip(batch, got):
+                results[i] = result
         return results
 
     @staticmethod
@@ -189,11 +197,7 @@ class BmpParameterChannel(ParameterChannel):
         """Element ranges of ``address`` small enough for one response block."""
         if HEADER_SIZE + response_block_size(address, element_size) <= MAX_BLOCK:
             return [address]
-        if address.attribute == ATTR_TEXT:
-            size = _TEXT_ELEMENT
-        else:
-            size = element_size(address) if callable(element_size) else element_size
-        per = max_elements_per_block(size, change=False)
+        per = max_elements_per_block(element_bytes(address, element_size), change=False)
         return _ranges(address, per)
 
     @staticmethod
@@ -227,7 +231,7 @@ class BmpParameterChannel(ParameterChannel):
     # -- one round trip ------------------------------------------------------------------------------------------
 
     def _plan(self, addresses: list[ParameterAddress], values: list[ParameterValue] | None,
-              element_size: ElementSize | None = None) -> list[tuple[int, int]]:
+              element_size: ElementSize | None = None) -> list[Batch]:
         try:
             return plan_batches(addresses, values, element_size=element_size or self.element_size)
         except BmpError as exc:
@@ -242,7 +246,7 @@ class BmpParameterChannel(ParameterChannel):
                   values: Sequence[ParameterValue] = ()) -> list[ParameterResult]:
         request = ParameterRequest(self._take_reference(), request_id, self.axis, tuple(addresses), tuple(values))
         try:
-            raw = encode_request(request)
+            raw = encode_request(request, addresses_checked=True)
         except BmpError as exc:
             raise UsageError(f"cannot build a parameter request: {exc}") from None
         what = f"{'read' if request_id == REQ_READ else 'change'} {len(addresses)} parameter(s), ref {request.reference}"
@@ -262,13 +266,13 @@ class BmpParameterChannel(ParameterChannel):
         return list(response.results)
 
     def _checked_address(self, address: object) -> ParameterAddress:
+        """The one check of an address on its way down (planning and encoding trust it)."""
         if not isinstance(address, ParameterAddress):
             raise UsageError(f"not a parameter address: {address!r}")
         try:
-            encode_request(ParameterRequest(1, REQ_READ, self.axis, (address,)))
+            return check_address(address)
         except BmpError as exc:
             raise UsageError(f"{address}: {exc}") from None
-        return address
 
 
 def _too_long(result: ParameterResult) -> bool:
@@ -276,11 +280,7 @@ def _too_long(result: ParameterResult) -> bool:
 
 
 def _ranges(address: ParameterAddress, per: int) -> list[ParameterAddress]:
-    """Consecutive element ranges of at most ``per`` elements covering ``address``."""
-    out = []
-    for offset in range(0, address.count, per):
-        subindex = address.subindex + offset
-        if subindex > MAX_SUBINDEX:
-            raise UsageError(f"{address}: elements beyond subindex {MAX_SUBINDEX} cannot be addressed")
-        out.append(ParameterAddress(address.pnu, subindex, min(per, address.count - offset), address.attribute))
-    return out
+    try:
+        return element_ranges(address, per)
+    except BmpError as exc:
+        raise UsageError(str(exc)) from None

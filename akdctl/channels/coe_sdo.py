@@ -24,6 +24,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.catalog.texts import mailbox_error_text
 from akdctl.errors import CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.links import MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
@@ -270,7 +271,7 @@ class CoeObjectChannel(ObjectChannel):
             except CodecError as exc:
                 raise MalformedReply(f"the drive sent a mailbox error reply that does not decode: {exc}") from None
             raise CommError(
-                f"the drive refused the mailbox request: {reply.text} (mailbox error {reply.code})", code=reply.code
+                f"the drive refused the mailbox request: {mailbox_error_text(reply.code)} (mailbox error {reply.code})", code=reply.code
             )
         if frame.type != mbx.MailboxType.COE:
             log.debug("ignoring a mailbox of type %d", frame.type)

@@ -24,7 +24,7 @@ def _hex(value: int, bits: int) -> str:
 
 
 def _rows(readings: list[Any]) -> list[list[Any]]:
-    from akdctl.drive.units import describe_scaled
+    from akdctl.profiles.units import describe_scaled
 
     rows = []
     for reading in readings:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import signal
 import sys
 import threading
@@ -15,14 +13,12 @@ from akdctl.cli.context import get_app
 from akdctl.cli.main import LazyGroup
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
+from akdctl.sim import face_can, face_ethercat_raw, face_ethercat_udp, face_profinet
+from akdctl.sim.face import FaceOption
 
-# Network faces of `sim serve`, one module each (see docs/internals.md).
-FACES = (
-    "akdctl.sim.face_profinet",
-    "akdctl.sim.face_ethercat_udp",
-    "akdctl.sim.face_ethercat_raw",
-    "akdctl.sim.face_can",
-)
+# Network faces of `sim serve`, one module each (see docs/internals.md): each declares ``OPTIONS`` (data) and
+# ``from_options(drive, **kwargs) -> Face | None``. Listed by import, so a face missing from a package fails loudly.
+FACES = (face_profinet, face_ethercat_udp, face_ethercat_raw, face_can)
 
 SIM_COMMANDS = {
     "fault": ("akdctl.cli.sim_fault", "fault", "Inject a fault (e.g. F501) into the simulated drive."),
@@ -90,14 +86,6 @@ def show(name: str | None) -> None:
     get_app().emit(state, human)
 
 
-def _face_modules() -> list[Any]:
-    modules = []
-    for name in FACES:
-        if importlib.util.find_spec(name) is not None:
-            modules.append(importlib.import_module(name))
-    return modules
-
-
 def _serve_callback(**kwargs: Any) -> None:
     from akdctl.cli.output import message
     from akdctl.sim.drive import SimDrive
@@ -106,13 +94,13 @@ def _serve_callback(**kwargs: Any) -> None:
     duration = kwargs.pop("duration")
     drive = SimDrive(name)
     faces = []
-    for module in _face_modules():
+    for module in FACES:
         face = module.from_options(drive, **kwargs)
         if face is not None:
             faces.append(face)
     if not faces:
-        flags = ", ".join(opt.opts[0] for module in _face_modules() for opt in module.click_options()[:1])
-        raise UsageError(f"choose at least one face to serve: {flags or 'no faces are installed'}")
+        flags = ", ".join(module.OPTIONS[0].flag for module in FACES)
+        raise UsageError(f"choose at least one face to serve: {flags}")
     stop = threading.Event()
 
     def _stop(signum: int, frame: Any) -> None:
@@ -125,6 +113,8 @@ def _serve_callback(**kwargs: Any) -> None:
             face.start()
             started.append(face)
             sys.stdout.write(f"listening: {face.describe()}\n")
+            for warning in face.warnings():
+                message(f"akdctl: warning: {warning}")
         sys.stdout.flush()
         message(f"serving simulated drive {name!r}; Ctrl-C to stop")
         stop.wait(timeout=duration)
@@ -138,14 +128,30 @@ def _serve_callback(**kwargs: Any) -> None:
             signal.signal(sig, handler)
 
 
+def click_option(option: FaceOption) -> click.Option:
+    """The click option for one face option (the one place that turns face data into ``sim serve`` options)."""
+    kind: Any = option.type
+    if option.range is not None:
+        kind = click.IntRange(*option.range)
+    extra: dict[str, Any] = {}
+    if option.flag_value is not None:
+        extra.update(is_flag=False, flag_value=option.flag_value)
+    elif option.is_flag:
+        extra.update(is_flag=True)
+    if kind is not None:
+        extra["type"] = kind
+    return click.Option([option.flag, option.dest], default=option.default, metavar=option.metavar,
+                        help=option.help, show_default=option.show_default, **extra)
+
+
 def _build_serve() -> click.Command:
     params: list[click.Parameter] = [
         click.Option(["--name"], default="default", show_default=True, help="Simulated drive to serve."),
         click.Option(["--duration"], type=click.FloatRange(min=0), default=None,
                      help="Stop after this many seconds (default: until Ctrl-C/SIGTERM)."),
     ]
-    for module in _face_modules():
-        params.extend(module.click_options())
+    for module in FACES:
+        params.extend(click_option(option) for option in module.OPTIONS)
     return click.Command(
         "serve",
         callback=_serve_callback,

@@ -20,15 +20,15 @@ Every wait polls with a deadline; nothing here sleeps unbounded.
 
 from __future__ import annotations
 
-import struct
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
 
 POLL_S = 0.05
@@ -255,29 +255,10 @@ class ProfidriveAxis(Axis):
 
     # ---------------------------------------------------------------- access
     def _read(self, *pnus: int) -> dict[int, list[int]]:
-        from akdctl.drive.params import parse_pnu_spec, read_pnus
-
-        readings = read_pnus(self.params, [parse_pnu_spec(str(p)) for p in pnus])
-        out: dict[int, list[int]] = {}
-        for reading in readings:
-            if not reading.ok:
-                from akdctl.errors import ParameterRefused
-
-                raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
-                                       code=reading.error)
-            out[reading.spec.pnu] = list(reading.values or [])
-        return out
+        return read_pnu_map(self.params, pnus)
 
     def _write(self, *pairs: tuple[int, int]) -> None:
-        from akdctl.drive.params import PnuSpec, write_pnus
-        from akdctl.catalog.pnus import lookup
-        from akdctl.errors import ParameterRefused
-
-        items = [(PnuSpec(pnu, 0, 1, lookup(pnu)), [value]) for pnu, value in pairs]
-        for result in write_pnus(self.params, items):
-            if not result.ok:
-                raise ParameterRefused(f"drive refused to change PNU {result.spec.label}: {result.error_text}",
-                                       code=result.error)
+        write_pnu_map(self.params, pairs)
 
     def stw1(self, word: int) -> None:
         self._write((1, word))
@@ -299,8 +280,8 @@ class ProfidriveAxis(Axis):
         position = None
         if self.objects is not None:
             try:
-                position = struct.unpack("<i", self.objects.upload(0x6064, 0))[0] / CIA_COUNTS_PER_REV
-            except (AkdError, struct.error):
+                position = read_object(self.objects, 0x6064, 0) / CIA_COUNTS_PER_REV
+            except AkdError:
                 position = None
         velocity = units.x_to_rpm(nist, 15)
         if opmode == 2:
@@ -436,28 +417,22 @@ class Cia402Axis(Axis):
         self.objects = objects
         self.transport = transport
 
-    def _up(self, index: int, sub: int, fmt: str) -> int:
-        data = self.objects.upload(index, sub)
-        try:
-            return struct.unpack(fmt, data)[0]
-        except struct.error:
-            from akdctl.errors import MalformedReply
+    def _up(self, index: int, sub: int) -> int:
+        return read_object(self.objects, index, sub)  # type: ignore[no-any-return]
 
-            raise MalformedReply(f"object 0x{index:04X}:{sub} answered {len(data)} bytes") from None
-
-    def _down(self, index: int, sub: int, fmt: str, value: int) -> None:
-        self.objects.download(index, sub, struct.pack(fmt, value))
+    def _down(self, index: int, sub: int, value: int) -> None:
+        write_object(self.objects, index, sub, value)
 
     def controlword(self, word: int) -> None:
-        self._down(0x6040, 0, "<H", word)
+        self._down(0x6040, 0, word)
 
     def read_status(self) -> AxisStatus:
-        word = self._up(0x6041, 0, "<H")
-        control = self._up(0x6040, 0, "<H")
-        mode = self._up(0x6061, 0, "<b")
-        position = self._up(0x6064, 0, "<i") / CIA_COUNTS_PER_REV
-        velocity = self._up(0x606C, 0, "<i") * 60.0 / CIA_COUNTS_PER_REV
-        torque = self._up(0x6077, 0, "<h") / 10.0
+        word = self._up(0x6041, 0)
+        control = self._up(0x6040, 0)
+        mode = self._up(0x6061, 0)
+        position = self._up(0x6064, 0) / CIA_COUNTS_PER_REV
+        velocity = self._up(0x606C, 0) * 60.0 / CIA_COUNTS_PER_REV
+        torque = self._up(0x6077, 0) / 10.0
         state = sw.cia402_state(word)
         fault = bool(word & sw.SW_FAULT)
         faults: list[dict[str, Any]] = []
@@ -465,7 +440,7 @@ class Cia402Axis(Axis):
             numbers = []
             try:
                 for sub in range(1, 11):
-                    number = self._up(0x2001, sub, "<H")
+                    number = self._up(0x2001, sub)
                     if not number:
                         break
                     numbers.append(number)
@@ -490,12 +465,12 @@ class Cia402Axis(Axis):
     def controlword_mapping(self) -> list[int]:
         """The assigned RxPDOs (read back by SDO from 0x1C12) whose mapping holds 0x6040."""
         found = []
-        count = self._up(0x1C12, 0, "<B")
+        count = self._up(0x1C12, 0)
         for sub in range(1, count + 1):
-            pdo = self._up(0x1C12, sub, "<H")
-            entries = self._up(pdo, 0, "<B")
+            pdo = self._up(0x1C12, sub)
+            entries = self._up(pdo, 0)
             for esub in range(1, entries + 1):
-                if self._up(pdo, esub, "<I") >> 16 == 0x6040:
+                if self._up(pdo, esub) >> 16 == 0x6040:
                     found.append(pdo)
                     break
         return found
@@ -565,29 +540,29 @@ class Cia402Axis(Axis):
 
     def ensure_mode(self, kind: str) -> None:
         wanted = {"velocity": 3, "position": 1, "homing": 6}[kind]
-        if self._up(0x6061, 0, "<b") != wanted:
-            self._down(0x6060, 0, "<b", wanted)
+        if self._up(0x6061, 0) != wanted:
+            self._down(0x6060, 0, wanted)
             deadline = time.monotonic() + self.timeout
-            while self._up(0x6061, 0, "<b") != wanted:
+            while self._up(0x6061, 0) != wanted:
                 if time.monotonic() > deadline:
                     raise DriveError(f"the drive did not switch to mode {wanted} (0x6061) within {self.timeout:g} s")
                 time.sleep(POLL_S)
 
     def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
         acc = round(acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)
-        self._down(0x6083, 0, "<I", acc)
-        self._down(0x6084, 0, "<I", acc)
-        self._down(0x60FF, 0, "<i", round(rpm / 60.0 * CIA_COUNTS_PER_REV))
+        self._down(0x6083, 0, acc)
+        self._down(0x6084, 0, acc)
+        self._down(0x60FF, 0, round(rpm / 60.0 * CIA_COUNTS_PER_REV))
         self.controlword(sw.CW_ENABLE_OPERATION_CMD)  # halt clear: follow 0x60FF
 
     def end_jog(self) -> None:
         self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)
-        self._down(0x60FF, 0, "<i", 0)
+        self._down(0x60FF, 0, 0)
 
     def start_home(self, mode: int | None) -> None:
         if mode is not None:
-            self._down(0x6098, 0, "<b", mode)
-        elif int.from_bytes(self.objects.upload(0x6098, 0), "little", signed=True) == 0:
+            self._down(0x6098, 0, mode)
+        elif self._up(0x6098, 0) == 0:
             # Method 0 means "no homing method": the drive would only report a homing error.
             raise UsageError("homing method 0x6098 is 0 (none configured); choose one with --mode, "
                              "e.g. 35 = current position, 19..30 = home switch, 1/2 = limit switch and index")
@@ -605,10 +580,10 @@ class Cia402Axis(Axis):
 
     def start_move(self, move: MoveSpec) -> None:
         counts = round(move.target_rev * CIA_COUNTS_PER_REV)
-        self._down(0x607A, 0, "<i", counts)
-        self._down(0x6081, 0, "<I", max(1, round(move.rpm / 60.0 * CIA_COUNTS_PER_REV)))
-        self._down(0x6083, 0, "<I", max(1, round(move.acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
-        self._down(0x6084, 0, "<I", max(1, round(move.dec_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x607A, 0, counts)
+        self._down(0x6081, 0, max(1, round(move.rpm / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x6083, 0, max(1, round(move.acc_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
+        self._down(0x6084, 0, max(1, round(move.dec_rpm_s / 60.0 * CIA_COUNTS_PER_REV)))
         base = sw.CW_ENABLE_OPERATION_CMD | (sw.CW_RELATIVE if move.relative else 0) | sw.CW_CHANGE_IMMEDIATELY
         self.controlword(base)
         self.controlword(base | sw.CW_NEW_SETPOINT)

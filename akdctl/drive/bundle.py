@@ -19,18 +19,17 @@ same JSON as ``bundle.json`` plus the trace as text (``trace.txt``).
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import io
 import json
 import os
 import platform
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, CommError, UsageError
+from akdctl.io.atomic import write_user_file
 
 if TYPE_CHECKING:
     from akdctl.connection import Connection
@@ -214,22 +213,7 @@ def write(bundle: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
         raise UsageError(f"cannot write {target}: directory {directory} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        if isinstance(exc, OSError):
-            raise UsageError(f"cannot write {target}: {exc.strerror}") from None
-        raise
+    write_user_file(target, data)
     return target
 
 

@@ -168,7 +168,7 @@ def split_buffer(values: list[int]) -> tuple[list[FaultEntry], list[dict[str, An
 
 
 def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
-    from akdctl.drive.params import read_pnus
+    from akdctl.drive.values import read_pnus
 
     readings = read_pnus(channel, specs)
     for reading in readings:
@@ -182,10 +182,9 @@ def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
 
 def read_profidrive_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> ProfidriveFaults:
     """944 (+ ZSW1), 947, 944 again; repeat while the counter moved (at most ``max_attempts`` times)."""
-    from akdctl.drive.params import parse_pnu_spec
+    from akdctl.drive.values import pnu_spec
 
-    counter_spec, zsw1_spec = parse_pnu_spec(str(PNU_FAULT_COUNTER)), parse_pnu_spec(str(PNU_ZSW1))
-    buffer_spec = parse_pnu_spec(str(PNU_FAULT_BUFFER))
+    counter_spec, zsw1_spec, buffer_spec = pnu_spec(PNU_FAULT_COUNTER), pnu_spec(PNU_ZSW1), pnu_spec(PNU_FAULT_BUFFER)
     attempt = 0
     while True:
         attempt += 1
@@ -246,11 +245,11 @@ class CanopenFaults:
         }
 
 
-def _upload_int(channel: Any, index: int, sub: int, size: int) -> int:
-    data = channel.upload(index, sub)
-    if not data:
-        return 0
-    return int.from_bytes(bytes(data)[:size].ljust(size, b"\x00"), "little")
+def _upload_int(channel: Any, index: int, sub: int) -> int:
+    """One integer object, typed by the catalogue (drive/values.py)."""
+    from akdctl.drive.values import read_object
+
+    return int(read_object(channel, index, sub))
 
 
 def _section(result: CanopenFaults, name: str, func: Any) -> Any:
@@ -264,12 +263,12 @@ def _section(result: CanopenFaults, name: str, func: Any) -> Any:
         return None
 
 
-def _read_list(channel: Any, index: int, size: int, limit: int, *, stop_at_zero: bool) -> list[int]:
+def _read_list(channel: Any, index: int, limit: int, *, stop_at_zero: bool) -> list[int]:
     """Sub 1..n of an array object; n from sub 0 (bounded by ``limit``); optionally stop at the first 0."""
-    count = min(_upload_int(channel, index, 0, 1), limit)
+    count = min(_upload_int(channel, index, 0), limit)
     values = []
     for sub in range(1, count + 1):
-        value = _upload_int(channel, index, sub, size)
+        value = _upload_int(channel, index, sub)
         if value == 0 and stop_at_zero:
             break
         values.append(value)
@@ -279,9 +278,9 @@ def _read_list(channel: Any, index: int, size: int, limit: int, *, stop_at_zero:
 def _marker(channel: Any) -> tuple[Any, ...]:
     """What changes whenever a new fault or emergency is recorded (newest entries and counts)."""
     out: list[Any] = []
-    for index, sub, size in ((0x1003, 0, 1), (0x1003, 1, 4), (0x2012, 1, 4), (0x2013, 1, 4)):
+    for index, sub in ((0x1003, 0), (0x1003, 1), (0x2012, 1), (0x2013, 1)):
         try:
-            out.append(_upload_int(channel, index, sub, size))
+            out.append(_upload_int(channel, index, sub))
         except CommError:
             raise
         except AkdError:
@@ -291,18 +290,18 @@ def _marker(channel: Any) -> tuple[Any, ...]:
 
 def _read_canopen_once(channel: Any) -> CanopenFaults:
     result = CanopenFaults()
-    result.error_register = _section(result, "0x1001", lambda: _upload_int(channel, 0x1001, 0, 1))
-    result.statusword = _section(result, "0x6041", lambda: _upload_int(channel, 0x6041, 0, 2))
-    field_values = _section(result, "0x1003", lambda: _read_list(channel, 0x1003, 4, 254, stop_at_zero=False))
+    result.error_register = _section(result, "0x1001", lambda: _upload_int(channel, 0x1001, 0))
+    result.statusword = _section(result, "0x6041", lambda: _upload_int(channel, 0x6041, 0))
+    field_values = _section(result, "0x1003", lambda: _read_list(channel, 0x1003, 254, stop_at_zero=False))
     result.error_field = [decode_error_field(v) for v in field_values or []]
-    faults = _section(result, "0x2001", lambda: _read_list(channel, 0x2001, 2, 32, stop_at_zero=False))
+    faults = _section(result, "0x2001", lambda: _read_list(channel, 0x2001, 32, stop_at_zero=False))
     result.faults = [decode_number(n) for n in faults or [] if n]
-    warnings = _section(result, "0x2000", lambda: _read_list(channel, 0x2000, 4, 32, stop_at_zero=False))
+    warnings = _section(result, "0x2000", lambda: _read_list(channel, 0x2000, 32, stop_at_zero=False))
     result.warnings = [decode_number(n, warning=True) for n in warnings or [] if n]
-    numbers = _section(result, "0x2012", lambda: _read_list(channel, 0x2012, 4, 254, stop_at_zero=True)) or []
+    numbers = _section(result, "0x2012", lambda: _read_list(channel, 0x2012, 254, stop_at_zero=True)) or []
     times: list[int] = []
     if numbers:
-        times = _section(result, "0x2013", lambda: [_upload_int(channel, 0x2013, s, 4)
+        times = _section(result, "0x2013", lambda: [_upload_int(channel, 0x2013, s)
                                                     for s in range(1, len(numbers) + 1)]) or []
     result.history = [decode_number(n, time=times[i] if i < len(times) else None) for i, n in enumerate(numbers)]
     return result
@@ -416,5 +415,5 @@ def clear_history(conn: "Connection") -> dict[str, Any]:
             "parameter channel; acknowledged situations drop out after 8 new ones"
         )
     conn.objects().download(0x1003, 0, b"\x00")
-    remaining = _upload_int(conn.objects(), 0x1003, 0, 1)
+    remaining = _upload_int(conn.objects(), 0x1003, 0)
     return {"target": conn.target.display, "cleared": "0x1003", "entries_left": remaining}

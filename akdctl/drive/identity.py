@@ -1,30 +1,44 @@
-"""Who is this drive: PROFIdrive identification PNUs and/or the CANopen identity objects.
+"""Who is this drive: the one identity reader (PROFIdrive identification PNUs, CANopen identity objects, I&M0).
 
-One batched read for the PNUs (964, 965, 975) and a handful of SDO uploads for
-0x1018/0x1008/0x1009/0x100A, whichever channels the transport offers.
+One batched read for the PNUs (964, 965, 975) and one SDO upload per identity
+object (0x1018:1..4, 0x1008, 0x1009, 0x100A), whichever channels the transport
+offers; values are typed by the catalogue (:mod:`akdctl.drive.values`).
+``info`` and the support bundle show :func:`read_identity` as it is; a parameter
+backup stores the flat :func:`backup_identity` of the same reading (and takes
+PNU 964 from its own batched read when it has it: :func:`drive_unit`).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from akdctl.errors import AkdError
+from akdctl.errors import AkdError, CommError, MalformedReply
+
+#: Identity PNUs: drive unit (964), profile (965), drive object (975).
+PNU_DRIVE_UNIT = 964
+PNU_PROFILE = 965
+PNU_DRIVE_OBJECT = 975
+
+#: CANopen identity objects: key, index, subindex (types from the catalogue).
+IDENTITY_OBJECTS: tuple[tuple[str, int, int], ...] = (
+    ("vendor_id", 0x1018, 1), ("product_code", 0x1018, 2), ("revision", 0x1018, 3), ("serial", 0x1018, 4),
+    ("device_name", 0x1008, 0), ("hardware_version", 0x1009, 0), ("software_version", 0x100A, 0),
+)
+
+
+def drive_unit(values: list[int]) -> dict[str, Any]:
+    """PNU 964's elements in words: manufacturer, drive unit type, software version and date."""
+    v = list(values) + [0] * (5 - len(values))
+    return {"manufacturer": v[0], "drive_unit_type": v[1], "software_version": f"{v[2] // 100}.{v[2] % 100:02d}",
+            "firmware_date": f"{v[4] // 100:02d}.{v[4] % 100:02d}.{v[3]}", "raw": list(values)}
 
 
 def _pnu_identity(channel: Any) -> dict[str, Any]:
-    from akdctl.drive.params import parse_pnu_spec, read_pnus
+    from akdctl.drive.values import pnu_spec, read_pnus
 
-    readings = read_pnus(channel, [parse_pnu_spec(t) for t in ("964", "965", "975")])
+    du, profile, do = read_pnus(channel, [pnu_spec(PNU_DRIVE_UNIT), pnu_spec(PNU_PROFILE), pnu_spec(PNU_DRIVE_OBJECT)])
     out: dict[str, Any] = {}
-    du, profile, do = readings
-    if du.ok and du.values:
-        v = du.values + [0] * (5 - len(du.values))
-        out["drive_unit"] = {
-            "manufacturer": v[0], "drive_unit_type": v[1], "software_version": f"{v[2] // 100}.{v[2] % 100:02d}",
-            "firmware_date": f"{v[4] // 100:02d}.{v[4] % 100:02d}.{v[3]}", "raw": du.values,
-        }
-    else:
-        out["drive_unit"] = {"error": du.error_text}
+    out["drive_unit"] = drive_unit(du.values) if du.ok and du.values else {"error": du.error_text}
     if profile.ok and profile.values:
         number, version = (profile.values + [0, 0])[:2]
         out["profile"] = {"number": number, "version": f"{version // 10}.{version % 10}",
@@ -40,31 +54,53 @@ def _pnu_identity(channel: Any) -> dict[str, Any]:
 
 
 def _object_identity(channel: Any) -> dict[str, Any]:
-    from akdctl.protocol.datatypes import unpack
+    """Each identity object, or None where the drive refuses it or answers what its type cannot hold."""
+    from akdctl.drive.values import decode, object_type
 
     out: dict[str, Any] = {}
-    for key, index, sub, dtype in (
-        ("vendor_id", 0x1018, 1, "u32"), ("product_code", 0x1018, 2, "u32"), ("revision", 0x1018, 3, "u32"),
-        ("serial", 0x1018, 4, "u32"), ("device_name", 0x1008, 0, "vs"), ("hardware_version", 0x1009, 0, "vs"),
-        ("software_version", 0x100A, 0, "vs"),
-    ):
+    for key, index, sub in IDENTITY_OBJECTS:
         try:
-            out[key] = unpack(dtype, channel.upload(index, sub))
-        except AkdError as exc:
-            if exc.exit_code == 3:
-                raise
+            data = channel.upload(index, sub)
+        except CommError:
+            raise
+        except AkdError:
+            out[key] = None
+            continue
+        try:
+            out[key] = decode(object_type(index, sub), data)
+        except MalformedReply:
             out[key] = None
     return out
 
 
-def read_identity(transport: Any) -> dict[str, Any]:
-    """Everything the transport's channels can tell about the drive's identity."""
+def read_identity(transport: Any, *, pnus: bool = True, objects: bool = True, im0: bool = True) -> dict[str, Any]:
+    """Everything the transport's channels (those asked for) can tell about the drive's identity."""
     result: dict[str, Any] = {}
-    if transport.parameters is not None:
+    if pnus and transport.parameters is not None:
         result["profidrive"] = _pnu_identity(transport.parameters)
-    if transport.objects is not None:
+    if objects and transport.objects is not None:
         result["canopen"] = _object_identity(transport.objects)
     read_im0 = getattr(transport, "read_im0", None)
-    if read_im0 is not None:
+    if im0 and read_im0 is not None:
         result["im0"] = read_im0()
     return result
+
+
+def backup_identity(identity: dict[str, Any]) -> dict[str, Any]:
+    """The flat identity a parameter backup stores (``[identity]``), from a :func:`read_identity` result.
+
+    Keys: manufacturer, drive_unit_type, firmware, firmware_date (PNU 964), and the
+    CANopen keys that came back (vendor_id … software_version, hardware_version).
+    """
+    out: dict[str, Any] = {}
+    unit = identity.get("profidrive", {}).get("drive_unit", {})
+    if "error" not in unit and unit:
+        out.update(backup_drive_unit(unit))
+    out.update({k: v for k, v in identity.get("canopen", {}).items() if v is not None})
+    return out
+
+
+def backup_drive_unit(unit: dict[str, Any]) -> dict[str, Any]:
+    """:func:`drive_unit` in the backup's words (``firmware`` for the software version)."""
+    return {"manufacturer": unit["manufacturer"], "drive_unit_type": unit["drive_unit_type"],
+            "firmware": unit["software_version"], "firmware_date": unit["firmware_date"]}

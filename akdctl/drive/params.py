@@ -3,74 +3,25 @@
 ``964[0..4]`` is PNU 964 elements 0 to 4; ``947[3]`` one element; ``964`` a
 whole array; names work too (``STW1``). Assignments are ``PNU[SUB]=V[,V…]``
 with decimal or 0x-hex values, checked against the catalogue before anything
-is sent. Reads and writes go through one :class:`ParameterChannel` call each,
-so the channel can batch them into the fewest requests.
+is sent. Reading and writing typed values is :mod:`akdctl.drive.values`
+(one :class:`ParameterChannel` call each, so the channel can batch them).
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
-from akdctl.catalog.pnus import PnuInfo, by_name, lookup
-from akdctl.catalog.texts import profidrive_error_phrase
+from akdctl.catalog.pnus import by_name, lookup
+from akdctl.drive.values import PnuReading, PnuSpec, check_pnu_values, read_pnus, write_pnus
 from akdctl.errors import UsageError
 
+# PnuSpec, PnuReading, read_pnus and write_pnus are the typed-values module's (drive/values.py);
+# they are importable from here too because the CLI's PNU commands parse and read in one breath.
+__all__ = ["PnuReading", "PnuSpec", "description_json", "parse_assignment", "parse_pnu_spec", "read_pnus",
+           "write_pnus"]
+
 _SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
-
-
-@dataclass(frozen=True)
-class PnuSpec:
-    """An address the user asked for: PNU, first element, number of elements."""
-
-    pnu: int
-    subindex: int
-    count: int
-    info: PnuInfo | None
-
-    @property
-    def label(self) -> str:
-        if (self.info is None or not self.info.is_array) and self.subindex == 0 and self.count == 1:
-            return str(self.pnu)
-        if self.count == 1:
-            return f"{self.pnu}[{self.subindex}]"
-        return f"{self.pnu}[{self.subindex}..{self.subindex + self.count - 1}]"
-
-
-@dataclass
-class PnuReading:
-    """One requested address and what came back: values (signed per type) or a failure."""
-
-    spec: PnuSpec
-    values: list[int] | None = None
-    raw: list[Any] | None = None
-    format: int | None = None
-    error: int | None = None
-    error_text: str = ""
-    additional: int | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.error is None
-
-    def to_json(self) -> dict[str, Any]:
-        info = self.spec.info
-        data: dict[str, Any] = {
-            "pnu": self.spec.pnu,
-            "name": info.name if info else None,
-            "subindex": self.spec.subindex,
-            "count": self.spec.count,
-        }
-        if self.ok:
-            data["values"] = self.values
-            data["format"] = self.format
-            if info and info.unit:
-                data["unit"] = info.unit
-        else:
-            data["error"] = {"code": self.error, "text": self.error_text, "additional": self.additional}
-        return data
 
 
 def _int(text: str, what: str) -> int:
@@ -141,60 +92,8 @@ def parse_assignment(text: str) -> tuple[PnuSpec, list[int]]:
         raise UsageError(f"PNU {spec.label}: {spec.count} element(s) addressed but {len(values)} value(s) given")
     if spec.subindex + spec.count > info.length:
         raise UsageError(f"PNU {spec.pnu} ({info.name}) has elements 0..{info.length - 1}; too many values")
-    lo, hi = info.limits()
-    for value in values:
-        if not lo <= value <= hi:
-            raise UsageError(f"value {value} for PNU {spec.pnu} ({info.name}) is outside {lo}..{hi}")
+    check_pnu_values(info, values)
     return spec, values
-
-
-def _to_signed(value: int, bits: int) -> int:
-    return value - (1 << bits) if value >= 1 << (bits - 1) else value
-
-
-def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
-    """Read every spec in one batched channel call; values signed per the catalogue type."""
-    from akdctl.protocol.profidrive import ParameterAddress, ParameterFailure
-
-    addresses = [ParameterAddress(s.pnu, s.subindex, s.count) for s in specs]
-    results = channel.read(addresses)
-    readings = []
-    for spec, result in zip(specs, results):
-        if isinstance(result, ParameterFailure):
-            readings.append(PnuReading(spec, error=result.error, error_text=profidrive_error_phrase(result.error), additional=result.additional))
-            continue
-        raw = list(result.values)
-        values = raw
-        info = spec.info
-        if info is not None and all(isinstance(v, int) for v in raw):
-            values = [_to_signed(v, info.bits) if info.signed else v for v in raw]
-        elif result.format in (0x41, 0x42, 0x43):
-            values = raw
-        readings.append(PnuReading(spec, values=values, raw=raw, format=result.format))
-    return readings
-
-
-def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -> list[PnuReading]:
-    """Write every assignment in one batched channel call; one reading per assignment (values = written)."""
-    from akdctl.protocol.profidrive import ParameterAddress, ParameterValue
-
-    items = []
-    for spec, values in assignments:
-        info = spec.info
-        assert info is not None
-        mask = (1 << info.bits) - 1
-        items.append(
-            (ParameterAddress(spec.pnu, spec.subindex, spec.count),
-             ParameterValue(info.wire_format, tuple(v & mask for v in values)))
-        )
-    failures = channel.write(items)
-    out = []
-    for (spec, values), failure in zip(assignments, failures):
-        if failure is None:
-            out.append(PnuReading(spec, values=list(values), format=spec.info.wire_format if spec.info else None))
-        else:
-            out.append(PnuReading(spec, error=failure.error, error_text=profidrive_error_phrase(failure.error), additional=failure.additional))
-    return out
 
 
 def description_json(description: Any) -> dict[str, Any]:

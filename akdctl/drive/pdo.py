@@ -112,7 +112,10 @@ class DirectionMapping:
 
 
 def _read_uint(channel: Any, index: int, sub: int) -> int:
-    return int.from_bytes(channel.upload(index, sub), "little")
+    """A count, PDO number or mapping entry, typed by the catalogue (u8 / u16 / u32)."""
+    from akdctl.drive.values import read_object
+
+    return read_object(channel, index, sub)  # type: ignore[no-any-return]
 
 
 def read_pdo(channel: Any, pdo: int) -> tuple[PdoEntry, ...]:
@@ -560,9 +563,10 @@ def verify(channel: Any, plan: PdoPlan) -> list[str]:
         checks.append((0x6060, 0, plan.opmode))
     if plan.cycle is not None:
         checks += [(0x60C2, 1, plan.cycle[0]), (0x60C2, 2, plan.cycle[1])]
+    from akdctl.drive.values import read_object
+
     for index, sub, want in checks:
-        obj = oc.lookup(index, sub)
-        got = int.from_bytes(channel.upload(index, sub), "little", signed=bool(obj and obj.short_type.startswith("i")))
+        got = read_object(channel, index, sub)
         if got != want:
             differences.append(f"0x{index:04X}:{sub:02X}: wrote {want}, read back {got}")
     return differences

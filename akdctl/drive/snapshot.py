@@ -5,8 +5,8 @@ times and a technician must be able to put a replaced drive back exactly as it
 was. So a snapshot is plain data (TOML or JSON) that names the target, the
 drive's identity, firmware and time; reading it costs the fewest round trips
 the protocol allows (every PNU in ONE batched :func:`~akdctl.drive.params.read_pnus`
-call, packed so the channel's 39-parameter / 240-byte split yields the minimum
-number of requests); and restoring it writes only what differs, in an order
+call, which the channel packs into the fewest requests its 39-parameter /
+240-byte limits allow); and restoring it writes only what differs, in an order
 the drive accepts (units and operating mode before values that depend on
 them, telegram before its free mapping, PDO mapping with the manual's
 clear → entries → count sequence), never the control word, and reads every
@@ -19,19 +19,31 @@ them is motion, not configuration.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import json
 import math
 import os
-import tempfile
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from akdctl.drive.values import (
+    PnuSpec,
+    Value,
+    check_pnu_values,
+    encode_object,
+    pnu_spec,
+    read_object,
+    read_pnus,
+    read_snapshot_value,
+    snapshot_value,
+    write_object,
+    write_pnus,
+)
 from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
+from akdctl.io.atomic import write_user_file
 
 SNAPSHOT_FORMAT = 1
 
@@ -63,8 +75,6 @@ PHASE_REST = 4
 TELEGRAM_DERIVED = frozenset({"915", "916"})
 _PNU_PHASE = {1002: PHASE_UNITS_MODE, 930: PHASE_UNITS_MODE, 922: PHASE_TELEGRAM, 915: PHASE_MAPPING,
               916: PHASE_MAPPING}
-
-Value = int | float | str | list[int]
 
 
 # ---------------------------------------------------------------------------- items
@@ -220,40 +230,14 @@ def choose_sources(transport: Any, source: str) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- reading
-def _pack_order(specs: list[Any], element_size: Any) -> list[Any]:
-    """Order PNU reads so the channel's in-order greedy split gives the fewest requests.
-
-    First-fit decreasing over the two limits (39 parameters, 240-byte response);
-    the bins are emitted one after another, so each becomes exactly one request.
-    """
-    from akdctl.protocol.profidrive import HEADER_SIZE, MAX_BLOCK, MAX_PARAMETERS, ParameterAddress, response_block_size
-
-    def cost(spec: Any) -> int:
-        return response_block_size(ParameterAddress(spec.pnu, spec.subindex, spec.count), element_size)
-
-    bins: list[tuple[list[Any], list[int]]] = []  # (specs, [bytes used])
-    for spec in sorted(specs, key=cost, reverse=True):
-        c = cost(spec)
-        for members, used in bins:
-            if len(members) < MAX_PARAMETERS and used[0] + c <= MAX_BLOCK:
-                members.append(spec)
-                used[0] += c
-                break
-        else:
-            bins.append(([spec], [HEADER_SIZE + c]))
-    return [spec for members, _ in bins for spec in members]
-
-
 def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
     """Every PNU item in one batched read; (values by key, refusals by key)."""
-    from akdctl.drive.params import PnuSpec, read_pnus
 
     specs = [PnuSpec(i.index, 0, i.info.length, i.info) for i in items if i.kind == "pnu"]
     if not specs:
         return {}, {}
-    # The channel sizes responses by the catalogue's element sizes; order the reads to match.
-    ordered = _pack_order(specs, getattr(channel, "element_size", 4))
-    readings = read_pnus(channel, ordered)
+    # One call: the channel packs the reads into the fewest requests (channels/batching.py).
+    readings = read_pnus(channel, specs)
     values: dict[str, Value] = {}
     errors: dict[str, str] = {}
     for reading in readings:
@@ -265,39 +249,6 @@ def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Valu
         values[key] = got if reading.spec.info.is_array else (got[0] if got else 0)
     order = {str(s.pnu): n for n, s in enumerate(specs)}
     return dict(sorted(values.items(), key=lambda kv: order[kv[0]])), errors
-
-
-def _decode_object(entry: Any, data: bytes) -> Value:
-    from akdctl.protocol.datatypes import DataTypeError, unpack
-
-    kind = entry.short_type
-    try:
-        value = unpack(kind, data)
-    except DataTypeError:
-        return "0x" + data.hex()
-    if isinstance(value, (bytes, bytearray)):
-        return "0x" + bytes(value).hex()
-    if isinstance(value, bool):
-        return int(value)
-    return value  # type: ignore[return-value]
-
-
-def encode_object(entry: Any, value: Any) -> bytes:
-    """A snapshot/recipe value → the bytes an SDO download carries; UsageError when it does not fit."""
-    from akdctl.protocol.datatypes import DataTypeError, pack
-
-    kind = entry.short_type
-    try:
-        if kind == "os":
-            if not isinstance(value, str):
-                raise DataTypeError("octet strings are written as hex text, e.g. \"0x0102\"")
-            text = value[2:] if value.lower().startswith("0x") else value
-            return bytes.fromhex(text)
-        if kind == "bool":
-            return pack("u8", int(value)) if isinstance(value, (bool, int)) else pack("bool", value)
-        return pack(kind, value)
-    except (DataTypeError, ValueError) as exc:
-        raise UsageError(f"object {object_key(entry.index, entry.subindex)} ({entry.name}): bad value {value!r}: {exc}") from None
 
 
 def read_object_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
@@ -314,7 +265,7 @@ def read_object_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, V
         except AkdError as exc:
             errors[item.key] = exc.message
             continue
-        values[item.key] = _decode_object(item.info, data)
+        values[item.key] = snapshot_value(item.info, data)
     return values, errors
 
 
@@ -344,38 +295,20 @@ IDENTITY_CHECKED = ("manufacturer", "drive_unit_type", "vendor_id", "product_cod
 
 def identity_from_pnus(values: dict[str, Value]) -> dict[str, Any]:
     """Identity fields from PNU 964 (already in a PNU backup: no extra round trip)."""
+    from akdctl.drive.identity import backup_drive_unit, drive_unit
+
     du = values.get("964")
     if not isinstance(du, list) or len(du) < 5:
         return {}
-    return {"manufacturer": du[0], "drive_unit_type": du[1], "firmware": f"{du[2] // 100}.{du[2] % 100:02d}",
-            "firmware_date": f"{du[4] // 100:02d}.{du[4] % 100:02d}.{du[3]}"}
+    return backup_drive_unit(drive_unit(du))
 
 
 def read_identity(transport: Any, use_pnu: bool, use_objects: bool) -> dict[str, Any]:
-    """The identity fields of the drive from the channels a backup uses."""
-    out: dict[str, Any] = {}
-    if use_pnu and transport.parameters is not None:
-        values, _ = read_pnu_values(transport.parameters, [resolve_item("964")])
-        out.update(identity_from_pnus(values))
-    if use_objects and transport.objects is not None:
-        out.update(_object_identity(transport.objects))
-    return out
+    """The identity fields of the drive from the channels a backup uses (the one identity reader, flattened)."""
+    from akdctl.drive import identity
 
-
-def _object_identity(channel: Any) -> dict[str, Any]:
-    from akdctl.protocol.datatypes import DataTypeError, unpack
-
-    out: dict[str, Any] = {}
-    for key, index, sub, kind in (("vendor_id", 0x1018, 1, "u32"), ("product_code", 0x1018, 2, "u32"),
-                                  ("revision", 0x1018, 3, "u32"), ("serial", 0x1018, 4, "u32"),
-                                  ("device_name", 0x1008, 0, "vs"), ("software_version", 0x100A, 0, "vs")):
-        try:
-            out[key] = unpack(kind, channel.upload(index, sub))
-        except CommError:
-            raise
-        except (AkdError, DataTypeError):
-            continue
-    return out
+    reading = identity.read_identity(transport, pnus=use_pnu, objects=use_objects, im0=False)
+    return identity.backup_identity(reading)
 
 
 def identity_mismatches(expected: dict[str, Any], actual: dict[str, Any]) -> list[str]:
@@ -458,12 +391,11 @@ def _check_value(item: Item, value: Any, where: str) -> None:
                              f"{'s' if info.is_array else ''} for PNU {info.pnu} ({info.name})")
         if len(values) > info.length:
             raise UsageError(f"{where}: PNU {info.pnu} ({info.name}) has {info.length} elements, file has {len(values)}")
-        lo, hi = info.limits()
         for v in values:
             if isinstance(v, bool) or not isinstance(v, int):
                 raise UsageError(f"{where}: expected an integer, got {v!r}")
-            if item.restorable and not lo <= v <= hi:
-                raise UsageError(f"{where}: {v} is outside {lo}..{hi} for PNU {info.pnu} ({info.name})")
+        if item.restorable:
+            check_pnu_values(info, values, where)
         return
     encode_object(item.info, value)
 
@@ -516,19 +448,9 @@ def atomic_write(target: Path, text: str) -> None:
     directory = target.parent if str(target.parent) else Path(".")
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:
         raise UsageError(f"cannot write {target}: {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
+    write_user_file(target, text)
 
 
 def load_file(path: str | os.PathLike[str]) -> Snapshot:
@@ -688,14 +610,11 @@ def drive_enabled(transport: Any) -> bool:
     """Operation enabled (ZSW1 / statusword bit 2): a restore then could change a running axis."""
     try:
         if transport.parameters is not None:
-            from akdctl.drive.params import parse_pnu_spec, read_pnus
-
-            (zsw1,) = read_pnus(transport.parameters, [parse_pnu_spec("2")])
+            (zsw1,) = read_pnus(transport.parameters, [pnu_spec(2)])
             if zsw1.ok and zsw1.values:
                 return bool(zsw1.values[0] & 0x0004)
         if transport.objects is not None:
-            data = transport.objects.upload(0x6041, 0)
-            return (int.from_bytes(data[:2], "little") & 0x006F) == 0x0027
+            return (read_object(transport.objects, 0x6041, 0) & 0x006F) == 0x0027
     except CommError:
         raise
     except AkdError:
@@ -705,7 +624,6 @@ def drive_enabled(transport: Any) -> bool:
 
 def apply_changes(transport: Any, changes: Sequence[Change]) -> list[dict[str, Any]]:
     """Write the changes in order, then read every one back; CheckFailed when a value did not stick."""
-    from akdctl.drive.params import PnuSpec, write_pnus
 
     done: list[dict[str, Any]] = []
     pnu_batch: list[Change] = []
@@ -766,7 +684,7 @@ def _write_objects(transport: Any, changes: Sequence[Change], done: list[dict[st
             sub0 = _subs(index)[0]
             final = count.new if count is not None else None
             if final is None:
-                final = _decode_object(sub0, channel.upload(index, 0))
+                final = read_snapshot_value(channel, sub0)
             _download(channel, sub0, 0, done, label=f"{object_key(index, 0)} = 0 (clear before changing entries)")
             for change in entries:
                 _download(channel, change.item.info, change.new, done, change=change)
@@ -812,7 +730,7 @@ def save_nonvolatile(transport: Any) -> None:
     """DRV.NVSAVE: 0x1010:1 = "save" (0x65766173); the AKD keeps the values over a power cycle."""
     if transport.objects is None:
         raise UsageError("saving to non-volatile memory needs the object channel (0x1010); this target has none")
-    transport.objects.download(NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE.to_bytes(4, "little"))
+    write_object(transport.objects, NVSAVE_INDEX, NVSAVE_SUBINDEX, NVSAVE_SIGNATURE)
 
 
 @dataclass

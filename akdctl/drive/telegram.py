@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog import telegrams as tc
-from akdctl.catalog.pnus import lookup
+from akdctl.drive.values import pnu_spec, read_pnus, write_pnus
 from akdctl.errors import CheckFailed, MalformedReply, ParameterRefused, UsageError
 
 
@@ -61,14 +61,6 @@ def words_json(signals: Sequence[int]) -> list[dict[str, Any]]:
              "label": s.label, "text": s.signal.text} for s in tc.word_layout(signals)]
 
 
-def _spec(pnu: int, count: int | None = None) -> Any:
-    from akdctl.drive.params import PnuSpec
-
-    info = lookup(pnu)
-    assert info is not None
-    return PnuSpec(pnu, 0, count if count is not None else info.length, info)
-
-
 def _refused(reading: Any, verb: str) -> ParameterRefused:
     return ParameterRefused(
         f"drive refused to {verb} PNU {reading.spec.label}: {reading.error_text} (error 0x{reading.error:02X})"
@@ -80,9 +72,7 @@ def _refused(reading: Any, verb: str) -> ParameterRefused:
 
 def read_state(channel: Any) -> TelegramState:
     """PNU 922, 915, 916 and 923 in one batched read."""
-    from akdctl.drive.params import read_pnus
-
-    readings = read_pnus(channel, [_spec(922), _spec(915), _spec(916), _spec(923)])
+    readings = read_pnus(channel, [pnu_spec(922), pnu_spec(915), pnu_spec(916), pnu_spec(923)])
     for reading in readings:
         if not reading.ok:
             raise _refused(reading, "read")
@@ -137,9 +127,7 @@ def validate_free_map(setpoint: Sequence[int], actual: Sequence[int], offered: S
 
 def select_telegram(channel: Any, number: int) -> TelegramState:
     """Write PNU 922 and read back the whole telegram state; CheckFailed if 922 reads back differently."""
-    from akdctl.drive.params import write_pnus
-
-    result = write_pnus(channel, [(_spec(922), [number])])[0]
+    result = write_pnus(channel, [(pnu_spec(922), [number])])[0]
     if not result.ok:
         raise _refused(result, "change")
     state = read_state(channel)
@@ -150,14 +138,12 @@ def select_telegram(channel: Any, number: int) -> TelegramState:
 
 def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
     """Write PNU 915 and/or 916 (all ten words each, zero-padded) and verify by reading back."""
-    from akdctl.drive.params import write_pnus
-
     items = []
     try:
         if setpoint is not None:
-            items.append((_spec(915), tc.expand_words(list(setpoint))))
+            items.append((pnu_spec(915), tc.expand_words(list(setpoint))))
         if actual is not None:
-            items.append((_spec(916), tc.expand_words(list(actual))))
+            items.append((pnu_spec(916), tc.expand_words(list(actual))))
     except tc.TelegramDataError as exc:
         raise UsageError(str(exc)) from None
     for result in write_pnus(channel, items):

@@ -90,14 +90,6 @@ ABORT_NO_SUBINDEX = 0x06090011
 ABORT_GENERAL = 0x08000000
 
 
-def abort_text(code: int) -> str:
-    """The standard wording of an abort code (one table for CoE and CANopen, in
-    :mod:`akdctl.catalog.texts`); unknown codes produce a phrase naming the code."""
-    from akdctl.catalog.texts import sdo_abort_text  # data table, imported lazily
-
-    return sdo_abort_text(code)
-
-
 # --- SDO messages ----------------------------------------------------------------------------------
 
 

@@ -133,16 +133,11 @@ class MailboxErrorReply:
 
     A slave sends it instead of a protocol reply when it cannot even parse the
     request, so a client must report it rather than wait for an SDO answer.
+    Its wording is :func:`akdctl.catalog.texts.mailbox_error_text` (codecs return codes).
     """
 
     code: int
 
-    @property
-    def text(self) -> str:
-        """ETG.1000.6 wording (one table for all of akdctl, in :mod:`akdctl.catalog.texts`)."""
-        from akdctl.catalog.texts import mailbox_error_text  # data table, imported lazily
-
-        return mailbox_error_text(self.code)
 
 
 def encode_error_reply(reply: MailboxErrorReply) -> bytes:

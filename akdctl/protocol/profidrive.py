@@ -29,7 +29,6 @@ Every malformed input raises :class:`BmpError` (a
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -161,7 +160,8 @@ _RAW_SIZE: dict[int, int] = {
     Format.TIME_DIFFERENCE: 6,
     Format.TIME_DIFFERENCE_NO_DATE: 4,
 }
-_STRINGS = frozenset({Format.VISIBLE_STRING, Format.OCTET_STRING, Format.UNICODE_STRING})
+#: The formats whose one value is a whole string (the wire "number of values" counts characters/octets).
+STRING_FORMATS = frozenset({Format.VISIBLE_STRING, Format.OCTET_STRING, Format.UNICODE_STRING})
 _KNOWN_FORMATS = frozenset(int(f) for f in Format)
 
 
@@ -246,7 +246,7 @@ class ParameterValue:
     @property
     def count(self) -> int:
         """The wire "number of values" (characters/octets for strings)."""
-        if self.format in _STRINGS and len(self.values) == 1:
+        if self.format in STRING_FORMATS and len(self.values) == 1:
             value = self.values[0]
             if self.format == Format.UNICODE_STRING and isinstance(value, str):
                 return len(value.encode("utf-16-be", "surrogatepass")) // 2
@@ -324,7 +324,8 @@ def _check_u8(name: str, value: object) -> int:
     return value
 
 
-def _check_address(address: object) -> ParameterAddress:
+def check_address(address: object) -> ParameterAddress:
+    """``address`` itself when it is a ParameterAddress within the wire limits, else BmpError."""
     if not isinstance(address, ParameterAddress):
         raise BmpError(f"not a parameter address: {address!r}")
     if address.attribute not in ATTRIBUTES:
@@ -378,7 +379,7 @@ def _value_bytes(value: ParameterValue) -> bytes:
         if value.values:
             raise BmpError("format 0x40 (zero) carries no values")
         return b""
-    if fmt in _STRINGS:
+    if fmt in STRING_FORMATS:
         if len(value.values) != 1:
             raise BmpError(f"{format_name(fmt)} holds exactly one string, not {len(value.values)} values")
         item = value.values[0]
@@ -502,8 +503,12 @@ def request_size(request: ParameterRequest) -> int:
     return size
 
 
-def encode_request(request: ParameterRequest) -> bytes:
-    """Encode a request, refusing anything a device would reject at the header or address level."""
+def encode_request(request: ParameterRequest, *, addresses_checked: bool = False) -> bytes:
+    """Encode a request, refusing anything a device would reject at the header or address level.
+
+    ``addresses_checked``: every address already passed :func:`check_address` (the parameter
+    channel checks each address once, on entry, before anything is sent).
+    """
     _check_u8("request reference", request.reference)
     _check_u8("axis", request.axis)
     if request.request_id not in (REQ_READ, REQ_CHANGE):
@@ -513,7 +518,7 @@ def encode_request(request: ParameterRequest) -> bytes:
         raise BmpError(f"a request carries 1..{MAX_PARAMETERS} parameters, not {n}")
     out = bytearray((request.reference, request.request_id, request.axis, n))
     for address in request.addresses:
-        a = _check_address(address)
+        a = address if addresses_checked else check_address(address)
         out += struct.pack(">BBHH", a.attribute, a.count, a.pnu, a.subindex)
     if request.request_id == REQ_READ:
         if request.values:
@@ -550,7 +555,7 @@ def decode_request(data: bytes) -> ParameterRequest:
     for i in range(n):
         address = decode_address(data, HEADER_SIZE + ADDRESS_SIZE * i)
         try:
-            addresses.append(_check_address(address))
+            addresses.append(check_address(address))
         except BmpError as exc:
             raise BmpError(f"parameter {i + 1}: {exc}") from None
     offset = HEADER_SIZE + ADDRESS_SIZE * n
@@ -704,6 +709,12 @@ DESCRIPTION_ELEMENTS: dict[int, tuple[str, int]] = {
     12: ("normalisation field", Format.V2),
 }
 
+#: Byte range of each description element inside the 46-byte block (subindex -> (start, end)).
+DESCRIPTION_OFFSETS: dict[int, tuple[int, int]] = {
+    1: (0, 2), 2: (2, 4), 3: (4, 8), 4: (8, 10), 5: (10, 14), 6: (14, 30), 7: (30, 34), 8: (34, 38),
+    9: (38, 40), 10: (40, 42), 11: (42, 44), 12: (44, 46),
+}
+
 
 @dataclass(frozen=True)
 class ParameterDescription:
@@ -826,9 +837,7 @@ def description_element(description: ParameterDescription, subindex: int) -> Par
     if subindex not in DESCRIPTION_ELEMENTS:
         raise BmpError(f"description has no element {subindex}")
     fmt = DESCRIPTION_ELEMENTS[subindex][1]
-    offsets = {1: (0, 2), 2: (2, 4), 3: (4, 8), 4: (8, 10), 5: (10, 14), 6: (14, 30), 7: (30, 34),
-               8: (34, 38), 9: (38, 40), 10: (40, 42), 11: (42, 44), 12: (44, 46)}
-    start, end = offsets[subindex]
+    start, end = DESCRIPTION_OFFSETS[subindex]
     chunk = raw[start:end]
     if fmt == Format.OCTET_STRING:
         return ParameterValue(fmt, (chunk,))
@@ -837,135 +846,9 @@ def description_element(description: ParameterDescription, subindex: int) -> Par
     return ParameterValue(fmt, struct.unpack(">" + _STRUCT[fmt], chunk))
 
 
-# --- batching -------------------------------------------------------------------------------------------------
-
-ElementSize = int | Callable[[ParameterAddress], int]
-
-# Size of a description element read alone (subindex -> bytes); the whole description is 46.
-_DESCRIPTION_ELEMENT_SIZE = {1: 2, 2: 2, 3: 4, 4: 2, 5: 4, 6: 16, 7: 4, 8: 4, 9: 2, 10: 2, 11: 2, 12: 2}
-_TEXT_SIZE = 16  # a text element is a VisibleString16
-
-
-def response_block_size(address: ParameterAddress, element_size: ElementSize = DEFAULT_ELEMENT_SIZE) -> int:
-    """Worst-case bytes of the response block answering ``address``.
-
-    Value reads: ``count × element_size`` (the caller's bound on the parameter's
-    format; AKD PNUs are at most 4 bytes, SPEC-NOTES 5). Descriptions: 46 bytes for
-    the whole block, the element's size otherwise. Texts: 16 characters per element.
-    Never less than an error block with additional info (6 bytes).
-    """
-    if address.attribute == ATTR_DESCRIPTION:
-        data = DESCRIPTION_SIZE if address.subindex == 0 else _DESCRIPTION_ELEMENT_SIZE.get(address.subindex, 16)
-    elif address.attribute == ATTR_TEXT:
-        data = _TEXT_SIZE * address.count
-    else:
-        size = element_size(address) if callable(element_size) else element_size
-        data = size * address.count
-    return max(6, 2 + _pad(data))
-
-
-def _change_block_size(value: ParameterValue) -> int:
-    return 2 + _pad(len(_value_bytes(value)))
-
-
-def plan_batches(
-    addresses: Sequence[ParameterAddress],
-    values: Sequence[ParameterValue] | None = None,
-    *,
-    element_size: ElementSize = DEFAULT_ELEMENT_SIZE,
-) -> list[tuple[int, int]]:
-    """Split parameters into consecutive ``(start, stop)`` slices, one request each.
-
-    The rule: take parameters in order into the current request while it holds at
-    most 39 parameters, the request block (header + 6 bytes per address + the value
-    blocks of a change) stays within 240 bytes, and the worst-case response (header
-    + :func:`response_block_size` per read parameter, or 6 bytes per changed
-    parameter -- an error with additional info) stays within 240 bytes; then start
-    the next request. Greedy filling in order gives the fewest requests for an
-    order-preserving split. Raises :class:`BmpError` if one parameter alone cannot
-    fit (the caller must split its elements first).
-    """
-    if values is not None and len(values) != len(addresses):
-        raise BmpError(f"{len(addresses)} parameters but {len(values)} values")
-    batches: list[tuple[int, int]] = []
-    start = 0
-    req = resp = HEADER_SIZE
-    for i, address in enumerate(addresses):
-        _check_address(address)
-        req_add = ADDRESS_SIZE + (_change_block_size(values[i]) if values is not None else 0)
-        resp_add = 6 if values is not None else response_block_size(address, element_size)
-        if HEADER_SIZE + req_add > MAX_BLOCK or HEADER_SIZE + resp_add > MAX_BLOCK:
-            raise BmpError(f"parameter {i + 1} ({address}) alone does not fit a {MAX_BLOCK}-byte block")
-        if i - start >= MAX_PARAMETERS or req + req_add > MAX_BLOCK or resp + resp_add > MAX_BLOCK:
-            batches.append((start, i))
-            start, req, resp = i, HEADER_SIZE, HEADER_SIZE
-        req += req_add
-        resp += resp_add
-    if start < len(addresses):
-        batches.append((start, len(addresses)))
-    return batches
+# --- request references ---------------------------------------------------------------------------------------
 
 
 def next_reference(reference: int) -> int:
     """The reference after ``reference``: 1..255, wrapping past 255 to 1 (0 is reserved)."""
     return reference % 255 + 1
-
-
-def split_requests(
-    addresses: Sequence[ParameterAddress],
-    values: Sequence[ParameterValue] | None = None,
-    *,
-    reference_start: int = 1,
-    axis: int = 0,
-    element_size: ElementSize = DEFAULT_ELEMENT_SIZE,
-) -> list[ParameterRequest]:
-    """Requests for reading (``values is None``) or changing the parameters, per :func:`plan_batches`.
-
-    References count up from ``reference_start`` (1..255, never 0).
-    """
-    if not 1 <= reference_start <= 255:
-        raise BmpError(f"request reference must be 1..255, not {reference_start!r}")
-    requests = []
-    reference = reference_start
-    for start, stop in plan_batches(addresses, values, element_size=element_size):
-        if values is None:
-            requests.append(ParameterRequest(reference, REQ_READ, axis, tuple(addresses[start:stop])))
-        else:
-            requests.append(ParameterRequest(reference, REQ_CHANGE, axis, tuple(addresses[start:stop]),
-                                             tuple(values[start:stop])))
-        reference = next_reference(reference)
-    return requests
-
-
-def max_elements_per_block(size: int, *, change: bool) -> int:
-    """How many elements of ``size`` bytes one parameter may move in one request/response."""
-    room = MAX_BLOCK - HEADER_SIZE - 2 - (ADDRESS_SIZE if change else 0)
-    return max(1, min(MAX_ELEMENTS, room // max(1, size)))
-
-
-def chunk_value(value: ParameterValue, limit: int) -> list[ParameterValue]:
-    """Split a value into pieces of at most ``limit`` wire elements (strings split by character)."""
-    if value.format in _STRINGS:
-        item = value.values[0]
-        if value.format == Format.UNICODE_STRING and isinstance(item, str):
-            units = item.encode("utf-16-be", "surrogatepass")
-            return [ParameterValue(value.format, (units[i:i + 2 * limit].decode("utf-16-be", "surrogatepass"),))
-                    for i in range(0, len(units), 2 * limit)]
-        return [ParameterValue(value.format, (item[i:i + limit],)) for i in range(0, len(item), limit)]
-    return [ParameterValue(value.format, value.values[i:i + limit]) for i in range(0, len(value.values), limit)]
-
-
-def merge_values(pieces: Sequence[ParameterValue]) -> ParameterValue:
-    """Join the values of consecutive element ranges read separately (inverse of :func:`chunk_value`)."""
-    if not pieces:
-        raise BmpError("nothing to merge")
-    fmt = pieces[0].format
-    if any(p.format != fmt for p in pieces):
-        raise BmpError("parts of one parameter came back in different formats: "
-                       + ", ".join(format_name(p.format) for p in pieces))
-    if fmt in _STRINGS:
-        first = pieces[0].values[0]
-        joined = (b"" if isinstance(first, bytes) else "").join(p.values[0] for p in pieces)  # type: ignore[misc]
-        return ParameterValue(fmt, (joined,))
-    return ParameterValue(fmt, tuple(v for p in pieces for v in p.values))
-

@@ -63,18 +63,15 @@ class Session:
 
 # ---------------------------------------------------------------------------- reading and comparing
 def read_target(session: Session, target: dict[str, Any]) -> Any:
-    if target["kind"] == "pnu":
-        from akdctl.drive.params import read_pnus
+    from akdctl.drive.values import read_pnus, read_snapshot_value
 
+    if target["kind"] == "pnu":
         (reading,) = read_pnus(session.conn.parameters(), [target["spec"]])
         if not reading.ok:
             raise DriveError(f"drive refused to read {target['label']}: {reading.error_text}", code=reading.error)
         values = reading.values or []
         return values if target["spec"].count > 1 else (values[0] if values else None)
-    from akdctl.drive.snapshot import _decode_object
-
-    entry = target["entry"]
-    return _decode_object(entry, session.conn.objects().upload(entry.index, entry.subindex))
+    return read_snapshot_value(session.conn.objects(), target["entry"])
 
 
 def matches(value: Any, comparison: dict[str, Any]) -> bool:
@@ -96,8 +93,7 @@ def matches(value: Any, comparison: dict[str, Any]) -> bool:
 
 # ---------------------------------------------------------------------------- actions
 def do_set(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    from akdctl.drive.params import write_pnus
-    from akdctl.drive.snapshot import encode_object
+    from akdctl.drive.values import encode_object, write_pnus
 
     pnu_targets = [t for t in params["targets"] if t["kind"] == "pnu"]
     if pnu_targets:

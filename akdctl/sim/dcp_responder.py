@@ -13,6 +13,7 @@ import threading
 from typing import Any
 
 from akdctl.errors import UsageError
+from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import dcp
 from akdctl.protocol.errors import CodecError
 
@@ -52,13 +53,7 @@ class DcpResponder:
             return "0.0.0.0"
 
     def start(self) -> None:
-        try:
-            sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(dcp.ETHERTYPE))
-            sock.bind((self.iface, 0))
-        except PermissionError:
-            raise UsageError(f"--dcp {self.iface}: raw sockets need root or CAP_NET_RAW") from None
-        except OSError as exc:
-            raise UsageError(f"--dcp {self.iface}: {exc.strerror}") from None
+        sock = open_raw_socket(self.iface, dcp.ETHERTYPE, f"--dcp {self.iface}")
         self._sock = sock
         self._thread = threading.Thread(target=self._run, name="dcp-responder", daemon=True)
         self._thread.start()

@@ -17,13 +17,13 @@ import errno
 import fcntl
 import json
 import os
-import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from akdctl.errors import CommError, UsageError
+from akdctl.io.atomic import atomic_open
 from akdctl.sim.model import DriveModel
 
 LOCK_TIMEOUT = 5.0
@@ -102,17 +102,8 @@ class SimDrive:
     def _save(self, model: DriveModel, meta: dict[str, Any]) -> None:
         state = model.to_state()
         state["sim"] = meta
-        fd, tmp = tempfile.mkstemp(prefix=f".sim-{self.name}.", suffix=".tmp", dir=self.directory)
-        try:
-            with os.fdopen(fd, "w") as fh:
-                json.dump(state, fh, separators=(",", ":"))
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, self.path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
+        with atomic_open(self.path, prefix=f".sim-{self.name}.") as fh:
+            json.dump(state, fh, separators=(",", ":"))
 
     @staticmethod
     def _token(lock_fd: int) -> bytes:

@@ -323,6 +323,21 @@ class Esc:
         # OP
         return 0 if current == S.SAFEOP else 0x0011
 
+    def follow_al_state(self, state: int) -> None:
+        """Enter AL state ``state`` because the drive behind the ESC is in it (the application side).
+
+        The face calls this when the drive model's AL state changed outside the
+        master's AL control (another process, a test), so that AL status 0x0130
+        always shows the one AL state the model acts on. Leaving for INIT clears
+        the mailboxes as an AL-control transition to INIT does.
+        """
+        with self._lock:
+            if (self.al_status & 0x0F) == state and not self.al_status & ec.AL_ERROR_FLAG:
+                return
+            if state == ec.AlState.INIT:
+                self._clear_mailboxes()
+            self._set_al(state, 0)
+
     def _check_mailbox_sms(self) -> int:
         """I -> P: SM0/SM1 must be the AKD's mailboxes (start address and a sane length)."""
         rx = self.sii.std_rx_size or self.mailbox_sizes[0]

@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qsl
 
-import click
-
 from akdctl.errors import AkdError, UsageError
+from akdctl.io.canbus import BusConfig, close_bus, open_bus
+from akdctl.sim.face import Face, FaceOption
 
 if TYPE_CHECKING:
     import can
@@ -96,14 +96,15 @@ def parse_spec(text: str) -> CanSpec:
     return CanSpec(interface.lower(), None if channel in ("", "-") else channel, node, kwargs)
 
 
-def click_options() -> list[click.Option]:
-    return [
-        click.Option(["--can", "can_spec"], metavar="INTERFACE:CHANNEL[:NODE]", default=None,
-                     help="Put the drive on a CAN bus as a CANopen node (python-can interface; "
-                          "slcan-pty:LINK plays an slcan adapter on a pseudo-terminal)."),
-        click.Option(["--can-heartbeat"], type=click.IntRange(0, 65535), default=None, metavar="MS",
-                     help="Set the node's heartbeat producer time (0x1017) before going on the bus."),
-    ]
+OPTIONS = (
+    FaceOption("--can", "can_spec", metavar="INTERFACE:CHANNEL[:NODE]",
+               help="Put the drive on a CAN bus as a CANopen node (python-can interface; "
+                    "slcan-pty:LINK plays an slcan adapter on a pseudo-terminal). udp_multicast listens on all "
+                    "interfaces and sends through the default route: the node is reachable from the LAN "
+                    "(use virtual, slcan-pty or a vcan interface to stay on this machine)."),
+    FaceOption("--can-heartbeat", "can_heartbeat", type=int, range=(0, 65535), metavar="MS",
+               help="Set the node's heartbeat producer time (0x1017) before going on the bus."),
+)
 
 
 def from_options(drive: "SimDrive", **kwargs: Any) -> "CanFace | None":
@@ -118,12 +119,11 @@ def _open_face_bus(spec: CanSpec) -> "can.BusABC":
         from akdctl.sim.slcan_device import SlcanDeviceBus
 
         return SlcanDeviceBus(link=spec.channel)
-    from akdctl.transport.canopen_bus import BusConfig, open_bus
 
     return open_bus(BusConfig(spec.interface, spec.channel, dict(spec.kwargs)))
 
 
-class CanFace:
+class CanFace(Face):
     """The CANopen face: one node on one bus, started and stopped by ``sim serve``."""
 
     def __init__(self, drive: "SimDrive", spec: CanSpec, heartbeat_ms: int | None = None) -> None:
@@ -175,17 +175,14 @@ class CanFace:
                 pass
         network, bus = self.network, self.bus
         self.network = self.bus = None
-        if network is not None:
-            try:
-                network.disconnect()
-                bus = None
-            except Exception:
-                pass
-        if bus is not None:
-            try:
-                bus.shutdown()
-            except Exception:
-                pass
+        close_bus(network, bus)
+
+    def warnings(self) -> list[str]:
+        if self.spec.interface != "udp_multicast":
+            return []
+        return [f"--can {self.spec.interface}: python-can's udp_multicast listens on all interfaces and sends "
+                "through the default route, so this CAN bus is reachable from the LAN; use virtual, slcan-pty "
+                "or a vcan interface to keep it on this machine"]
 
     def describe(self) -> str:
         spec = self.spec

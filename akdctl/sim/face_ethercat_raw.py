@@ -16,49 +16,29 @@ import contextlib
 import socket
 import threading
 
-import click
-
-from akdctl.errors import UsageError
+from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import akd_sii_image
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
 from akdctl.sim.esc import Esc
+from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.pdo import AL_STATE_CODES
 
 
 SIM_MAILBOX = 512
 
 
-def click_options() -> list[click.Option]:
-    return [
-        click.Option(["--ethercat-raw", "ethercat_raw"], default=None, metavar="IFNAME",
-                     help="Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs CAP_NET_RAW)."),
-        click.Option(["--ecat-raw-inject", "ecat_raw_inject"], default=None, metavar="drop=N,mbxerr=N,abort=N",
-                     help="Raw slave fault injection: lose the frame carrying every N-th reply, "
-                          "answer with a mailbox error or an SDO abort."),
-        click.Option(["--ecat-serial", "ecat_serial"], type=int, default=None, metavar="N",
-                     help="Serial number the raw slave's SII reports."),
-    ]
-
-
-def open_raw_socket(ifname: str, who: str) -> socket.socket:
-    """An AF_PACKET socket for EtherCAT frames on ``ifname``, or a one-line error."""
-    try:
-        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE_ECAT))
-    except PermissionError:
-        raise UsageError(
-            f"{who} needs CAP_NET_RAW: run as root or "
-            "`setcap cap_net_raw+ep $(readlink -f $(which python3))`"
-        ) from None
-    except (OSError, AttributeError) as exc:
-        raise UsageError(f"{who}: raw sockets are not available here ({exc})") from None
-    try:
-        sock.bind((ifname, 0))
-    except OSError as exc:
-        sock.close()
-        raise UsageError(f"{who}: cannot use interface {ifname!r}: {exc.strerror}") from None
-    return sock
+OPTIONS = (
+    FaceOption("--ethercat-raw", "ethercat_raw", metavar="IFNAME",
+               help="Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs CAP_NET_RAW)."),
+    FaceOption("--ecat-raw-inject", "ecat_raw_inject", metavar="drop=N,mbxerr=N,abort=N",
+               help="Raw slave fault injection: lose the frame carrying every N-th reply, "
+                    "answer with a mailbox error or an SDO abort."),
+    FaceOption("--ecat-serial", "ecat_serial", type=int, metavar="N",
+               help="Serial number the raw slave's SII reports."),
+)
 
 
 class SlaveWorker:
@@ -99,7 +79,58 @@ class SlaveWorker:
             self._thread.join(timeout=5)
 
 
-class EthercatRawFace:
+class AlStateBinding:
+    """Keeps the ESC's AL state and the drive model's AL state one state.
+
+    Why: the master drives the AL state through the ESC's registers, but the
+    model's rules depend on it (PDO mapping only in PRE-OP, SPEC-NOTES 18; an SDO
+    controlword has no effect in OP while the controlword is mapped in an assigned
+    RxPDO, SPEC-NOTES 23). A transition the master makes is written to the model;
+    a change made to the model from elsewhere (another process, ``sim`` commands,
+    a test) is shown in AL status 0x0130 before the master reads it. Only frames
+    that touch the AL registers (0x0120-0x0135) cost a model transaction.
+
+    At power-on the slave is in INIT, so building the binding puts the model in
+    INIT; :meth:`leave_bus` returns it to PRE-OP when the face stops (no master,
+    no process data: the state the in-process links assume).
+    """
+
+    FIRST, LAST = ec.REG_AL_CONTROL, ec.REG_AL_STATUS_CODE + 1
+
+    def __init__(self, esc: Esc, drive: SimDrive) -> None:
+        self.esc, self.drive = esc, drive
+        self.known = esc.al_status & 0x0F
+        self._write_model(self.known)
+
+    def touches(self, datagrams: list[ec.Datagram]) -> bool:
+        return any(d.ado <= self.LAST and self.FIRST <= d.ado + len(d.data) for d in datagrams)
+
+    def pull(self) -> None:
+        """Model -> ESC, when someone other than the master changed the model's AL state."""
+        with self.drive.transaction() as model:
+            name = model.component("pdo").al_state  # type: ignore[union-attr]
+        state = AL_STATE_CODES[name]
+        if state != self.known:
+            self.esc.follow_al_state(state)
+            self.known = state
+
+    def push(self) -> None:
+        """ESC -> model, when the master's AL control moved the ESC."""
+        state = self.esc.al_status & 0x0F
+        if state != self.known and state in AL_STATE_CODES.values():
+            self._write_model(state)
+            self.known = state
+
+    def leave_bus(self) -> None:
+        self._write_model(ec.AlState.PREOP)
+        self.known = ec.AlState.PREOP
+
+    def _write_model(self, state: int) -> None:
+        with self.drive.transaction() as model:
+            model.component("pdo").set_al_state(state)  # type: ignore[union-attr]
+
+
+class EthercatRawFace(Face):
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
@@ -107,13 +138,14 @@ class EthercatRawFace:
         image = akd_sii_image(mailbox_size=SIM_MAILBOX, **({"serial": serial} if serial is not None else {}))
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
+        self.al = AlStateBinding(self.esc, drive)
         self.injector = injector
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
     def start(self) -> None:
-        self._sock = open_raw_socket(self.ifname, f"--ethercat-raw {self.ifname}")
+        self._sock = open_raw_socket(self.ifname, ec.ETHERTYPE_ECAT, f"--ethercat-raw {self.ifname}")
         warm_up(self.worker.drive)
         self._sock.settimeout(0.2)
         self.worker.start()
@@ -128,7 +160,12 @@ class EthercatRawFace:
             return None
         if src[0] & 0x02:
             return None  # already passed a slave's port 0 (our own echo on a shared segment)
+        al = self.al.touches(datagrams)
+        if al:
+            self.al.pull()
         self.esc.process(datagrams)
+        if al:
+            self.al.push()
         if self.esc.lost_frame:
             return None
         # an ESC sets bit 1 of the source MAC's first byte when the frame leaves port 0
@@ -159,6 +196,7 @@ class EthercatRawFace:
         if self._sock is not None:
             self._sock.close()
             self._sock = None
+        self.al.leave_bus()
 
     def describe(self) -> str:
         inject = self.injector.describe()

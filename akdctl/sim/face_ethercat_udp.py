@@ -16,27 +16,24 @@ import socket
 import threading
 from dataclasses import replace
 
-import click
-
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
+from akdctl.sim.face import Face, FaceOption
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
 
 
-def click_options() -> list[click.Option]:
-    return [
-        click.Option(["--ethercat-udp", "ethercat_udp"], is_flag=False, flag_value=DEFAULT_ADDR, default=None,
-                     metavar="[HOST:PORT]",
-                     help=f"Serve an ETG.8200 EtherCAT mailbox gateway on UDP (default {DEFAULT_ADDR})."),
-        click.Option(["--ecat-stations", "ecat_stations"], default=None, metavar="ADDR=NAME,...",
-                     help="Gateway station addresses -> simulated drives, e.g. 1001=default,1002=axis2 "
-                          f"(default: {DEFAULT_STATION}=the served drive)."),
-        click.Option(["--ecat-inject", "ecat_inject"], default=None, metavar="drop=N,mbxerr=N,abort=N",
-                     help="Gateway fault injection: lose every N-th reply, answer with a mailbox error or an SDO abort."),
-    ]
+OPTIONS = (
+    FaceOption("--ethercat-udp", "ethercat_udp", flag_value=DEFAULT_ADDR, metavar="[HOST:PORT]",
+               help=f"Serve an ETG.8200 EtherCAT mailbox gateway on UDP (default {DEFAULT_ADDR})."),
+    FaceOption("--ecat-stations", "ecat_stations", metavar="ADDR=NAME,...",
+               help="Gateway station addresses -> simulated drives, e.g. 1001=default,1002=axis2 "
+                    f"(default: {DEFAULT_STATION}=the served drive)."),
+    FaceOption("--ecat-inject", "ecat_inject", metavar="drop=N,mbxerr=N,abort=N",
+               help="Gateway fault injection: lose every N-th reply, answer with a mailbox error or an SDO abort."),
+)
 
 
 def parse_stations(text: str | None, drive: SimDrive) -> dict[int, SimDrive]:
@@ -109,7 +106,7 @@ class GatewayHandler:
         return out
 
 
-class EthercatUdpFace:
+class EthercatUdpFace(Face):
     """A UDP socket served by one thread; ``stop`` closes it and joins."""
 
     def __init__(self, host: str, port: int, handler: GatewayHandler) -> None:
@@ -129,7 +126,7 @@ class EthercatUdpFace:
             sock.close()
             raise UsageError(f"--ethercat-udp: cannot listen on {self.host}:{self.port}: {exc.strerror}") from None
         sock.settimeout(0.2)
-        self.port = sock.getsockname()[1]
+        self.host, self.port = sock.getsockname()[:2]  # the ready line names what was bound (port 0 -> real)
         self._sock = sock
         self._thread = threading.Thread(target=self._serve, name="ecat-udp-face", daemon=True)
         self._thread.start()

@@ -26,11 +26,10 @@ from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
-import click
-
 from akdctl.errors import UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
+from akdctl.sim.face import Face, FaceOption
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
@@ -93,27 +92,27 @@ def parse_address(text: str, default_port: int = pnio.PNIO_PORT) -> tuple[str, i
     return host.strip("[]") or "127.0.0.1", number
 
 
-def click_options() -> list[click.Option]:
-    return [
-        click.Option(["--profinet"], is_flag=False, flag_value=DEFAULT_ADDRESS, default=None, metavar="[ADDR]",
-                     help=f"Serve the drive over PROFINET record data (PNIO RPC on UDP), default {DEFAULT_ADDRESS}."),
-        click.Option(["--pn-delay"], type=float, default=0.0, show_default=True, metavar="SECONDS",
-                     help="Parameter manager processing time; reads answer 'busy' (0xB5) until it has passed."),
-        click.Option(["--pn-inject"], default=None, metavar="SPEC",
-                     help="Fault injection: drop=N,dup=N,delay=N:SECONDS,rxdrop=N acts on every Nth datagram."),
-        click.Option(["--pn-slot"], type=int, default=1, show_default=True, help="Slot of the parameter channel."),
-        click.Option(["--pn-subslot"], type=int, default=1, show_default=True,
-                     help="Subslot of the parameter channel."),
-        click.Option(["--pn-api"], type=str, default="0x3A00", show_default=True, help="API of the parameter channel."),
-        click.Option(["--pn-fragment"], type=int, default=0, metavar="BYTES",
-                     help="Split response bodies into DCE/RPC fragments of this many bytes (0: only when needed)."),
-        click.Option(["--pn-refuse-ar"], is_flag=True, default=False,
-                     help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
-        click.Option(["--pn-station"], default="akd-sim", show_default=True,
-                     help="PROFINET station name (NameOfStation) the simulated device reports."),
-        click.Option(["--dcp", "dcp_iface"], default=None, metavar="IFNAME",
-                     help="Also answer DCP identify/set/signal on this interface (raw socket, needs root)."),
-    ]
+OPTIONS = (
+    FaceOption("--profinet", "profinet", flag_value=DEFAULT_ADDRESS, metavar="[ADDR]",
+               help=f"Serve the drive over PROFINET record data (PNIO RPC on UDP), default {DEFAULT_ADDRESS}."),
+    FaceOption("--pn-delay", "pn_delay", type=float, default=0.0, show_default=True, metavar="SECONDS",
+               help="Parameter manager processing time; reads answer 'busy' (0xB5) until it has passed."),
+    FaceOption("--pn-inject", "pn_inject", metavar="SPEC",
+               help="Fault injection: drop=N,dup=N,delay=N:SECONDS,rxdrop=N acts on every Nth datagram."),
+    FaceOption("--pn-slot", "pn_slot", type=int, default=1, show_default=True, help="Slot of the parameter channel."),
+    FaceOption("--pn-subslot", "pn_subslot", type=int, default=1, show_default=True,
+               help="Subslot of the parameter channel."),
+    FaceOption("--pn-api", "pn_api", type=str, default="0x3A00", show_default=True,
+               help="API of the parameter channel."),
+    FaceOption("--pn-fragment", "pn_fragment", type=int, default=0, metavar="BYTES",
+               help="Split response bodies into DCE/RPC fragments of this many bytes (0: only when needed)."),
+    FaceOption("--pn-refuse-ar", "pn_refuse_ar", is_flag=True, default=False,
+               help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
+    FaceOption("--pn-station", "pn_station", default="akd-sim", show_default=True,
+               help="PROFINET station name (NameOfStation) the simulated device reports."),
+    FaceOption("--dcp", "dcp_iface", metavar="IFNAME",
+               help="Also answer DCP identify/set/signal on this interface (raw socket, needs root)."),
+)
 
 
 def from_options(drive: Any, **kwargs: Any) -> "ProfinetFace | None":
@@ -174,7 +173,7 @@ def _read_identity(drive: BmpHandler) -> tuple[int, int]:
     return 0x0100, 0x0001
 
 
-class ProfinetFace:
+class ProfinetFace(Face):
     """PNIO CM responder (device side) on one UDP socket, run by one thread."""
 
     def __init__(self, drive: BmpHandler, host: str = "127.0.0.1", port: int = pnio.PNIO_PORT, *,
@@ -218,7 +217,7 @@ class ProfinetFace:
             sock.close()
             raise UsageError(f"--profinet {self.host}:{self.port}: cannot listen there ({exc.strerror})") from None
         self._sock = sock
-        self.port = sock.getsockname()[1]
+        self.host, self.port = sock.getsockname()[:2]  # the ready line names what was bound (port 0 -> real)
         self._wake_r, self._wake_w = os.pipe()
         self._thread = threading.Thread(target=self._run, name="pn-face", daemon=True)
         self._thread.start()

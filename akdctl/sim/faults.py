@@ -41,12 +41,15 @@ calls :meth:`acknowledge` on a rising edge of bit 7 and reads
 from __future__ import annotations
 
 import struct
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import faults as catalog
 from akdctl.protocol.emcy import Emergency
-from akdctl.sim.model import ABORT_VALUE_RANGE, Component, DriveModel
+from akdctl.sim.component import ABORT_VALUE_RANGE, Component
 from akdctl.sim.errors import SdoAccessError
+
+if TYPE_CHECKING:
+    from akdctl.sim.model import DriveModel
 
 SITUATIONS = 8  # PNU 947 holds 8 situations (manual 5.14)
 FAULTS_PER_SITUATION = 8
@@ -102,7 +105,7 @@ class FaultComponent(Component):
 
     name = "faults"
 
-    def __init__(self, model: DriveModel) -> None:
+    def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
         self.situations: list[list[int]] = [[] for _ in range(SITUATIONS)]
         self.counter = 0

@@ -15,43 +15,34 @@ invocations.
 
 from __future__ import annotations
 
-import importlib
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog import pnus as pnu_catalog
+from akdctl.sim.component import (
+    ABORT_NO_OBJECT,
+    ABORT_NO_SUBINDEX,
+    ABORT_READ_ONLY,
+    ABORT_TOO_LONG,
+    ABORT_TOO_SHORT,
+    ABORT_WRITE_ONLY,
+    PE_BAD_SUBINDEX,
+    PE_ILLEGAL_FORMAT,
+    PE_IMPERMISSIBLE_PNU,
+    PE_LIMIT,
+    PE_NO_ARRAY,
+    PE_READ_ONLY,
+    PE_WRONG_TYPE,
+    Component,
+)
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
+from akdctl.sim.faults import FaultComponent
+from akdctl.sim.motion import MotionComponent
+from akdctl.sim.pdo import PdoComponent
 
 STATE_VERSION = 1
-
-# PROFIdrive error values the model raises (profidrive_reference.md).
-PE_IMPERMISSIBLE_PNU = 0x00
-PE_READ_ONLY = 0x01
-PE_LIMIT = 0x02
-PE_BAD_SUBINDEX = 0x03
-PE_NO_ARRAY = 0x04
-PE_WRONG_TYPE = 0x05
-PE_NO_DESCRIPTION = 0x09
-PE_OPERATING_STATE = 0x11
-PE_VALUE_IMPERMISSIBLE = 0x14
-PE_ILLEGAL_FORMAT = 0x17
-PE_VALUE_COUNT = 0x18
-
-# CiA 301 / ETG.1000.6 abort codes the model raises.
-ABORT_UNSUPPORTED_ACCESS = 0x06010000
-ABORT_WRITE_ONLY = 0x06010001
-ABORT_READ_ONLY = 0x06010002
-ABORT_NO_OBJECT = 0x06020000
-ABORT_TYPE_LENGTH = 0x06070010
-ABORT_TOO_LONG = 0x06070012
-ABORT_TOO_SHORT = 0x06070013
-ABORT_NO_SUBINDEX = 0x06090011
-ABORT_VALUE_RANGE = 0x06090030
-ABORT_VALUE_HIGH = 0x06090031
-ABORT_VALUE_LOW = 0x06090032
-ABORT_DEVICE_STATE = 0x08000022
 
 # Formats a PNU write may use for each element size (typed formats of the same size included).
 _FORMATS_BY_BITS = {8: {0x41, 0x02, 0x05, 0x0A}, 16: {0x42, 0x03, 0x06}, 32: {0x43, 0x04, 0x07}}
@@ -74,49 +65,9 @@ class _ObjectBinding:
     write: ObjectWriter | None
 
 
-class Component:
-    """Base for a model component: owns some PNUs/objects and some state.
-
-    Subclasses set ``name`` (the key of their state), register bindings in
-    ``__init__`` and may override :meth:`tick`, :meth:`to_state`, :meth:`load_state`.
-    """
-
-    name = "component"
-
-    def __init__(self, model: "DriveModel") -> None:
-        self.model = model
-
-    def tick(self, dt: float) -> None:
-        """Advance by ``dt`` seconds of virtual time."""
-
-    def to_state(self) -> dict[str, Any]:
-        return {}
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore what :meth:`to_state` returned (may be missing keys after an upgrade)."""
-
-
-# Components are listed by import path so that each lives in its own module.
-# A missing module is skipped, which keeps the model usable while features land.
-COMPONENT_PATHS: tuple[str, ...] = (
-    "akdctl.sim.motion:MotionComponent",
-    "akdctl.sim.faults:FaultComponent",
-    "akdctl.sim.pdo:PdoComponent",
-)
-
-
-def _load_components() -> list[type[Component]]:
-    classes = []
-    for path in COMPONENT_PATHS:
-        module_name, _, cls_name = path.partition(":")
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == module_name:
-                continue
-            raise
-        classes.append(getattr(module, cls_name))
-    return classes
+#: The model's components, in tick order (motion integrates before faults and PDOs look at it).
+#: Listed by import, so a component missing from a package fails at import time, not silently.
+COMPONENTS: tuple[type[Component], ...] = (MotionComponent, FaultComponent, PdoComponent)
 
 
 class DriveModel:
@@ -129,7 +80,7 @@ class DriveModel:
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
         self._pnu_bindings: dict[int, _PnuBinding] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
-        self.components: list[Component] = [cls(self) for cls in _load_components()]
+        self.components: list[Component] = [cls(self) for cls in COMPONENTS]
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:

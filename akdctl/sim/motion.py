@@ -22,25 +22,36 @@ the drive ramps the axis to standstill on its own, sets a warning
 velocity set point) until the next control word or set point write. A tool
 that dies (kill -9) or loses its link therefore never leaves the simulated
 axis moving. ``watchdog_s = 0`` disables it.
+
+The watchdog and "target reached": a traversing task it aborts was *not*
+completed. ZSW1 bit 10 (position mode) and CiA 402 statusword bit 10 (profile
+position) say "target reached" only while the axis stands within
+``POSITION_WINDOW_REV`` of the last task's target; after an aborted task they
+stay clear, so a ``move --no-wait`` whose tool exited (and stopped feeding the
+watchdog) cannot later read as arrived at the wrong position. A move outlives
+its tool by at most ``watchdog_s`` of wall time unless something keeps
+talking to the drive (docs/simulator.md).
 """
 
 from __future__ import annotations
 
 import math
 import struct
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from akdctl.drive import statusword as sw
-from akdctl.drive import units
+from akdctl.profiles import statusword as sw
+from akdctl.profiles import units
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
-from akdctl.sim.model import (
+from akdctl.sim.component import (
     ABORT_DEVICE_STATE,
     ABORT_NO_SUBINDEX,
     ABORT_VALUE_RANGE,
     PE_OPERATING_STATE,
     Component,
-    DriveModel,
 )
+
+if TYPE_CHECKING:
+    from akdctl.sim.model import DriveModel
 
 CIA_COUNTS_PER_REV = 65536
 EPS = 1e-9  # rev, rev/s: below this the axis is at its target / at standstill
@@ -57,6 +68,7 @@ FOLLOWING_LAG_S = 0.002  # following error = velocity × this (a stiff position 
 DEFAULT_FE_WINDOW_REV = 0.5  # ZSW1 bit 8 / SW bit 13 window when 0x6065 is 0
 SEARCH_STEP_S = 0.001  # homing searches integrate in steps of 1 ms to catch the switch edge
 DEFAULT_WATCHDOG_S = 1.0
+POSITION_WINDOW_REV = 1.0 / CIA_COUNTS_PER_REV  # "target reached": within one count of the task's target
 
 # internal states (CiA 402 names; PROFIdrive S1..S5 are derived)
 SOD, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = (
@@ -100,7 +112,7 @@ class MotionComponent(Component):
 
     name = "motion"
 
-    def __init__(self, model: DriveModel) -> None:
+    def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
         self.state = SOD
         self.stopping_to: str | None = None  # state to enter when a ramp stop reaches standstill
@@ -116,7 +128,7 @@ class MotionComponent(Component):
         self.activity = "idle"  # idle, velocity, jog, task, homing, stop, quickstop, coast, fault
         self.task: dict[str, Any] | None = None  # the running traversing task / pp set point
         self.task_paused = False
-        self.last_target: float | None = None  # physical target of the last finished task
+        self.last_target: float | None = None  # physical target of the last traversing task (kept if aborted)
         self.task_ack = False  # ZSW1 bit 12 / SW bit 12 (pp)
         self.aktsatz = 0
         self.homed = False
@@ -200,6 +212,11 @@ class MotionComponent(Component):
 
     def _at_rest(self) -> bool:
         return abs(self.vel) < EPS and self.gen is None
+
+    @property
+    def at_target(self) -> bool:
+        """At the last traversing task's target (True when no task set one since homing/jog/mode change)."""
+        return self.last_target is None or abs(self.pos - self.last_target) <= POSITION_WINDOW_REV
 
     def _pnu(self, pnu: int) -> int:
         return self.model.signed_pnu(pnu)[0]
@@ -450,7 +467,6 @@ class MotionComponent(Component):
             self.activity = "idle"
             return
         if self.task is not None and gen is not None and gen.get("kind") == "position":
-            self.last_target = gen["target"]
             self.task = None
         if self.activity in ("stop", "quickstop", "coast", "fault"):
             self._stop_complete()
@@ -470,6 +486,7 @@ class MotionComponent(Component):
 
     # ================================================================== homing
     def _start_homing(self, procedure: str | None) -> None:
+        self.last_target = None  # homing replaces any traversing target
         self.homing_error = False
         self.homing_done = False
         self.internal_limit = False
@@ -635,6 +652,7 @@ class MotionComponent(Component):
                 acc, dec = self._pnu(1006) or DEFAULT_RAMP_RPM_S, self._pnu(1007) or DEFAULT_RAMP_RPM_S
                 self.gen = {"kind": "velocity", "v": rpm / 60.0, "acc": _rpm_s(acc), "dec": _rpm_s(dec)}
                 self.activity = "jog"
+                self.last_target = None  # jogging replaces any traversing target
                 return
             if not jog and self.activity == "jog":
                 self._stop_motion(quick=False, activity="stop")
@@ -740,6 +758,7 @@ class MotionComponent(Component):
 
     def _run_task(self, task: dict[str, Any]) -> None:
         self.task = task
+        self.last_target = task["target"]
         self.gen = {"kind": "position", **task}
         self.activity = "task"
 
@@ -756,7 +775,7 @@ class MotionComponent(Component):
         if not self._at_rest() or self.homing is not None:
             raise PnuAccessError(PE_OPERATING_STATE, None, "operating mode changes only at standstill")
         if {0: 4, 1: 3, 2: 1}[values[0]] != self.mode and self.opmode != values[0]:
-            self.task, self.task_paused, self.task_ack = None, False, False
+            self.task, self.task_paused, self.task_ack, self.last_target = None, False, False, None
             self.mode = {0: 4, 1: 3, 2: 1}[values[0]]
         self.model.set_stored_pnu(930, values)
 
@@ -781,7 +800,7 @@ class MotionComponent(Component):
             if fe_ok:
                 word |= sw.ZSW1_BIT8
             busy = self.homing is not None or (self.task is not None) or not self._at_rest()
-            if not busy and state == ENABLED:
+            if not busy and state == ENABLED and self.at_target:
                 word |= sw.ZSW1_BIT10
             if self.homed and self.homing is None:
                 word |= sw.ZSW1_HOME_POSITION_SET
@@ -943,7 +962,7 @@ class MotionComponent(Component):
         if mode != self.mode and (not self._at_rest() or self.homing is not None):
             raise SdoAccessError(ABORT_DEVICE_STATE)
         if mode != self.mode:
-            self.task, self.task_paused, self.task_ack = None, False, False
+            self.task, self.task_paused, self.task_ack, self.last_target = None, False, False, None
         self.mode = mode
         self.model.set_stored_pnu(930, [self.opmode])
 
@@ -961,7 +980,7 @@ class MotionComponent(Component):
         if state == ENABLED:
             halt = bool(self.controlword & sw.CW_HALT)
             if self.mode == 1:
-                if self.task is None and self._at_rest() or (halt and self._at_rest()):
+                if self.task is None and self._at_rest() and self.at_target or (halt and self._at_rest()):
                     word |= sw.SW_TARGET_REACHED
                 if self.task_ack:
                     word |= sw.SW_BIT12

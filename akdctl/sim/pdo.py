@@ -24,11 +24,11 @@ depend on it; the EtherCAT faces set it with :meth:`PdoComponent.set_al_state`.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog import telegrams as tc
-from akdctl.sim.model import (
+from akdctl.sim.component import (
     ABORT_DEVICE_STATE,
     ABORT_NO_SUBINDEX,
     ABORT_VALUE_HIGH,
@@ -36,10 +36,12 @@ from akdctl.sim.model import (
     PE_OPERATING_STATE,
     PE_VALUE_IMPERMISSIBLE,
     Component,
-    DriveModel,
 )
 from akdctl.sim.errors import PnuAccessError
 from akdctl.sim.errors import SdoAccessError
+
+if TYPE_CHECKING:
+    from akdctl.sim.model import DriveModel
 
 ABORT_SUBINDEX_0_NOT_ZERO = 0x06010003
 ABORT_NOT_MAPPABLE = 0x06040041
@@ -48,6 +50,9 @@ ABORT_INCOMPATIBLE = 0x06040043
 
 AL_STATES = ("INIT", "PREOP", "BOOT", "SAFEOP", "OP")
 _AL_CODES = {0x01: "INIT", 0x02: "PREOP", 0x03: "BOOT", 0x04: "SAFEOP", 0x08: "OP"}
+
+#: AL state name -> the AL status code an ESC shows for it.
+AL_STATE_CODES = {name: code for code, name in _AL_CODES.items()}
 
 _FLEXIBLE = tuple(oc.FLEXIBLE_RX) + tuple(oc.FLEXIBLE_TX)
 
@@ -76,7 +81,7 @@ class PdoComponent(Component):
 
     name = "pdo"
 
-    def __init__(self, model: DriveModel) -> None:
+    def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
         self.al_state = "PREOP"
         # assignment: [count, sub1..sub4] per direction (ESI default 0x1701 / 0x1B01)

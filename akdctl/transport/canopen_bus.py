@@ -48,11 +48,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
 from akdctl.errors import AkdError, CommError, NoAnswer, UsageError
+from akdctl.io.canbus import BusConfig, close_bus, open_bus, reason
 from akdctl.links import CanopenSdoClient
 from akdctl.transport.base import LinkOptions, Transport
 
@@ -88,24 +89,6 @@ NMT_STATES: dict[int, str] = {
     0x05: "OPERATIONAL",
     0x7F: "PRE-OPERATIONAL",
 }
-
-
-@dataclass(frozen=True)
-class BusConfig:
-    """What :func:`can.Bus` is called with, derived from a target (pure data, testable)."""
-
-    interface: str | None
-    channel: str | None
-    kwargs: dict[str, Any] = field(default_factory=dict)
-    use_config: bool = False
-    context: str | None = None
-    node: int = 1
-    block: bool = False
-
-    def describe(self) -> str:
-        iface = self.interface or "configured interface"
-        chan = self.channel if self.channel is not None else "default channel"
-        return f"{iface} {chan}"
 
 
 def _cast(text: str) -> Any:
@@ -155,39 +138,6 @@ def bus_config(target: "Target") -> BusConfig:
     if context is not None and not use_config:
         raise UsageError(f"target {target.raw!r}: context= selects a python-can configuration section; use it with can://config/...")
     return BusConfig(interface, channel, kwargs, use_config, context, node, _flag(target, "block"))
-
-
-def open_bus(config: BusConfig) -> "can.BusABC":
-    """Open the python-can bus, translating every failure into one akdctl error."""
-    import can
-
-    where = config.describe()
-    if config.interface is not None and config.interface not in can.VALID_INTERFACES:
-        raise UsageError(
-            f"unknown python-can interface {config.interface!r}; known: {', '.join(sorted(can.VALID_INTERFACES))}"
-        )
-    kwargs = dict(config.kwargs)
-    try:
-        if config.use_config:
-            return can.Bus(channel=config.channel, config_context=config.context, **kwargs)
-        return can.Bus(interface=config.interface, channel=config.channel, ignore_config=True, **kwargs)
-    except can.CanInterfaceNotImplementedError as exc:
-        raise CommError(f"CAN interface {where} is not available here: {_reason(exc)} (is its driver or library installed?)") from None
-    except can.CanInitializationError as exc:
-        raise CommError(f"cannot open CAN interface {where}: {_reason(exc)}") from None
-    except ImportError as exc:
-        raise CommError(f"CAN interface {where} needs a Python module that is missing: {_reason(exc)}") from None
-    except OSError as exc:
-        raise CommError(f"cannot open CAN interface {where}: {exc.strerror or _reason(exc)}") from None
-    except can.CanError as exc:
-        raise CommError(f"cannot open CAN interface {where}: {_reason(exc)}") from None
-    except (TypeError, ValueError) as exc:
-        raise UsageError(f"CAN interface {where} rejected its options {kwargs or '(none)'}: {_reason(exc)}") from None
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 def frame_meta(can_id: int, extended: bool = False, remote: bool = False) -> dict[str, object]:
@@ -294,7 +244,7 @@ class CanopenTransport(Transport):
             raise
         except Exception as exc:  # canopen/python-can failures while starting the receive thread
             self.close()
-            raise CommError(f"cannot start CANopen on {self.config.describe()}: {_reason(exc)}") from None
+            raise CommError(f"cannot start CANopen on {self.config.describe()}: {reason(exc)}") from None
         _ = canopen  # imported for its side effect of failing early when missing
 
     def close(self) -> None:
@@ -303,17 +253,7 @@ class CanopenTransport(Transport):
         self.network = None
         self.bus = None
         self.sdo_client = None
-        if network is not None:
-            try:
-                network.disconnect()  # stops the notifier and shuts the bus down
-                bus = None
-            except Exception:
-                pass
-        if bus is not None:
-            try:
-                bus.shutdown()
-            except Exception:
-                pass
+        close_bus(network, bus)
 
     @property
     def display_name(self) -> str:
@@ -347,7 +287,7 @@ class CanopenTransport(Transport):
         try:
             self._need_network().send_message(can_id, data, remote)
         except can.CanError as exc:
-            raise CommError(f"cannot send on {self.config.describe()}: {_reason(exc)}") from None
+            raise CommError(f"cannot send on {self.config.describe()}: {reason(exc)}") from None
 
     # -- NMT --------------------------------------------------------------------------------------------------
     def nmt(self, command: str, node: int | None = None) -> None:

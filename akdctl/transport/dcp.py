@@ -18,6 +18,7 @@ import socket
 import time
 
 from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
+from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import dcp
 from akdctl.protocol.errors import CodecError
 
@@ -40,13 +41,7 @@ class DcpClient:
         self.timeout = timeout
         self.tracer = tracer
         self.mac = interface_mac(iface)
-        try:
-            self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(dcp.ETHERTYPE))
-            self.sock.bind((iface, 0))
-        except PermissionError:
-            raise UsageError(f"DCP on {iface} needs raw socket rights: run as root or grant CAP_NET_RAW") from None
-        except OSError as exc:
-            raise CommError(f"cannot open a raw socket on {iface}: {exc.strerror}") from None
+        self.sock = open_raw_socket(iface, dcp.ETHERTYPE, f"DCP on {iface}")
         self.xid = random.getrandbits(32)
 
     def close(self) -> None:

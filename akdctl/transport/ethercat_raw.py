@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 
 from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
+from akdctl.io import raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import CAT_END, SiiImage, parse_sii
@@ -36,7 +37,6 @@ from akdctl.transport.trace import Tracer
 MASTER_MAC = b"\x01\x01\x01\x01\x01\x01"  # as SOEM: EtherCAT ignores MACs; slaves set bit 1 of byte 0
 STATION_BASE = 0x1001
 SII_MAX_BYTES = 0x4000
-CAP_HINT = "run as root or `setcap cap_net_raw+ep $(readlink -f $(which python3))`"
 
 
 class FrameLost(NoAnswer):
@@ -46,18 +46,8 @@ class FrameLost(NoAnswer):
 
 
 def open_raw_socket(ifname: str) -> socket.socket:
-    try:
-        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE_ECAT))
-    except PermissionError:
-        raise UsageError(f"ecat://{ifname} needs CAP_NET_RAW: {CAP_HINT}") from None
-    except (OSError, AttributeError) as exc:
-        raise UsageError(f"ecat://{ifname}: raw sockets are not available on this system ({exc})") from None
-    try:
-        sock.bind((ifname, 0))
-    except OSError as exc:
-        sock.close()
-        raise UsageError(f"ecat://{ifname}: cannot use interface {ifname!r}: {exc.strerror}") from None
-    return sock
+    """The master's EtherCAT socket on ``ifname`` (errors name the ``ecat://`` target)."""
+    return raw_socket.open_raw_socket(ifname, ec.ETHERTYPE_ECAT, f"ecat://{ifname}")
 
 
 @dataclass

@@ -15,7 +15,8 @@ from typing import Any
 from akdctl.errors import NoAnswer, UsageError
 from akdctl.links import SoemSdoClient
 from akdctl.transport.base import LinkOptions, Transport
-from akdctl.transport.ethercat_raw import CAP_HINT, interface_name
+from akdctl.io.raw_socket import CAP_HINT
+from akdctl.transport.ethercat_raw import interface_name
 from akdctl.transport.target import Target
 
 

@@ -1,0 +1,88 @@
+"""Opening and closing a python-can bus, with every failure turned into one akdctl error.
+
+Why here: the ``can://`` transport and the simulator's CAN face both open a bus
+from the same description and must shut it down the same way (stop canopen's
+notifier first, else its thread reads from a closed bus); one copy here, below
+``transport/`` and ``sim/``. python-can is imported only when a bus is opened.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from akdctl.errors import CommError, UsageError
+
+if TYPE_CHECKING:
+    import can
+    import canopen
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """What :func:`can.Bus` is called with, derived from a target (pure data, testable)."""
+
+    interface: str | None
+    channel: str | None
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    use_config: bool = False
+    context: str | None = None
+    node: int = 1
+    block: bool = False
+
+    def describe(self) -> str:
+        iface = self.interface or "configured interface"
+        chan = self.channel if self.channel is not None else "default channel"
+        return f"{iface} {chan}"
+
+
+def open_bus(config: BusConfig) -> "can.BusABC":
+    """Open the python-can bus, translating every failure into one akdctl error."""
+    import can
+
+    where = config.describe()
+    if config.interface is not None and config.interface not in can.VALID_INTERFACES:
+        raise UsageError(
+            f"unknown python-can interface {config.interface!r}; known: {', '.join(sorted(can.VALID_INTERFACES))}"
+        )
+    kwargs = dict(config.kwargs)
+    try:
+        if config.use_config:
+            return can.Bus(channel=config.channel, config_context=config.context, **kwargs)
+        return can.Bus(interface=config.interface, channel=config.channel, ignore_config=True, **kwargs)
+    except can.CanInterfaceNotImplementedError as exc:
+        raise CommError(f"CAN interface {where} is not available here: {reason(exc)} (is its driver or library installed?)") from None
+    except can.CanInitializationError as exc:
+        raise CommError(f"cannot open CAN interface {where}: {reason(exc)}") from None
+    except ImportError as exc:
+        raise CommError(f"CAN interface {where} needs a Python module that is missing: {reason(exc)}") from None
+    except OSError as exc:
+        raise CommError(f"cannot open CAN interface {where}: {exc.strerror or reason(exc)}") from None
+    except can.CanError as exc:
+        raise CommError(f"cannot open CAN interface {where}: {reason(exc)}") from None
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"CAN interface {where} rejected its options {kwargs or '(none)'}: {reason(exc)}") from None
+
+
+def reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def close_bus(network: "canopen.Network | None", bus: "can.BusABC | None") -> None:
+    """Stop canopen's receive thread (which shuts its bus down) or else shut the bare bus down.
+
+    Safe with either or both ``None`` and after a failed open; teardown errors are
+    swallowed, since the caller is already leaving.
+    """
+    if network is not None:
+        try:
+            network.disconnect()  # stops the notifier and shuts the bus down
+            bus = None
+        except Exception:
+            pass
+    if bus is not None:
+        try:
+            bus.shutdown()
+        except Exception:
+            pass

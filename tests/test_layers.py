@@ -1,0 +1,101 @@
+"""Imports point only down (docs/internals.md, "Layers"): parse every module's imports and fail on an upward one.
+
+Lazy imports inside functions count too: a packaging mistake or a cycle hides there just as well."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1] / "akdctl"
+
+_GROUND = {"errors", "protocol", "io", "profiles"}
+#: package -> the akdctl packages (first component under akdctl/) its modules may import.
+ALLOWED: dict[str, set[str]] = {
+    "protocol": set(),  # pure codecs: nothing of akdctl but their own helpers
+    "errors": set(),
+    "io": {"errors", "protocol"},
+    "profiles": {"errors", "protocol"},
+    "catalog": _GROUND,
+    "config": _GROUND | {"catalog"},
+    "channels": _GROUND | {"catalog"},
+    # transport/sim.py is the in-process link to the simulated drive, so transport may use sim (not the reverse).
+    "transport": _GROUND | {"catalog", "channels", "sim"},
+    "sim": _GROUND | {"catalog"},  # never cli, transport, drive or channels
+    "drive": _GROUND | {"catalog", "channels", "transport", "config"},
+    "recipe": _GROUND | {"catalog", "channels", "transport", "config", "drive"},
+    "cli": _GROUND | {"catalog", "channels", "transport", "config", "drive", "recipe", "sim"},
+    "__main__": {"cli"},
+    "__init__": set(),
+}
+
+#: Known upward imports that must go, each with its reason: (importing module, imported package).
+#: Keep this list short; an entry here is a debt, not a permission.
+ALLOW_LIST: set[tuple[str, str]] = {
+    # channels take the transport's link types and its Tracer; the Connection work moves both below channels.
+    ("akdctl.channels.bmp", "transport"),
+    ("akdctl.channels.coe_sdo", "transport"),
+}
+
+
+def _package(path: Path, root: Path = ROOT) -> tuple[str, str]:
+    rel = path.relative_to(root.parent).with_suffix("")
+    module = ".".join(rel.parts)
+    return module.removesuffix(".__init__"), rel.parts[1]
+
+
+def _imports(path: Path, root: Path = ROOT) -> set[str]:
+    """Every ``akdctl.<package>...`` a module imports (``from akdctl import x`` counts when x is a module)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level:
+            raise AssertionError(f"{path}: relative import; akdctl uses absolute imports only")
+        elif isinstance(node, ast.ImportFrom) and node.module == "akdctl":
+            found.update(f"akdctl.{a.name}" for a in node.names
+                         if (root / a.name).is_dir() or (root / f"{a.name}.py").is_file())
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            found.add(node.module)
+    return {name for name in found if name.startswith("akdctl.")}
+
+
+def upward_imports(root: Path = ROOT) -> list[str]:
+    problems = []
+    for path in sorted(root.rglob("*.py")):
+        module, package = _package(path, root)
+        allowed = ALLOWED.get(package)
+        assert allowed is not None, f"{path}: package {package!r} has no place in the layer table (tests/test_layers.py)"
+        for name in sorted(_imports(path, root)):
+            target = name.split(".")[1]
+            if target == package or target in allowed or (module, target) in ALLOW_LIST:
+                continue
+            problems.append(f"{module} imports {name} ({package} may import only {sorted(allowed) or 'nothing'})")
+    return problems
+
+
+def test_imports_point_only_down() -> None:
+    assert upward_imports() == []
+
+
+def test_allow_list_holds_only_live_debts() -> None:
+    """An allow-list entry whose import is gone must be removed, so the list never hides a new one."""
+    live = set()
+    for path in ROOT.rglob("*.py"):
+        module, _ = _package(path)
+        live.update((module, name.split(".")[1]) for name in _imports(path))
+    assert ALLOW_LIST <= live, sorted(ALLOW_LIST - live)
+
+
+def test_the_check_sees_upward_imports(tmp_path: Path) -> None:
+    """The check can fail: a codec importing the catalogue, and the simulator importing a transport lazily."""
+    root = tmp_path / "akdctl"
+    for package, text in (("protocol", "from akdctl.catalog import texts\n"),
+                          ("sim", "def f():\n    from akdctl.transport.canopen_bus import open_bus\n"),
+                          ("catalog", "X = 1\n")):
+        (root / package).mkdir(parents=True)
+        (root / package / "probe.py").write_text(text, encoding="utf-8")
+    found = upward_imports(root)
+    assert len(found) == 2
+    assert found[0].startswith("akdctl.protocol.probe imports akdctl.catalog")
+    assert found[1].startswith("akdctl.sim.probe imports akdctl.transport.canopen_bus")
