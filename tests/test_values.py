@@ -190,13 +190,12 @@ def test_pnu_spec_is_built_from_the_catalogue() -> None:
 
 
 def _sim() -> Any:
+    from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport
 
-    transport = SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0))
-    transport.open()
-    return transport
+    return Connection.over(SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0))).transport()
 
 
 def test_identity_is_read_once_and_flattened_for_backups() -> None:
