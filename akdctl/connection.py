@@ -102,11 +102,6 @@ class Connection:
             chosen = self.profile.drive
         return chosen
 
-    @property
-    def display(self) -> str:
-        """The target as results name it."""
-        return self.target.display
-
     # ---------------------------------------------------------------- transport and channels
     def new_transport(self) -> "Transport":
         """A transport for this target, not opened: the registry's class for the target's scheme.

@@ -129,7 +129,7 @@ def test_silent_bus_is_no_answer(drive: SimDrive) -> None:
     try:
         t = transport(w)
         with pytest.raises(NoAnswer):
-            t.open()
+            Connection.over(t).transport()
         t.close()
     finally:
         w.close()
@@ -173,7 +173,7 @@ def test_model_follows_the_esc_al_state_and_refuses_sdo_control_in_op(wire: Wire
 def test_esc_al_status_shows_the_models_al_state(wire: Wire, drive: SimDrive) -> None:
     """A change of the model's AL state made elsewhere (another process, a test) is what AL status 0x0130 shows."""
     t = transport(wire)
-    t.open()
+    Connection.over(t).transport()
     assert t.master is not None and t.slave is not None
     with drive.transaction() as model:
         model.component("pdo").set_al_state("SAFEOP")  # type: ignore[union-attr]
@@ -186,7 +186,7 @@ def test_face_stop_leaves_the_model_in_preop(drive: SimDrive) -> None:
     w = Wire(drive)
     try:
         t = transport(w)
-        t.open()
+        Connection.over(t).transport()
         assert t.master is not None and t.slave is not None
         t.master.request_state(t.slave.station, ec.AlState.SAFEOP)
         assert _model_al_state(drive) == "SAFEOP"

@@ -24,7 +24,7 @@ ALLOWED: dict[str, set[str]] = {
     "config": _GROUND | {"catalog"},
     "channels": _GROUND | {"catalog", "links"},
     # transport/sim.py is the in-process link to the simulated drive, so transport may use sim (not the reverse).
-    "transport": _GROUND | {"catalog", "channels", "links", "sim"},
+    "transport": _GROUND | {"catalog", "links", "sim"},
     "sim": _GROUND | {"catalog"},  # never cli, transport, drive or channels
     "drive": _GROUND | {"catalog", "channels", "transport", "config", "links"},
     # the Connection wires transport, channels and the axis profile together: above drive, below recipe/cli.

@@ -190,6 +190,7 @@ def test_pnu_spec_is_built_from_the_catalogue() -> None:
 
 
 def _sim() -> Any:
+    from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport

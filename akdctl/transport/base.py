@@ -14,12 +14,11 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
-    from akdctl.channels.base import ObjectChannel, ParameterChannel
     from akdctl.links import MailboxLink, MessageLink, NativeSdoClient, RecordLink
     from akdctl.transport.target import Target
 
@@ -61,21 +60,15 @@ class Transport(ABC):
         self.mailbox_link: "MailboxLink | None" = None
         self.sdo_client: "NativeSdoClient | None" = None
         self.message_link: "MessageLink | None" = None
-        self.parameters: "ParameterChannel | None" = None
-        self.objects: "ObjectChannel | None" = None
+        # The Connection's ParameterChannel / ObjectChannel (typed loosely: transports know no channel type).
+        self.parameters: Any = None
+        self.objects: Any = None
 
     @abstractmethod
     def open(self) -> None: ...
 
     @abstractmethod
     def close(self) -> None: ...
-
-    def __enter__(self) -> "Transport":
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     @property
     def display_name(self) -> str:
