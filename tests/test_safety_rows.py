@@ -122,6 +122,15 @@ def test_row3_raw_control_word_and_set_point_writes_need_consent(fast: None) -> 
     assert code == 4 and "operating mode of an enabled drive" in err, err
 
 
+def test_enable_commands_no_motion_even_with_a_loaded_set_point(fast: None) -> None:
+    """CiA 402 profile velocity follows 0x60FF once enabled: enable must hold it (halt) — "no motion commanded"."""
+    ok("-T", "sim?drive=cia402", "--yes", "sdo", "write", "0x60FF:0", "100000")
+    status = ok("-T", "sim?drive=cia402", "--yes", "enable")["status"]
+    assert status["enabled"] and status["mode"] == 3
+    time.sleep(0.2)
+    assert sim()["standstill"]
+
+
 # ---------------------------------------------------------------- row 4: recipe vs CLI homed rule on CiA 402
 def test_row4_recipe_move_on_unhomed_cia402_is_refused_like_the_command(fast: None, tmp_path: Path) -> None:
     path = recipe(tmp_path, '[[step]]\naction = "enable"\n\n[[step]]\naction = "move"\ntarget = 1\n')
