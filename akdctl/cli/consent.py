@@ -26,3 +26,11 @@ def require_consent(app: Any, action: str) -> None:
                             "nothing was written")
     if not click.confirm(f"About to {text}. Proceed?", default=False, err=True):
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
+
+
+def gate_write(app: Any, gated: list[Any]) -> None:
+    """The write gate for raw write commands: consent when the addresses can power or move the axis
+    (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive."""
+    from akdctl.drive import gate
+
+    gate.check_write(app, gated, lambda action: require_consent(app, action), given=app.yes)

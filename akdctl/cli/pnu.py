@@ -6,17 +6,11 @@ from typing import Any
 
 import click
 
+from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, ParameterRefused
 
-
-def _gate(app: Any, gated: list[Any]) -> None:
-    """Consent before a write that can power or move the axis (akdctl.drive.gate)."""
-    from akdctl.cli.consent import require_consent
-    from akdctl.drive import gate as write_gate
-
-    write_gate.check_write(app, gated, lambda action: require_consent(app, action), given=app.yes)
 
 
 @click.group()
@@ -92,7 +86,7 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
     channel = app.parameters()
-    _gate(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
+    gate_write(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
     results = write_pnus(channel, parsed)
     mismatches: list[str] = []
     if verify and all(r.ok for r in results):
