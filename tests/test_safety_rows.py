@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from akdctl.sim.drive import SimDrive
-from test_motion_cli import finish, ok, run, wait_until  # the motion tests' CLI runner and waits
+from test_motion_cli import fast, finish, ok, realtime, run, wait_until  # noqa: F401 (fixtures)
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "commission-sim.toml"
@@ -47,16 +47,6 @@ def sim() -> dict:
     return {"writes": state["writes"], "enabling": motion["enabling_words"], "state": motion["state"],
             "mode": motion["mode"], "standstill": abs(motion["vel"]) < 1e-9 and motion["gen"] is None,
             "pos": motion["pos"]}
-
-
-@pytest.fixture
-def fast() -> None:
-    assert run("sim", "speed", "100000")[0] == 0
-
-
-@pytest.fixture
-def realtime() -> None:
-    assert run("sim", "speed", "--realtime")[0] == 0
 
 
 def config(tmp_path: Path, body: str) -> list[str]:
@@ -120,6 +110,20 @@ def test_row3_raw_control_word_and_set_point_writes_need_consent(fast: None) -> 
     ok("--yes", "enable")
     code, _, err = run("pnu", "set", "930=1")
     assert code == 4 and "operating mode of an enabled drive" in err, err
+    before = sim()
+    for args in (["telegram", "set", "7"], ["sdo", "write", "0x1C12:0", "0"], ["pdo", "map", "--rx", "0x1701"]):
+        code, _, err = run(*args)
+        assert code == 4 and "mapping of an enabled drive" in err, (args, err)
+    assert sim()["writes"] == before["writes"]
+
+
+def test_enable_commands_no_motion_even_with_a_loaded_set_point(fast: None) -> None:
+    """CiA 402 profile velocity follows 0x60FF once enabled: enable must hold it (halt) — "no motion commanded"."""
+    ok("-T", "sim?drive=cia402", "--yes", "sdo", "write", "0x60FF:0", "100000")
+    status = ok("-T", "sim?drive=cia402", "--yes", "enable")["status"]
+    assert status["enabled"] and status["mode"] == 3
+    time.sleep(0.2)
+    assert sim()["standstill"]
 
 
 # ---------------------------------------------------------------- row 4: recipe vs CLI homed rule on CiA 402

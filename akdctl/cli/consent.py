@@ -28,12 +28,9 @@ def require_consent(app: Any, action: str) -> None:
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 
-def consent_to_writes(app: Any, gated: list[Any]) -> None:
-    """Consent before raw writes (``pnu set``, ``sdo write``) that can power or move the axis.
-
-    The gate (:mod:`akdctl.drive.gate`) decides which of ``gated`` need it, reading the drive's
-    state through the Connection only when that matters; this asks the one consent above.
-    """
+def gate_write(app: Any, gated: list[Any]) -> None:
+    """The write gate for raw write commands: consent when the addresses can power or move the axis
+    (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive."""
     from akdctl.drive import gate
 
     gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)

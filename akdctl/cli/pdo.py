@@ -177,6 +177,10 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
             raise UsageError(
                 f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18). "
                 "Switch it to PRE-OP first; nothing was written.", details={"al_state": state})
+    from akdctl.cli.consent import gate_write
+    from akdctl.drive.gate import classify_object
+
+    gate_write(app, [classify_object(0x1C12, 0, "RxPDO assignment")])  # the mapping of an enabled drive is gated
     channel = app.objects()
     written = dp.apply(channel, steps)
     differences = dp.verify(channel, plan)

@@ -6,6 +6,7 @@ from typing import Any
 
 import click
 
+from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, ParameterRefused
@@ -78,14 +79,13 @@ def get(addresses: tuple[str, ...]) -> None:
 @click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
 def set_(assignments: tuple[str, ...], verify: bool) -> None:
     """Change one or more PNUs (all are checked before anything is sent)."""
-    from akdctl.cli.consent import consent_to_writes
     from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment, read_pnus, write_pnus
 
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
     channel = app.parameters()
-    consent_to_writes(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
+    gate_write(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
     results = write_pnus(channel, parsed)
     mismatches: list[str] = []
     if verify and all(r.ok for r in results):

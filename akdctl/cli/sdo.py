@@ -6,19 +6,12 @@ import sys
 
 import click
 
+from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, UsageError
 
 TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
-
-
-def _gate(app: object, addr: object, entry: object) -> None:
-    """Consent before a write that can power or move the axis (akdctl.drive.gate)."""
-    from akdctl.cli.consent import consent_to_writes
-    from akdctl.drive import gate
-
-    consent_to_writes(app, [gate.classify_object(addr.index, addr.subindex, getattr(entry, "name", ""))])  # type: ignore[attr-defined]
 
 
 @click.group()
@@ -62,6 +55,7 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     Examples: sdo write 0x6060:0 i8 3 · sdo write 0x6060:0 3 · echo 01ff | sdo write 0x2013:1 os -
     """
     from akdctl.catalog.objects import object_name
+    from akdctl.drive import gate
     from akdctl.drive.objects import decode, encode, parse_address, resolve_type
     from akdctl.protocol.datatypes import TYPES
 
@@ -82,7 +76,7 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
         raise UsageError(f"object {addr.label} ({entry.name}) is read-only")
     value, data = encode(dtype, value_text)
     channel = app.objects()
-    _gate(app, addr, entry)
+    gate_write(app, [gate.classify_object(addr.index, addr.subindex, entry.name if entry is not None else "")])
     channel.download(addr.index, addr.subindex, data)
     if verify:
         back = channel.upload(addr.index, addr.subindex)

@@ -61,7 +61,12 @@ def set_(number: int, force: bool) -> None:
     if not 0 <= number <= 0xFFFF:
         raise UsageError(f"telegram {number} is outside 0..65535")
     app = get_app()
-    state = select_telegram(app.parameters(), number)
+    channel = app.parameters()
+    from akdctl.cli.consent import gate_write
+    from akdctl.drive.gate import classify_pnu
+
+    gate_write(app, [classify_pnu(922, "Telegram selection")])  # the telegram of an enabled drive is gated
+    state = select_telegram(channel, number)
     data = {"target": app.target.display, **state.to_json()}
     app.emit(data, lambda: _state_doc(f"telegram {number} selected", app.target.display, data))
 
@@ -97,6 +102,10 @@ def map_(setpoint: str | None, actual: str | None, force: bool) -> None:
                          details={"problems": problems})
     for problem in problems:
         message(f"akdctl: warning: --force: {problem}")
+    from akdctl.cli.consent import gate_write
+    from akdctl.drive.gate import classify_pnu
+
+    gate_write(app, [classify_pnu(915, "PZD setpoint assignment"), classify_pnu(916, "PZD actual value assignment")])
     state = map_free(channel, wanted_set, wanted_act)
     data = {"target": app.target.display, **state.to_json()}
     app.emit(data, lambda: _state_doc("telegram 0 mapped", app.target.display, data))

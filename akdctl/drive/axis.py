@@ -634,7 +634,9 @@ class Cia402Axis(Axis):
                     raise
             self.controlword(sw.CW_SWITCH_ON_CMD)
             self.wait_for(lambda s: s.state in ("switched on", "operation enabled"), "switched on")
-        self.controlword(sw.CW_ENABLE_OPERATION_CMD)
+        # With halt (bit 8): "enable" commands no motion, even if a set point (0x60FF in profile velocity) was
+        # loaded before; the motion commands clear halt when they start.
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)
 
     def _disable_command(self) -> None:
         self.controlword(sw.CW_SHUTDOWN)

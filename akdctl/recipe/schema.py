@@ -541,11 +541,18 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
 
 
 def _gated(action: str, params: dict[str, Any]) -> list[Any]:
-    """The addresses of a set step that can power or move the axis: the recipe then needs consent."""
-    if action != "set":
-        return []
+    """The gated addresses a set/telegram/map step writes (akdctl.drive.gate): the recipe may then need consent."""
     from akdctl.drive import gate
 
+    if action == "telegram":
+        return [gate.classify_pnu(922, "Telegram selection")]
+    if action == "map":
+        if "telegram_map" in params:
+            return [gate.classify_pnu(915, "PZD setpoint assignment"), gate.classify_pnu(916, "PZD actual value "
+                                                                                              "assignment")]
+        return [gate.classify_object(0x1C12, 0, "RxPDO assignment")]
+    if action != "set":
+        return []
     found = []
     for t in params["targets"]:
         if t["kind"] == "pnu":
