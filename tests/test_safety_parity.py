@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
+
 ROOT = Path(__file__).resolve().parent.parent
 
 

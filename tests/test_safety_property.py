@@ -20,6 +20,8 @@ from hypothesis import strategies as st
 
 from akdctl.sim.drive import SimDrive
 
+pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
+
 ROOT = Path(__file__).resolve().parent.parent
 
 numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.integers(-70000, 70000),

@@ -21,6 +21,8 @@ import pytest
 from akdctl.sim.drive import SimDrive
 from test_motion_cli import fast, finish, ok, realtime, run, wait_until  # noqa: F401 (fixtures)
 
+pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
+
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "commission-sim.toml"
 
