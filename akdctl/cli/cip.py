@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from akdctl.cli.context import get_app
@@ -28,7 +30,8 @@ def parse_path(text: str) -> tuple[int, int, int]:
     return values[0], values[1], values[2]
 
 
-def attributes(app) -> object:  # type: ignore[no-untyped-def]
+def attributes(app: Any) -> Any:
+    """The target's CIP attribute channel (eip:// targets), or a usage error naming the alternative."""
     transport = app.transport()
     channel = getattr(transport, "cip", None)
     if channel is None:
@@ -62,7 +65,7 @@ def get(path: str, type_name: str | None) -> None:
     dtype = type_name or "os"
     _check_type(dtype)
     app = get_app()
-    data = attributes(app).get(class_id, instance, attribute)  # type: ignore[attr-defined]
+    data = attributes(app).get(class_id, instance, attribute)
     value = decode(dtype, data)
     text, hex_text = display(dtype, value)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
@@ -87,12 +90,10 @@ def set_(path: str, type_name: str, value_text: str) -> None:
     _check_type(type_name)
     _value, data = encode(type_name, value_text)
     app = get_app()
-    attributes(app).set(class_id, instance, attribute, data)  # type: ignore[attr-defined]
+    attributes(app).set(class_id, instance, attribute, data)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
     app.emit({"target": app.target.display, "class": class_id, "instance": instance, "attribute": attribute,
               "type": type_name, "written": data.hex()},
              lambda: Doc(f"attribute {label} written", app.target.display).kv("type", type_name)
              .kv("value", value_text).kv("bytes", data.hex(" ")))
 
-
-set_.name = "set"
