@@ -213,3 +213,11 @@ def test_large_forward_open_and_forward_close_of_an_unknown_connection(drive, se
     assert session.request(close).ok
     again = session.request(close)
     assert again.status == 0x01 and again.extended == (cip.EXT_CONNECTION_NOT_FOUND,)
+
+
+def test_io_needs_consent_that_names_the_disable(drive, tmp_path) -> None:
+    server, io_port = drive
+    result = akdctl(tmp_path, server.target, "eip", "io", "position", "10", "--port", str(io_port))
+    assert result.returncode == 4 and "disables the axis" in result.stderr and "--yes" in result.stderr
+    jog = akdctl(tmp_path, server.target, "eip", "io", "jog", "-100", "-y", "--port", str(io_port))
+    assert jog.returncode == 2 and "--for" in jog.stderr                  # unbounded motion is refused
