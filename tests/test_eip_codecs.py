@@ -267,3 +267,37 @@ def test_scapy_parses_our_register_session_and_list_identity() -> None:
     items = rr.payload.items
     assert [(i.typeId, i.length) for i in items] == [(0x0000, 0), (0x00B2, len(msg))]
     assert bytes(rr) == raw      # scapy re-serialises the frame it parsed to our bytes
+
+
+# ------------------------------------------------------------- --pcap: TCP segments for explicit messaging
+
+@given(st.binary(max_size=300), st.integers(1, 65535), st.integers(0, 0xFFFFFFFF))
+def test_tcp_frame_checksums_always_valid(payload: bytes, port: int, seq: int) -> None:
+    from akdctl.transport.pcap import internet_checksum, tcp_frame
+
+    frame = tcp_frame(("127.0.0.1", port), ("127.0.0.2", 44818), payload, seq, 1)
+    ip, tcp = frame[14:34], frame[34:]
+    assert frame[12:14] == b"\x08\x00" and ip[9] == 6 and internet_checksum(ip) == 0
+    pseudo = ip[12:20] + struct.pack("!BBH", 0, 6, len(tcp))
+    assert internet_checksum(pseudo + tcp) == 0
+    assert struct.unpack("!HHI", tcp[:8]) == (port, 44818, seq) and tcp[20:] == payload
+
+
+def test_pcap_counts_tcp_sequence_numbers_per_direction(tmp_path) -> None:
+    from akdctl.transport.pcap import PcapWriter
+    from akdctl.transport.trace import Tracer
+
+    tracer, writer = Tracer(), PcapWriter(tmp_path / "t.pcap")
+    tracer.add_sink(writer.write)
+    a, b = ("127.0.0.1", 40000), ("127.0.0.1", 44818)
+    for direction, src, dst, data in (("tx", a, b, b"x" * 28), ("rx", b, a, b"y" * 28), ("tx", a, b, b"z" * 48)):
+        tracer.frame(direction, "enip", data, meta={"proto": "tcp", "src": src, "dst": dst})
+    writer.close()
+    raw = (tmp_path / "t.pcap").read_bytes()[24:]
+    seqs = []
+    while raw:
+        incl = struct.unpack_from("<I", raw, 8)[0]
+        frame = raw[16:16 + incl]
+        seqs.append(struct.unpack_from("!II", frame, 34 + 4))
+        raw = raw[16 + incl:]
+    assert seqs == [(1, 1), (1, 29), (29, 29)]      # (seq, ack) as the two directions advance

@@ -33,6 +33,20 @@ def _env(state: Path) -> dict[str, str]:
     return env
 
 
+def stop_process(proc: subprocess.Popen) -> None:
+    """Terminate, then kill if it does not end; close its pipes."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    for stream in (proc.stdout, proc.stderr):
+        if stream is not None:
+            stream.close()
+
+
 class Server:
     def __init__(self, state: Path, *extra: str) -> None:
         self.proc = subprocess.Popen(
@@ -55,16 +69,7 @@ class Server:
         return f"eip://127.0.0.1:{self.port}"
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream is not None:
-                stream.close()
+        stop_process(self.proc)
 
 
 @pytest.fixture
@@ -275,12 +280,7 @@ def test_cpppo_server_serves_akdctl_client(tmp_path) -> None:
         missing = akdctl(tmp_path, target, "cip", "get", "0x0F/205/1", timeout=5)
         assert missing.returncode in (1, 3) and len(missing.stderr.strip().splitlines()) == 1
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop_process(proc)
 
 
 def test_tshark_dissects_enip_and_cip_in_the_pcap(serve, tmp_path) -> None:
@@ -335,12 +335,5 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
     finally:
         if server is not None:
-            server.terminate()
-            try:
-                server.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                server.kill()
-                server.wait()
-            if server.stdout is not None:
-                server.stdout.close()
+            stop_process(server)
         subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)

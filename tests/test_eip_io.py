@@ -196,3 +196,28 @@ def test_tshark_cipcm_dissects_the_io_session(drive, tmp_path) -> None:
     io_data = [r[4] for r in rows if ":udp:cipio" in r[0] and r[4]]
     assert len(io_data) >= 4
     assert any(d[4:20] == "8400002000000000" for d in io_data)     # seed step 2 after the 16-bit sequence count
+
+
+def test_large_forward_open_and_forward_close_of_an_unknown_connection(drive, session) -> None:
+    from akdctl.protocol import akd_assembly as asm
+    from akdctl.protocol import cip
+
+    server, _ = drive
+    path = cip.Path(cip.ASSEMBLY, asm.CONFIG_INSTANCE, None, (asm.OUTPUT_INSTANCE, asm.INPUT_INSTANCE)).encode()
+    fo = cip.ForwardOpen(0, 9, 3, 0xFFFF, 4, 20000, cip.NetParams(70), 20000, cip.NetParams(66), path, large=True)
+    reply = session.request(cip.Request(cip.LARGE_FORWARD_OPEN, cip.Path(6, 1).encode(), fo.encode()))
+    assert reply.ok, reply
+    opened = cip.ForwardOpenReply.decode(reply.data)
+    assert opened.to_connection_id == 9 and opened.ot_connection_id and opened.ot_api_us == 20000
+    close = cip.Request(cip.FORWARD_CLOSE, cip.Path(6, 1).encode(), cip.ForwardClose(3, 0xFFFF, 4, path).encode())
+    assert session.request(close).ok
+    again = session.request(close)
+    assert again.status == 0x01 and again.extended == (cip.EXT_CONNECTION_NOT_FOUND,)
+
+
+def test_io_needs_consent_that_names_the_disable(drive, tmp_path) -> None:
+    server, io_port = drive
+    result = akdctl(tmp_path, server.target, "eip", "io", "position", "10", "--port", str(io_port))
+    assert result.returncode == 4 and "disables the axis" in result.stderr and "--yes" in result.stderr
+    jog = akdctl(tmp_path, server.target, "eip", "io", "jog", "-100", "-y", "--port", str(io_port))
+    assert jog.returncode == 2 and "--for" in jog.stderr                  # unbounded motion is refused

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from akdctl.cli.context import get_app
@@ -59,7 +61,7 @@ def get(path: str, type_name: str | None) -> None:
     dtype = type_name or "os"
     _check_type(dtype)
     app = get_app()
-    data = attributes(app).get(class_id, instance, attribute)  # type: ignore[attr-defined]
+    data = attributes(app).get(class_id, instance, attribute)
     value = decode(dtype, data)
     text, hex_text = display(dtype, value)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
@@ -84,12 +86,10 @@ def set_(path: str, type_name: str, value_text: str) -> None:
     _check_type(type_name)
     _value, data = encode(type_name, value_text)
     app = get_app()
-    attributes(app).set(class_id, instance, attribute, data)  # type: ignore[attr-defined]
+    attributes(app).set(class_id, instance, attribute, data)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
     app.emit({"target": app.target.display, "class": class_id, "instance": instance, "attribute": attribute,
               "type": type_name, "written": data.hex()},
              lambda: Doc(f"attribute {label} written", app.target.display).kv("type", type_name)
              .kv("value", value_text).kv("bytes", data.hex(" ")))
 
-
-set_.name = "set"

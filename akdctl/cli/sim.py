@@ -5,6 +5,7 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+import time
 from typing import Any
 
 import click
@@ -117,7 +118,12 @@ def _serve_callback(**kwargs: Any) -> None:
                 message(f"akdctl: warning: {warning}")
         sys.stdout.flush()
         message(f"serving simulated drive {name!r}; Ctrl-C to stop")
-        stop.wait(timeout=duration)
+        # Wait in slices: Python runs signal handlers only in the main thread, between bytecodes, and an
+        # untimed wait would not wake when the kernel hands SIGTERM to one of the faces' threads.
+        end = None if duration is None else time.monotonic() + duration
+        while not stop.wait(0.25 if end is None else max(0.0, min(0.25, end - time.monotonic()))):
+            if end is not None and time.monotonic() >= end:
+                break
     finally:
         for face in reversed(started):
             try:

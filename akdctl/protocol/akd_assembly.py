@@ -1,7 +1,8 @@
 """The AKD's EtherNet/IP I/O assemblies: the 64-byte command (O->T) and response (T->O) layouts.
 
-Layouts from the AKD EtherNet/IP manual (Dec-2014, pp. 11-16; reference/ethernetip.md 1.4-1.7).
-Tags as in the reference: [V] read in the manual, [I] inferred and unverified on hardware.
+Layouts from the AKD EtherNet/IP manual: *AKD EtherNet/IP Communication*, 903-200008-00, December 2014
+(rev E); [M-nn] is its page nn (pp. 11-16 here; page 16 is the project's seed 002). Tags: [V] read in
+the manual, [I] inferred and unverified on hardware.
 
 * Input (response) assembly instance 102, 64 bytes, no run/idle header [V]; configuration
   assembly 100, 0 bytes [V]; output (command) assembly 101, 64 bytes, run/idle header [I: the

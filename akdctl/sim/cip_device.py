@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import struct
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog import eip_parameters
@@ -116,7 +116,6 @@ class IoState:
     last_control: int | None = None
     load_complete: bool = False
     error: asm.CommandError | None = None
-    data: dict[str, int] = field(default_factory=dict)
 
 
 class CipDevice:
@@ -252,7 +251,8 @@ class CipDevice:
         if service == cip.GET_ATTRIBUTES_ALL:
             raise CipRefusal(cip.SERVICE_NOT_SUPPORTED)
         instance = path.instance or 0
-        modelled = {796: "posunit", 797: "profunit", 205: "home"}
+        modelled = {eip_parameters.by_name(name).instance: key  # type: ignore[union-attr]
+                    for name, key in (("EIP.POSUNIT", "posunit"), ("EIP.PROFUNIT", "profunit"), ("HOME.MOVE", "home"))}
         if instance not in modelled:
             raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
         command = modelled[instance] == "home"

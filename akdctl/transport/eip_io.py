@@ -53,10 +53,12 @@ class IoConnection:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.sock.bind(("0.0.0.0", local_port))
+            self.sock.connect((host, port))       # only the drive's datagrams; our real address for the trace
         except OSError as exc:
             self.sock.close()
-            raise UsageError(f"cannot bind the I/O port {local_port} ({exc.strerror})") from None
-        self.local_port = self.sock.getsockname()[1]
+            raise UsageError(f"cannot use the I/O port {local_port} towards {host}:{port} ({exc.strerror})") from None
+        self.local = self.sock.getsockname()[:2]
+        self.local_port = self.local[1]
         self.serial = int.from_bytes(os.urandom(2), "little")
         self.originator_serial = int.from_bytes(os.urandom(4), "little")
         self.to_id = int.from_bytes(os.urandom(4), "little") | 1
@@ -129,8 +131,8 @@ class IoConnection:
     def _trace(self, direction: str, data: bytes, note: str) -> None:
         if self.tracer is None:
             return
-        local, remote = ("127.0.0.1" if self.host.startswith("127.") else "0.0.0.0", self.local_port), (self.host, self.port)
-        src, dst = (local, remote) if direction == "tx" else (remote, local)
+        remote = (self.host, self.port)
+        src, dst = (self.local, remote) if direction == "tx" else (remote, self.local)
         self.tracer.frame(direction, "cip-io", data, note=note,  # type: ignore[attr-defined]
                           meta={"proto": "udp", "src": src, "dst": dst})
 
@@ -146,14 +148,14 @@ class IoConnection:
                 packet = enip.IoPacket(self.ot_id, sequence, sequence & 0xFFFF, data).encode()
                 self._trace("tx", packet, f"O->T seq {sequence}")
                 try:
-                    self.sock.sendto(packet, (self.host, self.port))
+                    self.sock.send(packet)
                     self.stats.produced += 1
                 except OSError:
                     pass
                 next_send = max(next_send + self.rpi_s, now)
             self.sock.settimeout(max(0.001, min(0.05, next_send - time.monotonic())))
             try:
-                raw, _peer = self.sock.recvfrom(2048)
+                raw = self.sock.recv(2048)
             except (socket.timeout, BlockingIOError):
                 continue
             except OSError:

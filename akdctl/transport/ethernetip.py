@@ -31,9 +31,6 @@ from akdctl.transport.base import LinkOptions, Transport
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
 
-MISSING = (cip.PATH_DESTINATION_UNKNOWN, cip.OBJECT_DOES_NOT_EXIST)   # OpENer says 0x05, the AKD manual 0x16
-
-
 class EnipSession(MessageLink):
     """One encapsulation session on TCP. Not thread-safe (one CLI invocation, one caller)."""
 
@@ -237,4 +234,4 @@ def list_identity(host: str, port: int, options: LinkOptions, broadcast: bool = 
         sock.close()
 
 
-__all__ = ["EthernetIpTransport", "EnipSession", "list_identity", "MISSING"]
+__all__ = ["EthernetIpTransport", "EnipSession", "list_identity"]
