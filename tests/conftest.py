@@ -22,7 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import ROOT, Watch, run_akdctl  # noqa: F401 - ROOT, run_akdctl: tests import them from here
+from tests.harness import ROOT, run_akdctl  # noqa: F401 - re-exported: tests import them from here too
+from tests.watch import Watch
 
 # Fixtures whose use means the test starts a subprocess: such tests are marked slow at collection.
 SUBPROCESS_FIXTURES = frozenset({"akd"})

@@ -1,4 +1,4 @@
-"""The one place tests start akdctl processes: the CLI runner, the simulator server and loopback namespaces.
+"""The one place tests start akdctl processes: the CLI runner and the simulator server.
 
 Why one place: every end-to-end test needs the same four guarantees, and hand-rolled copies kept losing one of them:
 
@@ -6,8 +6,8 @@ Why one place: every end-to-end test needs the same four guarantees, and hand-ro
   timeout (never a bare ``readline()``), CLI runs carry ``timeout=``, stopping a server waits and then kills;
 * **no port race** - a UDP face binds port 0 itself and the harness parses the bound ``host:port`` from its
   ``listening:`` line, instead of probing a free port and hoping nobody takes it before the server binds it;
-* **no packet off the machine** - anything that multicasts runs in a :class:`LoopbackNetns` (only ``lo`` up, a
-  multicast route on ``lo``) that the test creates and removes, even when the test fails;
+* **no packet off the machine** - servers and CLI runs take ``netns=``: anything that multicasts runs in a
+  :class:`tests.netns.LoopbackNetns` (only ``lo``, a multicast route on it) that the test creates and removes;
 * **cleanup always** - servers are context managers; leaving the ``with`` stops and reaps the process.
 
 Typical use::
@@ -25,7 +25,6 @@ Both inherit the test's environment (the autouse ``isolated_env`` fixture gives 
 from __future__ import annotations
 
 import contextlib
-import ipaddress
 import os
 import re
 import socket
@@ -33,7 +32,6 @@ import subprocess
 import sys
 import threading
 import time
-import uuid
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import NamedTuple
@@ -283,156 +281,3 @@ def closed_udp_port() -> Iterator[int]:
         yield guard.getsockname()[1]
     finally:
         guard.close()
-
-
-def _ip(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30, check=True)
-
-
-class LoopbackNetns:
-    """A network namespace with only ``lo`` (up, with a multicast route), so multicast never reaches a real NIC.
-
-    Needs root (tests using it carry ``@pytest.mark.root``).  Removed on exit even when the test failed; a name is
-    unique per instance so parallel runs do not collide.  ``created`` lists every namespace made in this process,
-    so a test can check that a fixture really made one.
-    """
-
-    created: list[str] = []
-
-    def __init__(self, prefix: str = "akdt") -> None:
-        self.name = f"{prefix}{uuid.uuid4().hex[:8]}"
-
-    def __enter__(self) -> LoopbackNetns:
-        _ip("netns", "add", self.name)
-        try:
-            _ip("-n", self.name, "link", "set", "lo", "up")
-            _ip("-n", self.name, "route", "add", "224.0.0.0/4", "dev", "lo")
-        except BaseException:
-            self.delete()
-            raise
-        LoopbackNetns.created.append(self.name)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.delete()
-
-    def delete(self) -> None:
-        subprocess.run(["ip", "netns", "delete", self.name], capture_output=True, timeout=30)
-
-    @property
-    def path(self) -> Path:
-        return Path("/run/netns") / self.name
-
-    def links(self) -> list[str]:
-        """Names of the network interfaces inside the namespace."""
-        out = _ip("-n", self.name, "-o", "link", "show").stdout
-        return [line.split(":")[1].strip() for line in out.splitlines()]
-
-    def holds(self, pid: int) -> bool:
-        """Whether process *pid* runs in this namespace (same inode as the namespace's bind mount)."""
-        ns = os.stat(f"/proc/{pid}/ns/net")
-        mine = os.stat(self.path)
-        return (ns.st_dev, ns.st_ino) == (mine.st_dev, mine.st_ino)
-
-
-def _is_address(host: str) -> bool:
-    try:
-        ipaddress.ip_address(host.split("%")[0])
-    except ValueError:
-        return False
-    return True
-
-
-def _local_host(host: str) -> bool:
-    """Whether *host* stays on this machine: a loopback address or ``localhost``; any other name means DNS."""
-    return host == "localhost" or (_is_address(host) and ipaddress.ip_address(host.split("%")[0]).is_loopback)
-
-
-class Watch:
-    """What tests do behind their backs, seen through PEP 578 audit events: subprocesses started, and in-process
-    sockets aimed off the machine (a non-loopback connect or send, a name lookup, a bind to every interface).
-
-    conftest installs the hook once per session (audit hooks cannot be removed) and checks the lists after every
-    test.  Subprocesses are not seen inside; the harness gives them loopback targets or a namespace.
-    """
-
-    started: list[str] = []
-    off_machine: list[str] = []
-    installed = False
-    _SOCKET_EVENTS = frozenset({"socket.connect", "socket.sendto", "socket.sendmsg", "socket.bind"})
-
-    @staticmethod
-    def classify(event: str, args: tuple) -> str | None:  # type: ignore[type-arg]
-        """Why this audit event leaves the machine, or None when it stays on it (or is no network event)."""
-        if event in Watch._SOCKET_EVENTS:
-            sock, address = args[0], args[1]
-            if getattr(sock, "family", None) not in (socket.AF_INET, socket.AF_INET6) or not isinstance(address, tuple):
-                return None  # AF_UNIX paths, raw AF_PACKET/AF_CAN links: no IP route out
-            host = str(address[0])
-            if event == "socket.bind":
-                return f"bind to every interface {address}" if host in ("", "0.0.0.0", "::") else None
-            return None if _local_host(host) else f"{event} {address}"
-        if event == "socket.getaddrinfo" and args[0] is not None:
-            host = args[0].decode() if isinstance(args[0], bytes) else str(args[0])
-            if not _is_address(host) and not _local_host(host):  # a literal address is parsed, not looked up
-                return f"name lookup {host!r}"
-        return None
-
-    @classmethod
-    def install(cls) -> None:
-        if cls.installed:
-            return
-        cls.installed = True
-
-        def hook(event: str, args: tuple) -> None:  # type: ignore[type-arg]
-            if event == "subprocess.Popen":
-                cls.started.append(str(args[0]))
-            elif event.startswith("socket."):
-                why = cls.classify(event, args)
-                if why:
-                    cls.off_machine.append(why)
-
-        sys.addaudithook(hook)
-
-
-class VethPair:
-    """Two network namespaces joined by a veth pair - a private wire for raw Ethernet (EtherCAT, DCP) - with ``lo``
-    up in both; ready once both ends carry frames.  Side ``a`` (``if_a``) is the client's, ``b`` (``if_b``) the
-    device's; *address_a*/*address_b* give the ends IPv4 addresses (``10.77.0.2/24``).  Needs root; removed on exit
-    even when the test failed (deleting a namespace deletes its end, and so the pair)."""
-
-    def __init__(self, address_a: str | None = None, address_b: str | None = None) -> None:
-        tag = uuid.uuid4().hex[:6]
-        self.a, self.b = f"akdA{tag}", f"akdB{tag}"
-        self.if_a, self.if_b = f"ea{tag}", f"eb{tag}"
-        self.addresses = {self.a: address_a, self.b: address_b}
-
-    def __enter__(self) -> VethPair:
-        try:
-            _ip("netns", "add", self.a)
-            _ip("netns", "add", self.b)
-            _ip("link", "add", self.if_a, "type", "veth", "peer", "name", self.if_b)
-            for ns, ifname in ((self.a, self.if_a), (self.b, self.if_b)):
-                _ip("link", "set", ifname, "netns", ns)
-                if self.addresses[ns]:
-                    _ip("-n", ns, "addr", "add", str(self.addresses[ns]), "dev", ifname)
-                _ip("-n", ns, "link", "set", ifname, "up")
-                _ip("-n", ns, "link", "set", "lo", "up")
-            wait_until(self.is_up, "both veth ends to carry frames", timeout=10)
-        except BaseException:
-            self.delete()
-            raise
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.delete()
-
-    def delete(self) -> None:
-        for ns in (self.a, self.b):
-            subprocess.run(["ip", "netns", "delete", ns], capture_output=True, timeout=30)
-        subprocess.run(["ip", "link", "delete", self.if_a], capture_output=True, timeout=30)  # if never moved
-
-    def is_up(self) -> bool:
-        """Whether both ends report operstate UP (a frame sent earlier may be lost)."""
-        return all("state UP" in _ip("-n", ns, "-o", "link", "show", "dev", ifname).stdout
-                   for ns, ifname in ((self.a, self.if_a), (self.b, self.if_b)))

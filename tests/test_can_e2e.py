@@ -20,7 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import LoopbackNetns, SimServer, run_akdctl
+from tests.harness import SimServer, run_akdctl
+from tests.netns import LoopbackNetns
 
 GROUP = "239.74.163.2"
 NODE = 2

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import ROOT, CliResult, SimServer, VethPair, run_akdctl
+from tests.harness import ROOT, CliResult, SimServer, run_akdctl
+from tests.netns import VethPair
 
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 CI = os.environ.get("CI") == "true"

@@ -9,7 +9,9 @@ import subprocess
 
 import pytest
 
-from tests.harness import LoopbackNetns, SimServer, Watch, closed_udp_port
+from tests.harness import SimServer, closed_udp_port
+from tests.netns import LoopbackNetns
+from tests.watch import Watch
 
 
 @pytest.mark.parametrize("event, args, flagged", [

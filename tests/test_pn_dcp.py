@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 from akdctl.protocol import dcp
 from akdctl.protocol.errors import CodecError
-from tests.harness import CliResult, SimServer, VethPair, akdctl_env, run_akdctl
+from tests.harness import CliResult, SimServer, akdctl_env, run_akdctl
+from tests.netns import VethPair
 
 
 def test_identify_request_vector() -> None:
