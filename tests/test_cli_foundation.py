@@ -240,7 +240,7 @@ class _FakeTransport:
         self.options = options
         self.parameters = None
         self.objects = None
-        self.record_link = self.mailbox_link = self.sdo_client = None
+        self.record_link = self.mailbox_link = self.sdo_client = self.message_link = None
 
     def open(self) -> None:
         from akdctl.links import RecordLink

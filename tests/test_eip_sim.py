@@ -55,7 +55,7 @@ def test_home_move_command_runs_on_write_not_on_read(device) -> None:
     assert ask(device, GET, 0x25, 1, 17).data == b"\x01"
     assert ask(device, SET, 0x0F, 205, 1, b"\x07").ok                       # any value 0..255 runs it
     with device.drive.transaction() as model:
-        assert model.component("motion").homed
+        assert model.motion.axis.homed
 
 
 def test_position_controller_load_handshake_moves_the_shared_axis(device) -> None:

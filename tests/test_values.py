@@ -190,32 +190,30 @@ def test_pnu_spec_is_built_from_the_catalogue() -> None:
 
 
 def _sim() -> Any:
+    """A Connection to the simulated drive (identity and snapshot read through a Connection)."""
     from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport
 
-    from akdctl.connection import Connection
-
-    conn = Connection.over(SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0)))
-    return conn.transport()
+    return Connection.over(SimTransport(parse_target("sim", "test"), LinkOptions(timeout=2.0)))
 
 
 def test_identity_is_read_once_and_flattened_for_backups() -> None:
     from akdctl.drive import identity, snapshot
 
-    transport = _sim()
+    conn = _sim()
     try:
-        full = identity.read_identity(transport)
+        full = identity.read_identity(conn)
         assert full["profidrive"]["drive_unit"]["software_version"] == "1.20"
         assert set(full["canopen"]) == {k for k, _, _ in identity.IDENTITY_OBJECTS}
         flat = identity.backup_identity(full)
         assert flat["firmware"] == "1.20" and flat["manufacturer"] == full["profidrive"]["drive_unit"]["manufacturer"]
         assert flat["vendor_id"] == full["canopen"]["vendor_id"]
         # the backup's reader is the same reading, flattened
-        assert snapshot.read_identity(transport, True, True) == flat
+        assert snapshot.read_identity(conn, True, True) == flat
         # a PNU backup already holds 964: its identity matches without another round trip
         values_964 = {"964": full["profidrive"]["drive_unit"]["raw"]}
         assert snapshot.identity_from_pnus(values_964).items() <= flat.items()
     finally:
-        transport.close()
+        conn.close()

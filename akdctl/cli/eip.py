@@ -16,20 +16,25 @@ def eip() -> None:
     """EtherNet/IP: find drives (ListIdentity), AKD parameters by the Parameter object 0x0F."""
 
 
-def _broadcast_address(iface: str) -> str:
-    """The IPv4 broadcast address of ``iface`` (SIOCGIFBRDADDR)."""
+def _interface_addresses(iface: str) -> tuple[str, str]:
+    """(IPv4 address, IPv4 broadcast address) of ``iface`` (SIOCGIFADDR, SIOCGIFBRDADDR).
+
+    The scan binds to the interface's own address, so the broadcast leaves by that interface only.
+    """
     import fcntl
     import socket
     import struct
 
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        raw = fcntl.ioctl(sock.fileno(), 0x8919, struct.pack("256s", iface.encode()[:15]))
+        request = struct.pack("256s", iface.encode()[:15])
+        own = fcntl.ioctl(sock.fileno(), 0x8915, request)
+        broadcast = fcntl.ioctl(sock.fileno(), 0x8919, request)
     except OSError as exc:
-        raise UsageError(f"--iface {iface}: no IPv4 broadcast address ({exc.strerror})") from None
+        raise UsageError(f"--iface {iface}: no IPv4 address/broadcast address ({exc.strerror})") from None
     finally:
         sock.close()
-    return socket.inet_ntoa(raw[20:24])
+    return socket.inet_ntoa(own[20:24]), socket.inet_ntoa(broadcast[20:24])
 
 
 @eip.command("scan")
@@ -46,8 +51,12 @@ def scan(host: str | None, iface: str | None, port: int, wait: float | None) -> 
     if (host is None) == (iface is None):
         raise UsageError("give a HOST to ask, or --iface IFNAME to broadcast on (akdctl never broadcasts by default)")
     app = get_app()
-    address = host if host is not None else _broadcast_address(iface)  # type: ignore[arg-type]
-    found = list_identity(address, port, app.options, broadcast=iface is not None, wait=wait)
+    if host is not None:
+        address = host
+        found = list_identity(host, port, app.options, wait=wait)
+    else:
+        own, address = _interface_addresses(iface)  # type: ignore[arg-type]
+        found = list_identity(address, port, app.options, broadcast_from=own, wait=wait)
     rows = [{**ident.to_json(), "address": peer, "vendor_name": cip_vendor_name(ident.vendor)} for peer, ident in found]
 
     def human() -> Doc:
@@ -147,7 +156,8 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
     """
     import time
 
-    from akdctl.cli.motion import _check_limits, _consent
+    from akdctl.cli.consent import require_consent
+    from akdctl.drive.motion_plan import check_executed_limits
     from akdctl.drive.cip_axis import CipAxis
     from akdctl.drive.eip_io import run_command
     from akdctl.protocol import akd_assembly as asm
@@ -161,15 +171,27 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
     if kind == "move" and not velocity:
         raise UsageError("eip io move needs --velocity (EIP.PROFUNIT units per second)")
     channel = _channel(app)
-    transport = app.transport()
     axis = CipAxis(channel, timeout=app.options.timeout, target=app.target.display)
     posunit, profunit = axis.units()
     speed = value if kind in ("jog", "velocity") else (velocity or 0)
-    _check_limits(app, rpm=speed * 60.0 / profunit if speed else None,
-                  acc=max(accel, decel) * 60.0 / profunit if (accel or decel) else None,
-                  final_rev=value / posunit if kind in ("position", "move") and not relative else None)
-    _consent(app, f"run an I/O {kind} command ({value}) over a class-1 connection akdctl opens; when the "
-             "connection ends the drive sees Enable drop and disables the axis", f"command type 0x{IO_TYPES[kind]:02X}")
+    # The same limit rules as every planned motion, on the raw values this command sends.
+    end_rev = None
+    if kind in ("position", "move"):
+        status = axis.read_status()
+        if relative:
+            end_rev = None if status.position_rev is None else status.position_rev + value / posunit
+        else:
+            end_rev = value / posunit
+        if end_rev is None and app.connection.profile is not None and app.connection.profile.limits.get("travel"):
+            from akdctl.errors import SafetyRefusal
+
+            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
+    check_executed_limits(app.connection, rpm=speed * 60.0 / profunit if speed else None,
+                          acc_rpm_s=max(accel, decel) * 60.0 / profunit if (accel or decel) else None,
+                          end_rev=end_rev, executed_by="the I/O assembly")
+    require_consent(app, f"run an I/O {kind} command ({value}, command type 0x{IO_TYPES[kind]:02X}) over a "
+                    "class-1 connection akdctl opens; when the connection ends the drive sees Enable drop and "
+                    "disables the axis")
     direction = asm.CTL_DIRECTION if kind in ("jog", "velocity") and value >= 0 else 0   # velocity mode only [M-12]
     control = asm.CTL_ENABLE | (asm.CTL_RELATIVE if relative else 0) | direction
     command = asm.Command(control=control, command_type=IO_TYPES[kind],
@@ -177,17 +199,28 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
                           position=value if kind == "move" else 0,
                           velocity=(velocity or 0) if kind == "move" else abs(value) if kind == "jog" else 0,
                           acceleration=accel, deceleration=decel)
-    session = transport.session  # type: ignore[attr-defined]
-    with IoConnection(session, app.target.host, rpi_ms=rpi, port=io_port, local_port=local_port,
-                      timeout=app.options.timeout, tracer=app.options.tracer) as conn:
+    session = app.connection.transport().message_link
+    from akdctl.cli.signals import stop_signals
+    from akdctl.errors import Interrupted
+
+    # The connection closes on every way out (Forward_Close; the drive drops Enable and disables the axis),
+    # also on SIGINT/SIGTERM/SIGHUP: they only set a flag that the waits below check.
+    with stop_signals() as stop, IoConnection(session, app.target.host, rpi_ms=rpi, port=io_port,
+                                              local_port=local_port, timeout=app.options.timeout,
+                                              tracer=app.options.tracer) as conn:
         result = run_command(conn, command, timeout=app.options.timeout)
         if timed:
-            time.sleep(hold)  # type: ignore[arg-type]
+            end = time.monotonic() + hold  # type: ignore[operator]
+            while not stop() and time.monotonic() < end:
+                time.sleep(min(0.05, max(0.0, end - time.monotonic())))
             final = conn.wait_input(lambda r: True, "a response", app.options.timeout)
         else:
-            final = conn.wait_input(lambda r: bool(r.status1 & asm.ST1_IN_POSITION)
-                                    and not r.status1 & asm.ST1_IN_MOTION, "In Position",
+            final = conn.wait_input(lambda r: stop() or (bool(r.status1 & asm.ST1_IN_POSITION)
+                                                         and not r.status1 & asm.ST1_IN_MOTION), "In Position",
                                     timeout=max(app.options.timeout, 60.0))
+        if stop():
+            raise Interrupted(f"interrupted during the I/O {kind} command; the connection is closed, so the drive "
+                              "disables the axis")
         stats = conn.stats
     data = {"target": app.target.display, "type": kind, "command_type": IO_TYPES[kind], "value": value,
             "sent": [b.hex(" ") for b in result.sent], "responses": [b.hex(" ") for b in result.seen],

@@ -239,6 +239,13 @@ class Axis(ABC):
     def motion_scales(cls, kind: str) -> MotionScales:
         """The grids of velocity and ramps for motion ``kind`` ('velocity' = timed jog, 'position')."""
 
+    def drive_motion_scales(self, kind: str) -> MotionScales:
+        """The scales as this drive is configured (the planner's second look, after connecting).
+
+        Default: :meth:`motion_scales`. A profile whose grid the drive configures reads it here.
+        """
+        return self.motion_scales(kind)
+
     @abstractmethod
     def position_scale(self, status: AxisStatus) -> Scale:
         """The grid of the position set point (counts; range of the target object/PNU)."""

@@ -22,9 +22,9 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from akdctl.drive import statusword as sw
-from akdctl.drive.axis import Axis, AxisStatus, MoveSpec
+from akdctl.drive.axis import Axis, AxisStatus, JogSpec, MotionScales, MoveSpec, Scale
 from akdctl.errors import CipRefused, DriveError, MalformedReply, UsageError
+from akdctl.profiles import statusword as sw
 from akdctl.protocol import cip
 
 PC = cip.POSITION_CONTROLLER
@@ -35,6 +35,8 @@ STATUS_BITS = {0: "enabled (0x25/1/17)", 1: "on target position (0x25/1/12, infe
 NOT_AVAILABLE = (cip.ATTRIBUTE_NOT_SUPPORTED, cip.PATH_DESTINATION_UNKNOWN, cip.OBJECT_DOES_NOT_EXIST,
                  cip.SERVICE_NOT_SUPPORTED)
 INT32 = (-(1 << 31), (1 << 31) - 1)
+#: EIP.POSUNIT / EIP.PROFUNIT default (the drive's and the simulator's): the grid before the drive is asked.
+DEFAULT_UNITS = 65536
 
 
 class CipAxis(Axis):
@@ -76,22 +78,40 @@ class CipAxis(Axis):
         return posunit, profunit
 
     # ---------------------------------------------------------------- planner contract (quantisation, ranges)
-    def position_quantum_rev(self) -> float:
-        """One position unit: 1 / EIP.POSUNIT rev [I scaling]."""
-        return 1.0 / self.units()[0]
+    # Explicit messaging has no homed attribute: an absolute position cannot be trusted, so absolute
+    # moves are refused (confirm_homed is False); relative moves and jogs need no home.
+    RELATIVE_MOVES_NEED_HOME = False
+    HOMED_SOURCE = "no Position Controller attribute reports it over explicit messaging"
+    HOME_MODE_RANGE = (-32768, 32767)
+    HOME_MODE_FIELD = "the home mode 0x25/1/100 (INT)"
 
-    def position_range_rev(self) -> tuple[float, float]:
-        """Target position is a 32-bit DINT in EIP.POSUNIT units."""
-        posunit = self.units()[0]
-        return INT32[0] / posunit, INT32[1] / posunit
+    @classmethod
+    def _scales(cls, kind: str, profunit: int) -> MotionScales:
+        step = 60.0 / profunit
+        # Attributes 8/9 (acceleration/deceleration) are "not used yet" [M-37]: the drive runs its own
+        # DRV.ACC/DRV.DEC. The planner still checks a requested ramp against the profile's limits; nothing
+        # of it is sent.
+        ramp = Scale("the drive's own ramp (0x25/1/8-9 are not used by the AKD; nothing is sent)", "rpm/s",
+                     step, 1, INT32[1])
+        velocity = Scale(f"target velocity 0x25/1/7 (DINT, EIP.PROFUNIT = {profunit} per rev/s)", "rpm", step,
+                         1 if kind == "position" else 1, INT32[1])
+        return MotionScales(velocity, ramp, ramp)
 
-    def velocity_quantum_rpm(self) -> float:
-        return 60.0 / self.units()[1]
+    @classmethod
+    def motion_scales(cls, kind: str) -> MotionScales:
+        return cls._scales(kind, DEFAULT_UNITS)
 
-    def velocity_range_rpm(self) -> tuple[float, float]:
-        """Target velocity is a 32-bit DINT in EIP.PROFUNIT units per second."""
-        profunit = self.units()[1]
-        return INT32[0] * 60.0 / profunit, INT32[1] * 60.0 / profunit
+    def drive_motion_scales(self, kind: str) -> MotionScales:
+        return self._scales(kind, self.units()[1])
+
+    def position_scale(self, status: AxisStatus) -> Scale:
+        return Scale("target position 0x25/1/6 (DINT, EIP.POSUNIT counts per rev)", "counts", 1.0, *INT32)
+
+    def homed_reading(self, status: AxisStatus) -> bool | None:
+        return None
+
+    def confirm_homed(self) -> bool:
+        return False
 
     # ---------------------------------------------------------------- status
     def read_status(self) -> AxisStatus:
@@ -139,7 +159,8 @@ class CipAxis(Axis):
                          "object instance for it; acknowledge through WorkBench or another target")
 
     # ---------------------------------------------------------------- modes and motion
-    def mode_name(self, kind: str) -> str:
+    @classmethod
+    def mode_name(cls, kind: str) -> str:
         return {"velocity": MODES[1], "position": MODES[0], "homing": MODES[0] + ", home move 0x25/1/101"}[kind]
 
     def ensure_mode(self, kind: str) -> None:
@@ -157,18 +178,12 @@ class CipAxis(Axis):
         finally:
             self._set(11, "<B", 0)
 
-    def _velocity_units(self, rpm: float) -> int:
-        value = round(rpm / 60.0 * self.units()[1])
-        if not INT32[0] <= value <= INT32[1]:
-            raise UsageError(f"{rpm:g} rpm is outside the 32-bit target velocity range")
-        return value
-
-    def _load_velocity(self, rpm: float) -> None:
-        self._set(7, "<i", self._velocity_units(rpm))
+    def _load_velocity(self, raw: int) -> None:
+        self._set(7, "<i", raw)
         self._handshake()
 
-    def start_jog(self, rpm: float, acc_rpm_s: float) -> None:
-        self._load_velocity(rpm)     # attributes 8/9 (acceleration) are "not used yet" [M-37]
+    def start_jog(self, jog: JogSpec) -> None:
+        self._load_velocity(jog.velocity_raw)     # 8/9 (ramps) are "not used yet" [M-37]: the drive's own apply
 
     def end_jog(self) -> None:
         self._load_velocity(0)
@@ -183,11 +198,7 @@ class CipAxis(Axis):
         return True if status.target_reached and status.standstill else None
 
     def start_move(self, move: MoveSpec) -> None:
-        posunit = self.units()[0]
-        counts = round(move.target_rev * posunit)
-        if not INT32[0] <= counts <= INT32[1]:
-            raise UsageError("target is outside the 32-bit range of the target position (0x25/1/6)")
         self._set(10, "<B", 1 if move.relative else 0)
-        self._set(6, "<i", counts)
-        self._set(7, "<i", max(1, abs(self._velocity_units(move.rpm))))
+        self._set(6, "<i", move.target_raw)
+        self._set(7, "<i", abs(move.velocity_raw))
         self._handshake()

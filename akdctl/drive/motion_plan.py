@@ -232,6 +232,19 @@ def _check_travel(limits: dict[str, Any], end_rev: float, how: str = "would end 
                             f"[{lo:g}, {hi:g}] rev")
 
 
+def check_executed_limits(conn: Any, *, rpm: float | None = None, acc_rpm_s: float | None = None,
+                          end_rev: float | None = None, executed_by: str = "") -> None:
+    """The profile's limits for a motion whose raw values a caller built itself (``eip io``): the
+    same rules and words as a planned motion, applied to what the drive will execute."""
+    limits = limits_of(conn)
+    _refuse_over_limit("velocity", None if rpm is None else abs(rpm), _limit(limits, "max_velocity"),
+                       "max_velocity", "rpm", executed_by)
+    _refuse_over_limit("acceleration", None if acc_rpm_s is None else abs(acc_rpm_s),
+                       _limit(limits, "max_acceleration"), "max_acceleration", "rpm/s", executed_by)
+    if end_rev is not None:
+        _check_travel(limits, end_rev)
+
+
 def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float:
     """Trapezoid time (s) of a move; an upper bound, so the wait for it is finite but sufficient."""
     v = max(abs(rpm) / 60.0, 1e-6)
@@ -239,11 +252,14 @@ def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float
 
 
 # ====================================================================== stage 1: no drive needed
-def check_request(conn: Any, request: MotionRequest, axis_cls: Any) -> MotionPlan:
+def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
+                  scales_of: Callable[[str], Any] | None = None) -> MotionPlan:
     """Everything that can be decided without the drive (module docstring); exit 2 / 4 on a problem.
 
     ``axis_cls`` is the Axis subclass of the target's profile (:func:`akdctl.drive.axis.axis_class`):
-    its scales say what the drive can represent.
+    its scales say what the drive can represent. ``scales_of`` replaces ``axis_cls.motion_scales``
+    once the drive's own configuration is known (a profile whose grid the drive configures, such as
+    the CIP Position Controller's EIP.PROFUNIT).
     """
     r = request
     if r.kind not in KINDS:
@@ -270,7 +286,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any) -> MotionPla
     kind = "velocity" if r.kind == "jog" and r.duration_s is not None else "position"
     plan.mode_kind = kind
     plan.mode_text = axis_cls.mode_name(kind)
-    scales = axis_cls.motion_scales(kind)
+    scales = (scales_of or axis_cls.motion_scales)(kind)
     vmax, amax = _limit(limits, "max_velocity"), _limit(limits, "max_acceleration")
     if r.kind == "jog":
         if (r.duration_s is None) == (r.distance is None):
@@ -335,7 +351,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any) -> MotionPla
 # ====================================================================== stage 2: the drive's state (reads only)
 def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
     """:func:`check_request`, then the drive's state (module docstring); nothing is written."""
-    accepted = check_request(conn, request, type(axis))
+    accepted = check_request(conn, request, type(axis), axis.drive_motion_scales)
     r = request
     status = axis.read_status()
     axis.refuse_if_fault(status)

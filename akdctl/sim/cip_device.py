@@ -338,7 +338,7 @@ class CipDevice:
         with self._model() as model:
             if not self._enabled(model):
                 raise CipRefusal(cip.DEVICE_STATE_CONFLICT)
-            motion = model.component("motion")
+            axis = model.motion.axis
             if kind == asm.CMD_TORQUE:
                 self.pc.torque = 0 if target is None else target
                 return
@@ -350,7 +350,7 @@ class CipDevice:
                 self._write(model, 0x60FF, "<i", _clamp32(self._cia_vel(velocity or 0)))
                 self._write(model, 0x6040, "<H", 0x0F)
                 return
-            if motion is not None and not motion.homed:
+            if not axis.homed:
                 raise CipRefusal(cip.DEVICE_STATE_CONFLICT)   # must be homed before position moves [M-11]
             self._ensure_mode(model, 1)
             # type 1 carries no velocity: the attribute-7 target velocity, else the simulator's 1 rev/s
@@ -371,14 +371,12 @@ class CipDevice:
         with self._model() as model:
             word = model.object_value(0x6041, 0)
             mode = model.object_value(0x6061, 0)
-            motion = model.component("motion")
+            axis = model.motion.axis
             return {"word": word, "mode": mode, "enabled": word & 0x6F == 0x27, "fault": bool(word & 0x08),
                     "position": model.object_value(0x6064, 0), "velocity": model.object_value(0x606C, 0),
-                    "homed": bool(getattr(motion, "homed", False)),
-                    "homing": getattr(motion, "homing", None) is not None,
-                    "activity": getattr(motion, "activity", "idle"),
-                    "task": getattr(motion, "task", None) is not None,
-                    "at_rest": bool(getattr(motion, "standstill", True)), "current": model.object_value(0x6077, 0)}
+                    "homed": axis.homed, "homing": axis.homing is not None, "activity": axis.activity,
+                    "task": axis.task is not None, "at_rest": axis.standstill,
+                    "current": model.object_value(0x6077, 0)}
 
     def _pc_mode(self, cia_mode: int) -> int:
         return {1: 0, 3: 1, 4: 2, 6: 0}.get(cia_mode, 0)

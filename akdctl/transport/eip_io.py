@@ -37,6 +37,16 @@ class IoStats:
     stale: int = 0
 
 
+def _route_source(host: str, port: int) -> str:
+    """The local IPv4 address the kernel would send from to ``host`` (a connect of a UDP socket sends nothing)."""
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        probe.connect((host, port))
+        return str(probe.getsockname()[0])
+    finally:
+        probe.close()
+
+
 class IoConnection:
     """One exclusive-owner class-1 connection. Use as a context manager."""
 
@@ -52,7 +62,9 @@ class IoConnection:
         self.stats = IoStats()
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            self.sock.bind(("0.0.0.0", local_port))
+            # Bound to the address that routes to the drive (not every interface): the drive's T->O datagrams
+            # come to it, and the port is not open towards any other network.
+            self.sock.bind((_route_source(host, port), local_port))
             self.sock.connect((host, port))       # only the drive's datagrams; our real address for the trace
         except OSError as exc:
             self.sock.close()

@@ -185,26 +185,28 @@ class EthernetIpTransport(Transport):
         self.message_link = None
 
 
-def list_identity(host: str, port: int, options: LinkOptions, broadcast: bool = False,
+def list_identity(host: str, port: int, options: LinkOptions, broadcast_from: str | None = None,
                   wait: float | None = None) -> list[tuple[str, enip.Identity]]:
-    """ListIdentity on UDP: unicast to ``host``, or (``broadcast``) to a broadcast address; collects
+    """ListIdentity on UDP: unicast to ``host``, or to the broadcast address ``host`` from the interface
+    address ``broadcast_from`` (bound to it, so the datagram leaves by that interface only); collects
     replies until ``wait`` (default: the link timeout) has passed."""
     import time
 
     wait = options.timeout if wait is None else wait
+    broadcast = broadcast_from is not None
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         if broadcast:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
-        sock.bind(("0.0.0.0", 0))
+            sock.bind((broadcast_from, 0))
         request = enip.Packet(enip.LIST_IDENTITY, b"", context=b"akdscan\0").encode()
-        local = sock.getsockname()[:2]
-        options.tracer.frame("tx", "enip", request, note="ListIdentity",
-                             meta={"proto": "udp", "src": local, "dst": (host, port)})
         try:
             sock.sendto(request, (host, port))
         except OSError as exc:
             raise CommError(f"ListIdentity to {host}:{port} failed ({exc.strerror or exc})") from None
+        local = sock.getsockname()[:2]
+        options.tracer.frame("tx", "enip", request, note="ListIdentity",
+                             meta={"proto": "udp", "src": local, "dst": (host, port)})
         found: list[tuple[str, enip.Identity]] = []
         deadline = time.monotonic() + wait
         while True:
