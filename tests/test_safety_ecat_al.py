@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from akdctl.connection import Connection
 from akdctl.drive import motion_plan
 from akdctl.drive.axis import Cia402Axis
 from akdctl.errors import SafetyRefusal
@@ -26,24 +27,19 @@ def wire(tmp_path: Path) -> Iterator[Wire]:
         w.close()
 
 
-class _Conn:
-    """The connection names the planner uses (CONTRACT: conn.profile …), for an in-process transport."""
-
-    profile = None
-
-
 def test_raw_master_reports_al_state_and_the_planner_refuses_in_op(wire: Wire) -> None:
     t = transport(wire)
-    t.open()
+    conn = Connection.over(t)
+    conn.transport()
     try:
         assert t.al_state() == "PREOP"
-        axis = Cia402Axis(t.objects, t, timeout=0.5)
-        motion_plan.plan(_Conn(), axis, motion_plan.MotionRequest("enable"))  # PRE-OP: SDO controlword obeyed
+        axis = Cia402Axis(conn.objects(), t, timeout=0.5)
+        motion_plan.plan(conn, axis, motion_plan.MotionRequest("enable"))  # PRE-OP: SDO controlword obeyed
         for state in (ec.AlState.SAFEOP, ec.AlState.OP):
             t.master.request_state(t.slave.station, state)  # type: ignore[union-attr]
         assert t.al_state() == "OP"
         with pytest.raises(SafetyRefusal) as info:
-            motion_plan.plan(_Conn(), axis, motion_plan.MotionRequest("enable"))
+            motion_plan.plan(conn, axis, motion_plan.MotionRequest("enable"))
         assert "SPEC-NOTES 23" in info.value.message and "0x1701" in info.value.message and "OP" in info.value.message
     finally:
-        t.close()
+        conn.close()

@@ -88,7 +88,7 @@ def test_without_consent_the_drive_never_leaves_standstill_nor_sees_an_enabling_
         with SimDrive("default").transaction() as model:
             motion = model.component("motion")
             assert motion.enabling_words == 0, line
-            assert motion.standstill and motion.activity == "idle", line
+            assert motion.standstill and motion.axis.activity == "idle", line
             assert motion.state in ("switch_on_disabled", "ready"), line
 
 
