@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.harness import SimServer
+
 pytestmark = pytest.mark.slow
 READY = re.compile(r"listening: ethernetip ([\d.]+):(\d+) \(class-1 I/O on udp [\d.]+:(\d+)\)")
 
@@ -48,28 +50,22 @@ def stop_process(proc: subprocess.Popen) -> None:
 
 
 class Server:
+    """``sim serve --ethernetip`` on ports the OS picks, through the shared harness (bounded ready wait, always
+    stopped and reaped); the ports come from its ready line."""
+
     def __init__(self, state: Path, *extra: str) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "akdctl", "sim", "serve", "--ethernetip", "127.0.0.1:0", "--eip-io-port", "0",
-             *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(state))
-        deadline = time.monotonic() + 20
-        assert self.proc.stdout is not None
-        while True:
-            line = self.proc.stdout.readline()
-            match = READY.search(line)
-            if match:
-                self.port, self.io_port = int(match.group(2)), int(match.group(3))
-                break
-            if not line or time.monotonic() > deadline:
-                self.stop()
-                raise AssertionError(f"sim serve did not start: {line!r}")
+        self._server = SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0", *extra,
+                                 env={"AKDCTL_STATE_DIR": str(state)}).start()
+        match = READY.search("listening: " + self._server.ready[0])
+        assert match, self._server.ready
+        self.port, self.io_port = int(match.group(2)), int(match.group(3))
 
     @property
     def target(self) -> str:
         return f"eip://127.0.0.1:{self.port}"
 
     def stop(self) -> None:
-        stop_process(self.proc)
+        self._server.stop()
 
 
 @pytest.fixture
@@ -250,6 +246,7 @@ def test_pycomm3_as_client_of_the_face(serve, tmp_path) -> None:
 
 
 def _free_port() -> int:
+    """A port for cpppo's server, which cannot report the one it bound (a third-party server: probe, then bind)."""
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
@@ -315,17 +312,14 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         subprocess.run(["ip", *args], check=True, capture_output=True, timeout=30)
 
     ip("netns", "add", ns)
-    server = None
+    server: SimServer | None = None
     try:
         for args in (("link", "set", "lo", "up"), ("link", "add", "veth0", "type", "veth", "peer", "name", "veth1"),
                      ("addr", "add", "10.213.0.1/24", "brd", "10.213.0.255", "dev", "veth0"),
                      ("link", "set", "veth0", "up"), ("link", "set", "veth1", "up")):
             ip("netns", "exec", ns, "ip", *args)
-        server = subprocess.Popen(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "sim", "serve",
-                                   "--ethernetip", "0.0.0.0:44818", "--eip-io-port", "0"],
-                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                                  env=_env(tmp_path / "state"))
-        assert server.stdout is not None and READY.search(server.stdout.readline())
+        server = SimServer("--ethernetip", "0.0.0.0:44818", "--eip-io-port", "0", netns=ns,
+                           env={"AKDCTL_STATE_DIR": str(tmp_path / "state")}).start()
         result = subprocess.run(["ip", "netns", "exec", ns, sys.executable, "-m", "akdctl", "--json", "eip", "scan",
                                  "--iface", "veth0", "--wait", "1"], capture_output=True, text=True,
                                 env=_env(tmp_path / "state"), timeout=60)
@@ -335,5 +329,5 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
     finally:
         if server is not None:
-            stop_process(server)
+            server.stop()
         subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
