@@ -18,7 +18,7 @@ Exit codes (README "Exit codes" lists the same table; a test keeps them equal):
       link down
 4     safety refusal: no consent, a limit exceeded, the drive cannot obey safely
 5     check failed: a value read back or expected differs (verify, recipes)
-130   interrupted (Ctrl-C); motion was stopped first
+130   interrupted (Ctrl-C; SIGTERM 143, SIGHUP 129: 128 + the signal); motion was stopped first
 ====  ==========================================================================
 """
 
