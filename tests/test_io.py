@@ -67,3 +67,27 @@ def test_open_bus_unknown_interface_is_a_usage_error() -> None:
     with pytest.raises(UsageError) as info:
         canbus.open_bus(canbus.BusConfig("no-such-interface", "x"))
     assert "unknown python-can interface 'no-such-interface'" in str(info.value)
+
+
+# --- the one fault-injection syntax of the simulator's faces ------------------------------------------------------
+def test_injection_specs_share_one_syntax_and_one_error() -> None:
+    import pytest
+
+    from akdctl.errors import UsageError
+    from akdctl.sim.ecat_inject import Injector
+    from akdctl.sim.face_ethernetip import Injection as EipInjection
+    from akdctl.sim.face_profinet import Injection as PnInjection
+
+    pn = PnInjection.parse("drop=3,dup=4,delay=5:0.3,rxdrop=7")
+    assert (pn.drop, pn.dup, pn.delay, pn.delay_s, pn.rxdrop) == (3, 4, 5, 0.3, 7)
+    eip = EipInjection.parse("close=2,status=4:0x0E,delay=3")
+    assert (eip.close, eip.status, eip.status_code, eip.delay, eip.delay_s) == (2, 4, 0x0E, 3, 0.5)
+    assert Injector.parse("drop,abort=5").every == {"drop": 1, "abort": 5}
+    for parse, text, words in ((PnInjection.parse, "drop=x", "--pn-inject 'drop=x': 'drop=x' needs a whole number"),
+                               (EipInjection.parse, "status=2:0x100", "--eip-inject: status=N:0x100 is out of range"),
+                               (Injector.parse, "zap=1", "--ecat-inject 'zap=1': unknown fault 'zap'"),
+                               (PnInjection.parse, "drop=0", "N must be at least 1"),
+                               (PnInjection.parse, "dup=2:1", "dup takes no ':' value")):
+        with pytest.raises(UsageError) as info:
+            parse(text)
+        assert words in info.value.message, info.value.message

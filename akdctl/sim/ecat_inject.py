@@ -14,7 +14,7 @@ import struct
 import threading
 from dataclasses import dataclass, field
 
-from akdctl.errors import UsageError
+from akdctl.sim.inject_spec import parse_every_nth
 
 KINDS = ("drop", "mbxerr", "abort")
 ABORT_GENERAL = 0x08000000
@@ -32,23 +32,8 @@ class Injector:
     @classmethod
     def parse(cls, text: str | None, option: str = "--ecat-inject") -> "Injector":
         """``drop=3,abort=5`` -> Injector; empty/None -> no faults."""
-        every: dict[str, int] = {}
-        for part in (text or "").split(","):
-            part = part.strip()
-            if not part:
-                continue
-            kind, _, num = part.partition("=")
-            kind = kind.strip().lower()
-            if kind not in KINDS:
-                raise UsageError(f"{option}: unknown fault {kind!r}; use {', '.join(k + '=N' for k in KINDS)}")
-            try:
-                n = int(num or "1", 0)
-            except ValueError:
-                raise UsageError(f"{option}: {part!r} needs a number, e.g. {kind}=3") from None
-            if n < 1:
-                raise UsageError(f"{option}: {kind}={n} must be at least 1")
-            every[kind] = n
-        return cls(every)
+        found = parse_every_nth(text, option, {kind: "" for kind in KINDS})
+        return cls({kind: n for kind, (n, _) in found.items()})
 
     def decide(self) -> str | None:
         """Count one request; the fault to inject into its reply, or None."""

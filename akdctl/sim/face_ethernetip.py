@@ -32,6 +32,7 @@ from akdctl.protocol import cip, enip
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.cip_device import CipDevice, IdentitySettings
 from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:44818"
 MIN_RPI_US = 10000                      # "10ms or greater" [M-11]
@@ -53,31 +54,12 @@ class Injection:
 
     @classmethod
     def parse(cls, text: str | None) -> "Injection":
-        if not text:
-            return cls()
-        values: dict[str, Any] = {}
-        for item in text.split(","):
-            key, sep, value = item.strip().partition("=")
-            try:
-                if key in ("drop", "close") and sep:
-                    values[key] = int(value)
-                elif key == "delay" and sep:
-                    every, _, seconds = value.partition(":")
-                    values["delay"], values["delay_s"] = int(every), float(seconds or "0.5")
-                elif key == "status" and sep:
-                    every, _, code = value.partition(":")
-                    values["status"], values["status_code"] = int(every), int(code or "0x10", 0)
-                else:
-                    raise ValueError(item)
-            except ValueError:
-                raise UsageError(f"--eip-inject {text!r}: expected drop=N,delay=N:SECONDS,close=N,"
-                                 "status=N:CODE (every Nth request)") from None
-        result = cls(**values)
-        if min(result.drop, result.delay, result.close, result.status) < 0 or result.delay_s < 0:
-            raise UsageError(f"--eip-inject {text!r}: counts and seconds must not be negative")
-        if not 0 < result.status_code <= 0xFF:
-            raise UsageError(f"--eip-inject {text!r}: a status code is 0x01..0xFF")
-        return result
+        option = "--eip-inject"
+        found = parse_every_nth(text, option, {"drop": "", "delay": "SECONDS", "close": "", "status": "CODE"})
+        every = {kind: n for kind, (n, _) in found.items()}
+        return cls(**every, delay_s=extra_number(found, "delay", 0.5, option),
+                   status_code=int(extra_number(found, "status", cip.DEVICE_STATE_CONFLICT, option, integer=True,
+                                                low=1, high=0xFF)))
 
     def hits(self, every: int, count: int) -> bool:
         return every > 0 and count % every == 0

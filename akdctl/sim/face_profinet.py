@@ -30,6 +30,7 @@ from akdctl.errors import UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
@@ -56,27 +57,10 @@ class Injection:
 
     @classmethod
     def parse(cls, text: str | None) -> "Injection":
-        if not text:
-            return cls()
-        values: dict[str, Any] = {}
-        for item in text.split(","):
-            key, sep, value = item.strip().partition("=")
-            try:
-                if key in ("drop", "dup", "rxdrop") and sep:
-                    values[key] = int(value)
-                elif key == "delay" and sep:
-                    every, _, seconds = value.partition(":")
-                    values["delay"], values["delay_s"] = int(every), float(seconds or "0.5")
-                else:
-                    raise ValueError(item)
-            except ValueError:
-                raise UsageError(
-                    f"--pn-inject {text!r}: expected drop=N,dup=N,delay=N:SECONDS,rxdrop=N (every Nth datagram)"
-                ) from None
-        result = cls(**values)
-        if min(result.drop, result.dup, result.delay, result.rxdrop) < 0 or result.delay_s < 0:
-            raise UsageError(f"--pn-inject {text!r}: counts and seconds must not be negative")
-        return result
+        option = "--pn-inject"
+        found = parse_every_nth(text, option, {"drop": "", "dup": "", "delay": "SECONDS", "rxdrop": ""})
+        every = {kind: n for kind, (n, _) in found.items()}
+        return cls(**every, delay_s=extra_number(found, "delay", 0.5, option))
 
 
 def parse_address(text: str, default_port: int = pnio.PNIO_PORT, option: str = "--profinet") -> tuple[str, int]:
