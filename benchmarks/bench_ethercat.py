@@ -74,8 +74,9 @@ def _rate(fn, seconds: float) -> float:  # type: ignore[no-untyped-def]
 
 
 def gateway(seconds: float, state: str) -> tuple[float, float]:
+    from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
-    from akdctl.transport.registry import parse_target, transport_class
+    from akdctl.transport.registry import parse_target
 
     echo = subprocess.Popen([sys.executable, "-c", UDP_ECHO], stdout=subprocess.PIPE, text=True)
     serve = None
@@ -102,10 +103,12 @@ def gateway(seconds: float, state: str) -> tuple[float, float]:
         assert serve.stdout is not None
         serve.stdout.readline()
         target = parse_target(f"ecat-udp://127.0.0.1:{gw_port}/1001")
-        with transport_class(target)(target, LinkOptions(timeout=1.0)) as transport:
-            objects = transport.objects
-            assert objects is not None
+        conn = Connection(target, LinkOptions(timeout=1.0))
+        try:
+            objects = conn.objects()
             sdo_rate = _rate(lambda: objects.upload(0x1018, 1), seconds)
+        finally:
+            conn.close()
         return sdo_rate, bare_rate
     finally:
         _stop(echo)
@@ -115,15 +118,16 @@ def gateway(seconds: float, state: str) -> tuple[float, float]:
 
 OUR_MASTER = """
 import sys, time
+from akdctl.connection import Connection
 from akdctl.transport.base import LinkOptions
-from akdctl.transport.registry import parse_target, transport_class
-t = parse_target("ecat://" + sys.argv[1] + "/0")
-with transport_class(t)(t, LinkOptions(timeout=1.0)) as tp:
-    tp.objects.upload(0x1018, 1)
-    n, start = 0, time.perf_counter()
-    while time.perf_counter() - start < float(sys.argv[2]):
-        tp.objects.upload(0x1018, 1); n += 1
-print(n / (time.perf_counter() - start))
+from akdctl.transport.registry import parse_target
+conn = Connection(parse_target("ecat://" + sys.argv[1] + "/0"), LinkOptions(timeout=1.0))
+objects = conn.objects()
+objects.upload(0x1018, 1)
+n, start = 0, time.perf_counter()
+while time.perf_counter() - start < float(sys.argv[2]):
+    objects.upload(0x1018, 1); n += 1
+print(n / (time.perf_counter() - start)); conn.close()
 """
 
 PYSOEM = """

@@ -67,7 +67,7 @@ def pn_reads(seconds: float, batch: int, state: str) -> float:
     """PNU values read per second through the PROFINET face (``batch`` parameters per request)."""
     from akdctl.protocol.profidrive import ParameterAddress
     from akdctl.transport.base import LinkOptions
-    from akdctl.transport.profinet import ProfinetTransport
+    from akdctl.connection import Connection
     from akdctl.transport.target import split_target
 
     proc = subprocess.Popen([sys.executable, "-m", "akdctl", "sim", "serve", "--profinet", "127.0.0.1:0"],
@@ -77,11 +77,9 @@ def pn_reads(seconds: float, batch: int, state: str) -> float:
         match = re.search(r"127\.0\.0\.1:(\d+)", proc.stdout.readline())
         assert match, "sim serve did not start"
         os.environ["AKDCTL_STATE_DIR"] = state
-        transport = ProfinetTransport(split_target(f"pn://127.0.0.1:{match.group(1)}"), LinkOptions(timeout=2))
-        transport.open()
+        conn = Connection(split_target(f"pn://127.0.0.1:{match.group(1)}"), LinkOptions(timeout=2))
         try:
-            channel = transport.parameters
-            assert channel is not None
+            channel = conn.parameters()
             addresses = [ParameterAddress(930)] * batch
             channel.read(addresses)                                  # warm up
             values, start = 0, time.perf_counter()
@@ -89,7 +87,7 @@ def pn_reads(seconds: float, batch: int, state: str) -> float:
                 values += len(channel.read(addresses))
             return values / (time.perf_counter() - start)
         finally:
-            transport.close()
+            conn.close()
     finally:
         proc.terminate()
         proc.wait(timeout=10)
