@@ -150,7 +150,6 @@ class Connection:
             from akdctl.channels.cip import CipAttributes
 
             self._cip = CipAttributes(transport.message_link, self.target.display)
-        transport.parameters, transport.objects = self._parameters, self._objects
 
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
         from akdctl.channels.coe_sdo import CoeObjectChannel
@@ -226,7 +225,6 @@ class Connection:
             with contextlib.suppress(Exception):
                 channel.close()
         if transport is not None:
-            transport.parameters = transport.objects = None
             transport.close()
 
 

@@ -42,24 +42,25 @@ def face(channel: str) -> Iterator[CanFace]:
     face.stop()
 
 
-def _transport(channel: str, query: str = "", timeout: float = 1.0, node: int = NODE) -> CanopenTransport:
+def _transport(channel: str, query: str = "", timeout: float = 1.0, node: int = NODE) -> Connection:
+    """A Connection over the CAN transport (``.objects()`` the SDO channel, ``.transport()`` NMT and the bus)."""
     target = parse_target(f"can://virtual/{channel}/{node}{query}")
-    transport = CanopenTransport(target, LinkOptions(timeout=timeout, retries=0, tracer=Tracer(enabled=False)))
-    Connection.over(transport).transport()
-    return transport
+    conn = Connection.over(CanopenTransport(target, LinkOptions(timeout=timeout, retries=0, tracer=Tracer(enabled=False))))
+    conn.transport()
+    return conn
 
 
 @pytest.fixture
-def link(face: CanFace, channel: str) -> Iterator[CanopenTransport]:
+def link(face: CanFace, channel: str) -> Iterator[Connection]:
     transport = _transport(channel)
     yield transport
     transport.close()
 
 
 # ------------------------------------------------------------------ SDO through akdctl's channel
-def test_expedited_identity(link: CanopenTransport) -> None:
-    assert link.objects.upload(0x1018, 1) == (0x6A).to_bytes(4, "little")  # Kollmorgen vendor id (ESI)
-    assert link.objects.upload(0x1000, 0) == (0x00020192).to_bytes(4, "little")
+def test_expedited_identity(link: Connection) -> None:
+    assert link.objects().upload(0x1018, 1) == (0x6A).to_bytes(4, "little")  # Kollmorgen vendor id (ESI)
+    assert link.objects().upload(0x1000, 0) == (0x00020192).to_bytes(4, "little")
 
 
 @pytest.mark.parametrize("block", [False, True])
@@ -68,20 +69,20 @@ def test_segmented_and_block_round_trip(face: CanFace, channel: str, block: bool
     transport = _transport(channel, "?block=1" if block else "")
     try:
         value = bytes((65 + i % 26) for i in range(size))
-        transport.objects.download(0x2032, 0, value)  # DRV.CUSTOMIDENTIFIER, STRING(32)
-        assert transport.objects.upload(0x2032, 0) == value
-        assert transport.objects.block is block  # the simulator accepts block transfers
+        transport.objects().download(0x2032, 0, value)  # DRV.CUSTOMIDENTIFIER, STRING(32)
+        assert transport.objects().upload(0x2032, 0) == value
+        assert transport.objects().block is block  # the simulator accepts block transfers
     finally:
         transport.close()
 
 
-def test_abort_translated_with_code_and_text(link: CanopenTransport) -> None:
+def test_abort_translated_with_code_and_text(link: Connection) -> None:
     with pytest.raises(SdoAborted) as info:
-        link.objects.upload(0x7777, 0)
+        link.objects().upload(0x7777, 0)
     assert info.value.code == 0x06020000 and info.value.exit_code == 1
     assert "0x06020000" in info.value.message and "does not exist" in info.value.message
     with pytest.raises(SdoAborted) as info:
-        link.objects.download(0x1018, 1, b"\0\0\0\0")
+        link.objects().download(0x1018, 1, b"\0\0\0\0")
     assert info.value.code == 0x06010002  # read-only
 
 
@@ -89,7 +90,7 @@ def test_silent_node_is_no_answer(face: CanFace, channel: str) -> None:
     transport = _transport(channel, timeout=0.2, node=99)
     try:
         with pytest.raises(NoAnswer) as info:
-            transport.objects.upload(0x1000, 0)
+            transport.objects().upload(0x1000, 0)
         assert info.value.exit_code == 3 and "node 99" in info.value.message
     finally:
         transport.close()
@@ -97,10 +98,10 @@ def test_silent_node_is_no_answer(face: CanFace, channel: str) -> None:
 
 def test_trace_sees_every_frame(face: CanFace, channel: str) -> None:
     tracer = Tracer(enabled=False)
-    transport = CanopenTransport(parse_target(f"can://virtual/{channel}/{NODE}"), LinkOptions(timeout=1, retries=0, tracer=tracer))
-    Connection.over(transport).transport()
+    transport = Connection.over(CanopenTransport(parse_target(f"can://virtual/{channel}/{NODE}"),
+                                                 LinkOptions(timeout=1, retries=0, tracer=tracer)))
     try:
-        transport.objects.upload(0x1018, 1)
+        transport.objects().upload(0x1018, 1)
     finally:
         transport.close()
     sdo = [(r.direction, r.meta["can_id"]) for r in tracer.records if r.meta.get("can_id") in (0x600 + NODE, 0x580 + NODE)]
@@ -109,25 +110,25 @@ def test_trace_sees_every_frame(face: CanFace, channel: str) -> None:
 
 # ------------------------------------------------------------------ NMT, heartbeat, guarding
 def test_nmt_states_by_guarding_and_heartbeat(face: CanFace, link: CanopenTransport) -> None:
-    assert link.nmt_state() == "PRE-OPERATIONAL"  # heartbeat is off (0x1017 = 0): node guarding answers
-    link.nmt("stop")
-    assert link.nmt_state(fresh=True) == "STOPPED"
+    assert link.transport().nmt_state() == "PRE-OPERATIONAL"  # heartbeat is off (0x1017 = 0): node guarding answers
+    link.transport().nmt("stop")
+    assert link.transport().nmt_state(fresh=True) == "STOPPED"
     with pytest.raises(NoAnswer):
-        link.objects.upload(0x1018, 1)  # no SDO in STOPPED (CiA 301)
-    link.nmt("start")
-    assert link.nmt_state(fresh=True) == "OPERATIONAL"
-    link.objects.download(0x1017, 0, struct.pack("<H", 50))  # heartbeat producer on
+        link.objects().upload(0x1018, 1)  # no SDO in STOPPED (CiA 301)
+    link.transport().nmt("start")
+    assert link.transport().nmt_state(fresh=True) == "OPERATIONAL"
+    link.objects().download(0x1017, 0, struct.pack("<H", 50))  # heartbeat producer on
     beats: list[bytes] = []
-    link.network.subscribe(0x700 + NODE, lambda cid, data, ts: beats.append(bytes(data)))
+    link.transport().network.subscribe(0x700 + NODE, lambda cid, data, ts: beats.append(bytes(data)))
     wait_until(lambda: len(beats) >= 2, "two heartbeats", timeout=3.0)
     assert beats[-1] == b"\x05"
-    link.nmt("reset-comm")
-    assert link.nmt_state(fresh=True) == "PRE-OPERATIONAL"
+    link.transport().nmt("reset-comm")
+    assert link.transport().nmt_state(fresh=True) == "PRE-OPERATIONAL"
     wait_until(lambda: b"\x00" in beats, "the boot-up message", timeout=3.0)  # boot-up message
 
 
 def test_scan_reports_identity(face: CanFace, link: CanopenTransport) -> None:
-    found = link.scan(range(1, 128), wait=0.3)
+    found = link.transport().scan(range(1, 128), wait=0.3)
     assert [n.node for n in found] == [NODE]
     info = found[0]
     assert (info.vendor_id, info.device_type, info.state) == (0x6A, 0x00020192, "PRE-OPERATIONAL")
@@ -144,9 +145,9 @@ def test_emergencies_reach_the_channel(face: CanFace, link: CanopenTransport, mo
         return out
 
     monkeypatch.setattr(face.drive, "take_emergencies", take)
-    got = link.objects.wait_emergencies(3.0)
-    wait_until(lambda: len(got) + len(link.objects._emcy) >= 2, "two emergencies", timeout=3.0)
-    got += link.objects.take_emergencies()
+    got = link.objects().wait_emergencies(3.0)
+    wait_until(lambda: len(got) + len(link.objects()._emcy) >= 2, "two emergencies", timeout=3.0)
+    got += link.objects().take_emergencies()
     assert got == [Emergency(0x4310, 0x09, b"\x01\x02\x03\x04\x05"), Emergency(0, 0, bytes(5))]
     assert got[1].is_reset
 
@@ -154,22 +155,22 @@ def test_emergencies_reach_the_channel(face: CanFace, link: CanopenTransport, mo
 # ------------------------------------------------------------------ PDOs
 def test_pdos_follow_the_mapping(face: CanFace, link: CanopenTransport) -> None:
     tpdo: list[bytes] = []
-    link.network.subscribe(0x180 + NODE, lambda cid, data, ts: tpdo.append(bytes(data)))
-    o = link.objects
+    link.transport().network.subscribe(0x180 + NODE, lambda cid, data, ts: tpdo.append(bytes(data)))
+    o = link.objects()
     assert o.upload(0x1800, 1) == (0x180 + NODE).to_bytes(4, "little")  # predefined connection set
     assert int.from_bytes(o.upload(0x1A00, 1), "little") == 0x60410010  # statusword in TPDO1
     o.download(0x1800, 2, bytes([1]))  # TPDO1 synchronous, every SYNC
-    link.nmt("start")
-    assert link.nmt_state(fresh=True) == "OPERATIONAL"
+    link.transport().nmt("start")
+    assert link.transport().nmt_state(fresh=True) == "OPERATIONAL"
     tpdo.clear()
     for sent in range(1, 4):  # one SYNC at a time: each answered by its TPDO before the next goes out
-        link.network.send_message(0x080, b"")
+        link.transport().network.send_message(0x080, b"")
         wait_until(lambda: len(tpdo) >= sent, f"TPDO {sent}", timeout=3.0)  # noqa: B023 - used at once
     assert all(len(p) == 2 for p in tpdo)
     # RPDO1 carries the controlword (0x1600:01 = 0x60400010)
-    link.network.send_message(0x200 + NODE, b"\x06\x00")
+    link.transport().network.send_message(0x200 + NODE, b"\x06\x00")
     wait_until(lambda: o.upload(0x6040, 0) == b"\x06\x00", "the RPDO to set the controlword", timeout=3.0)
-    link.network.send_message(0x200 + NODE, b"\x07")  # too short: EMCY 0x8210
+    link.transport().network.send_message(0x200 + NODE, b"\x07")  # too short: EMCY 0x8210
     emcy = o.wait_emergencies(3.0)
     assert any(e.error_code == 0x8210 for e in emcy)
 
@@ -253,6 +254,6 @@ def test_malformed_block_reply_is_comm_error(link: CanopenTransport, monkeypatch
     def broken(*args: object, **kwargs: object) -> bytes:
         raise SdoCommunicationError("Toggle bit mismatch")
 
-    monkeypatch.setattr(link.objects.sdo, "upload", broken)
+    monkeypatch.setattr(link.objects().sdo, "upload", broken)
     with pytest.raises(MalformedReply):
-        link.objects.upload(0x1018, 1)
+        link.objects().upload(0x1018, 1)

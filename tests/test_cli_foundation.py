@@ -78,11 +78,11 @@ def test_pnu_batching_uses_minimum_round_trips() -> None:
     from akdctl.transport.sim import SimTransport
     from akdctl.transport.target import Target
 
-    transport = Connection.over(SimTransport(Target("sim", "sim"), LinkOptions())).transport()
+    conn = Connection.over(SimTransport(Target("sim", "sim"), LinkOptions()))
     specs = [PnuSpec(947, i % 64, 1, None) for i in range(100)]
-    readings = read_pnus(transport.parameters, specs)
+    readings = read_pnus(conn.parameters(), specs)
     assert all(r.ok for r in readings)
-    assert transport.parameters.requests == 3
+    assert conn.parameters().requests == 3
 
 
 def test_targets_lists_every_scheme(akd_inproc) -> None:

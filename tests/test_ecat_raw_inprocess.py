@@ -79,15 +79,16 @@ def wire(drive: SimDrive) -> Iterator[Wire]:
 def test_bring_up_and_sdo(wire: Wire) -> None:
     tracer = Tracer()
     t = transport(wire, tracer)
-    Connection.over(t).transport()
+    conn = Connection.over(t)
+    conn.transport()
     assert t.slave is not None and t.slave.al_status == ec.AlState.PREOP and t.slave.station == 0x1001
     assert t.slave.sii is not None and t.slave.sii.is_akd
-    assert t.objects is not None
-    assert t.objects.upload(0x1018, 1) == b"\x6a\0\0\0"
-    t.objects.download(0x6060, 0, b"\x03")
-    assert t.objects.upload(0x6060, 0) == b"\x03"
+    assert conn.has_objects
+    assert conn.objects().upload(0x1018, 1) == b"\x6a\0\0\0"
+    conn.objects().download(0x6060, 0, b"\x03")
+    assert conn.objects().upload(0x6060, 0) == b"\x03"
     with pytest.raises(SdoAborted) as info:
-        t.objects.upload(0x5FFF, 0)
+        conn.objects().upload(0x5FFF, 0)
     assert info.value.code == 0x06020000
     frames = [r for r in tracer.records if r.layer == "ecat"]
     assert frames and all(r.meta == {"proto": "ethernet"} and r.data[12:14] == b"\x88\xa4" for r in frames)
@@ -100,10 +101,11 @@ def test_lost_reply_frames_recovered_by_repeat(drive: SimDrive) -> None:
     w = Wire(drive, "drop=2")
     try:
         t = transport(w)
-        Connection.over(t).transport()
-        assert t.objects is not None
+        conn = Connection.over(t)
+        conn.transport()
+        assert conn.has_objects
         for _ in range(4):
-            assert t.objects.upload(0x1018, 1) == b"\x6a\0\0\0"
+            assert conn.objects().upload(0x1018, 1) == b"\x6a\0\0\0"
         assert t.link is not None and t.link.repeats >= 1 and w.face.esc.stats.repeats >= 1
         t.close()
     finally:
@@ -114,10 +116,11 @@ def test_injected_abort(drive: SimDrive) -> None:
     w = Wire(drive, "abort=1")
     try:
         t = transport(w)
-        Connection.over(t).transport()
-        assert t.objects is not None
+        conn = Connection.over(t)
+        conn.transport()
+        assert conn.has_objects
         with pytest.raises(SdoAborted) as info:
-            t.objects.upload(0x1018, 1)
+            conn.objects().upload(0x1018, 1)
         assert info.value.code == 0x08000000
         t.close()
     finally:
@@ -140,9 +143,8 @@ def _model_al_state(drive: SimDrive) -> str:
         return str(model.component("pdo").al_state)  # type: ignore[union-attr]
 
 
-def _statusword(t: EthercatRawTransport) -> int:
-    assert t.objects is not None
-    return int.from_bytes(t.objects.upload(0x6041, 0), "little")
+def _statusword(conn: Connection) -> int:
+    return int.from_bytes(conn.objects().upload(0x6041, 0), "little")
 
 
 def test_model_follows_the_esc_al_state_and_refuses_sdo_control_in_op(wire: Wire, drive: SimDrive) -> None:
@@ -150,30 +152,32 @@ def test_model_follows_the_esc_al_state_and_refuses_sdo_control_in_op(wire: Wire
     the assigned RxPDO (the ESI default 0x1701) an SDO controlword has no effect, as on every other link."""
     assert _model_al_state(drive) == "INIT"  # the slave powered on with the face
     t = transport(wire)
-    Connection.over(t).transport()
+    conn = Connection.over(t)
+    conn.transport()
     assert t.master is not None and t.slave is not None
     assert _model_al_state(drive) == "PREOP"
     for state in (ec.AlState.SAFEOP, ec.AlState.OP):
         status, code = t.master.request_state(t.slave.station, state)
         assert status & 0x0F == state and code == 0
     assert _model_al_state(drive) == "OP"
-    assert t.objects is not None
-    before = _statusword(t)
+    assert conn.has_objects
+    before = _statusword(conn)
     for word in (0x06, 0x07, 0x0F):
-        t.objects.download(0x6040, 0, word.to_bytes(2, "little"))
-    assert _statusword(t) == before and before & 0x6F != 0x27  # not "operation enabled"
+        conn.objects().download(0x6040, 0, word.to_bytes(2, "little"))
+    assert _statusword(conn) == before and before & 0x6F != 0x27  # not "operation enabled"
     t.master.request_state(t.slave.station, ec.AlState.PREOP)
     assert _model_al_state(drive) == "PREOP"
     for word in (0x06, 0x07, 0x0F):
-        t.objects.download(0x6040, 0, word.to_bytes(2, "little"))
-    assert _statusword(t) & 0x6F == 0x27  # in PRE-OP the SDO controlword is obeyed
+        conn.objects().download(0x6040, 0, word.to_bytes(2, "little"))
+    assert _statusword(conn) & 0x6F == 0x27  # in PRE-OP the SDO controlword is obeyed
     t.close()
 
 
 def test_esc_al_status_shows_the_models_al_state(wire: Wire, drive: SimDrive) -> None:
     """A change of the model's AL state made elsewhere (another process, a test) is what AL status 0x0130 shows."""
     t = transport(wire)
-    Connection.over(t).transport()
+    conn = Connection.over(t)
+    conn.transport()
     assert t.master is not None and t.slave is not None
     with drive.transaction() as model:
         model.component("pdo").set_al_state("SAFEOP")  # type: ignore[union-attr]
@@ -186,7 +190,8 @@ def test_face_stop_leaves_the_model_in_preop(drive: SimDrive) -> None:
     w = Wire(drive)
     try:
         t = transport(w)
-        Connection.over(t).transport()
+        conn = Connection.over(t)
+        conn.transport()
         assert t.master is not None and t.slave is not None
         t.master.request_state(t.slave.station, ec.AlState.SAFEOP)
         assert _model_al_state(drive) == "SAFEOP"

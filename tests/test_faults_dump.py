@@ -116,7 +116,7 @@ def _sim_transport(tmp_path: Any, query: str = "") -> Any:
     from akdctl.transport.registry import parse_target
     from akdctl.transport.sim import SimTransport
 
-    return Connection.over(SimTransport(parse_target("sim" + query, "test"), LinkOptions(timeout=2.0))).transport()
+    return Connection.over(SimTransport(parse_target("sim" + query, "test"), LinkOptions(timeout=2.0)))
 
 
 def _with_model(fn: Any) -> None:
@@ -129,7 +129,7 @@ def _with_model(fn: Any) -> None:
 def test_sim_pnu_dump_retries_when_a_fault_rises_between_reads(tmp_path: Any) -> None:
     transport = _sim_transport(tmp_path)
     _with_model(lambda c: c.arm("F501", 1))  # raised right after the first 944 read
-    result = df.read_profidrive_faults(transport.parameters)
+    result = df.read_profidrive_faults(transport.parameters())
     assert result.attempts == 2 and result.consistent
     assert result.counter == 1 and [e.code for e in result.active] == ["F501"]
     assert result.zsw1 is not None and result.zsw1 & 0x08
@@ -138,7 +138,7 @@ def test_sim_pnu_dump_retries_when_a_fault_rises_between_reads(tmp_path: Any) ->
 def test_sim_coe_dump_retries_when_a_fault_rises_mid_read(tmp_path: Any) -> None:
     transport = _sim_transport(tmp_path, "?drive=cia402")
     _with_model(lambda c: c.arm("F502", 6))  # somewhere inside the object reads
-    result = df.read_canopen_faults(transport.objects)
+    result = df.read_canopen_faults(transport.objects())
     assert result.attempts == 2 and result.consistent
     assert [e.code for e in result.faults] == ["F502"]
     assert [e.code for e in result.history] == ["F502"]
@@ -157,7 +157,7 @@ def test_sim_coe_dump_decodes_warnings_and_history(tmp_path: Any) -> None:
         comp.raise_fault("n503")
 
     _with_model(inject)
-    result = df.read_canopen_faults(transport.objects).to_json()
+    result = df.read_canopen_faults(transport.objects()).to_json()
     assert [f["code"] for f in result["faults"]] == ["F234"]
     assert [w["code"] for w in result["warnings"]] == ["n503"]
     assert [h["code"] for h in result["fault_history"]] == ["F234", "F501"]

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from akdctl.transport.trace import NULL_TRACER, Tracer
 
@@ -42,13 +42,9 @@ class Transport(ABC):
     """One open connection to one drive.
 
     Subclasses set ``scheme`` and, in :meth:`open`, fill ``record_link``,
-    ``mailbox_link`` and/or ``sdo_client``. ``close`` must be safe to call twice
-    and after a failed open.
-
-    ``parameters`` / ``objects`` are the channels the :class:`~akdctl.connection.Connection`
-    built over these links (``None`` until a Connection opened the transport, and
-    where the transport offers no such link); they stay here for code that is handed
-    a transport (snapshot, identity) rather than the Connection.
+    ``mailbox_link``, ``message_link`` and/or ``sdo_client``. ``close`` must be safe
+    to call twice and after a failed open. A transport holds no channel: the
+    :class:`~akdctl.connection.Connection` builds them over these links.
     """
 
     scheme: ClassVar[str] = ""
@@ -60,9 +56,6 @@ class Transport(ABC):
         self.mailbox_link: "MailboxLink | None" = None
         self.sdo_client: "NativeSdoClient | None" = None
         self.message_link: "MessageLink | None" = None
-        # The Connection's ParameterChannel / ObjectChannel (typed loosely: transports know no channel type).
-        self.parameters: Any = None
-        self.objects: Any = None
 
     @abstractmethod
     def open(self) -> None: ...
