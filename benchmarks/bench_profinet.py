@@ -65,7 +65,7 @@ def bare_loop(seconds: float) -> float:
 
 def pn_reads(seconds: float, batch: int, state: str) -> float:
     """PNU values read per second through the PROFINET face (``batch`` parameters per request)."""
-    from akdctl.protocol.profidrive import ParameterAddress
+    from akdctl.protocol.bmp import ParameterAddress
     from akdctl.transport.base import LinkOptions
     from akdctl.connection import Connection
     from akdctl.transport.target import split_target

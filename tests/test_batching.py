@@ -25,7 +25,7 @@ from akdctl.channels.batching import (
     split_requests,
 )
 from akdctl.channels.bmp import BmpParameterChannel
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ATTR_DESCRIPTION,
     ATTR_TEXT,
     ATTR_VALUE,
@@ -53,7 +53,7 @@ def spans(batches: Sequence[Batch]) -> list[tuple[int, int]]:
     return out
 
 
-# --- examples (moved from test_profidrive_codec.py) --------------------------------------------------------------
+# --- examples (moved from test_bmp_codec.py) --------------------------------------------------------------
 
 
 def test_plan_batches_by_parameter_count() -> None:
@@ -171,7 +171,7 @@ def test_every_change_batch_fits_both_ways_in_order(changes: list[tuple[int, int
 
 
 def encode(value: ParameterValue) -> bytes:
-    from akdctl.protocol.profidrive import encode_value_block
+    from akdctl.protocol.bmp import encode_value_block
 
     return encode_value_block(value)
 

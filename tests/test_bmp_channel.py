@@ -9,7 +9,7 @@ import pytest
 
 from akdctl.channels.bmp import BmpParameterChannel
 from akdctl.errors import MalformedReply, NoAnswer, ParameterRefused, UsageError
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ID_ARRAY,
     MAX_BLOCK,
     MAX_PARAMETERS,

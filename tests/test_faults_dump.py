@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from akdctl.drive import faults as df
 from akdctl.errors import ParameterRefused
 from akdctl.protocol.emcy import Emergency
-from akdctl.protocol.profidrive import ParameterAddress, ParameterFailure, ParameterValue
+from akdctl.protocol.bmp import ParameterAddress, ParameterFailure, ParameterValue
 
 
 class ScriptedChannel:

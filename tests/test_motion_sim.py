@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
-from akdctl.protocol import profidrive as bmp
+from akdctl.protocol import bmp
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer
 

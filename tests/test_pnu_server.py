@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from akdctl.protocol.errors import CodecError
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ATTR_DESCRIPTION,
     ID_ARRAY,
     ID_READ_ONLY,

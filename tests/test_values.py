@@ -20,7 +20,7 @@ from akdctl.catalog.pnus import pnu_table
 from akdctl.drive import values
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.datatypes import TYPES
-from akdctl.protocol.profidrive import ParameterFailure, ParameterValue
+from akdctl.protocol.bmp import ParameterFailure, ParameterValue
 
 CATALOGUE_TYPES = sorted({e.short_type for e in entries().values()} & set(TYPES))
 

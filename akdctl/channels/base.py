@@ -4,7 +4,7 @@
 batches; :class:`ObjectChannel` uploads and downloads CANopen/CoE objects.
 Both count their round trips (``requests``) so benchmarks and tests can prove
 that batching works. Per-parameter refusals come back as
-:class:`~akdctl.protocol.profidrive.ParameterFailure` results (a multi-parameter
+:class:`~akdctl.protocol.bmp.ParameterFailure` results (a multi-parameter
 read can be partly good); link failures raise :class:`akdctl.errors.CommError`.
 
 :func:`sdo_aborted` is the one place an SDO abort code becomes the
@@ -22,7 +22,7 @@ from akdctl.errors import SdoAborted, UsageError
 
 if TYPE_CHECKING:
     from akdctl.protocol.emcy import Emergency
-    from akdctl.protocol.profidrive import ParameterAddress, ParameterDescription, ParameterFailure, ParameterValue
+    from akdctl.protocol.bmp import ParameterAddress, ParameterDescription, ParameterFailure, ParameterValue
 
     ParameterResult = ParameterValue | ParameterFailure
 

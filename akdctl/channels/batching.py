@@ -1,6 +1,6 @@
 """The batching rule: which parameters share one PROFIdrive request.
 
-Why here and not in the codec: ``protocol/profidrive.py`` only turns blocks into
+Why here and not in the codec: ``protocol/bmp.py`` only turns blocks into
 bytes and back; how many parameters to put into one round trip is a policy of
 the client, so it lives beside the channel that uses it (and ``drive/`` code
 that wants few round trips simply hands the channel all it needs in one call).
@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ADDRESS_SIZE,
     ATTR_DESCRIPTION,
     ATTR_TEXT,

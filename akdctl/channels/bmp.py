@@ -15,7 +15,7 @@ a technician relies on lives here, once for all links:
   naming what was wrong, because acting on someone else's answer is worse than
   failing;
 * refusals are per parameter: a negative response (0x81/0x82/0x80) comes back
-  as :class:`~akdctl.protocol.profidrive.ParameterFailure` results, not raised.
+  as :class:`~akdctl.protocol.bmp.ParameterFailure` results, not raised.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from akdctl.channels.batching import (
     response_block_size,
 )
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ATTR_DESCRIPTION,
     ATTR_VALUE,
     DEFAULT_ELEMENT_SIZE,

@@ -98,7 +98,7 @@ def parse_assignment(text: str) -> tuple[PnuSpec, list[int]]:
 
 def description_json(description: Any) -> dict[str, Any]:
     """A PROFIdrive parameter description (attribute 0x20) in words, for output."""
-    from akdctl.protocol.profidrive import format_name
+    from akdctl.protocol.bmp import format_name
 
     limits = description.limits()
     return {

@@ -279,7 +279,7 @@ def pnu_from_wire(info: PnuInfo | None, raw: Sequence[Any]) -> list[Any]:
 
 def pnu_to_wire(info: PnuInfo, values: Sequence[int]) -> Any:
     """Values → the ParameterValue a change request carries (the AKD's format, two's complement bits)."""
-    from akdctl.protocol.profidrive import ParameterValue
+    from akdctl.protocol.bmp import ParameterValue
 
     mask = (1 << info.bits) - 1
     return ParameterValue(info.wire_format, tuple(v & mask for v in values))
@@ -287,7 +287,7 @@ def pnu_to_wire(info: PnuInfo, values: Sequence[int]) -> Any:
 
 def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
     """Read every spec in one batched channel call; values signed per the catalogue type."""
-    from akdctl.protocol.profidrive import ParameterAddress, ParameterFailure
+    from akdctl.protocol.bmp import ParameterAddress, ParameterFailure
 
     results = channel.read([ParameterAddress(s.pnu, s.subindex, s.count) for s in specs])
     readings = []
@@ -305,7 +305,7 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
 
     Values outside a PNU's limits are refused (UsageError) before anything is sent.
     """
-    from akdctl.protocol.profidrive import ParameterAddress
+    from akdctl.protocol.bmp import ParameterAddress
 
     items = []
     for spec, values in assignments:

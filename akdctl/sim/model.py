@@ -139,7 +139,7 @@ class DriveModel:
 
     def pnu_read(self, pnu: int, subindex: int, count: int) -> Any:
         """ParameterAccess: read ``count`` elements from ``subindex`` as a BMP ParameterValue."""
-        from akdctl.protocol.profidrive import ParameterValue
+        from akdctl.protocol.bmp import ParameterValue
 
         fmt, values = self.pnu_read_raw(pnu, subindex, count)
         return ParameterValue(fmt, tuple(values))
@@ -153,7 +153,7 @@ class DriveModel:
 
     def pnu_describe(self, pnu: int) -> Any:
         """ParameterAccess: the PROFIdrive description (attribute 0x20) built from the catalogue."""
-        from akdctl.protocol import profidrive as bmp
+        from akdctl.protocol import bmp
 
         info = self.pnu_info(pnu)
         dtype = pnu_catalog.DATATYPE_CODES[info.type]

@@ -50,7 +50,7 @@ from collections.abc import Collection
 from typing import Protocol
 
 from akdctl.sim.errors import PnuAccessError  # noqa: F401  (re-exported: servers raise and catch it)
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ADDRESS_SIZE,
     ATTR_DESCRIPTION,
     ATTR_VALUE,

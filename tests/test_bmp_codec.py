@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from akdctl.catalog.texts import profidrive_error_phrase, profidrive_failure_detail
 from akdctl.protocol.errors import CodecError
-from akdctl.protocol.profidrive import (
+from akdctl.protocol.bmp import (
     ATTR_DESCRIPTION,
     ATTR_TEXT,
     ATTR_VALUE,
