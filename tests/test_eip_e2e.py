@@ -331,3 +331,14 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         if server is not None:
             server.stop()
         subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
+
+
+def test_unhomed_position_move_is_refused_in_words(serve, tmp_path) -> None:
+    """[V] "The amplifier must be homed before motion is begun in position mode" (reference/ethernetip.md, M-11):
+    explicit messaging cannot read the homed state, so the drive's refusal is reported as that rule, exit 1."""
+    server = serve()
+    assert akdctl(tmp_path, server.target, "-y", "enable").returncode == 0
+    move = akdctl(tmp_path, server.target, "-y", "move", "0.5", "--relative", timeout=3)
+    assert move.returncode == 1, move.stderr
+    assert "only once homed" in move.stderr and "akdctl home" in move.stderr
+    assert len(move.stderr.strip().splitlines()) == 1

@@ -201,4 +201,13 @@ class CipAxis(Axis):
         self._set(10, "<B", 1 if move.relative else 0)
         self._set(6, "<i", move.target_raw)
         self._set(7, "<i", abs(move.velocity_raw))
-        self._handshake()
+        try:
+            self._handshake()
+        except CipRefused as exc:
+            if exc.code != cip.DEVICE_STATE_CONFLICT:
+                raise
+            # [V] "The amplifier must be homed before motion is begun in position mode" [M-11]; explicit
+            # messaging cannot read the homed state beforehand, so the drive's refusal is where it shows.
+            raise DriveError(f"the drive refused the position move ({exc.message.split(': ', 1)[-1]}): an AKD "
+                             "positions only once homed (EtherNet/IP manual); run 'akdctl home' first",
+                             code=exc.code) from None
