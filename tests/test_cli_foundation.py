@@ -73,7 +73,7 @@ def test_trace_dumps_request_and_response_bytes(akd_inproc) -> None:
 def test_pnu_batching_uses_minimum_round_trips() -> None:
     """100 single-element reads need ceil(100/39) = 3 requests (SPEC-NOTES 4)."""
     from akdctl.connection import Connection
-    from akdctl.drive.params import PnuSpec, read_pnus
+    from akdctl.drive.values import PnuSpec, read_pnus
     from akdctl.transport.base import LinkOptions
     from akdctl.transport.sim import SimTransport
     from akdctl.transport.target import Target

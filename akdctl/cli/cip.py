@@ -10,9 +10,6 @@ from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
-TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
-
-
 def parse_path(text: str) -> tuple[int, int, int]:
     """CLASS/INSTANCE/ATTRIBUTE, each decimal or 0x-hex."""
     parts = text.split("/")
@@ -35,13 +32,6 @@ def attributes(app) -> object:  # type: ignore[no-untyped-def]
     return app.connection.cip()
 
 
-def _check_type(type_name: str) -> None:
-    from akdctl.protocol.datatypes import TYPES
-
-    if type_name not in TYPES:
-        raise UsageError(f"unknown type {type_name!r}; types: {TYPE_HELP}")
-
-
 @click.group()
 def cip() -> None:
     """Read and write CIP attributes (EtherNet/IP explicit messaging, eip:// targets)."""
@@ -55,11 +45,10 @@ def get(path: str, type_name: str | None) -> None:
 
     TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool. Example: cip get 0x0F/796/1 u32
     """
-    from akdctl.drive.objects import decode, display, json_value
+    from akdctl.drive.values import check_type_name, decode, display, json_value
 
     class_id, instance, attribute = parse_path(path)
-    dtype = type_name or "os"
-    _check_type(dtype)
+    dtype = check_type_name(type_name or "os")
     app = get_app()
     data = attributes(app).get(class_id, instance, attribute)
     value = decode(dtype, data)
@@ -80,11 +69,10 @@ def set_(path: str, type_name: str, value_text: str) -> None:
 
     Example: cip set 0x25/1/7 i32 65536
     """
-    from akdctl.drive.objects import encode
+    from akdctl.drive.values import check_type_name, encode
 
     class_id, instance, attribute = parse_path(path)
-    _check_type(type_name)
-    _value, data = encode(type_name, value_text)
+    _value, data = encode(check_type_name(type_name), value_text)
     app = get_app()
     attributes(app).set(class_id, instance, attribute, data)
     label = f"0x{class_id:02X}/{instance}/{attribute}"

@@ -62,7 +62,8 @@ def _report_failures(readings: list[Any], verb: str) -> None:
 @click.argument("addresses", nargs=-1, required=True, metavar="PNU[SUB|FROM..TO]...")
 def get(addresses: tuple[str, ...]) -> None:
     """Read one or more PNUs in as few requests as the protocol allows (39 per request)."""
-    from akdctl.drive.params import parse_pnu_spec, read_pnus
+    from akdctl.drive.params import parse_pnu_spec
+    from akdctl.drive.values import read_pnus
 
     app = get_app()
     specs = [parse_pnu_spec(text) for text in addresses]
@@ -80,7 +81,8 @@ def get(addresses: tuple[str, ...]) -> None:
 def set_(assignments: tuple[str, ...], verify: bool) -> None:
     """Change one or more PNUs (all are checked before anything is sent)."""
     from akdctl.drive import gate
-    from akdctl.drive.params import parse_assignment, read_pnus, write_pnus
+    from akdctl.drive.params import parse_assignment
+    from akdctl.drive.values import read_pnus, write_pnus
 
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
@@ -159,7 +161,7 @@ def list_(group: str | None, from_drive: bool) -> None:
     numbers = sorted(table)
     source = "catalogue"
     if from_drive:
-        from akdctl.drive.params import PnuSpec, read_pnus
+        from akdctl.drive.values import PnuSpec, read_pnus
 
         reading = read_pnus(app.parameters(), [PnuSpec(980, 0, table[980].length, table[980])])[0]
         _report_failures([reading], "read")

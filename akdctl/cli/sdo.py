@@ -11,9 +11,6 @@ from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, UsageError
 
-TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
-
-
 @click.group()
 def sdo() -> None:
     """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0)."""
@@ -28,7 +25,8 @@ def read(address: str, type_name: str | None) -> None:
     TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
     """
     from akdctl.catalog.objects import object_name
-    from akdctl.drive.objects import decode, display, json_value, parse_address, resolve_type
+    from akdctl.drive.objects import parse_address
+    from akdctl.drive.values import decode, display, json_value, resolve_type
 
     app = get_app()
     addr = parse_address(address)
@@ -56,17 +54,14 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive import gate
-    from akdctl.drive.objects import decode, encode, parse_address, resolve_type
-    from akdctl.protocol.datatypes import TYPES
-
+    from akdctl.drive.objects import parse_address
+    from akdctl.drive.values import decode, encode, resolve_type
     app = get_app()
     addr = parse_address(address)
     if len(args) == 1:
         type_name, value_text = None, args[0]
     elif len(args) == 2:
         type_name, value_text = args
-        if type_name not in TYPES:
-            raise UsageError(f"unknown type {type_name!r}; types: {TYPE_HELP}")
     else:
         raise UsageError(f"too many values for sdo write: expected [TYPE] VALUE, got {len(args)} arguments")
     dtype, entry = resolve_type(addr, type_name)

@@ -70,7 +70,7 @@ def _tool() -> dict[str, Any]:
 def pnu_snapshot(channel: Any) -> list[dict[str, Any]]:
     """Every readable catalogue PNU in ONE batched read call (the channel packs the fewest requests)."""
     from akdctl.catalog.pnus import pnu_table
-    from akdctl.drive.params import PnuSpec, read_pnus
+    from akdctl.drive.values import PnuSpec, read_pnus
 
     specs = [PnuSpec(n, 0, info.length if info.is_array else 1, info)
              for n, info in sorted(pnu_table().items()) if "r" in info.access]
@@ -80,7 +80,7 @@ def pnu_snapshot(channel: Any) -> list[dict[str, Any]]:
 def object_snapshot(channel: Any, *, everything: bool = False) -> list[dict[str, Any]]:
     """Upload the core objects (or every readable catalogue object); aborts are recorded per object."""
     from akdctl.catalog import objects as catalog
-    from akdctl.drive.objects import decode, json_value
+    from akdctl.drive.values import decode, json_value
 
     if everything:
         keys = sorted(k for k, e in catalog.entries().items() if e.readable)

@@ -1,9 +1,7 @@
 """Object addresses as users write them: ``0x6041``, ``0x6041:0``, ``6041h``.
 
 Turning an object's bytes into a value and back (by the catalogue's type or one
-the user names) is :mod:`akdctl.drive.values`; its object functions are
-importable from here too, for the SDO commands that parse an address and decode
-in one breath.
+the user names) is :mod:`akdctl.drive.values`.
 """
 
 from __future__ import annotations
@@ -11,10 +9,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from akdctl.drive.values import decode, display, encode, json_value, resolve_type
 from akdctl.errors import UsageError
 
-__all__ = ["ObjectAddress", "decode", "display", "encode", "json_value", "parse_address", "resolve_type"]
+__all__ = ["ObjectAddress", "parse_address"]
 
 _ADDRESS = re.compile(r"^\s*(?P<index>0[xX][0-9A-Fa-f]{1,4}|[0-9A-Fa-f]{1,4}[hH]|\d+)\s*(?:[:.](?P<sub>0[xX][0-9A-Fa-f]{1,2}|\d+))?\s*$")
 

@@ -13,13 +13,10 @@ import re
 from typing import Any
 
 from akdctl.catalog.pnus import by_name, lookup
-from akdctl.drive.values import PnuReading, PnuSpec, check_pnu_values, read_pnus, write_pnus
+from akdctl.drive.values import PnuSpec, check_pnu_values
 from akdctl.errors import UsageError
 
-# PnuSpec, PnuReading, read_pnus and write_pnus are the typed-values module's (drive/values.py);
-# they are importable from here too because the CLI's PNU commands parse and read in one breath.
-__all__ = ["PnuReading", "PnuSpec", "description_json", "parse_assignment", "parse_pnu_spec", "read_pnus",
-           "write_pnus"]
+__all__ = ["description_json", "parse_assignment", "parse_pnu_spec"]
 
 _SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
 

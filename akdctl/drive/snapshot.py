@@ -4,7 +4,7 @@ Why this module: a machine builder commissions the same axis type hundreds of
 times and a technician must be able to put a replaced drive back exactly as it
 was. So a snapshot is plain data (TOML or JSON) that names the target, the
 drive's identity, firmware and time; reading it costs the fewest round trips
-the protocol allows (every PNU in ONE batched :func:`~akdctl.drive.params.read_pnus`
+the protocol allows (every PNU in ONE batched :func:`~akdctl.drive.values.read_pnus`
 call, which the channel packs into the fewest requests its 39-parameter /
 240-byte limits allow); and restoring it writes only what differs, in an order
 the drive accepts (units and operating mode before values that depend on

@@ -42,6 +42,19 @@ def object_label(index: int, subindex: int) -> str:
     return f"0x{index:04X}:{subindex}"
 
 
+#: The type names a user may give (``sdo``, ``cip``, recipes), as help and error texts list them.
+TYPE_HELP = "u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs (string) os (hex octets) bool"
+
+
+def check_type_name(type_name: str) -> str:
+    """``type_name`` if it names a data type, else a usage error listing the types (exit 2)."""
+    from akdctl.protocol.datatypes import TYPES
+
+    if type_name not in TYPES:
+        raise UsageError(f"unknown type {type_name!r}; types: {TYPE_HELP}")
+    return type_name
+
+
 def resolve_type(address: Any, type_name: str | None) -> tuple[str, Any]:
     """The data type to use for ``address`` (``.index``, ``.subindex``) and the catalogue entry (or None).
 
@@ -49,14 +62,11 @@ def resolve_type(address: Any, type_name: str | None) -> tuple[str, Any]:
     does not know needs an explicit type.
     """
     from akdctl.catalog.objects import lookup, subentries
-    from akdctl.protocol.datatypes import TYPES
 
     entry = lookup(address.index, address.subindex)
     label = object_label(address.index, address.subindex)
     if type_name is not None:
-        if type_name not in TYPES:
-            raise UsageError(f"unknown type {type_name!r}; types: {', '.join(TYPES)}")
-        return type_name, entry
+        return check_type_name(type_name), entry
     if entry is None:
         if subentries(address.index):
             raise UsageError(f"object {label}: subindex {address.subindex} is not in the catalogue; give a type")

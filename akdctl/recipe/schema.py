@@ -123,7 +123,8 @@ def _number(data: dict[str, Any], key: str, *, positive: bool = False, maximum: 
 
 def _pnu_target(text: Any, *, write: bool) -> Any:
     from akdctl.catalog.pnus import by_name
-    from akdctl.drive.params import PnuSpec, parse_pnu_spec
+    from akdctl.drive.params import parse_pnu_spec
+    from akdctl.drive.values import PnuSpec
 
     try:
         named = by_name(str(text)) if isinstance(text, str) and " " in text.strip() else None
@@ -148,7 +149,7 @@ def _pnu_values(spec: Any, value: Any, key: str = "value") -> list[int]:
         if isinstance(v, bool) or not isinstance(v, int):
             raise StepProblem(f"PNU {spec.label} ({info.name}) takes integers ({info.type}); got {v!r}", key)
     if isinstance(value, list) and "[" not in str(spec.label) and info.is_array:
-        from akdctl.drive.params import PnuSpec
+        from akdctl.drive.values import PnuSpec
 
         spec = PnuSpec(spec.pnu, 0, len(values), info)
     if len(values) != spec.count:
@@ -231,7 +232,7 @@ def _targets(data: dict[str, Any], *, write: bool, multi: bool) -> list[dict[str
             spec = _pnu_target(target, write=write)
             values = _pnu_values(spec, value, "value" if form == "pnu" else form) if value is not None and write else None
             if values is not None and spec.count != len(values):
-                from akdctl.drive.params import PnuSpec
+                from akdctl.drive.values import PnuSpec
 
                 spec = PnuSpec(spec.pnu, spec.subindex, len(values), spec.info)
             out.append({"kind": "pnu", "spec": spec, "label": f"PNU {spec.label} ({spec.info.name})",
