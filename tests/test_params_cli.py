@@ -196,3 +196,18 @@ def test_backup_only_list(akd_inproc, tmp_path: Path) -> None:
     assert code == EXIT_OK, err
     data = json.loads(out_file.read_text())
     assert set(data["pnus"]) == {"930", "922"} and set(data["objects"]) == {"0x6060:0"}
+
+
+def test_restore_refuses_an_enabled_drive_and_writes_nothing(akd_inproc, tmp_path: Path) -> None:
+    """The one "is the power stage on?" rule (drive/gate.py) guards a restore: exit 4 in words, no write."""
+    backup = tmp_path / "b.toml"
+    assert akd_inproc("params", "backup", "-o", str(backup))[0] == EXIT_OK
+    assert akd_inproc("--yes", "pnu", "set", "1005=-100")[0] == EXIT_OK
+    assert akd_inproc("--yes", "enable")[0] == EXIT_OK
+    before = writes()
+    code, _, err = akd_inproc("params", "restore", str(backup))
+    assert code == 4, err
+    assert "the drive is enabled (operation enabled); disable it before restoring parameters" in err
+    assert writes() == before
+    assert akd_inproc("--yes", "disable")[0] == EXIT_OK
+    assert akd_inproc("params", "restore", str(backup))[0] == EXIT_OK

@@ -74,12 +74,14 @@ def needing_consent(gated: list[Gated | None], enabled: bool | None) -> list[Gat
 
 
 def drive_enabled(conn: Any) -> bool | None:
-    """Is the power stage enabled? Reads only; None when the drive's state cannot be read."""
-    from akdctl.drive.axis import open_axis
+    """Is the power stage enabled? Reads only; None when the drive's state cannot be read.
+
+    The one answer to that question for raw writes, recipes and parameter restores.
+    """
     from akdctl.errors import AkdError
 
     try:
-        return bool(open_axis(conn).read_status().enabled)
+        return bool(conn.axis().read_status().enabled)
     except AkdError:
         return None
 

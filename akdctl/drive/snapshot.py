@@ -34,8 +34,6 @@ from akdctl.drive.values import (
     Value,
     check_pnu_values,
     encode_object,
-    pnu_spec,
-    read_object,
     read_pnus,
     read_snapshot_value,
     snapshot_value,
@@ -609,22 +607,6 @@ def restorable_items(snapshot: Snapshot) -> list[Item]:
     return [item for item in (resolve_item(k) for k in snapshot.values()) if item.restorable]
 
 
-def drive_enabled(conn: "Connection") -> bool:
-    """Operation enabled (ZSW1 / statusword bit 2): a restore then could change a running axis."""
-    try:
-        if conn.has_parameters:
-            (zsw1,) = read_pnus(conn.parameters(), [pnu_spec(2)])
-            if zsw1.ok and zsw1.values:
-                return bool(zsw1.values[0] & 0x0004)
-        if conn.has_objects:
-            return (read_object(conn.objects(), 0x6041, 0) & 0x006F) == 0x0027
-    except CommError:
-        raise
-    except AkdError:
-        return False
-    return False
-
-
 def apply_changes(conn: "Connection", changes: Sequence[Change]) -> list[dict[str, Any]]:
     """Write the changes in order, then read every one back; CheckFailed when a value did not stick."""
 
@@ -764,8 +746,13 @@ def restore(conn: "Connection", snapshot: Snapshot, *, dry_run: bool = False, fo
     changes = plan_restore(snapshot, current)
     if dry_run:
         return RestoreResult(changes, [], False, mismatches)
-    if changes and drive_enabled(conn):
-        raise SafetyRefusal("the drive is enabled (operation enabled); disable it before restoring parameters")
+    if changes:
+        from akdctl.drive.gate import drive_enabled
+
+        enabled = drive_enabled(conn)  # the one "is the power stage on?" rule (the axis status)
+        if enabled is not False:
+            state = "is enabled (operation enabled)" if enabled else "does not tell whether it is enabled"
+            raise SafetyRefusal(f"the drive {state}; disable it before restoring parameters")
     written = apply_changes(conn, changes)
     if save:
         save_nonvolatile(conn)
