@@ -342,3 +342,20 @@ def test_unhomed_position_move_is_refused_in_words(serve, tmp_path) -> None:
     assert move.returncode == 1, move.stderr
     assert "only once homed" in move.stderr and "akdctl home" in move.stderr
     assert len(move.stderr.strip().splitlines()) == 1
+
+
+def test_raw_cip_writes_that_power_or_move_pass_the_one_gate(serve, tmp_path) -> None:
+    """`cip set` of the Position Controller's enable and `eip param run HOME.MOVE` need consent like `enable`
+    (drive/gate.py); without a terminal and --yes: exit 4, and the simulated axis stays disabled and unhomed."""
+    server = serve()
+    for argv in (("cip", "set", "0x25/1/17", "u8", "1"), ("eip", "param", "run", "HOME.MOVE"),
+                 ("eip", "param", "run", "205"), ("cip", "set", "0x0F/205/1", "u8", "1")):
+        refused = akdctl(tmp_path, server.target, *argv)
+        assert refused.returncode == 4, (argv, refused.stderr)
+        assert "no terminal to ask for consent" in refused.stderr and "nothing was written" in refused.stderr
+    status = akdctl(tmp_path, server.target, "--json", "status")
+    assert json.loads(status.stdout)["status"]["enabled"] is False
+    # an attribute that moves nothing is written without asking
+    assert akdctl(tmp_path, server.target, "cip", "set", "0x0F/797/1", "u32", "65536").returncode == 0
+    assert akdctl(tmp_path, server.target, "-y", "cip", "set", "0x25/1/17", "u8", "1").returncode == 0
+    assert json.loads(akdctl(tmp_path, server.target, "--json", "status").stdout)["status"]["enabled"] is True

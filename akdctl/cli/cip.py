@@ -69,12 +69,16 @@ def set_(path: str, type_name: str, value_text: str) -> None:
 
     Example: cip set 0x25/1/7 i32 65536
     """
+    from akdctl.cli.consent import gate_write
+    from akdctl.drive.gate import classify_cip
     from akdctl.drive.values import check_type_name, encode
 
     class_id, instance, attribute = parse_path(path)
     _value, data = encode(check_type_name(type_name), value_text)
     app = get_app()
-    attributes(app).set(class_id, instance, attribute, data)
+    channel = attributes(app)
+    gate_write(app, [classify_cip(class_id, instance, attribute)])
+    channel.set(class_id, instance, attribute, data)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
     app.emit({"target": app.target.display, "class": class_id, "instance": instance, "attribute": attribute,
               "type": type_name, "written": data.hex()},

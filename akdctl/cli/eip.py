@@ -82,6 +82,15 @@ def _channel(app: Any) -> Any:
     return attributes(app)
 
 
+def _gate_parameter(app: Any, ref: Any) -> None:
+    """Consent before a Parameter-object write that can power or move the axis (the one write gate)."""
+    from akdctl.cli.consent import gate_write
+    from akdctl.drive.gate import classify_cip
+    from akdctl.protocol import cip
+
+    gate_write(app, [classify_cip(cip.PARAMETER, ref.instance, 1, ref.name or "")])
+
+
 @param.command("get")
 @click.argument("name", metavar="NAME|INSTANCE")
 def param_get(name: str) -> None:
@@ -106,7 +115,9 @@ def param_set(name: str, value: str) -> None:
 
     ref = eip_params.resolve(name)
     app = get_app()
-    result = eip_params.write(_channel(app), ref, value)
+    channel = _channel(app)
+    _gate_parameter(app, ref)
+    result = eip_params.write(channel, ref, value)
     app.emit({"target": app.target.display, **result},
              lambda: Doc(f"parameter {ref.name or ref.instance} written", app.target.display)
              .kv("value", value).kv("bytes", result["written"]))
@@ -119,10 +130,10 @@ def param_run(name: str) -> None:
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
-    if ref.name == "HOME.MOVE":
-        raise UsageError("HOME.MOVE moves the axis: use 'akdctl home' (consent, limits, stop on error)")
     app = get_app()
-    result = eip_params.run_command(_channel(app), ref)
+    channel = _channel(app)
+    _gate_parameter(app, ref)
+    result = eip_params.run_command(channel, ref)
     app.emit({"target": app.target.display, **result}, f"{ref.name or ref.instance}: command executed")
 
 

@@ -15,6 +15,12 @@ returns anything. README "Safety model" lists the same addresses.
   the meaning of the running set points: the operating mode (PNU 930, 0x6060) and
   the telegram / process-data mapping (PNU 915, 916, 922; 0x1600..0x17FF,
   0x1A00..0x1BFF, 0x1C12, 0x1C13).
+
+CIP attributes (``cip set``, ``eip param set|run``) are classified the same way: the
+Position Controller 0x25's enable (17), load handshake (11) and home move (101) are
+control, its target position/velocity and incremental flag (6, 7, 10) set points, its
+mode (3) gated while enabled; the Parameter object's HOME.MOVE command and the command
+assembly (0x04/100) move the axis.
 """
 
 from __future__ import annotations
@@ -36,6 +42,12 @@ OBJECT_ALWAYS: dict[int, str] = {0x6040: _CONTROL, 0x607A: _SETPOINT, 0x60FF: _S
                                  0x6083: _SETPOINT, 0x6084: _SETPOINT}
 OBJECT_WHEN_ENABLED: dict[int, str] = {0x6060: _MODE, 0x1C12: _MAPPING, 0x1C13: _MAPPING}
 MAPPING_RANGES = ((0x1600, 0x17FF), (0x1A00, 0x1BFF))
+#: Position Controller 0x25 instance 1 attributes (AKD EtherNet/IP manual appendix A, reference/ethernetip.md 1.8).
+CIP_PC_ALWAYS: dict[int, str] = {17: "the enable attribute powers the axis",
+                                 11: "the load handshake starts the loaded motion",
+                                 101: "the home move attribute starts homing", 6: _SETPOINT, 7: _SETPOINT,
+                                 10: _SETPOINT}
+CIP_PC_WHEN_ENABLED: dict[int, str] = {3: _MODE}
 
 
 @dataclass(frozen=True)
@@ -65,6 +77,25 @@ def classify_object(index: int, subindex: int, name: str = "") -> Gated | None:
         return Gated(label, OBJECT_ALWAYS[index])
     if index in OBJECT_WHEN_ENABLED or any(lo <= index <= hi for lo, hi in MAPPING_RANGES):
         return Gated(label, OBJECT_WHEN_ENABLED.get(index, _MAPPING), when_enabled=True)
+    return None
+
+
+def classify_cip(class_id: int, instance: int, attribute: int, name: str = "") -> Gated | None:
+    """A CIP attribute write (explicit messaging), by the same rules as PNUs and objects."""
+    from akdctl.catalog.eip_parameters import by_name
+    from akdctl.protocol import cip
+
+    label = f"0x{class_id:02X}/{instance}/{attribute}" + (f" ({name})" if name else "")
+    if class_id == cip.POSITION_CONTROLLER and instance == 1:
+        if attribute in CIP_PC_ALWAYS:
+            return Gated(label, CIP_PC_ALWAYS[attribute])
+        if attribute in CIP_PC_WHEN_ENABLED:
+            return Gated(label, CIP_PC_WHEN_ENABLED[attribute], when_enabled=True)
+    home_move = by_name("HOME.MOVE")
+    if class_id == cip.PARAMETER and home_move is not None and instance == home_move.instance and attribute == 1:
+        return Gated(label, "the HOME.MOVE command starts homing ('akdctl home' supervises it)")
+    if class_id == cip.ASSEMBLY and instance == 100:
+        return Gated(label, "the command assembly powers and moves the axis")
     return None
 
 
