@@ -28,9 +28,8 @@ from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc, message
 from akdctl.cli.signals import stop_signals
-from akdctl.errors import Interrupted, UsageError
-
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
+from akdctl.errors import Interrupted, UsageError
 
 
 # ---------------------------------------------------------------------- helpers
