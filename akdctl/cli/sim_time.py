@@ -25,13 +25,14 @@ from akdctl.errors import UsageError
 def speed(factor: float | None, realtime: bool, watchdog: float | None, name: str | None) -> None:
     """Set how fast virtual time runs (FACTOR × wall time; 1 = real time); without arguments, show it."""
     from akdctl.cli.sim import _sim_drive
+    from akdctl.sim.drive import MAX_TIME_SCALE
 
     if realtime and factor is not None:
         raise UsageError("give either FACTOR or --realtime, not both")
     if realtime:
         factor = 1.0
-    if factor is not None and not 0 < factor <= 1e7:
-        raise UsageError("FACTOR must be greater than 0 and at most 10000000")
+    if factor is not None and not 0 < factor <= MAX_TIME_SCALE:
+        raise UsageError(f"FACTOR must be greater than 0 and at most {MAX_TIME_SCALE:.0f}")
     drive = _sim_drive(name)
     with drive.transaction() as model:
         if factor is not None:

@@ -2,12 +2,26 @@
 
 A real drive keeps its state while the tool comes and goes; so does this one.
 Each access runs as a *transaction*: take an exclusive lock on the drive's lock
-file, load the state file, advance the virtual clock by the wall time that
-passed (times the drive's time scale), handle the request, write the state to
-a temporary file and rename it over the old one, release the lock. Two
-processes (``akdctl move`` and ``akdctl sim fault F501``, or a network face and
-the CLI) therefore see one consistent drive, and a crash never leaves a
-half-written state file.
+file, bring the model up to date, advance the virtual clock by the wall time
+that passed (times the drive's time scale), handle the request, save the state
+if the request changed it, release the lock. Two processes (``akdctl move`` and
+``akdctl sim fault F501``, or a network face and the CLI) therefore see one
+consistent drive, and a crash never leaves a half-written state file.
+
+Why it is cheap (a network face answers thousands of requests a second):
+
+* The lock file stays open for the life of the ``SimDrive``; each transaction
+  only takes and drops the ``flock``.
+* The lock file also carries a *token*, rewritten by every save. A process
+  keeps the model of its last transaction in memory and reloads the state file
+  only when the token is not the one it saw: another process saved meanwhile.
+* Whether to save is decided by a *mark* of the model: the accepted-write
+  count, a count of changes to stored values, the time scale and the
+  components' (small, bounded) states. The stored PNU and object values, which
+  can be large, are never serialised to decide; the virtual clock is not part
+  of the mark, because a process that loads an older file advances it by the
+  same wall time. Read-only requests on a drive at rest therefore never write
+  the file, and a save costs what the state costs, once per change.
 """
 
 from __future__ import annotations
@@ -16,9 +30,15 @@ import contextlib
 import errno
 import fcntl
 import json
+import marshal
+import math
 import os
+import re
+import stat
+import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +48,13 @@ from akdctl.sim.model import DriveModel
 
 LOCK_TIMEOUT = 5.0
 DEFAULT_TIME_SCALE = 1.0
+MAX_STATE_BYTES = 64 << 20  # far above any real state; a bigger file is not ours
+TOKEN_BYTES = 32
+MAX_TIME_SCALE = 1e7  # the most `akdctl sim speed` accepts
 
 
 class SimStateError(UsageError):
-    """The state file exists but cannot be used; ``akdctl sim reset`` recovers."""
+    """The state file or its directory cannot be used; the message says how to recover."""
 
     kind = "sim-state"
 
@@ -45,6 +68,42 @@ def state_dir() -> Path:
     return Path(base) / "akdctl"
 
 
+class _StoreModel(DriveModel):
+    """The drive model as the store sees it: it counts changes of stored values.
+
+    Why: components and callers change stored PNUs and objects through
+    ``set_stored_pnu``/``set_stored_object``; counting them lets the mark notice
+    a change without serialising values that may be large.
+    """
+
+    stored_changes = 0
+
+    def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
+        super().set_stored_pnu(pnu, values, subindex)
+        self.stored_changes += 1
+
+    def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
+        super().set_stored_object(index, subindex, data)
+        self.stored_changes += 1
+
+
+def _mark(model: _StoreModel, meta: dict[str, Any]) -> bytes:
+    """What must reach the file when it changes, in a form cheap to build and compare (see the module doc)."""
+    components = [comp.to_state() for comp in model.components]
+    # marshal version 2: no back-references, so equal states give equal bytes whatever their objects' refcounts
+    return marshal.dumps((model.writes, model.stored_changes, meta.get("time_scale"), components), 2)
+
+
+@dataclass
+class _Held:
+    """The model of the last transaction, valid while the lock file's token is ``token``."""
+
+    model: _StoreModel
+    meta: dict[str, Any]
+    token: bytes
+    mark: bytes  # the mark of what the state file holds
+
+
 class SimDrive:
     """One simulated AKD identified by ``name`` (``sim`` → "default", ``sim://bench2`` → "bench2")."""
 
@@ -53,115 +112,194 @@ class SimDrive:
         self.directory = Path(directory) if directory is not None else state_dir()
         self.path = self.directory / f"sim-{name}.json"
         self.lock_path = self.directory / f"sim-{name}.lock"
-        self._pnu_server: Any = None
+        self.meta: dict[str, Any] = {}
         self._sdo_server: Any = None
         self._sdo_model_ref: list[DriveModel | None] = [None]
-        self._cache: tuple[Any, DriveModel, dict[str, Any], str] | None = None
-        self._saved_scale: object = None
+        self._lock_fd = -1
+        # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
+        self._mutex = threading.Lock()
+        self._held: _Held | None = None
+        self._tmp_name = re.compile(rf"\.sim-{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp")
 
-    # ------------------------------------------------------------------ storage
+    def close(self) -> None:
+        """Close the lock file and forget the model (the state file stays)."""
+        with self._mutex:
+            self._held = None
+            if self._lock_fd >= 0:
+                os.close(self._lock_fd)
+                self._lock_fd = -1
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            if self._lock_fd >= 0:
+                os.close(self._lock_fd)
+
+    # ------------------------------------------------------------------ locking
+    def _locked_text(self) -> str:
+        return f"simulated drive {self.name!r} is locked by another process for more than {LOCK_TIMEOUT:g} s"
+
+    def _open_lock(self) -> int:
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            return os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise self._os_error("cannot open the simulator's lock file", self.lock_path, exc) from None
+
     @contextlib.contextmanager
     def _locked(self) -> Iterator[int]:
-        self.directory.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file."""
+        if not self._mutex.acquire(timeout=LOCK_TIMEOUT):
+            raise CommError(self._locked_text())
         try:
             deadline = time.monotonic() + LOCK_TIMEOUT
             while True:
+                if self._lock_fd < 0:
+                    self._lock_fd = self._open_lock()
                 try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                    break
+                    fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError as exc:
                     if exc.errno not in (errno.EAGAIN, errno.EACCES) or time.monotonic() > deadline:
-                        raise CommError(
-                            f"simulated drive {self.name!r} is locked by another process for more than {LOCK_TIMEOUT:g} s"
-                        ) from None
+                        raise CommError(self._locked_text()) from None
                     time.sleep(0.005)
-            yield fd
+                    continue
+                if os.fstat(self._lock_fd).st_nlink:
+                    break
+                # The lock file was removed (a user cleaning the state directory): others lock the new one.
+                os.close(self._lock_fd)
+                self._lock_fd = -1
+                self._held = None
+            try:
+                yield self._lock_fd
+            finally:
+                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
         finally:
-            os.close(fd)  # closing releases the flock
+            self._mutex.release()
 
-    def _load(self) -> tuple[DriveModel, dict[str, Any]]:
+    # ------------------------------------------------------------------ storage
+    def _os_error(self, what: str, path: Path, exc: OSError) -> SimStateError:
+        return SimStateError(f"{what} {path}: {exc.strerror or exc}; check that {self.directory} is a writable "
+                             "directory with free space (set AKDCTL_STATE_DIR to use another)")
+
+    def _corrupt(self, why: str) -> SimStateError:
+        return SimStateError(f"simulator state file {self.path} is corrupt ({why}); "
+                             "run 'akdctl sim reset' to restore factory state")
+
+    def _clean_temporaries(self) -> None:
+        """Remove temporary state files a killed writer left (any one present while we hold the lock is stale)."""
+        with contextlib.suppress(OSError), os.scandir(self.directory) as entries:
+            for entry in entries:
+                if self._tmp_name.fullmatch(entry.name):
+                    with contextlib.suppress(OSError):
+                        os.unlink(entry.path)
+
+    def _read_text(self) -> str | None:
+        """The state file's text, None when there is none; anything but a small regular UTF-8 file is refused."""
         try:
-            text = self.path.read_text()
+            fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
         except FileNotFoundError:
-            return DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
+            return None
         except OSError as exc:
-            raise SimStateError(f"cannot read simulator state {self.path.name}: {exc.strerror}") from None
+            raise self._os_error("cannot read simulator state", self.path, exc) from None
         try:
-            state = json.loads(text)
-            meta = dict(state.pop("sim", {}))
-            model = DriveModel.from_state(state)
-        except (ValueError, TypeError, AttributeError) as exc:
-            raise SimStateError(
-                f"simulator state file {self.path} is corrupt ({exc}); run 'akdctl sim reset' to restore factory state"
-            ) from None
-        meta.setdefault("wall", time.time())
-        meta.setdefault("time_scale", DEFAULT_TIME_SCALE)
-        return model, meta
+            info = os.fstat(fd)
+            if not stat.S_ISREG(info.st_mode):
+                raise self._corrupt("not a regular file")
+            if info.st_size > MAX_STATE_BYTES:
+                raise self._corrupt(f"{info.st_size} bytes, more than a state ever holds")
+            with open(fd, "rb", closefd=False) as fh:
+                data = fh.read(MAX_STATE_BYTES + 1)
+        except OSError as exc:
+            raise self._os_error("cannot read simulator state", self.path, exc) from None
+        finally:
+            os.close(fd)
+        try:
+            return data.decode("utf-8")
+        except UnicodeDecodeError:
+            raise self._corrupt("not UTF-8 text") from None
+
+    def _load(self, token: bytes) -> _Held:
+        """The model and meta data the state file holds (factory state when there is none)."""
+        self._clean_temporaries()
+        text = self._read_text()
+        if text is None:
+            model, meta = _StoreModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
+            return _Held(model, meta, token, _mark(model, meta))
+        try:
+            state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+            if not isinstance(state, dict):
+                raise ValueError("not a JSON object")
+            meta = state.pop("sim", {})
+            if not isinstance(meta, dict):
+                raise ValueError("'sim' is not an object")
+            meta["wall"] = _finite_float(meta.get("wall", time.time()))
+            meta["time_scale"] = _finite_float(meta.get("time_scale", DEFAULT_TIME_SCALE))
+            if not 0 < meta["time_scale"] <= MAX_TIME_SCALE:
+                raise ValueError(f"sim.time_scale {meta['time_scale']} is outside (0, {MAX_TIME_SCALE:g}]")
+            model = _StoreModel.from_state(state)
+            return _Held(model, meta, token, _mark(model, meta))
+        except RecursionError:
+            raise self._corrupt("nested too deeply") from None
+        except Exception as exc:  # noqa: BLE001 - hostile content may fail anywhere in from_state; all mean corrupt
+            raise self._corrupt(str(exc) or type(exc).__name__) from None
 
     def _save(self, model: DriveModel, meta: dict[str, Any]) -> None:
         state = model.to_state()
         state["sim"] = meta
-        with atomic_open(self.path, prefix=f".sim-{self.name}.") as fh:
-            json.dump(state, fh, separators=(",", ":"))
+        try:
+            with atomic_open(self.path, prefix=f".sim-{self.name}.") as fh:
+                json.dump(state, fh, separators=(",", ":"), allow_nan=False)
+        except OSError as exc:
+            raise self._os_error("cannot save simulator state", self.path, exc) from None
 
-    @staticmethod
-    def _token(lock_fd: int) -> bytes:
-        """The save generation written into the lock file by the last writer (b"" before any)."""
-        return os.pread(lock_fd, 32, 0)
-
-    @staticmethod
-    def _new_token(lock_fd: int) -> bytes:
-        # Written *before* the state file is replaced: a crash in between only costs a reload.
-        token = os.urandom(16).hex().encode()
-        os.pwrite(lock_fd, token, 0)
+    def _new_token(self, lock_fd: int) -> bytes:
+        """Tell other processes to reload; written *before* the state file is replaced (a crash between costs
+        only a reload)."""
+        token = os.urandom(TOKEN_BYTES // 2).hex().encode()
+        try:
+            os.pwrite(lock_fd, token, 0)
+        except OSError as exc:
+            raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
         return token
-
-    @staticmethod
-    def _body(model: DriveModel) -> str:
-        """The state without the virtual clock: what must reach the file when it changes."""
-        state = model.to_state()
-        state.pop("clock", None)
-        return json.dumps(state, sort_keys=True, separators=(",", ":"))
 
     @contextlib.contextmanager
     def transaction(self, advance: bool = True) -> Iterator[DriveModel]:
-        """Lock, load, advance the virtual clock, yield the model, save, unlock.
+        """Lock, bring the model up to date, advance the virtual clock, yield the model, save if changed, unlock.
 
-        A network face answers thousands of requests a second, so two costs are
-        avoided when they buy nothing: the file is not parsed again while it is
-        the one this object wrote last (the save token in the lock file is unchanged), and it is not
-        rewritten when nothing but the clock moved — another process that loads
-        the older file advances its clock by the same wall time. If the body
-        raises, nothing is saved and the cached model is dropped (a refused
-        access changes nothing).
+        If the body raises, nothing is saved and the held model is dropped (a
+        refused access changes nothing; the next transaction reloads the file).
         """
         with self._locked() as lock_fd:
-            key = self._token(lock_fd)
-            if key and self._cache is not None and self._cache[0] == key and self.path.exists():
-                _, model, meta, saved_body = self._cache
-            else:
-                model, meta = self._load()
-                saved_body = None
-            self._cache = None
+            token = os.pread(lock_fd, TOKEN_BYTES, 0)
+            held, self._held = self._held, None
+            fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
+            if fresh:
+                held = self._load(token)
+            model, meta = held.model, held.meta
             now = time.time()
-            model.time_scale = float(meta.get("time_scale", DEFAULT_TIME_SCALE))  # wall-time watchdogs need it
+            model.time_scale = meta["time_scale"]  # wall-time watchdogs need it
             if advance:
-                elapsed = max(0.0, now - float(meta.get("wall", now)))
-                model.advance(elapsed * float(meta.get("time_scale", DEFAULT_TIME_SCALE)))
+                try:
+                    model.advance(max(0.0, now - meta["wall"]) * model.time_scale)
+                except Exception as exc:  # noqa: BLE001 - a loaded state the model cannot run is a corrupt one
+                    if not fresh:
+                        raise
+                    raise self._corrupt(f"the drive model cannot run it: {exc}") from None
             meta["wall"] = now
             self.meta = meta
             yield model
-            body = self._body(model)
-            if body != saved_body or meta.get("time_scale") != self._saved_scale:
-                key = self._new_token(lock_fd)
+            mark = _mark(model, meta)
+            if mark != held.mark:
+                held.token = self._new_token(lock_fd)
                 self._save(model, meta)
-                self._saved_scale = meta.get("time_scale")
-            self._cache = (key, model, meta, body)
+                held.mark = mark
+            self._held = held
 
     def reset(self) -> None:
         """Restore factory state (works on a corrupt state file too)."""
-        with self._locked():
+        with self._locked() as lock_fd:
+            self._held = None
+            self._clean_temporaries()
+            self._new_token(lock_fd)
             self._save(DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
 
     def set_time_scale(self, scale: float) -> None:
@@ -215,6 +353,20 @@ class SimDrive:
         """Emergencies the drive raised since the last call (for the CANopen face)."""
         with self.transaction() as model:
             return _take_emergencies(model)
+
+
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a value a drive stores")
+
+
+def _finite_float(text: Any) -> float:
+    """A JSON number (or its text) as a finite float; anything else is a damaged state."""
+    if isinstance(text, bool):
+        raise ValueError(f"{text} is not a number")
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is not a finite number")
+    return value
 
 
 def _take_emergencies(model: DriveModel) -> list[Any]:

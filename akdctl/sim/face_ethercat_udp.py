@@ -75,7 +75,7 @@ class GatewayHandler:
 
     def handle(self, datagram: bytes) -> list[bytes]:
         from akdctl.protocol.errors import CodecError
-        from akdctl.protocol.mailbox import decode_gateway, decode_mailbox, encode_gateway, encode_mailbox
+        from akdctl.protocol.mailbox import GATEWAY_HEADER_SIZE, HEADER_SIZE, decode_gateway, decode_mailbox, encode_gateway
 
         try:
             request = decode_gateway(datagram)
@@ -87,7 +87,7 @@ class GatewayHandler:
         fault = self.injector.decide()
         if fault == "drop":
             return []
-        raw = encode_mailbox(request)
+        raw = bytes(datagram[GATEWAY_HEADER_SIZE:GATEWAY_HEADER_SIZE + HEADER_SIZE + len(request.data)])
         if fault == "mbxerr":
             replies = [mailbox_error_reply(raw)]
         elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
