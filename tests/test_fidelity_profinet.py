@@ -57,3 +57,65 @@ def test_bmp_header_refusal_over_the_pnio_face() -> None:
     finally:
         transport.close()
         face.stop()
+
+
+# ---------------------------------------------------------------------------------------------------- item 5
+def _ok(akd_inproc, *args: str) -> dict:
+    code, out, err = akd_inproc("--json", *args)
+    assert code == 0, (args, code, err)
+    return json.loads(out)
+
+
+def test_off1_and_off3_report_s5_switching_off(akd_inproc) -> None:
+    """``004`` 5.4: "The S7 application must set the bits in control word 1 to go through the PROFIdrive standard
+    state machine" (S1..S5, SPEC-NOTES 6); the profile's S5 "switching off" is the state of both the OFF1 ramp stop
+    (STW1 bit 0 = 0) and the OFF3 quick stop (bit 2 = 0), with ZSW1 bits 0/1 set and bit 2 (operation enabled)
+    clear. docs/fidelity.md F2. Velocity mode (PNU 930 = 1), telegram 1 enable sequence of ``004`` 5.9.
+    """
+    _ok(akd_inproc, "sim", "speed", "--realtime", "--watchdog", "0")
+    _ok(akd_inproc, "--yes", "pnu", "set", "1007=1")               # DRV.DEC 1 rpm/s: the OFF1 ramp outlasts the test
+    for word in ("0x0470", "0x0476", "0x0477", "0x047F"):
+        _ok(akd_inproc, "--yes", "pnu", "set", f"1={word}")
+    _ok(akd_inproc, "--yes", "pnu", "set", "5=1638")                 # 600 rpm (x = 15)
+    _ok(akd_inproc, "sim", "speed", "100000")
+    _ok(akd_inproc, "sim", "speed", "--realtime")                    # at speed now
+    assert _ok(akd_inproc, "status")["status"]["state"] == "S4"
+    _ok(akd_inproc, "--yes", "pnu", "set", "1=0x0476")               # OFF1: ON cleared, ramp along DRV.DEC
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["state"] == "S5" and status["state_text"] == "switching off"
+    assert status["word"] & 0x0047 == 0x0003 and status["word"] & 0x0020   # bits 0,1; not 2, 6; bit 5 set (OFF1)
+    assert not status["standstill"]
+    _ok(akd_inproc, "--yes", "pnu", "set", "1=0x0472")               # OFF3 while the ramp runs: quick stop
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["state"] == "S5" or status["standstill"]           # the quick stop may already have ended
+    _ok(akd_inproc, "sim", "speed", "100000")
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["standstill"] and status["state"] == "S1"          # OFF3 ends in S1 (switching on inhibited)
+
+
+def test_zsw1_of_s5_in_the_model() -> None:
+    """The same through the model's bytes, without wall time: OFF1 ramp and OFF3 quick stop show 0x..33 / 0x..13."""
+    import struct
+
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    model.motion.watchdog_s = 0
+    stw1 = lambda word: model.pnu_write_raw(1, 0, 0x42, [word])  # noqa: E731
+    for word in sw.TELEGRAM1_ENABLE_SEQUENCE:
+        stw1(word)
+    model.pnu_write_raw(1007, 0, 0x42, [10])
+    model.pnu_write_raw(5, 0, 0x42, [1638])
+    model.advance(10.0)
+    stw1(0x0476)                                                     # OFF1
+    model.advance(1.0)
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert zsw1 & 0x7F == 0x33 and sw.profidrive_state(zsw1, 0x0476) == "S5"
+    assert sw.profidrive_state(zsw1, 0x047F) == "S3"                 # the same bits with ON set would be S3
+    stw1(0x0472)                                                     # OFF3
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert zsw1 & 0x7F == 0x13 and sw.profidrive_state(zsw1) == "S5"
+    model.advance(10.0)
+    assert sw.profidrive_state(model.pnu_read_raw(2, 0, 1)[1][0]) == "S1"
+    assert struct.unpack("<H", model.object_read(0x6041, 0))[0] & 0x4F == 0x40   # CiA 402 view: switch on disabled
