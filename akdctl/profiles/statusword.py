@@ -135,6 +135,19 @@ _SW_MODE = {
 #: CiA 402 modes of operation (0x6060/0x6061, SPEC-NOTES 20).
 CIA402_MODES = {1: "profile position", 3: "profile velocity", 4: "profile torque", 6: "homing",
                 7: "interpolated position", 8: "cyclic synchronous position"}
+
+
+def drive_modes_word(modes: tuple[int, ...] | list[int]) -> int:
+    """0x6502 "supported drive modes" (CiA 402): bit n-1 set for each standard mode n in 1..10
+    (bit 0 pp, 2 pv, 3 tq, 5 hm, 6 ip, 7 csp; bits 16-31 are manufacturer specific)."""
+    return sum(1 << (mode - 1) for mode in set(modes) if 1 <= mode <= 10)
+
+
+def drive_modes_of_word(word: int) -> list[int]:
+    """The standard modes (1..10) a 0x6502 value lists."""
+    return [mode for mode in range(1, 11) if word >> (mode - 1) & 1]
+
+
 #: PROFIdrive operating modes (PNU 930 = DRV.OPMODE).
 PROFIDRIVE_MODES = {0: "torque", 1: "velocity", 2: "position"}
 

@@ -32,9 +32,10 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.cia402_machine import Cia402Machine
+from akdctl.sim.cia402_machine import MODES, Cia402Machine
 from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.kinematics import (
@@ -287,6 +288,8 @@ class MotionComponent(Component):
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
         m.bind_object(0x60FF, write=cia.write_target_velocity)
         m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
+        # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
+        m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
 
     def _current_fraction(self) -> float:
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""
