@@ -28,3 +28,11 @@ def test_supported_drive_modes_lists_the_manuals_modes(akd_inproc) -> None:
     for mode in sw.drive_modes_of_word(data["value"]):                # every listed mode is accepted by 0x6060
         assert akd_inproc("--yes", "sdo", "write", "0x6060", "i8", str(mode))[0] == 0
     assert akd_inproc("--yes", "sdo", "write", "0x6060", "i8", "2")[0] == 1   # velocity (vl) is not listed: refused
+
+
+# ---------------------------------------------------------------------------------------------------- item 9
+def test_fbus_param04_defaults_to_1_on_the_ethercat_drive(akd_inproc) -> None:
+    """``001`` 5.14: "FBUS.PARAM04: This parameter enables (1) or disables(0) the synchronization supervision ...
+    Default values for this parameter are as follows: CANopen drive: disabled (0) EtherCAT drive: enabled (1)".
+    The ESI (0x36E8 default 0) is overridden: the simulated AKD is an EtherCAT drive."""
+    assert _json(akd_inproc, "sdo", "read", "0x36E8")["value"] == 1

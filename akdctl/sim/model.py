@@ -308,6 +308,9 @@ SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
     (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
     (0x1018, 3): (0x00260000).to_bytes(4, "little"),  # newest ESI revision
     (0x1018, 4): (0x00001234).to_bytes(4, "little"),  # the simulator's serial number
+    # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the ESI
+    # gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
+    (0x36E8, 0): (1).to_bytes(4, "little"),
 }
 
 
