@@ -36,3 +36,20 @@ def test_fbus_param04_defaults_to_1_on_the_ethercat_drive(akd_inproc) -> None:
     Default values for this parameter are as follows: CANopen drive: disabled (0) EtherCAT drive: enabled (1)".
     The ESI (0x36E8 default 0) is overridden: the simulated AKD is an EtherCAT drive."""
     assert _json(akd_inproc, "sdo", "read", "0x36E8")["value"] == 1
+
+
+# ---------------------------------------------------------------------------------------------------- item 10
+def test_one_identity_over_coe_and_sii(akd_inproc) -> None:
+    """``001`` 5.15: "AKD has a built-in emulated EEPROM. This EEPROM can be read by the EtherCAT master to get some
+    information about drive properties"; the identity it holds (vendor, product code, revision, serial) is the one
+    0x1018 reports. docs/fidelity.md F3: the real AKD's SII dump (``reference/akd_sii_eeprom_dump``) says revision
+    0x00000002, so CoE 0x1018:3 says 0x00000002 too."""
+    from akdctl.protocol.sii import akd_sii_image, parse_sii
+    from akdctl.sim.esc import Esc
+
+    values = [_json(akd_inproc, "sdo", "read", f"0x1018:{sub}")["value"] for sub in (1, 2, 3, 4)]
+    image = akd_sii_image()
+    assert values == [image.vendor_id, image.product_code, image.revision, image.serial]
+    assert values[2] == 0x00000002
+    eeprom = parse_sii(bytes(Esc(image).eeprom))                   # the bytes the simulated ESC serves
+    assert (eeprom.vendor_id, eeprom.product_code, eeprom.revision, eeprom.serial) == tuple(values)
