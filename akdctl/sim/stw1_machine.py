@@ -79,7 +79,7 @@ class Stw1Machine(FieldState):
         d.enabling_words += new & enabling == enabling  # tests: no enabling word reaches the drive without consent
         if not self.honoured:
             return  # SPEC-NOTES 7: without bit 10 the drive ignores the control word
-        d.watchdog_tripped = False
+        d.clear_watchdog()
         if new & sw.STW1_FAULT_ACK and not old & sw.STW1_FAULT_ACK:
             d.acknowledge()
             return  # SPEC-NOTES 7: after the acknowledge the drive is in S1; the next word moves on
@@ -233,7 +233,7 @@ class Stw1Machine(FieldState):
         d.model.set_stored_pnu(5, values)
         if d.state == ENABLED and d.stopping_to is None and d.opmode == 1 and d.axis.activity != "jog" \
                 and self.honoured:
-            d.watchdog_tripped = False
+            d.clear_watchdog()
             self.velocity(self.stw1)
 
     def write_opmode(self, sub: int, values: list[int]) -> None:
