@@ -53,3 +53,62 @@ def test_one_identity_over_coe_and_sii(akd_inproc) -> None:
     assert values[2] == 0x00000002
     eeprom = parse_sii(bytes(Esc(image).eeprom))                   # the bytes the simulated ESC serves
     assert (eeprom.vendor_id, eeprom.product_code, eeprom.revision, eeprom.serial) == tuple(values)
+
+
+# ---------------------------------------------------------------------------------------------------- item 8
+def test_cycle_time_grid_and_minimum_are_the_drives_refusals(akd_inproc) -> None:
+    """``001`` 5.9: "The FBUS.SAMPLEPERIOD parameter is counted in multiples of 62.5us microseconds within the
+    device"; 5.10: "Position ≥ 0.25 ms (≥ 250 μs) / Velocity ≥ 0.25 ms / Torque ≥ 0.25 ms" (SPEC-NOTES 20).
+    docs/fidelity.md F5: the simulated drive aborts a 0x60C2 write off the 62.5 µs grid with 0x06090030 and one
+    below 250 µs with 0x06090032, also when akdctl's own check is skipped with --force."""
+    code, _, err = akd_inproc("--yes", "pdo", "map", "--cycle-time", "300us")
+    assert code == 2 and "not a multiple of 62.5 us" in err                 # akdctl's check, nothing written
+    code, _, err = akd_inproc("--yes", "pdo", "map", "--cycle-time", "300us", "--force")
+    assert code == 1 and "0x06090030" in err                                 # the drive's own refusal
+    code, _, err = akd_inproc("--yes", "pdo", "map", "--cycle-time", "125us", "--force")
+    assert code == 1 and "0x06090032" in err
+    assert _json(akd_inproc, "sdo", "read", "0x60C2:2")["value"] == -3       # the refused exponent was not stored
+    assert akd_inproc("--yes", "pdo", "map", "--cycle-time", "250us")[0] == 0
+    assert akd_inproc("--yes", "pdo", "map", "--cycle-time", "2ms")[0] == 0  # the ESI's InitCmd value (2, -3)
+
+
+def test_cycle_time_rule_in_the_simulators_bytes() -> None:
+    """The same rule at the SDO server: expedited downloads of 0x60C2:02 answered with the abort frames."""
+    from akdctl.protocol import coe
+    from akdctl.sim.model import DriveModel
+    from akdctl.sim.sdo_server import SdoServer
+
+    server = SdoServer(DriveModel())
+
+    def download(sub: int, value: int) -> object:
+        request = coe.SdoDownloadInitiate(0x60C2, sub, value.to_bytes(1, "little", signed=True), 1, True)
+        return _sdo_answer(server, request)
+
+    assert isinstance(download(1, 3), coe.SdoDownloadResponse)               # 3 ms: on the grid
+    assert download(2, -4) == coe.SdoAbort(0x60C2, 2, 0x06090030)            # 300 µs: off the 62.5 µs grid
+    assert isinstance(download(1, 25), coe.SdoDownloadResponse)
+    assert isinstance(download(2, -5), coe.SdoDownloadResponse)              # 250 µs: the minimum
+    assert download(1, 12) == coe.SdoAbort(0x60C2, 1, 0x06090032)            # 120 µs: below 250 µs
+
+
+def _sdo_answer(server: object, request: object) -> object:
+    from akdctl.protocol import coe
+    from akdctl.protocol import mailbox as mbx
+
+    data = coe.encode_coe(coe.CoeService.SDO_REQUEST, coe.encode_sdo(request))
+    replies = server.handle(mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.COE, data, counter=1)))
+    _, _, payload = coe.decode_coe(mbx.decode_mailbox(replies[-1]).data)
+    return coe.decode_sdo(payload, from_server=True)
+
+
+def test_cycle_time_rule_and_write_order() -> None:
+    """profiles/units.py holds the one rule (simulator and ``pdo map`` both use it) and the write order that keeps
+    every intermediate pair valid (docs/fidelity.md F5)."""
+    from akdctl.profiles import units
+
+    assert units.cycle_time_problem(2, -3) is None and units.cycle_time_problem(5, -4) is None   # 2 ms, 500 µs
+    assert units.cycle_time_problem(4, -4) == units.CYCLE_OFF_GRID                               # 400 µs: 6.4 ticks
+    assert units.cycle_time_problem(200, -6) == units.CYCLE_TOO_SHORT                            # 200 µs
+    assert units.cycle_time_problem(0, -3) == units.CYCLE_TOO_SHORT
+    assert units.cycle_time_write_order((2, -3), (25, -5)) == (1, 2)    # the manual's order from the ESI default
+    assert units.cycle_time_write_order((25, -5), (2, -3)) == (2, 1)    # 20 µs in between would be refused

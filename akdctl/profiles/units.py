@@ -2,10 +2,14 @@
 
 Velocity signals are X2/X4 fractions of the AKD's 12000 rpm, accelerations
 fractions of 50,000,000 rpm/s, currents fractions of DRV.IPEAK, positions
-counts of 2^singleturn-bits per revolution.
+counts of 2^singleturn-bits per revolution. Also here: the EtherCAT cycle time
+grid (0x60C2 in multiples of 62.5 µs, at least 250 µs), which the simulated drive
+enforces and ``pdo plan`` checks before anything is written.
 """
 
 from __future__ import annotations
+
+from fractions import Fraction
 
 MAX_RPM = 12000.0
 MAX_ACC_RPM_S = 50_000_000.0
@@ -61,3 +65,36 @@ def describe_scaled(unit: str, value: int) -> str:
 #: (FBUS.PARAM05 bit 4 scaling, one count per encoder increment), counts/s, counts/s². The client's CiA 402 axis
 #: and the simulated drive use this one value.
 CIA_COUNTS_PER_REV = 65536
+
+
+#: EtherCAT cycle time (EtherCAT manual 5.9/5.10, SPEC-NOTES 20): FBUS.SAMPLEPERIOD counts 62.5 µs ticks, and the
+#: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque).
+CYCLE_TICK_S = Fraction(1, 16000)
+MIN_CYCLE_S = Fraction(1, 4000)
+CYCLE_TOO_SHORT = "too-short"
+CYCLE_OFF_GRID = "off-grid"
+
+
+def cycle_time_s(units: int, exponent: int) -> Fraction:
+    """0x60C2: sub 1 units × 10^(sub 2) seconds, exactly."""
+    return Fraction(units) * Fraction(10) ** exponent
+
+
+def cycle_time_problem(units: int, exponent: int) -> str | None:
+    """Why ``units`` × 10^``exponent`` s is not an AKD cycle time (:data:`CYCLE_TOO_SHORT`,
+    :data:`CYCLE_OFF_GRID`), or None; the words are ``catalog.texts.cycle_time_text``."""
+    period = cycle_time_s(units, exponent)
+    if period < MIN_CYCLE_S:
+        return CYCLE_TOO_SHORT
+    if (period / CYCLE_TICK_S).denominator != 1:
+        return CYCLE_OFF_GRID
+    return None
+
+
+def cycle_time_write_order(current: tuple[int, int], target: tuple[int, int]) -> tuple[int, int]:
+    """The order (sub-indices) to write 0x60C2 from ``current`` to ``target`` (units, exponent) so the drive, which
+    checks every write against the other sub-index's value, never sees an invalid pair in between: the manual's
+    order (1 then 2) unless the new units with the old exponent are refused (docs/fidelity.md F5)."""
+    if cycle_time_problem(target[0], current[1]) is not None and cycle_time_problem(current[0], target[1]) is None:
+        return (2, 1)
+    return (1, 2)
