@@ -119,3 +119,31 @@ def test_zsw1_of_s5_in_the_model() -> None:
     model.advance(10.0)
     assert sw.profidrive_state(model.pnu_read_raw(2, 0, 1)[1][0]) == "S1"
     assert struct.unpack("<H", model.object_read(0x6041, 0))[0] & 0x4F == 0x40   # CiA 402 view: switch on disabled
+
+
+# ---------------------------------------------------------------------------------------------------- item 3
+def test_position_rendering_follows_pnu_1002(akd_inproc) -> None:
+    """``004`` 5.12.2 / ``003`` 6.12.2: "In the default configuration, the resolution per revolution is 2^16
+    (65536) counts. The number of singleturn bits (default 16) can be changed through PNU 1002." With 20 bits,
+    1.5 rev is 1572864 counts - shown as 1.5 rev, not as 24 rev (which 16 bits would make of it)."""
+    assert akd_inproc("--yes", "pnu", "set", "1002=20", "34=1572864")[0] == 0
+    code, out, _ = akd_inproc("pnu", "get", "34")
+    assert code == 0 and "1.5 rev" in out and "24 rev" not in out
+    code, out, _ = akd_inproc("pnu", "get", "34", "1002")
+    assert code == 0 and "1.5 rev" in out
+
+
+def test_sixty_rpm_is_163_the_manuals_example_truncates(akd_inproc) -> None:
+    """``004`` 5.12.1: "E.g. if the S7 wants to set a velocity of 60 rpm in the cyclic channel in needs to
+    convert: (60 / 12000) * 2^15 = 163". The exact value is 163.84, so the example truncates (toward zero);
+    rounding to nearest would give 164 (docs/fidelity.md F6). 1 rps is "0x00A3" in 5.9 - the same 163."""
+    from akdctl.profiles import units
+
+    assert 60 / 12000 * 2**15 == 163.84
+    assert units.rpm_to_x(60, 15) == 163 == 0x00A3 and units.rpm_to_x(-60, 15) == -163
+    _ok(akd_inproc, "sim", "speed", "100000")
+    plan = _ok(akd_inproc, "--yes", "jog", "60", "--for", "0.5s")["plan"]
+    assert plan["velocity"]["raw"] == 163                              # the jog set point PNU 1004 as written
+    with SimDrive("default").transaction() as model:                   # NIST_A of a drive at 60 rpm reads 163
+        model.motion.axis.vel = 1.0
+        assert model.pnu_read_raw(6, 0, 1)[1] == [163]

@@ -21,8 +21,11 @@ def x_to_rpm(value: int, x: int) -> float:
 
 
 def rpm_to_x(rpm: float, x: int) -> int:
-    """rpm → normalised integer (rounded), e.g. 60 rpm with x=15 → 164 (the seed truncates to 163)."""
-    return round(rpm * (1 << x) / MAX_RPM)
+    """rpm → normalised integer, truncated toward zero as the manual's own example does:
+    "(60 / 12000) * 2^15 = 163" (004 5.12.1) — 163.84 becomes 163, so the example truncates (rounding
+    would give 164); -60 rpm → -163 (docs/fidelity.md F6). Float noise below 1e-6 of a step is not a step:
+    a velocity computed as 59.6923828125 rpm minus 1e-14 still reads 163."""
+    return int(round(rpm * (1 << x) / MAX_RPM, 6))
 
 
 def acc_to_rpm_s(value: int, x: int = 16) -> float:
@@ -46,8 +49,11 @@ def rev_to_counts(rev: float, singleturn_bits: int = 16) -> int:
     return round(rev * (1 << singleturn_bits))
 
 
-def describe_scaled(unit: str, value: int) -> str:
-    """The value in physical units for a catalogue ``unit`` tag (``N2:12000rpm`` …), or ''."""
+def describe_scaled(unit: str, value: int, singleturn_bits: int = 16) -> str:
+    """The value in physical units for a catalogue ``unit`` tag (``N2:12000rpm`` …), or ''.
+
+    Positions (``counts``) count 2^``singleturn_bits`` per revolution: PNU 1002 (004 5.12.2 "The number
+    of singleturn bits (default 16) can be changed through PNU 1002"), so 1.5 rev with 4 bits is 24 counts."""
     if unit == "N2:12000rpm":
         return f"{x_to_rpm(value, 15):.4g} rpm"
     if unit == "X4:12000rpm":
@@ -55,7 +61,7 @@ def describe_scaled(unit: str, value: int) -> str:
     if unit == "X2:50000000rpm/s":
         return f"{acc_to_rpm_s(value):.6g} rpm/s"
     if unit == "counts":
-        return f"{counts_to_rev(value):.6g} rev"
+        return f"{counts_to_rev(value, singleturn_bits):.6g} rev"
     if unit == "N2:DRV.IPEAK":
         return f"{value * 100 / (1 << 14):.3g} % of DRV.IPEAK"
     return ""
