@@ -24,7 +24,7 @@ from akdctl.protocol.bmp import (
     decode_response,
     encode_request,
 )
-from akdctl.sim.pnu_server import PnuAccessError, PnuServer, convert_value
+from akdctl.sim.pnu_server import PnuAccessError, PnuServer, RecordRefused, convert_value, header_refusal
 
 
 class FakeAccess:
@@ -215,9 +215,6 @@ def test_change_value_count_inconsistent(server: PnuServer) -> None:
 
 
 @pytest.mark.parametrize("request_hex, reply_hex", [
-    ("", "00 80 00 01 44 01 0016"),                                        # nothing at all
-    ("05 01", "05 81 00 01 44 01 0016"),                                   # header cut short
-    ("05 03 00 01 10 01 03A2 0000", "05 80 00 01 44 01 0021"),             # unknown request ID
     ("05 01 00 00", "05 81 00 01 44 01 0016"),                             # no parameters
     ("05 01 00 28" + "10 01 03A2 0000" * 39, "05 81 00 01 44 01 0022"),    # 40 parameters
     ("05 01 07 02 10 01 03A2 0000 10 01 03A2 0000", "05 81 07 02 44 01 0019 44 01 0019"),  # no axis 7
@@ -226,10 +223,26 @@ def test_change_value_count_inconsistent(server: PnuServer) -> None:
     ("05 02 00 01 10 01 03A2 0000 42 01 00", "05 82 00 01 44 01 0018"),    # value cut short
     ("05 02 00 01 10 01 03A2 0000 42 01 0002 0000", "05 82 00 01 44 01 0018"),  # trailing bytes
     ("05 02 00 01 10 01 03A2 0000 99 01 0002", "05 82 00 01 44 01 0017"),  # unknown format
-    ("05 01 00 01" + "00" * 240, "05 81 00 01 44 01 0016"),                # longer than 240 bytes
 ])
 def test_whole_request_refusals(server: PnuServer, access: FakeAccess, request_hex: str, reply_hex: str) -> None:
     assert server.handle(bytes.fromhex(request_hex)) == bytes.fromhex(reply_hex)
+    assert access.writes == []
+
+
+@pytest.mark.parametrize("request_hex, code1", [
+    ("", 0xB1),                                         # nothing at all: shorter than the header
+    ("05 01", 0xB1),                                    # header cut short
+    ("05 01 00 01" + "00" * 240, 0xB1),                 # longer than 240 bytes
+    ("00 01 00 01 10 01 03A2 0000", 0xB7),              # request reference 0x00 is reserved (000 3.5)
+    ("05 03 00 01 10 01 03A2 0000", 0xB7),              # unknown request ID
+    ("05 00 00 01 10 01 03A2 0000", 0xB7),
+])
+def test_header_refusals_are_record_layer_refusals(server: PnuServer, access: FakeAccess, request_hex: str,
+                                                   code1: int) -> None:
+    """docs/fidelity.md F1: no response, the record write fails (PDRV V4.2 table 169)."""
+    with pytest.raises(RecordRefused) as info:
+        server.handle(bytes.fromhex(request_hex))
+    assert info.value.code1 == code1
     assert access.writes == []
 
 
@@ -291,8 +304,13 @@ def test_convert_value() -> None:
 ))
 def test_every_reply_decodes(data: bytes) -> None:
     server = PnuServer(FakeAccess())
+    if header_refusal(data) is not None:
+        with pytest.raises(RecordRefused):      # refused by the record layer: no response at all
+            server.handle(data)
+        return
     reply = server.handle(data)
     response = decode_response(reply)           # never raises: the server only emits valid responses
+    assert response.reference != 0 and response.response_id in (0x01, 0x02, 0x81, 0x82)  # the manual's IDs only
     try:
         request = decode_request(data)
     except CodecError:

@@ -380,6 +380,18 @@ def al_status_text(code: int) -> str:
     return f"unknown AL status code 0x{code & 0xFFFF:04X}"
 
 
+# --- EtherCAT cycle time (0x60C2; EtherCAT manual 5.9/5.10, profiles/units.cycle_time_problem) ---------------
+CYCLE_TIME_TEXTS: dict[str, str] = {
+    "too-short": "below the AKD's minimum cycle time of 250 us (EtherCAT manual 5.10)",
+    "off-grid": "not a multiple of 62.5 us, the step FBUS.SAMPLEPERIOD counts in (EtherCAT manual 5.9)",
+}
+
+
+def cycle_time_text(problem: str, units: int, exponent: int) -> str:
+    """'cycle time 3 x 10^-4 s is not a multiple of 62.5 us ...' for a cycle_time_problem result."""
+    return f"cycle time {units} x 10^{exponent} s is {CYCLE_TIME_TEXTS.get(problem, problem)}"
+
+
 # --- CiA 301 error register 0x1001 -------------------------------------------------------
 
 ERROR_REGISTER_BITS: dict[int, str] = {

@@ -24,7 +24,20 @@ def _hex(value: int, bits: int) -> str:
     return f"0x{value & ((1 << bits) - 1):0{bits // 4}X}"
 
 
-def _rows(readings: list[Any]) -> list[list[Any]]:
+def _singleturn_bits(channel: Any, readings: list[Any]) -> int:
+    """PNU 1002 (singleturn bits) when a position in counts is shown: from the readings, else read (default 16)."""
+    from akdctl.drive.values import read_pnus, pnu_spec
+
+    if not any(r.ok and r.spec.info is not None and r.spec.info.unit == "counts" for r in readings):
+        return 16
+    for reading in readings:
+        if reading.ok and reading.spec.pnu == 1002 and reading.spec.subindex == 0 and reading.values:
+            return int(reading.values[0])
+    back = read_pnus(channel, [pnu_spec(1002)])[0]
+    return int(back.values[0]) if back.ok and back.values else 16
+
+
+def _rows(readings: list[Any], singleturn_bits: int = 16) -> list[list[Any]]:
     from akdctl.profiles.units import describe_scaled
 
     rows = []
@@ -38,7 +51,8 @@ def _rows(readings: list[Any]) -> list[list[Any]]:
         for offset, value in enumerate(reading.values or []):
             label = spec.label if len(reading.values or []) == 1 else f"{spec.pnu}[{spec.subindex + offset}]"
             if isinstance(value, int):
-                rows.append([label, name, value, _hex(value, bits), describe_scaled(info.unit, value) if info else ""])
+                rows.append([label, name, value, _hex(value, bits),
+                             describe_scaled(info.unit, value, singleturn_bits) if info else ""])
             else:
                 rows.append([label, name, value, "", ""])
     return rows
@@ -68,9 +82,11 @@ def get(addresses: tuple[str, ...]) -> None:
     app = get_app()
     specs = [parse_pnu_spec(text) for text in addresses]
     readings = read_pnus(app.parameters(), specs)
+    bits = _singleturn_bits(app.parameters(), readings)
     app.emit(
         {"target": app.target.display, "parameters": [r.to_json() for r in readings]},
-        lambda: Doc("PNU values", app.target.display).table(["PNU", "name", "value", "hex", "scaled"], _rows(readings)),
+        lambda: Doc("PNU values", app.target.display).table(["PNU", "name", "value", "hex", "scaled"],
+                                                            _rows(readings, bits)),
     )
     _report_failures(readings, "read")
 

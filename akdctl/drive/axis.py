@@ -365,7 +365,7 @@ class ProfidriveAxis(Axis):
         values = self._read(2, 1, 930, 6, 52, 1002)
         zsw1, stw1, opmode = values[2][0], values[1][0], values[930][0]
         nist, itist, bits = values[6][0], values[52][0], values[1002][0]
-        state = sw.profidrive_state(zsw1)
+        state = sw.profidrive_state(zsw1, stw1)
         fault = bool(zsw1 & sw.ZSW1_FAULT)
         faults: list[dict[str, Any]] = []
         if fault:

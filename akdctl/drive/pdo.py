@@ -37,7 +37,6 @@ WORDS = {"rx": "RxPDO (set points, master -> drive)", "tx": "TxPDO (actual value
 
 # CiA 402 modes of operation a user may name for --opmode (EtherCAT manual 5.8, SPEC-NOTES 20).
 OPMODES = {"pp": 1, "pv": 3, "tq": 4, "hm": 6, "ip": 7, "csp": 8}
-MIN_CYCLE_S = Decimal("0.00025")  # 250 us (SPEC-NOTES 20)
 
 
 def direction_of(pdo: int) -> str | None:
@@ -435,8 +434,12 @@ def validate(plan: PdoPlan) -> list[str]:
             problems.append(f"the assigned {word}PDOs hold {total} bytes; at most {TOTAL_MAX[direction]}")
     if plan.cycle is not None:
         units, exponent = plan.cycle
-        if Decimal(units) * Decimal(10) ** exponent < MIN_CYCLE_S:
-            problems.append("cycle time below 250 us (SPEC-NOTES 20)")
+        from akdctl.catalog.texts import cycle_time_text
+        from akdctl.profiles.units import cycle_time_problem
+
+        problem = cycle_time_problem(units, exponent)  # the rule the drive applies (profiles/units.py)
+        if problem is not None:
+            problems.append(cycle_time_text(problem, units, exponent) + " (SPEC-NOTES 20)")
     return problems
 
 
@@ -525,6 +528,7 @@ def startup_list(plan: PdoPlan) -> list[StartupEntry]:
 # --------------------------------------------------------------------------- applying and verifying
 def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
     """Download every step in order; returns the number written. An abort names the step and what is left."""
+    steps = _cycle_time_in_drive_order(channel, steps)
     for number, step in enumerate(steps, start=1):
         try:
             channel.download(step.index, step.subindex, step.data())
@@ -540,6 +544,26 @@ def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
                 code=exc.code, details={**exc.details, "step": number, "steps": len(steps)},
             ) from None
     return len(steps)
+
+
+def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> list[StartupEntry]:
+    """The drive checks each 0x60C2 write against the other sub-index (docs/fidelity.md F5): write the exponent
+    first when the new units with the current exponent would be refused (e.g. 250 us -> 2 ms)."""
+    steps = list(steps)
+    at = {s.subindex: i for i, s in enumerate(steps) if s.index == 0x60C2}
+    if set(at) != {1, 2} or at[2] != at[1] + 1:
+        return steps
+    from akdctl.drive.values import read_object
+    from akdctl.profiles.units import cycle_time_write_order
+
+    try:
+        current = (read_object(channel, 0x60C2, 1), read_object(channel, 0x60C2, 2))
+    except SdoAborted:
+        return steps
+    first = at[1]
+    if cycle_time_write_order(current, (steps[first].value, steps[first + 1].value)) == (2, 1):
+        steps[first], steps[first + 1] = steps[first + 1], steps[first]
+    return steps
 
 
 def verify(channel: Any, plan: PdoPlan) -> list[str]:

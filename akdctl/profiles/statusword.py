@@ -135,6 +135,19 @@ _SW_MODE = {
 #: CiA 402 modes of operation (0x6060/0x6061, SPEC-NOTES 20).
 CIA402_MODES = {1: "profile position", 3: "profile velocity", 4: "profile torque", 6: "homing",
                 7: "interpolated position", 8: "cyclic synchronous position"}
+
+
+def drive_modes_word(modes: tuple[int, ...] | list[int]) -> int:
+    """0x6502 "supported drive modes" (CiA 402): bit n-1 set for each standard mode n in 1..10
+    (bit 0 pp, 2 pv, 3 tq, 5 hm, 6 ip, 7 csp; bits 16-31 are manufacturer specific)."""
+    return sum(1 << (mode - 1) for mode in set(modes) if 1 <= mode <= 10)
+
+
+def drive_modes_of_word(word: int) -> list[int]:
+    """The standard modes (1..10) a 0x6502 value lists."""
+    return [mode for mode in range(1, 11) if word >> (mode - 1) & 1]
+
+
 #: PROFIdrive operating modes (PNU 930 = DRV.OPMODE).
 PROFIDRIVE_MODES = {0: "torque", 1: "velocity", 2: "position"}
 
@@ -184,12 +197,16 @@ def statusword_bits(word: int, mode: int | None) -> list[Bit]:
     return _bits(word, names)
 
 
-def profidrive_state(zsw1: int) -> str:
-    """The general state machine state (S1..S5) a ZSW1 shows.
+def profidrive_state(zsw1: int, stw1: int | None = None) -> str:
+    """The general state machine state (S1..S5) a ZSW1 (and the STW1 it answers) shows.
 
     S1: switching on inhibited (bit 6), or a fault (bit 3: the drive returns to S1
     after the acknowledge, SPEC-NOTES 7). S2: ready to switch on only. S3: also ready
-    to operate. S4: operation enabled. S5: enabled but an OFF3 (quick stop) is running.
+    to operate. S4: operation enabled. S5 "switching off" (PDRV general state diagram:
+    bits 0 and 1 set, bit 2 clear) runs for OFF3 (quick stop: bit 5 clear) and for
+    OFF1 (ramp stop): S3 and the OFF1 ramp show the same ZSW1, so STW1 bit 0 tells
+    them apart — with ON cleared a drive in S3 is in S2 at once (docs/fidelity.md F2).
+    A ZSW1 with bit 2 set and bit 5 clear (older simulator, other drives) is S5 too.
     """
     if zsw1 & ZSW1_FAULT or zsw1 & ZSW1_SWITCHING_ON_INHIBITED:
         return "S1"
@@ -198,6 +215,8 @@ def profidrive_state(zsw1: int) -> str:
             return "S5"
         return "S4"
     if zsw1 & ZSW1_READY_TO_OPERATE:
+        if not zsw1 & ZSW1_NO_QUICK_STOP or (stw1 is not None and not stw1 & STW1_ON):
+            return "S5"
         return "S3"
     if zsw1 & ZSW1_READY_TO_SWITCH_ON:
         return "S2"

@@ -78,7 +78,7 @@ class Cia402Machine(FieldState):
         old, new = self.controlword, struct.unpack("<H", data)[0]
         self.controlword = new
         d.enabling_words += new & sw.CW_ENABLE_OPERATION_CMD == sw.CW_ENABLE_OPERATION_CMD  # tests: none without consent
-        d.watchdog_tripped = False
+        d.clear_watchdog()
         if new & sw.CW_FAULT_RESET and not old & sw.CW_FAULT_RESET:
             d.acknowledge()
         d.apply_control_word(old, new, self._general, self._mode_bits)
@@ -174,7 +174,7 @@ class Cia402Machine(FieldState):
             raise SdoAccessError(ABORT_NO_SUBINDEX)
         d.model.set_stored_object(0x60FF, 0, data)
         if d.state == ENABLED and d.stopping_to is None and d.mode == 3:
-            d.watchdog_tripped = False
+            d.clear_watchdog()
             self.velocity()
 
     def write_mode(self, sub: int, data: bytes) -> None:

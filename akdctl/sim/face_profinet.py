@@ -30,6 +30,7 @@ from akdctl.errors import UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.errors import RecordRefused
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
@@ -420,7 +421,10 @@ class ProfinetFace(Face):
             self.stats.busy_answers += 1
             return answer(pnio.rw_error(True, 0xB5))                  # still working on the last request
         self.stats.bmp_requests += 1
-        response = self.drive.handle_bmp(req.data)
+        try:
+            response = self.drive.handle_bmp(req.data)
+        except RecordRefused as exc:  # a request no base-mode response can answer (docs/fidelity.md F1)
+            return answer(pnio.rw_error(True, exc.code1))
         ar.pending = (now + self.delay, response)
         return answer(pnio.OK)
 

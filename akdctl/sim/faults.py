@@ -200,6 +200,16 @@ class FaultComponent(Component):
                 self._queue(Emergency(0x0000, self._register()))
         return removed
 
+    def clear_warning(self, code: str) -> None:
+        """A warning's condition ended (the watchdog's, on the next command): it leaves 0x2000 and ZSW1 bit 7."""
+        fault = _lookup(code)
+        if fault.number in self.warnings:
+            self.warnings.remove(fault.number)
+            if not self.warnings and not self.fault_present:
+                self._queue(Emergency(0x0000, self._register()))
+        if fault.code in self.persistent:
+            self.persistent.remove(fault.code)
+
     def clear_error_field(self) -> None:
         """0x1003:0 = 0 (CiA 301): forget the pre-defined error field."""
         self.error_field = []

@@ -306,8 +306,13 @@ SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
     (0x100A, 0): b"M_01-20-00-001",
     (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
     (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
-    (0x1018, 3): (0x00260000).to_bytes(4, "little"),  # newest ESI revision
-    (0x1018, 4): (0x00001234).to_bytes(4, "little"),  # the simulator's serial number
+    # Revision and serial as the simulated ESC's SII reports them (protocol/sii.py akd_sii_image, taken from a real
+    # AKD's SII dump): one identity over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
+    (0x1018, 3): (0x00000002).to_bytes(4, "little"),
+    (0x1018, 4): (2575499411).to_bytes(4, "little"),
+    # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the ESI
+    # gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
+    (0x36E8, 0): (1).to_bytes(4, "little"),
 }
 
 

@@ -12,8 +12,8 @@ the fault reaction, the drive parameters the axis asks for, and the watchdog.
 Bounded motion (the drive-side watchdog): every access to a PNU or object this
 component owns feeds a watchdog. When no access arrived for ``watchdog_s``
 seconds of *wall* time (the virtual equivalent is ``watchdog_s × time scale``),
-the drive ramps the axis to standstill on its own, sets a warning
-(ZSW1/statusword bit 7), aborts the running traversing task and forgets the
+the drive ramps the axis to standstill on its own, raises the simulator's
+warning n990 (ZSW1/statusword bit 7, 0x2000, an emergency), aborts the running traversing task and forgets the
 level-triggered commands (jog bits, velocity set point) until the next control
 word or set point write. A tool that dies (kill -9) or loses its link therefore
 never leaves the simulated axis moving. ``watchdog_s = 0`` disables it.
@@ -32,9 +32,10 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.cia402_machine import Cia402Machine
+from akdctl.sim.cia402_machine import MODES, Cia402Machine
 from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.kinematics import (
@@ -56,6 +57,9 @@ if TYPE_CHECKING:
 
 DEFAULT_FE_WINDOW_REV = 0.5  # ZSW1 bit 8 / SW bit 13 window when 0x6065 is 0
 DEFAULT_WATCHDOG_S = 1.0
+#: The warning the watchdog raises: a simulator-only number (catalog/data/faults.csv marks it so); a real AKD has
+#: no watchdog on acyclic access, hence no warning for it (docs/fidelity.md F4).
+WATCHDOG_WARNING = "n990"
 
 
 class MotionComponent(Component):
@@ -128,6 +132,12 @@ class MotionComponent(Component):
     def warning_present(self) -> bool:
         return bool(self.model.faults.warning_present) or self.watchdog_tripped
 
+    def clear_watchdog(self) -> None:
+        """A new command (control word, set point, acknowledge): the watchdog's stop and its warning end."""
+        if self.watchdog_tripped:
+            self.watchdog_tripped = False
+            self.model.faults.clear_warning(WATCHDOG_WARNING)
+
     def feed(self, writer: str | None = None) -> None:
         """An access to the axis: feed the watchdog; a control word write also says whose ramps apply."""
         self.since_access = 0.0
@@ -136,7 +146,7 @@ class MotionComponent(Component):
 
     def acknowledge(self) -> None:
         self.model.faults.acknowledge()
-        self.watchdog_tripped = False
+        self.clear_watchdog()
         if self.state in (FAULT, FAULT_REACTION) and not self.fault_present and self.axis.at_rest():
             self.state = SOD
             self.axis.activity = "idle"
@@ -240,8 +250,10 @@ class MotionComponent(Component):
         axis.integrate(dt)
 
     def _watchdog_trip(self) -> None:
-        """No request for ``watchdog_s`` wall seconds while moving: ramp to standstill on our own."""
+        """No request for ``watchdog_s`` wall seconds while moving: ramp to standstill on our own, and say why
+        with the simulator's own warning (ZSW1/statusword bit 7, 0x2000, an EMCY; docs/fidelity.md F4)."""
         self.watchdog_tripped = True
+        self.model.faults.raise_fault(WATCHDOG_WARNING)
         self.pd.frozen_vel = None
         self.axis.abort_tasks(error=True)
         self.axis.stop_motion(quick=False, activity="stop")
@@ -287,6 +299,8 @@ class MotionComponent(Component):
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
         m.bind_object(0x60FF, write=cia.write_target_velocity)
         m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
+        # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
+        m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
 
     def _current_fraction(self) -> float:
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""

@@ -32,6 +32,7 @@ from akdctl.sim.component import (
     ABORT_DEVICE_STATE,
     ABORT_NO_SUBINDEX,
     ABORT_VALUE_HIGH,
+    ABORT_VALUE_LOW,
     ABORT_VALUE_RANGE,
     PE_OPERATING_STATE,
     PE_VALUE_IMPERMISSIBLE,
@@ -110,6 +111,7 @@ class PdoComponent(Component):
         model.bind_pnu(916, read=lambda sub, count: self._words(916)[sub:sub + count],
                        write=lambda sub, values: self._write_words(916, sub, values))
         model.bind_pnu(923, read=lambda sub, count: tc.signal_list()[sub:sub + count])
+        model.bind_object(0x60C2, write=self._write_cycle_time)
 
     # ------------------------------------------------------------------ public API
     def set_al_state(self, state: object) -> None:
@@ -176,6 +178,23 @@ class PdoComponent(Component):
                 self.free_words[int(key)] = [int(v) for v in values]
 
     # ------------------------------------------------------------------ object plumbing
+    def _write_cycle_time(self, sub: int, data: bytes) -> None:
+        """0x60C2 (interpolation time period): the drive turns it into FBUS.SAMPLEPERIOD ticks of 62.5 µs, so a
+        period off that grid (0x06090030) or below 250 µs (0x06090032) is refused and nothing changes
+        (EtherCAT manual 5.9/5.10; docs/fidelity.md F5). Each sub-index write is checked with the other one's
+        current value."""
+        from akdctl.catalog.texts import cycle_time_text
+        from akdctl.profiles.units import CYCLE_TOO_SHORT, cycle_time_problem
+
+        period = {1: self.model.stored_object(0x60C2, 1)[0],
+                  2: int.from_bytes(self.model.stored_object(0x60C2, 2), "little", signed=True)}
+        period[sub] = int.from_bytes(data, "little", signed=sub == 2)
+        problem = cycle_time_problem(period[1], period[2])
+        if problem is not None:
+            raise SdoAccessError(ABORT_VALUE_LOW if problem == CYCLE_TOO_SHORT else ABORT_VALUE_RANGE,
+                                 cycle_time_text(problem, period[1], period[2]))
+        self.model.set_stored_object(0x60C2, sub, data)
+
     @staticmethod
     def _esi_default(pdo: int) -> list[int]:
         values = [0] * 9

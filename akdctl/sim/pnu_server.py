@@ -4,15 +4,18 @@
 PROFIdrive V4.1): it mirrors reference and axis, checks the request in the order
 a device does, and asks a :class:`ParameterAccess` (the drive model) for values.
 Front ends (the simulated record link, the PNIO RPC face) hand it the bytes of
-record 47 and send back what it returns; it never raises.
+record 47 and send back what it returns; the only exception it raises is
+:class:`RecordRefused`, for a request the record layer itself refuses (below).
 
 How a request is refused:
 
 =====================================================  ===================================================
 request                                                answer
 =====================================================  ===================================================
-shorter than the 4-byte header, or longer than 240     ``0x16`` parameter address impermissible, whole
-request ID neither 0x01 nor 0x02                       response ID 0x80, ``0x21`` service not supported
+shorter than the 4-byte header, or longer than 240     no response: the record write is refused,
+                                                       Error_Code_1 ``0xB1`` write length error
+request reference 0x00 (reserved, manual 3.5), or      no response: the record write is refused,
+request ID neither 0x01 nor 0x02                       Error_Code_1 ``0xB7`` (error in the request header)
 number of parameters 0                                 ``0x16``
 number of parameters above 39                          ``0x22`` too many parameters
 axis other than the served ones (AKD: 0)               ``0x19`` axis/DO nonexistent
@@ -34,9 +37,19 @@ the model fails otherwise (a bug)                      ``0x11`` request cannot b
 =====================================================  ===================================================
 
 "Whole" errors answer every parameter with the same error block (header number of
-parameters mirrored when it is 1..39, else 1), so a strict client decodes them;
-with no readable header at all the reply is ``ref 0x80 axis 01 44 01 00 16`` from
-whatever header bytes there were (missing ones read as 0).
+parameters mirrored when it is 1..39, else 1), so a strict client decodes them.
+
+Why some requests get no response at all: a response mirrors the request
+reference and answers with one of the response IDs the manual lists (0x01, 0x02,
+0x81, 0x82; manual 3.5 record data table). A request whose reference is the
+reserved 0x00, or whose request ID is neither 0x01 nor 0x02, leaves nothing valid
+to answer with, so the PROFIdrive profile refuses it one layer down: the write of
+record 47 fails with Error_Code_1 0xB7, "write with an error in the base-mode
+request header" (PDRV V4.2 table 169, ``reference/profidrive_reference.md``); a
+record too short for the header or longer than 240 bytes fails with 0xB1 (write
+length error). :meth:`PnuServer.handle` raises :class:`RecordRefused` for those,
+and the record layer in front of it (the simulated record link, the PNIO face)
+turns it into the record-layer refusal. SPEC-NOTES style ruling: docs/fidelity.md F1.
 
 Multi-parameter changes are applied in order, one by one, as PROFIdrive devices do:
 a refused parameter does not undo the accepted ones; the response is then 0x82
@@ -49,7 +62,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Protocol
 
-from akdctl.sim.errors import PnuAccessError  # noqa: F401  (re-exported: servers raise and catch it)
+from akdctl.sim.errors import PnuAccessError, RecordRefused  # noqa: F401  (re-exported: servers raise and catch them)
 from akdctl.protocol.bmp import (
     ADDRESS_SIZE,
     ATTR_DESCRIPTION,
@@ -62,7 +75,6 @@ from akdctl.protocol.bmp import (
     ERR_FORMAT,
     ERR_OPERATING_STATE,
     ERR_RESPONSE_TOO_LONG,
-    ERR_SERVICE,
     ERR_SUBINDEX,
     ERR_TOO_MANY,
     ERR_VALUE_COUNT,
@@ -75,7 +87,6 @@ from akdctl.protocol.bmp import (
     REQ_READ,
     RESP_CHANGE_NAK,
     RESP_CHANGE_OK,
-    RESP_NOT_SUPPORTED,
     RESP_READ_NAK,
     RESP_READ_OK,
     BmpError,
@@ -157,6 +168,20 @@ class _WholeRequest(Exception):
         self.error = error
 
 
+#: PDRV V4.2 table 169 Error_Code_1 of a refused record write (``reference/profidrive_reference.md``).
+EC1_WRITE_LENGTH = 0xB1  # the record is shorter than the request header or longer than 240 bytes
+EC1_HEADER = 0xB7  # "invalid range": an error in the base-mode request header
+
+
+def header_refusal(request: bytes) -> int | None:
+    """The record-layer Error_Code_1 for a request no base-mode response can answer, else None."""
+    if not HEADER_SIZE <= len(request) <= MAX_BLOCK:
+        return EC1_WRITE_LENGTH
+    if request[0] == 0x00 or request[1] not in (REQ_READ, REQ_CHANGE):
+        return EC1_HEADER
+    return None
+
+
 class PnuServer:
     """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
 
@@ -168,8 +193,12 @@ class PnuServer:
     # -- entry point -----------------------------------------------------------------------------------------
 
     def handle(self, request: bytes) -> bytes:
-        """Response bytes for ``request``; never raises."""
+        """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = bytes(request)
+        code1 = header_refusal(data)
+        if code1 is not None:
+            what = "length" if code1 == EC1_WRITE_LENGTH else "header"
+            raise RecordRefused(code1, f"base-mode request {what} refused (Error_Code_1 0x{code1:02X})")
         try:
             return self._handle(data)
         except _WholeRequest as refusal:
@@ -180,22 +209,15 @@ class PnuServer:
 
     @staticmethod
     def _refuse(data: bytes, error: int) -> bytes:
-        """One error block for every parameter of the request (see the module table)."""
-        ref = data[0] if len(data) > 0 else 0
-        rid = data[1] if len(data) > 1 else 0
-        axis = data[2] if len(data) > 2 else 0
-        n = data[3] if len(data) > 3 else 0
-        response_id = rid | 0x80 if rid in (REQ_READ, REQ_CHANGE) else RESP_NOT_SUPPORTED
+        """One error block for every parameter of the request (see the module table); the header is valid."""
+        ref, rid, axis, n = data[0], data[1], data[2], data[3]
+        response_id = rid | 0x80
         count = n if 1 <= n <= MAX_PARAMETERS else 1
         block = bytes((Format.ERROR, 1, error >> 8 & 0xFF, error & 0xFF))
         return bytes((ref, response_id, axis, count)) + block * count
 
     def _handle(self, data: bytes) -> bytes:
-        if not HEADER_SIZE <= len(data) <= MAX_BLOCK:
-            raise _WholeRequest(ERR_ADDRESS)
-        reference, request_id, axis, n = data[0], data[1], data[2], data[3]
-        if request_id not in (REQ_READ, REQ_CHANGE):
-            raise _WholeRequest(ERR_SERVICE)
+        reference, request_id, axis, n = data[0], data[1], data[2], data[3]  # header_refusal checked them
         if n == 0:
             raise _WholeRequest(ERR_ADDRESS)
         if n > MAX_PARAMETERS:

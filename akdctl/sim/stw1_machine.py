@@ -18,7 +18,17 @@ from akdctl.profiles import units
 from akdctl.sim.component import PE_OPERATING_STATE, FieldState
 from akdctl.sim.errors import PnuAccessError
 from akdctl.sim.kinematics import DEFAULT_RAMP_RPM_S, EPS, QUICK_STOP_RPM_S, rpm_s
-from akdctl.sim.power_states import ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, READY, SOD, SWITCHED_ON
+from akdctl.sim.power_states import (
+    ENABLED,
+    FAULT,
+    FAULT_REACTION,
+    QUICK_STOP,
+    READY,
+    SOD,
+    SWITCHED_ON,
+    ZSW1_STATE_BITS,
+    profidrive_state,
+)
 
 if TYPE_CHECKING:
     from akdctl.sim.motion import MotionComponent
@@ -69,7 +79,7 @@ class Stw1Machine(FieldState):
         d.enabling_words += new & enabling == enabling  # tests: no enabling word reaches the drive without consent
         if not self.honoured:
             return  # SPEC-NOTES 7: without bit 10 the drive ignores the control word
-        d.watchdog_tripped = False
+        d.clear_watchdog()
         if new & sw.STW1_FAULT_ACK and not old & sw.STW1_FAULT_ACK:
             d.acknowledge()
             return  # SPEC-NOTES 7: after the acknowledge the drive is in S1; the next word moves on
@@ -223,7 +233,7 @@ class Stw1Machine(FieldState):
         d.model.set_stored_pnu(5, values)
         if d.state == ENABLED and d.stopping_to is None and d.opmode == 1 and d.axis.activity != "jog" \
                 and self.honoured:
-            d.watchdog_tripped = False
+            d.clear_watchdog()
             self.velocity(self.stw1)
 
     def write_opmode(self, sub: int, values: list[int]) -> None:
@@ -240,8 +250,10 @@ class Stw1Machine(FieldState):
     def zsw1(self) -> int:
         d, axis = self.drive, self.drive.axis
         state = d.state
-        word = {SOD: sw.ZSW1_SWITCHING_ON_INHIBITED, READY: 0x01, SWITCHED_ON: 0x03, ENABLED: 0x07,
-                QUICK_STOP: 0x07, FAULT_REACTION: sw.ZSW1_FAULT, FAULT: sw.ZSW1_FAULT}[state]
+        if state in (FAULT_REACTION, FAULT):
+            word = sw.ZSW1_FAULT
+        else:  # S5 (OFF1 ramp, OFF3 quick stop) shows bits 0 and 1 without bit 2 (docs/fidelity.md F2)
+            word = ZSW1_STATE_BITS[profidrive_state(state, d.stopping_to)]
         if d.fault_present:
             word |= sw.ZSW1_FAULT
         honoured = self.honoured

@@ -25,7 +25,17 @@ class SimRecordLink(RecordLink):
         self.trace_note = f"sim:{drive.name}"
 
     def exchange(self, request: bytes) -> bytes:
-        return self.drive.handle_bmp(request)
+        from akdctl.sim.errors import RecordRefused
+
+        try:
+            return self.drive.handle_bmp(request)
+        except RecordRefused as exc:  # the record write itself is refused, as over pn:// (docs/fidelity.md F1)
+            from akdctl.errors import RecordError
+            from akdctl.protocol import pnio
+
+            status = pnio.rw_error(True, exc.code1)
+            raise RecordError(f"sim:{self.drive.name}: write record 47 refused: {status.describe()}",
+                              code=status.value) from None
 
 
 class SimMailboxLink(MailboxLink):

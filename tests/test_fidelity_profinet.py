@@ -1,0 +1,149 @@
+"""The simulated AKD against the PROFINET manuals (issue 16 items 1-6): each test quotes the statement it checks.
+
+Manuals (``/work/shared/seeds``): ``000`` AKD PROFINET Communication (Oct 2011), ``004`` AKD PROFINET RT
+Communication (edition B), ``003`` AKD PROFINET RT Kommunikation (German, later). Rulings of our own are
+docs/fidelity.md F1..; SPEC-NOTES numbers are named where a test relies on one.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from akdctl.errors import RecordError
+from akdctl.protocol import pnio
+from akdctl.sim.drive import SimDrive
+from akdctl.sim.face_profinet import ProfinetFace
+from akdctl.transport.base import LinkOptions
+from akdctl.transport.profinet import PnioRecordLink, ProfinetTransport
+from akdctl.transport.sim import SimRecordLink
+from akdctl.transport.target import split_target
+from akdctl.transport.trace import Tracer
+
+READ_930 = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")
+
+
+# ---------------------------------------------------------------------------------------------------- item 4
+def test_bmp_reserved_reference_and_unknown_request_id_are_refused_by_the_record_layer() -> None:
+    """``000`` 3.5 "Record data fields": "Request reference Unsigned8 0x00 reserved, 0x01 – 0xFF"; "Request ID
+    0x01 Request parameter, 0x02 Change parameter"; "Response ID 0x01, 0x02, 0x81, 0x82" - nothing else.
+    ``reference/profidrive_reference.md`` (PDRV V4.2 table 169): Error_Code_1 "0xB7 invalid range (error in
+    base-mode request header)". docs/fidelity.md F1: such a request gets no response; the write fails with 0xB7.
+    """
+    link = SimRecordLink(SimDrive("f1"))
+    assert link.exchange(READ_930)[:2] == b"\x05\x01"                    # a valid request is answered
+    for request in (b"\x00" + READ_930[1:], READ_930[:1] + b"\x03" + READ_930[2:]):
+        with pytest.raises(RecordError) as info:
+            link.exchange(request)
+        assert info.value.code == pnio.rw_error(True, 0xB7).value       # DF 80 B7 00
+        assert "invalid range" in info.value.message
+
+
+def test_bmp_header_refusal_over_the_pnio_face() -> None:
+    """The same rule on the wire: the PNIO face answers the record write with PNIOStatus DF 80 B7 00."""
+    face = ProfinetFace(SimDrive("f1-face"), "127.0.0.1", 0)
+    face.start()
+    transport = ProfinetTransport(split_target(f"pn://127.0.0.1:{face.port}"),
+                                  LinkOptions(timeout=1.0, retries=2, tracer=Tracer()))
+    try:
+        transport.connect()
+        link = PnioRecordLink(transport)
+        assert link.exchange(READ_930)[:2] == b"\x05\x01"
+        with pytest.raises(RecordError) as info:
+            link.exchange(b"\x00" + READ_930[1:])
+        assert "B7" in info.value.message and info.value.code == pnio.rw_error(True, 0xB7).value
+        assert link.exchange(READ_930)[:2] == b"\x05\x01"                # the channel still works afterwards
+    finally:
+        transport.close()
+        face.stop()
+
+
+# ---------------------------------------------------------------------------------------------------- item 5
+def _ok(akd_inproc, *args: str) -> dict:
+    code, out, err = akd_inproc("--json", *args)
+    assert code == 0, (args, code, err)
+    return json.loads(out)
+
+
+def test_off1_and_off3_report_s5_switching_off(akd_inproc) -> None:
+    """``004`` 5.4: "The S7 application must set the bits in control word 1 to go through the PROFIdrive standard
+    state machine" (S1..S5, SPEC-NOTES 6); the profile's S5 "switching off" is the state of both the OFF1 ramp stop
+    (STW1 bit 0 = 0) and the OFF3 quick stop (bit 2 = 0), with ZSW1 bits 0/1 set and bit 2 (operation enabled)
+    clear. docs/fidelity.md F2. Velocity mode (PNU 930 = 1), telegram 1 enable sequence of ``004`` 5.9.
+    """
+    _ok(akd_inproc, "sim", "speed", "--realtime", "--watchdog", "0")
+    _ok(akd_inproc, "--yes", "pnu", "set", "1007=1")               # DRV.DEC 1 rpm/s: the OFF1 ramp outlasts the test
+    for word in ("0x0470", "0x0476", "0x0477", "0x047F"):
+        _ok(akd_inproc, "--yes", "pnu", "set", f"1={word}")
+    _ok(akd_inproc, "--yes", "pnu", "set", "5=1638")                 # 600 rpm (x = 15)
+    _ok(akd_inproc, "sim", "speed", "100000")
+    _ok(akd_inproc, "sim", "speed", "--realtime")                    # at speed now
+    assert _ok(akd_inproc, "status")["status"]["state"] == "S4"
+    _ok(akd_inproc, "--yes", "pnu", "set", "1=0x0476")               # OFF1: ON cleared, ramp along DRV.DEC
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["state"] == "S5" and status["state_text"] == "switching off"
+    assert status["word"] & 0x0047 == 0x0003 and status["word"] & 0x0020   # bits 0,1; not 2, 6; bit 5 set (OFF1)
+    assert not status["standstill"]
+    _ok(akd_inproc, "--yes", "pnu", "set", "1=0x0472")               # OFF3 while the ramp runs: quick stop
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["state"] == "S5" or status["standstill"]           # the quick stop may already have ended
+    _ok(akd_inproc, "sim", "speed", "100000")
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["standstill"] and status["state"] == "S1"          # OFF3 ends in S1 (switching on inhibited)
+
+
+def test_zsw1_of_s5_in_the_model() -> None:
+    """The same through the model's bytes, without wall time: OFF1 ramp and OFF3 quick stop show 0x..33 / 0x..13."""
+    import struct
+
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    model.motion.watchdog_s = 0
+    stw1 = lambda word: model.pnu_write_raw(1, 0, 0x42, [word])  # noqa: E731
+    for word in sw.TELEGRAM1_ENABLE_SEQUENCE:
+        stw1(word)
+    model.pnu_write_raw(1007, 0, 0x42, [10])
+    model.pnu_write_raw(5, 0, 0x42, [1638])
+    model.advance(10.0)
+    stw1(0x0476)                                                     # OFF1
+    model.advance(1.0)
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert zsw1 & 0x7F == 0x33 and sw.profidrive_state(zsw1, 0x0476) == "S5"
+    assert sw.profidrive_state(zsw1, 0x047F) == "S3"                 # the same bits with ON set would be S3
+    stw1(0x0472)                                                     # OFF3
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert zsw1 & 0x7F == 0x13 and sw.profidrive_state(zsw1) == "S5"
+    model.advance(10.0)
+    assert sw.profidrive_state(model.pnu_read_raw(2, 0, 1)[1][0]) == "S1"
+    assert struct.unpack("<H", model.object_read(0x6041, 0))[0] & 0x4F == 0x40   # CiA 402 view: switch on disabled
+
+
+# ---------------------------------------------------------------------------------------------------- item 3
+def test_position_rendering_follows_pnu_1002(akd_inproc) -> None:
+    """``004`` 5.12.2 / ``003`` 6.12.2: "In the default configuration, the resolution per revolution is 2^16
+    (65536) counts. The number of singleturn bits (default 16) can be changed through PNU 1002." With 20 bits,
+    1.5 rev is 1572864 counts - shown as 1.5 rev, not as 24 rev (which 16 bits would make of it)."""
+    assert akd_inproc("--yes", "pnu", "set", "1002=20", "34=1572864")[0] == 0
+    code, out, _ = akd_inproc("pnu", "get", "34")
+    assert code == 0 and "1.5 rev" in out and "24 rev" not in out
+    code, out, _ = akd_inproc("pnu", "get", "34", "1002")
+    assert code == 0 and "1.5 rev" in out
+
+
+def test_sixty_rpm_is_163_the_manuals_example_truncates(akd_inproc) -> None:
+    """``004`` 5.12.1: "E.g. if the S7 wants to set a velocity of 60 rpm in the cyclic channel in needs to
+    convert: (60 / 12000) * 2^15 = 163". The exact value is 163.84, so the example truncates (toward zero);
+    rounding to nearest would give 164 (docs/fidelity.md F6). 1 rps is "0x00A3" in 5.9 - the same 163."""
+    from akdctl.profiles import units
+
+    assert 60 / 12000 * 2**15 == 163.84
+    assert units.rpm_to_x(60, 15) == 163 == 0x00A3 and units.rpm_to_x(-60, 15) == -163
+    _ok(akd_inproc, "sim", "speed", "100000")
+    plan = _ok(akd_inproc, "--yes", "jog", "60", "--for", "0.5s")["plan"]
+    assert plan["velocity"]["raw"] == 163                              # the jog set point PNU 1004 as written
+    with SimDrive("default").transaction() as model:                   # NIST_A of a drive at 60 rpm reads 163
+        model.motion.axis.vel = 1.0
+        assert model.pnu_read_raw(6, 0, 1)[1] == [163]
