@@ -154,7 +154,7 @@ class Connection:
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
         from akdctl.channels.coe_sdo import CoeObjectChannel
 
-        return CoeObjectChannel(link, timeout=self.options.timeout, retries=self.options.retries)
+        return CoeObjectChannel(link, budget=self.options.budget)
 
     def _native_channel(self, client: "NativeSdoClient") -> "ObjectChannel":
         from akdctl.links import CanopenSdoClient, SoemSdoClient

@@ -111,6 +111,13 @@ class NoAnswer(CommError):
     kind = "timeout"
 
 
+class UnknownOutcome(CommError):
+    """A write whose reply never came and whose effect could not be confirmed: the drive may or may not
+    have applied it. Never repeated blindly (a repeat could apply it twice); the user checks and decides."""
+
+    kind = "unknown-outcome"
+
+
 class MalformedReply(CommError):
     """A reply arrived but does not decode or does not match the request."""
 

@@ -21,9 +21,118 @@ A transport offers any of:
 
 from __future__ import annotations
 
+import time
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, ClassVar
+
+
+class Deadline:
+    """The end of one request's wait: every attempt, repeat and segment of the request fits before it.
+
+    Why one object handed down instead of a timeout per wait: a wait per layer multiplies (three attempts
+    of two seconds were six seconds at ``--timeout 2``); one end time is shared by everyone who waits for
+    the same request, and each attempt takes its share of what is left.
+    """
+
+    __slots__ = ("at", "total", "attempts", "probe")
+
+    def __init__(self, total: float, attempts: int = 1, probe: bool = False) -> None:
+        self.total = max(0.0, float(total))
+        self.attempts = max(1, int(attempts))
+        self.probe = probe  # the command has no time left: this request only checks whether the drive is back
+        self.at = time.monotonic() + self.total
+
+    def remaining(self) -> float:
+        """Seconds left (0 once passed)."""
+        return max(0.0, self.at - time.monotonic())
+
+    def expired(self) -> bool:
+        return time.monotonic() >= self.at
+
+    def share(self, attempts_left: int) -> float:
+        """How long one of ``attempts_left`` remaining attempts may wait: an equal part of what is left."""
+        return self.remaining() / max(1, attempts_left)
+
+    def describe(self) -> str:
+        """"1 s (3 attempts of 0.33 s)": what a request that got no answer did, for its message."""
+        if self.probe:
+            return (f"{self.total:g} s (the command had already waited its whole timeout for this drive: "
+                    "later requests only check whether it is back)")
+        if self.attempts == 1:
+            return f"{self.total:g} s"
+        return f"{self.total:g} s ({self.attempts} attempts of {self.total / self.attempts:.2g} s)"
+
+
+#: The share of ``timeout`` a request waits once the command has waited all of it for a silent drive.
+PROBE = 0.1
+
+
+class Budget:
+    """How long a command waits for its drive: ``--timeout`` and ``--retries``, carried by the Connection.
+
+    * ``timeout`` bounds each request's total wait -- one SDO transfer with all its segments and repeats,
+      one PROFIdrive batch with both of its RPCs -- not each single wait;
+    * ``retries`` is how often a request that got no answer is sent again within that bound, where the
+      protocol makes the repeat harmless (reads; PNIO calls the device recognises by their sequence number);
+    * the command as a whole waits about ``timeout`` for a drive that does not answer: the time of
+      requests that ended unanswered is added up (an answer clears it), a request gets only what is left,
+      and once nothing is left each later request is still sent -- a stop must go out -- but waits only
+      a tenth of ``timeout`` (:data:`PROBE`), enough for a drive that is back to answer and clear the count.
+
+    Nested requests (a channel's request carried by a transport that also waits) share the outer deadline.
+    Links and channels import this module only, so both layers read one rule.
+    """
+
+    def __init__(self, timeout: float = 2.0, retries: int = 2) -> None:
+        if not timeout > 0:
+            raise ValueError(f"timeout must be positive (got {timeout})")
+        self.timeout = float(timeout)
+        self.retries = max(0, int(retries))
+        self.silent = 0.0  # seconds spent in requests that ended without an answer, since the last answer
+        self._current: Deadline | None = None
+
+    @property
+    def attempts(self) -> int:
+        return self.retries + 1
+
+    @contextmanager
+    def request(self, attempts: int | None = None) -> Iterator[Deadline]:
+        """The deadline of one request (``attempts`` defaults to ``retries + 1``; a write passes 1)."""
+        if self._current is not None:
+            yield self._current
+            return
+        left = self.timeout - self.silent
+        probe = left < self.timeout * PROBE
+        deadline = Deadline(self.timeout * PROBE if probe else left, self.attempts if attempts is None else attempts,
+                            probe)
+        self._current = deadline
+        try:
+            yield deadline
+        except BaseException as exc:
+            if unanswered(exc):
+                self.silent = min(self.timeout, self.silent + deadline.total)  # all its time went in vain
+            else:
+                self.silent = 0.0
+            raise
+        else:
+            self.silent = 0.0
+        finally:
+            self._current = None
+
+    @property
+    def exhausted(self) -> bool:
+        """True once the command has waited ``timeout`` for a drive that did not answer."""
+        return self.silent >= self.timeout
+
+
+def unanswered(exc: BaseException) -> bool:
+    """Whether an error means the drive did not answer at all: an ``akdctl.errors`` error of kind
+    ``timeout``, or one that says so itself (``exc.unanswered``, set on an unknown outcome)."""
+    flag = getattr(exc, "unanswered", None)
+    return bool(flag) if flag is not None else getattr(exc, "kind", None) == "timeout"
 
 
 class RecordLink(ABC):
@@ -97,4 +206,4 @@ class SoemSdoClient:
 
 NativeSdoClient = CanopenSdoClient | SoemSdoClient
 
-__all__ = ["RecordLink", "MailboxLink", "MessageLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient"]
+__all__ = ["Budget", "Deadline", "RecordLink", "MailboxLink", "MessageLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient"]

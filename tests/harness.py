@@ -281,3 +281,85 @@ def closed_udp_port() -> Iterator[int]:
         yield guard.getsockname()[1]
     finally:
         guard.close()
+
+
+class LossyUdpRelay:
+    """A UDP relay on 127.0.0.1 that loses, duplicates and delays datagrams, for clients under a bad link.
+
+    ``LossyUdpRelay(("127.0.0.1", server_port), loss=0.2, dup=0.2, delay=0.1, seed=1)`` as a context
+    manager: clients send to ``relay.port``; each datagram (either way) is lost with probability ``loss``,
+    else sent once more with probability ``dup`` and held back ``0..delay`` s (so a duplicate or a late
+    datagram can arrive after the next request); ``dup_requests=False`` duplicates only replies (a client
+    cannot stop a network from delivering its one request twice). Each client gets its own socket towards the server, so
+    late replies go back to the client that asked, as a real gateway's would. One thread, seeded,
+    loopback only; ``stats`` counts what it did.
+    """
+
+    def __init__(self, server: tuple[str, int], *, loss: float = 0.0, dup: float = 0.0, delay: float = 0.0,
+                 seed: int = 0, dup_requests: bool = True) -> None:
+        import random
+
+        self.server = server
+        self.loss, self.dup, self.delay = loss, dup, delay
+        self.dup_requests = dup_requests
+        self.rng = random.Random(seed)
+        self.stats = {"forwarded": 0, "lost": 0, "duplicated": 0}
+        self._front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._front.bind(("127.0.0.1", 0))
+        self.port = self._front.getsockname()[1]
+        self._backs: dict[tuple[str, int], socket.socket] = {}
+        self._clients: dict[socket.socket, tuple[str, int]] = {}
+        self._pending: list[tuple[float, socket.socket, bytes, tuple[str, int]]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="lossy-relay", daemon=True)
+
+    def __enter__(self) -> "LossyUdpRelay":
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self._front.close()
+        for sock in self._backs.values():
+            sock.close()
+
+    def _back(self, client: tuple[str, int]) -> socket.socket:
+        sock = self._backs.get(client)
+        if sock is None:
+            sock = self._backs[client] = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock.bind(("127.0.0.1", 0))
+            self._clients[sock] = client
+        return sock
+
+    def _schedule(self, sock: socket.socket, data: bytes, to: tuple[str, int], request: bool) -> None:
+        if self.rng.random() < self.loss:
+            self.stats["lost"] += 1
+            return
+        copies = 2 if self.rng.random() < self.dup and (self.dup_requests or not request) else 1
+        self.stats["duplicated"] += copies - 1
+        for _ in range(copies):
+            self._pending.append((time.monotonic() + self.rng.uniform(0, self.delay), sock, data, to))
+
+    def _run(self) -> None:
+        import select
+
+        while not self._stop.is_set():
+            now = time.monotonic()
+            due = [p for p in self._pending if p[0] <= now]
+            self._pending = [p for p in self._pending if p[0] > now]
+            for _at, sock, data, to in due:
+                with contextlib.suppress(OSError):
+                    sock.sendto(data, to)
+                    self.stats["forwarded"] += 1
+            wait = min([p[0] for p in self._pending], default=now + 0.05) - now
+            ready, _, _ = select.select([self._front, *self._clients], [], [], max(0.0, min(wait, 0.05)))
+            for sock in ready:
+                try:
+                    data, peer = sock.recvfrom(65535)
+                except OSError:
+                    continue
+                if sock is self._front:
+                    self._schedule(self._back(peer), data, self.server, True)
+                else:
+                    self._schedule(self._front, data, self._clients[sock], False)

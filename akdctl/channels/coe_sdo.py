@@ -4,16 +4,30 @@ Written once so every EtherCAT transport gets the same SDO behaviour:
 
 * expedited transfers for 1..4 bytes, "normal" transfers (size + data in one
   mailbox) up to the mailbox size, segmented transfers beyond it;
-* mailbox counter 1..7 wrapping; replies are matched on CoE service, SDO
-  command, index and subindex, not on the counter, because mailbox gateways
-  rewrite it (``strict_counter=True`` additionally drops replies whose counter
-  differs, for links that echo it faithfully);
+* mailbox counter 1..7 wrapping; a reply is taken only if its CoE service,
+  SDO command, index and subindex (and, for a segment, its toggle) fit the
+  request, and :mod:`akdctl.channels.reply_filter` drops duplicates and, on a
+  link that echoes counters, answers to other requests;
+* every request waits within one :class:`~akdctl.links.Deadline` of the
+  command's :class:`~akdctl.links.Budget` (``--timeout``, ``--retries``): an
+  upload that got no answer is repeated whole (a segment cannot be repeated on
+  its own: the server has already flipped its toggle) while time is left;
+* **a download is sent once, never again**: when its answer is lost the
+  channel aborts a segmented transfer, reads the object back and reports
+  success only if it holds the value written; otherwise
+  :class:`~akdctl.errors.UnknownOutcome` says the drive may or may not have
+  applied it. A gateway cannot make a repeat harmless -- the master numbers
+  mailboxes itself, so the slave cannot recognise our repeat by its counter --
+  and a repeated controlword edge or command would act twice. On a link that
+  does not echo counters, an answer to a later write to the same object could
+  be the lost answer arriving late, so such writes are confirmed by reading
+  back too;
+* uploads are capped: the size the server declares, and at most
+  :data:`MAX_UPLOAD` bytes whatever it declares (an endless segmented upload
+  ends there with an abort sent to the server);
 * emergencies arriving between replies are queued for :meth:`take_emergencies`;
 * a reply whose CoE service reads 2 (request) instead of 3 is accepted with a
-  warning: the AKD manual's own example shows one (SPEC-NOTES 15);
-* a lost reply repeats the whole transfer (a segment cannot be repeated on its
-  own: the server has already flipped its toggle), at most ``retries`` times,
-  then :class:`akdctl.errors.NoAnswer`.
+  warning: the AKD manual's own example shows one (SPEC-NOTES 15).
 """
 
 from __future__ import annotations
@@ -23,10 +37,11 @@ import time
 from collections.abc import Callable
 from typing import TypeVar
 
-from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
 from akdctl.catalog.texts import mailbox_error_text
-from akdctl.errors import CommError, MalformedReply, NoAnswer, UsageError
-from akdctl.links import MailboxLink
+from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.channels.reply_filter import ReplyFilter
+from akdctl.errors import AkdError, CommError, MalformedReply, NoAnswer, UnknownOutcome
+from akdctl.links import Budget, Deadline, MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
@@ -36,9 +51,13 @@ log = logging.getLogger("akdctl")
 
 T = TypeVar("T")
 
+#: The most bytes one upload may bring, whatever the server declares: far above any AKD object (the longest
+#: are strings of a few hundred bytes), far below what would hurt the machine.
+MAX_UPLOAD = 1 << 20
+
 
 class _Silence(Exception):
-    """Internal: no matching reply within the timeout (the transfer may be repeated)."""
+    """Internal: no matching reply within the attempt's wait (the request may be repeated)."""
 
 
 def _where(index: int, subindex: int) -> str:
@@ -52,21 +71,28 @@ class CoeObjectChannel(ObjectChannel):
         self,
         link: MailboxLink,
         *,
-        timeout: float,
+        budget: Budget | None = None,
+        timeout: float | None = None,
         retries: int = 2,
         station: int | None = None,
         strict_counter: bool = False,
+        max_upload: int = MAX_UPLOAD,
     ) -> None:
-        if timeout <= 0:
-            raise UsageError(f"timeout must be positive (got {timeout})")
         self.link = link
-        self.timeout = float(timeout)
-        self.retries = max(0, int(retries))
+        self.budget = budget if budget is not None else Budget(2.0 if timeout is None else timeout, retries)
         self.station = link.mailbox_address if station is None else station
-        self.strict_counter = strict_counter
+        self.max_upload = max_upload
+        self.filter = ReplyFilter(strict=strict_counter)
         self.requests = 0
         self._counter = 0
+        self._stale = False  # an earlier request went unanswered: its reply may still come in
+        self._proven = False  # the last answer taken carried the request's own counter (an echoing link)
+        self._doubtful: set[tuple[int, int]] = set()  # objects with a write that went unanswered
         self._emergencies: list[Emergency] = []
+
+    @property
+    def timeout(self) -> float:
+        return self.budget.timeout
 
     # --- ObjectChannel ----------------------------------------------------------------------
 
@@ -75,11 +101,26 @@ class CoeObjectChannel(ObjectChannel):
         return out
 
     def upload(self, index: int, subindex: int) -> bytes:
-        return self._repeat(lambda: self._upload_once(index, subindex), f"SDO upload of {_where(index, subindex)}")
+        return self._repeat(lambda d, left: self._upload_once(index, subindex, d, left),
+                            f"SDO upload of {_where(index, subindex)}")
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
         data = bytes(data)
-        self._repeat(lambda: self._download_once(index, subindex, data), f"SDO download to {_where(index, subindex)}")
+        what = f"SDO download to {_where(index, subindex)}"
+        with self.budget.request() as deadline:
+            try:
+                proven = self._download_once(index, subindex, data, deadline)
+            except _Silence:
+                self._doubtful.add((index, subindex))
+                if len(data) > 4 and len(data) > self._normal_room:
+                    self._abort(index, subindex, coe.ABORT_TIMEOUT)  # leave no half transfer in the server
+                self._confirm(index, subindex, data, deadline, f"no answer to the {what} within {deadline.describe()}")
+                return
+            if not proven and (index, subindex) in self._doubtful:
+                # An earlier write to this object went unanswered and this link does not echo counters: the
+                # answer just taken may be that write's late answer. Only the object itself can tell.
+                self._confirm(index, subindex, data, deadline,
+                              f"the answer to the {what} may be the late answer to an earlier write")
 
     def object_list(self) -> list[int]:
         reply = self._info(coe.OdListRequest(coe.LIST_ALL), coe.OdListResponse, "object list")
@@ -104,46 +145,54 @@ class CoeObjectChannel(ObjectChannel):
     def _segment_room(self) -> int:
         return max(7, self.link.mailbox_size - mbx.HEADER_SIZE - coe.SEGMENT_OVERHEAD)
 
-    def _repeat(self, once: Callable[[], T], what: str) -> T:
-        attempts = self.retries + 1
-        for attempt in range(1, attempts + 1):
-            try:
-                return once()
-            except _Silence:
-                if attempt < attempts:
-                    log.info("%s: no answer within %.3g s, repeating (%d/%d)", what, self.timeout, attempt, attempts)
-        raise NoAnswer(
-            f"no answer to {what} within {self.timeout:g} s ({attempts} attempt{'s' if attempts > 1 else ''})",
-            details={"timeout": self.timeout, "attempts": attempts},
-        )
+    def _repeat(self, once: Callable[[Deadline, int], T], what: str) -> T:
+        """Run an idempotent request (an upload, an information request) until answered or out of time."""
+        with self.budget.request() as deadline:
+            attempts = deadline.attempts
+            for attempt in range(attempts):
+                try:
+                    return once(deadline, attempts - attempt)
+                except _Silence:
+                    if attempt + 1 < attempts and not deadline.expired():
+                        log.info("%s: no answer, repeating (%d/%d)", what, attempt + 2, attempts)
+                    if deadline.expired():
+                        break
+            raise NoAnswer(f"no answer to {what} within {deadline.describe()}",
+                           details={"timeout": deadline.total, "attempts": deadline.attempts})
 
-    def _upload_once(self, index: int, subindex: int) -> bytes:
-        first = self._sdo(coe.SdoUploadInitiate(index, subindex), index, subindex, "upload")
-        if not isinstance(first, coe.SdoUploadResponse) or (first.index, first.subindex) != (index, subindex):
+    def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int) -> bytes:
+        first = self._sdo(coe.SdoUploadInitiate(index, subindex), index, subindex, "upload", deadline, left)
+        if not isinstance(first, coe.SdoUploadResponse):
             raise MalformedReply(f"unexpected reply {first!r} to the SDO upload of {_where(index, subindex)}")
-        if first.expedited:
-            return first.data
-        if first.size is None:
+        if first.expedited or first.size is None:
             return first.data  # size not indicated: the initiate carries everything
+        size = first.size
+        if size > self.max_upload:
+            self._abort(index, subindex, coe.ABORT_OUT_OF_MEMORY)
+            raise MalformedReply(f"the drive announces {size} bytes for {_where(index, subindex)}, more than the "
+                                 f"{self.max_upload} bytes akdctl accepts from one object (transfer aborted)")
         data = bytearray(first.data)
         toggle = 0
-        while len(data) < first.size:
-            seg = self._sdo(coe.SdoUploadSegment(toggle), index, subindex, "upload")
-            if not isinstance(seg, coe.SdoUploadSegmentResponse):
-                raise MalformedReply(f"unexpected reply {seg!r} in the segmented upload of {_where(index, subindex)}")
-            if seg.toggle != toggle:
-                raise MalformedReply(f"segment toggle {seg.toggle} (expected {toggle}) uploading {_where(index, subindex)}")
+        last = True
+        while len(data) < size:
+            seg = self._sdo(coe.SdoUploadSegment(toggle), index, subindex, "upload", deadline, left, toggle)
+            assert isinstance(seg, coe.SdoUploadSegmentResponse)
             data += seg.data
             toggle ^= 1
-            if seg.last:
+            last = seg.last
+            if last:
                 break
-        if len(data) != first.size:
+        if len(data) != size:
+            if not last:
+                self._abort(index, subindex, coe.ABORT_LENGTH_MISMATCH)  # the server would go on sending
             raise MalformedReply(
-                f"segmented upload of {_where(index, subindex)} delivered {len(data)} bytes, announced {first.size}"
+                f"segmented upload of {_where(index, subindex)} delivered {len(data)} bytes, announced {size}"
+                + ("" if last else " (transfer aborted)")
             )
         return bytes(data)
 
-    def _download_once(self, index: int, subindex: int, data: bytes) -> None:
+    def _download_once(self, index: int, subindex: int, data: bytes, deadline: Deadline) -> bool:
+        """Send the write once; True when the answers were proven ours by their counter."""
         if 1 <= len(data) <= 4:
             request: coe.SdoMessage = coe.SdoDownloadInitiate(index, subindex, data, len(data), True)
             rest = b""
@@ -151,32 +200,80 @@ class CoeObjectChannel(ObjectChannel):
             room = self._normal_room
             request = coe.SdoDownloadInitiate(index, subindex, data[:room], len(data), False)
             rest = data[room:]
-        reply = self._sdo(request, index, subindex, "download")
-        if not isinstance(reply, coe.SdoDownloadResponse) or (reply.index, reply.subindex) != (index, subindex):
-            raise MalformedReply(f"unexpected reply {reply!r} to the SDO download to {_where(index, subindex)}")
+        # Each answer may take a share of the request's time: the rest is for reading the object back.
+        self._sdo(request, index, subindex, "download", deadline, deadline.attempts)
+        proven = self._proven
         toggle = 0
         room = self._segment_room
         while rest:
             chunk, rest = rest[:room], rest[room:]
-            seg = self._sdo(coe.SdoDownloadSegment(toggle, chunk, not rest), index, subindex, "download")
-            if not isinstance(seg, coe.SdoDownloadSegmentResponse) or seg.toggle != toggle:
-                raise MalformedReply(f"unexpected reply {seg!r} in the segmented download to {_where(index, subindex)}")
+            self._sdo(coe.SdoDownloadSegment(toggle, chunk, not rest), index, subindex, "download", deadline,
+                      deadline.attempts, toggle)
+            proven = proven and self._proven
             toggle ^= 1
+        return proven
 
-    def _sdo(self, request: coe.SdoMessage, index: int, subindex: int, verb: str) -> coe.SdoMessage:
-        """Send one SDO request; return the matching server message (aborts raise)."""
-        segment = isinstance(request, (coe.SdoUploadSegment, coe.SdoDownloadSegment))
-        if segment:
-            wanted: tuple[type, ...] = (
-                (coe.SdoUploadSegmentResponse,) if isinstance(request, coe.SdoUploadSegment)
-                else (coe.SdoDownloadSegmentResponse,)
-            )
-        elif isinstance(request, coe.SdoUploadInitiate):
-            wanted = (coe.SdoUploadResponse,)
+    def _confirm(self, index: int, subindex: int, data: bytes, deadline: Deadline, why: str) -> None:
+        """Confirm a write whose answer is missing or doubtful by reading the object back, never by
+        writing again; UnknownOutcome if the object does not show the value written."""
+        details: dict[str, object] = {"index": index, "subindex": subindex, "written": data.hex()}
+        attempts = deadline.attempts - 1  # the first attempt was the write itself
+        answered = False
+        if attempts < 1 or deadline.expired():
+            found = "no time was left to read it back"
         else:
-            wanted = (coe.SdoDownloadResponse,)
+            try:
+                back = self._read_back(index, subindex, deadline, attempts)
+            except _Silence:
+                found = "reading it back got no answer either"
+            except AkdError as exc:
+                answered = True
+                found = f"it cannot be read back ({exc.message})"
+            else:
+                if _same_value(back, data):
+                    log.info("%s; the object reads back the value written", why)
+                    return
+                answered = True
+                found = f"it reads back {back.hex(' ') or 'nothing'} (written: {data.hex(' ')})"
+                details["read_back"] = back.hex()
+        error = UnknownOutcome(
+            f"{why}, and {found}: the drive may or may not have applied it. akdctl does not send a write "
+            "twice; check the drive before repeating the command",
+            details=details,
+        )
+        error.unanswered = not answered  # type: ignore[attr-defined]  # how the Budget counts it
+        raise error
 
-        def accept(service: int, payload: bytes) -> coe.SdoMessage | None:
+    def _read_back(self, index: int, subindex: int, deadline: Deadline, attempts: int) -> bytes:
+        for attempt in range(attempts):
+            try:
+                return self._upload_once(index, subindex, deadline, attempts - attempt)
+            except _Silence:
+                if deadline.expired():
+                    break
+        raise _Silence()
+
+    def _abort(self, index: int, subindex: int, code: int) -> None:
+        """Tell the server to drop its transfer state (CiA 301: the client aborts what it gives up)."""
+        try:
+            self._send(coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(coe.SdoAbort(index, subindex, code))))
+        except CommError as exc:
+            log.debug("could not send the SDO abort: %s", exc)
+
+    def _sdo(self, request: coe.SdoMessage, index: int, subindex: int, verb: str, deadline: Deadline,
+             left: int, toggle: int | None = None) -> coe.SdoMessage:
+        """Send one SDO request; return the matching server message (aborts raise)."""
+        segment = toggle is not None
+        if isinstance(request, coe.SdoUploadSegment):
+            wanted: type = coe.SdoUploadSegmentResponse
+        elif isinstance(request, coe.SdoDownloadSegment):
+            wanted = coe.SdoDownloadSegmentResponse
+        elif isinstance(request, coe.SdoUploadInitiate):
+            wanted = coe.SdoUploadResponse
+        else:
+            wanted = coe.SdoDownloadResponse
+
+        def accept(service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
             if service not in (CoeService.SDO_RESPONSE, CoeService.SDO_REQUEST):
                 return None
             try:
@@ -185,13 +282,19 @@ class CoeObjectChannel(ObjectChannel):
                 log.debug("ignoring an undecodable SDO reply: %s", exc)
                 return None
             if isinstance(msg, coe.SdoAbort):
-                if (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment:
+                if (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment or mine:
                     raise sdo_aborted(msg.code, sdo_what(verb, index, subindex),
                                       details={"index": index, "subindex": subindex})
                 return None
             if not isinstance(msg, wanted):
                 return None
-            if not segment and (getattr(msg, "index", index), getattr(msg, "subindex", subindex)) != (index, subindex):
+            if segment:
+                if msg.toggle != toggle:  # type: ignore[attr-defined]
+                    if mine:
+                        raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[attr-defined]
+                                             f"of {_where(index, subindex)}")
+                    return None  # a duplicate of the previous segment's answer
+            elif (msg.index, msg.subindex) != (index, subindex):  # type: ignore[attr-defined]
                 return None
             if service == CoeService.SDO_REQUEST:
                 log.warning(
@@ -201,7 +304,8 @@ class CoeObjectChannel(ObjectChannel):
                 )
             return msg
 
-        return self._exchange(coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(request)), accept)
+        return self._exchange(coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(request)), accept,
+                              deadline.share(left), deadline)
 
     # --- SDO information --------------------------------------------------------------------
 
@@ -209,11 +313,11 @@ class CoeObjectChannel(ObjectChannel):
         frame = coe.encode_sdo_info(coe.pack_info(request))
         data = coe.encode_coe(CoeService.SDO_INFO, frame)
 
-        def once() -> T:
+        def once(deadline: Deadline, left: int) -> T:
             assembler = coe.InfoReassembler()
             result: list[coe.SdoInfo] = []
 
-            def accept(service: int, payload: bytes) -> bool | None:
+            def accept(service: int, payload: bytes, mine: bool) -> bool | None:
                 if service != CoeService.SDO_INFO:
                     return None
                 try:
@@ -222,11 +326,11 @@ class CoeObjectChannel(ObjectChannel):
                 except CodecError as exc:
                     raise MalformedReply(f"SDO information reply for the {what} does not decode: {exc}") from None
                 if done is None:
-                    return False  # more fragments follow: keep listening, the timer restarts
+                    return False  # more fragments follow: keep listening, the wait restarts
                 result.append(done)
                 return True
 
-            self._exchange(data, accept, until=lambda value: value is True)
+            self._exchange(data, accept, deadline.share(left), deadline, until=lambda value: value is True)
             try:
                 message = coe.unpack_info(result[0])
             except CodecError as exc:
@@ -249,22 +353,25 @@ class CoeObjectChannel(ObjectChannel):
         return self._counter
 
     def _drain(self) -> None:
-        """Clear replies left over from an earlier, timed-out attempt (keep their emergencies)."""
+        """Clear replies left over from an unanswered request (keep their emergencies)."""
         for _ in range(64):
             raw = self.link.receive(0)
             if raw is None:
                 return
-            self._classify(raw, counter=None)
+            self._classify(raw, check_errors=False)
 
-    def _classify(self, raw: bytes, counter: int | None) -> tuple[int, bytes] | None:
-        """Handle what every reply shares: mailbox errors, emergencies, foreign types."""
+    def _classify(self, raw: bytes, check_errors: bool = True) -> tuple[int, int, bytes] | None:
+        """Handle what every reply shares: mailbox errors, emergencies, foreign types.
+
+        Returns (counter, CoE service, payload) of a CoE reply worth matching, else None.
+        """
         try:
             frame = mbx.decode_mailbox(raw)
         except CodecError as exc:
             log.debug("ignoring an undecodable mailbox: %s", exc)
             return None
         if frame.type == mbx.MailboxType.ERROR:
-            if counter is None:
+            if not check_errors or not self.filter.admit(raw, frame.counter):
                 return None
             try:
                 reply = mbx.decode_error_reply(frame.data)
@@ -287,37 +394,53 @@ class CoeObjectChannel(ObjectChannel):
             except CodecError as exc:
                 log.warning("ignoring an emergency that does not decode: %s", exc)
             return None
-        if counter is not None and self.strict_counter and frame.counter not in (0, counter):
-            log.debug("ignoring a reply with mailbox counter %d (sent %d)", frame.counter, counter)
-            return None
-        return service, payload
+        return frame.counter, service, payload
 
     def _exchange(
         self,
         coe_data: bytes,
-        accept: Callable[[int, bytes], T | None],
+        accept: Callable[[int, bytes, bool], T | None],
+        wait: float,
+        deadline: Deadline,
         until: Callable[[T], bool] = lambda value: True,
     ) -> T:
         """Send once, then read until ``accept`` returns a value ``until`` approves.
 
-        Raises _Silence when the timeout passes without one.
+        Waits at most ``wait`` seconds for each reply (never past ``deadline``); raises _Silence
+        when none comes.
         """
-        self._drain()
+        if self._stale:
+            self._drain()
+            self._stale = False
         counter = self._send(coe_data)
-        deadline = time.monotonic() + self.timeout
+        self.filter.sent(counter)
+        end = min(deadline.at, time.monotonic() + wait)
         while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise _Silence()
-            raw = self.link.receive(remaining)
+            raw = self.link.receive(max(0.0, end - time.monotonic()))
             if raw is None:
+                self._stale = True
+                self.filter.unanswered()
                 raise _Silence()
-            classified = self._classify(raw, counter)
+            classified = self._classify(raw)
             if classified is None:
                 continue
-            value = accept(*classified)
+            got, service, payload = classified
+            if not self.filter.admit(raw, got):
+                log.debug("ignoring a duplicate or a late reply (mailbox counter %d, sent %d)", got, counter)
+                continue
+            mine = self.filter.mine(got)
+            value = accept(service, payload, mine)
             if value is None:
                 continue
+            self.filter.accepted(raw, got)
+            self._proven = mine
             if until(value):
                 return value
-            deadline = time.monotonic() + self.timeout  # a fragment arrived: wait for the next one
+            end = min(deadline.at, time.monotonic() + wait)  # a fragment arrived: wait for the next one
+
+
+def _same_value(back: bytes, written: bytes) -> bool:
+    """Whether an object read back holds what was written (an expedited answer may pad to 4 bytes)."""
+    if back == written:
+        return True
+    return len(written) <= 4 and len(back) == 4 and back[: len(written)] == written and not any(back[len(written):])

@@ -16,6 +16,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
+from akdctl.links import Budget
 from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
@@ -27,15 +28,21 @@ if TYPE_CHECKING:
 class LinkOptions:
     """Settings every transport honours.
 
-    ``timeout`` bounds every single wait (seconds); ``retries`` is how often a
-    request may be repeated after a timeout where the protocol allows it;
-    ``tracer`` receives the transport's wire frames (the Connection traces the links).
+    ``timeout`` bounds each request's total wait, repeats included (seconds); ``retries`` is how
+    often a request may be repeated after no answer where the protocol makes a repeat harmless;
+    ``budget`` is the one :class:`~akdctl.links.Budget` of the command built from both, shared by
+    the Connection's channels and the transport; ``tracer`` receives the transport's wire frames
+    (the Connection traces the links).
     """
 
     timeout: float = 2.0
     retries: int = 2
     tracer: Tracer = field(default_factory=lambda: NULL_TRACER)
     verbose: int = 0
+    budget: Budget = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.budget = Budget(self.timeout, self.retries)
 
 
 class Transport(ABC):

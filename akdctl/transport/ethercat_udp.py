@@ -4,9 +4,10 @@ mailbox gateway.
 The gateway forwards a mailbox (wrapped in an EtherCAT header of type 5) to the
 slave with the given station address and sends the slave's reply back to us.
 Gateways answer nothing when a request fails or times out inside the master,
-so every wait here is bounded and the SDO client above retries; replies are
-matched by the SDO client on service/index/subindex, never on the mailbox
-counter, because masters rewrite the counter.
+so every wait here is bounded; the SDO client above
+(:mod:`akdctl.channels.coe_sdo`) repeats reads, never writes, and matches
+replies on their content and, where the gateway echoes it, the mailbox counter
+(:mod:`akdctl.channels.reply_filter`: masters may rewrite the counter).
 
 Target query options: ``mailbox=N`` the slave's mailbox size in bytes
 (default 512, the AKD ESI default; a real AKD reports 1024 - larger objects are
