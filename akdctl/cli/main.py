@@ -132,11 +132,13 @@ def cli(ctx: click.Context, target: str | None, config_path: str | None, profile
 def _print_error(app: AppContext | None, exc: AkdError) -> None:
     if exc.target is None and app is not None and app._target is not None:
         exc.target = app._target.display
+    from akdctl.cli.output import inert
+
     target = exc.target
     prefix = f"akdctl: error: {exc.message}"
     if target and target not in exc.message:
         prefix += f" [target {target}]"
-    sys.stderr.write(prefix + "\n")
+    sys.stderr.write(inert(prefix) + "\n")
     if app is not None and app.json and not exc.reported:
         from akdctl.cli.output import emit_json
 
@@ -183,6 +185,8 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:  # a bug: one line unless --debug
         if debug:
             raise
-        sys.stderr.write(f"akdctl: internal error: {type(exc).__name__}: {exc} (run with --debug for a traceback)\n")
+        from akdctl.cli.output import inert
+
+        sys.stderr.write(inert(f"akdctl: internal error: {type(exc).__name__}: {exc} (run with --debug for a traceback)") + "\n")
         code = 70
     sys.exit(code)
