@@ -113,6 +113,22 @@ def decode(type_name: str, data: bytes) -> Any:
         raise MalformedReply(f"reply does not fit type {type_name}: {exc} (raw {data.hex(' ') or 'empty'})") from None
 
 
+def decode_as(type_name: str, data: bytes, what: str, *, named_by_user: bool) -> Any:
+    """:func:`decode`, where a type the user named that the drive's bytes do not fit is the user's input error.
+
+    ``sdo read 0x6041 u8`` on a 2-byte object is a wrong type given on the command line (exit 2), not a
+    malformed reply (exit 3); a reply that does not fit the catalogue's own type stays a MalformedReply.
+    """
+    try:
+        return decode(type_name, data)
+    except MalformedReply as exc:
+        if not named_by_user:
+            raise MalformedReply(f"{what}: {exc.message}") from None
+        raise UsageError(f"{what}: the drive answered {len(data)} byte(s) ({bytes(data).hex(' ') or 'empty'}), "
+                         f"which type {type_name} does not fit; name a type of that size, or none to use the "
+                         "catalogue's") from None
+
+
 def encode_value(type_name: str, value: Any, what: str = "") -> bytes:
     """A python value → the bytes an SDO download carries; UsageError naming the allowed range."""
     from akdctl.protocol.datatypes import DataTypeError, pack
