@@ -15,7 +15,7 @@ complete -c akdctl -n '__fish_use_subcommand' -a fault -d 'Fault buffer dump, ac
 complete -c akdctl -n '__fish_use_subcommand' -a support -d 'Write a support bundle from a drive, or show one without a drive.'
 complete -c akdctl -n '__fish_use_subcommand' -a params -d 'Back up, restore and compare drive parameters (TOML or JSON files).'
 complete -c akdctl -n '__fish_use_subcommand' -a commission -d 'Run a commissioning recipe (TOML): set/expect parameters, map proce...'
-complete -c akdctl -n '__fish_use_subcommand' -a info -d 'Identify the drive: PNU 964/965/975 and/or 0x1018, 0x1008-0x100A (a...'
+complete -c akdctl -n '__fish_use_subcommand' -a info -d 'Identify the drive: vendor, model, firmware, serial, profile; then...'
 complete -c akdctl -n '__fish_use_subcommand' -a targets -d 'List the transports, their target syntax and whether their dependen...'
 complete -c akdctl -n '__fish_use_subcommand' -a pn -d 'PROFINET: discover (DCP), name, address and blink devices.'
 complete -c akdctl -n '__fish_use_subcommand' -a ecat -d 'EtherCAT: scan slaves, read or change the AL state, read the SII (t...'

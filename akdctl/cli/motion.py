@@ -56,7 +56,7 @@ def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None 
     if status.homed is not None:
         doc.kv("homed", "yes" if status.homed else "no")
     doc.kv("standstill", "yes" if status.standstill else "no")
-    doc.kv("warning", "yes" if status.warning else "no")
+    doc.kv("warning", status.warning_summary())
     doc.kv("fault", status.fault_summary() if status.fault else "none")
     return doc
 

@@ -98,14 +98,19 @@ def _late_copies(root: click.Command, command: click.Command) -> list[click.Opti
 
 
 def adopt(command: click.Command, root: click.Command) -> click.Command:
-    """Give ``command`` (and every subcommand it already holds) the tree's parsing rules; idempotent."""
+    """Give ``command`` (and every subcommand it already holds) the tree's parsing rules; idempotent.
+
+    The command's own ``params`` list is left as its module wrote it (tools and tests read it); the late copies
+    are added where click asks for the parameters of one invocation (``get_params``).
+    """
     if getattr(command, "_akdctl_adopted", False) or command is root:
         return command
     command._akdctl_adopted = True  # type: ignore[attr-defined]
-    command.params.extend(_late_copies(root, command))
+    late = _late_copies(root, command)
+    own_params = command.get_params
+    command.get_params = lambda ctx: [*own_params(ctx), *late]  # type: ignore[method-assign]
     command.make_parser = _make_parser.__get__(command)  # type: ignore[method-assign]
     if isinstance(command, click.Group):
         for sub in command.commands.values():
             adopt(sub, root)
     return command
-

@@ -25,6 +25,7 @@ def _hex(value: int, bits: int) -> str:
 
 
 def _rows(readings: list[Any]) -> list[list[Any]]:
+    from akdctl.drive.values import pnu_display
     from akdctl.profiles.units import describe_scaled
 
     rows = []
@@ -38,7 +39,8 @@ def _rows(readings: list[Any]) -> list[list[Any]]:
         for offset, value in enumerate(reading.values or []):
             label = spec.label if len(reading.values or []) == 1 else f"{spec.pnu}[{spec.subindex + offset}]"
             if isinstance(value, int):
-                rows.append([label, name, value, _hex(value, bits), describe_scaled(info.unit, value) if info else ""])
+                rows.append([label, name, pnu_display(spec.pnu, spec.subindex + offset, value), _hex(value, bits),
+                             describe_scaled(info.unit, value) if info else ""])
             else:
                 rows.append([label, name, value, "", ""])
     return rows

@@ -45,7 +45,7 @@ def read(address: str, type_name: str | None) -> None:
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive.objects import parse_address
-    from akdctl.drive.values import decode_as, display, json_value, resolve_type
+    from akdctl.drive.values import decode_as, display, json_value, resolve_type, value_words
 
     app = get_app()
     addr = parse_address(address)
@@ -53,11 +53,12 @@ def read(address: str, type_name: str | None) -> None:
         dtype, entry = resolve_type(addr, type_name)
         data = app.objects().upload(addr.index, addr.subindex)
     value = decode_as(dtype, data, f"object {addr.label}", named_by_user=type_name is not None)
-    text, hex_text = display(dtype, value)
+    text, hex_text = display(dtype, value, (addr.index, addr.subindex))
     name = entry.name if entry is not None else (object_name(addr.index) or "")
+    words = value_words(value, obj=(addr.index, addr.subindex))
     app.emit(
         {"target": app.target.display, "index": addr.index, "subindex": addr.subindex, "name": name,
-         "type": dtype, "value": json_value(dtype, value), "raw": data.hex()},
+         "type": dtype, "value": json_value(dtype, value), "raw": data.hex(), **({"meaning": words} if words else {})},
         lambda: Doc(f"object {addr.label}", app.target.display)
         .kv("name", name).kv("type", dtype).kv("value", text).kv("hex", hex_text or data.hex(" ")),
     )

@@ -166,15 +166,38 @@ def write_object(channel: Any, index: int, subindex: int, value: Any, type_name:
     channel.download(index, subindex, encode_value(kind, value, f"object {object_label(index, subindex)}"))
 
 
-def display(type_name: str, value: Any) -> tuple[str, str]:
-    """(value text, hex text) for human output."""
+def value_words(value: Any, *, pnu: int | None = None, element: int = 0,
+                obj: tuple[int, int] | None = None) -> str | None:
+    """A PNU element's or an object's value in words where the catalogue knows them (``catalog/meanings.py``):
+    ``2`` of PNU 930 is ``position``, a statusword its set bits by name; None otherwise."""
+    from akdctl.catalog.meanings import object_meaning, pnu_meaning
+
+    meaning = pnu_meaning(pnu, element) if pnu is not None else object_meaning(*obj) if obj is not None else None
+    return meaning.words(value) if meaning is not None else None
+
+
+def with_words(text: str, words: str | None) -> str:
+    """``2 (position)``: the one way a value and its meaning are shown together."""
+    return f"{text} ({words})" if words else text
+
+
+def display(type_name: str, value: Any, obj: tuple[int, int] | None = None) -> tuple[str, str]:
+    """(value text, hex text) for human output; the value text carries its meaning when ``obj`` (index, subindex)
+    has one in the catalogue."""
     from akdctl.protocol.datatypes import TYPES, format_value
 
     t = TYPES[type_name]
     text = format_value(type_name, value)
+    if obj is not None:
+        text = with_words(text, value_words(value, obj=obj))
     if t.kind in ("int", "uint") and t.size:
         return text, f"0x{value & ((1 << (8 * t.size)) - 1):0{2 * t.size}X}"
     return text, ""
+
+
+def pnu_display(pnu: int, element: int, value: Any) -> str:
+    """A PNU element's value for human output, with its meaning (``pnu get 930`` → ``2 (position)``)."""
+    return with_words(str(value), value_words(value, pnu=pnu, element=element))
 
 
 def json_value(type_name: str, value: Any) -> Any:
@@ -265,6 +288,10 @@ class PnuReading:
         if self.ok:
             data["values"] = self.values
             data["format"] = self.format
+            words = [value_words(v, pnu=self.spec.pnu, element=self.spec.subindex + i)
+                     for i, v in enumerate(self.values or [])]
+            if any(words):
+                data["meanings"] = words
             if info and info.unit:
                 data["unit"] = info.unit
         else:
