@@ -180,3 +180,10 @@ class Interrupted(AkdError):
 
     exit_code = EXIT_INTERRUPTED
     kind = "interrupted"
+
+
+class InternalError(AkdError):
+    """A bug in akdctl (an exception no rule above expected): one line, exit 70, a traceback with ``--debug``."""
+
+    exit_code = 70
+    kind = "internal"

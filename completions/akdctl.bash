@@ -79,13 +79,13 @@ _akdctl() {
     done
     case "$path" in
         "") COMPREPLY=($(compgen -W "status enable disable stop jog home move pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
-        "status") COMPREPLY=($(compgen -W "--help --interval --json --watch --yes -y" -- "$cur")) ;;
-        "enable") COMPREPLY=($(compgen -W "--help --json --yes -y" -- "$cur")) ;;
-        "disable") COMPREPLY=($(compgen -W "--help --json --yes -y" -- "$cur")) ;;
-        "stop") COMPREPLY=($(compgen -W "--help --json --quick --yes -y" -- "$cur")) ;;
-        "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --json --units --yes -y" -- "$cur")) ;;
-        "home") COMPREPLY=($(compgen -W "--help --json --mode --timeout --yes -y" -- "$cur")) ;;
-        "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --json --no-wait --relative --units --velocity --yes -y" -- "$cur")) ;;
+        "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
+        "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
+        "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --units" -- "$cur")) ;;
+        "home") COMPREPLY=($(compgen -W "--help --mode --timeout" -- "$cur")) ;;
+        "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --no-wait --relative --units --velocity" -- "$cur")) ;;
         "pnu") COMPREPLY=($(compgen -W "describe get list set --help" -- "$cur")) ;;
         "pnu describe") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -134,7 +134,7 @@ _akdctl() {
         "cip get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "cip set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip") COMPREPLY=($(compgen -W "io param scan --help" -- "$cur")) ;;
-        "eip io") COMPREPLY=($(compgen -W "--accel --decel --for --help --local-port --port --relative --rpi --velocity --yes -y" -- "$cur")) ;;
+        "eip io") COMPREPLY=($(compgen -W "--accel --decel --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
         "eip param") COMPREPLY=($(compgen -W "get run set --help" -- "$cur")) ;;
         "eip param get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

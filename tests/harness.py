@@ -363,3 +363,61 @@ class LossyUdpRelay:
                     self._schedule(self._back(peer), data, self.server, True)
                 else:
                     self._schedule(self._front, data, self._clients[sock], False)
+
+
+def run_akdctl_tty(*args: str, env: dict[str, str] | None = None, timeout: float = 60, columns: int = 120,
+                   stdin_tty: bool = True) -> CliResult:
+    """The real CLI with stdout and stderr on a pseudo-terminal (``isatty()`` is true: rich, live views, prompts).
+
+    Both streams share the terminal, as on a technician's screen: ``out`` is everything the terminal received
+    (``\\r\\n`` line ends turned into ``\\n``), ``err`` is empty. stdin is the terminal too unless *stdin_tty* is
+    false (then it is empty, so a prompt cannot wait). The run ends within *timeout* seconds or is killed.
+    """
+    import pty
+    import select
+    import struct
+    import termios
+    import fcntl
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, columns, 0, 0))
+    full = akdctl_env({"TERM": "xterm-256color", "COLUMNS": str(columns), **(env or {})})
+    full.pop("NO_COLOR", None)
+    proc = subprocess.Popen(_argv(args, None), stdin=slave if stdin_tty else subprocess.DEVNULL, stdout=slave,
+                            stderr=slave, env=full, cwd=ROOT, close_fds=True, start_new_session=True)
+    os.close(slave)
+    chunks: list[bytes] = []
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            if time.monotonic() > deadline:
+                proc.kill()
+                raise subprocess.TimeoutExpired(proc.args, timeout)
+            ready, _, _ = select.select([master], [], [], 0.1)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # EIO: the last writer closed the terminal
+                    data = b""
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                # drain what is left without blocking, then stop
+                while select.select([master], [], [], 0)[0]:
+                    try:
+                        data = os.read(master, 65536)
+                    except OSError:
+                        data = b""
+                    if not data:
+                        break
+                    chunks.append(data)
+                break
+        code = proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    text = b"".join(chunks).decode("utf-8", "replace").replace("\r\n", "\n")
+    return CliResult(code, text, "")

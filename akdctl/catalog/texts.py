@@ -22,6 +22,7 @@ __all__ = [
     "ERROR_REGISTER_BITS", "error_register_text",
     "MAILBOX_ERROR_TEXTS", "mailbox_error_text",
     "CIP_STATUS_TEXTS", "CIP_CM_EXTENDED_TEXTS", "ENIP_STATUS_TEXTS", "cip_status_text", "enip_status_text", "CIP_VENDORS", "cip_vendor_name",
+    "CANOPEN_VENDORS", "PI_VENDORS",
 ]
 
 # --- CoE / CANopen SDO abort codes (CiA 301, ETG.1000.6) --------------------------------
@@ -549,3 +550,10 @@ CIP_VENDORS: dict[int, str] = {1: "Rockwell Automation/Allen-Bradley", 103: "Pac
 
 def cip_vendor_name(vendor: int) -> str:
     return CIP_VENDORS.get(vendor, f"vendor {vendor}")
+
+
+# CANopen/EtherCAT vendor IDs (0x1018:1): the AKD ESI names 0x6A "Kollmorgen" (reference/akd_esi_notes.md).
+CANOPEN_VENDORS: dict[int, str] = {0x6A: "Kollmorgen"}
+# PROFINET (PI) vendor IDs (PNU 964[0], 975[0], DCP, I&M0): 0x0100 is what the simulator and the project's example
+# recipe give the AKD; inferred, not verified against PI's vendor list.
+PI_VENDORS: dict[int, str] = {0x0100: "Kollmorgen"}

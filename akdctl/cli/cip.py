@@ -45,15 +45,15 @@ def get(path: str, type_name: str | None) -> None:
 
     TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool. Example: cip get 0x0F/796/1 u32
     """
-    from akdctl.drive.values import check_type_name, decode, display, json_value
+    from akdctl.drive.values import check_type_name, decode_as, display, json_value
 
     class_id, instance, attribute = parse_path(path)
     dtype = check_type_name(type_name or "os")
     app = get_app()
     data = attributes(app).get(class_id, instance, attribute)
-    value = decode(dtype, data)
-    text, hex_text = display(dtype, value)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
+    value = decode_as(dtype, data, f"attribute {label}", named_by_user=type_name is not None)
+    text, hex_text = display(dtype, value)
     app.emit({"target": app.target.display, "class": class_id, "instance": instance, "attribute": attribute,
               "type": dtype, "value": json_value(dtype, value), "raw": data.hex()},
              lambda: Doc(f"attribute {label}", app.target.display).kv("type", dtype).kv("value", text)

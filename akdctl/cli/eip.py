@@ -140,7 +140,7 @@ def param_run(name: str) -> None:
 IO_TYPES = {"position": 0x01, "torque": 0x05, "move": 0x06, "jog": 0x07, "velocity": 0x08}
 
 
-@eip.command("io", context_settings={"ignore_unknown_options": True})
+@eip.command("io")
 @click.argument("kind", type=click.Choice(list(IO_TYPES)), metavar="TYPE")
 @click.argument("value", type=int)
 @click.option("--velocity", type=int, default=None, help="move: velocity in EIP.PROFUNIT units per second.")
@@ -155,9 +155,8 @@ IO_TYPES = {"position": 0x01, "torque": 0x05, "move": 0x06, "jog": 0x07, "veloci
               help="The drive's UDP I/O port.")
 @click.option("--local-port", type=click.IntRange(0, 65535), default=0, show_default=True,
               help="Our UDP port for T->O data (0: any free port).")
-@click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent without a prompt.")
 def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, relative: bool, hold: float | None,
-       rpi: float, io_port: int, local_port: int, yes_flag: bool) -> None:
+       rpi: float, io_port: int, local_port: int) -> None:
     """Run ONE command through the I/O assemblies over a class-1 connection akdctl opens itself.
 
     Explicit opt-in: a PLC normally owns this connection (akdctl refuses if one does). akdctl runs
@@ -175,7 +174,6 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
     from akdctl.transport.eip_io import IoConnection
 
     app = get_app()
-    app.yes = app.yes or yes_flag
     timed = kind in ("jog", "velocity", "torque")
     if timed and hold is None:
         raise UsageError(f"eip io {kind} needs --for SECONDS, so the motion is bounded")

@@ -1,4 +1,4 @@
-"""``akdctl info``: identify the drive."""
+"""``akdctl info``: identify the drive — who made it and what it is first, then every identity value read."""
 
 from __future__ import annotations
 
@@ -9,28 +9,50 @@ import click
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 
+#: Identity values whose words the catalogue knows (catalog/meanings.py), by their place in read_identity's result.
+_WORDS = {
+    "profidrive.drive_unit.manufacturer": {"pnu": 964, "element": 0},
+    "profidrive.drive_object.type_class": {"pnu": 975, "element": 5},
+    "canopen.vendor_id": {"obj": (0x1018, 1)},
+    "canopen.product_code": {"obj": (0x1018, 2)},
+}
+
 
 def _flatten(prefix: str, value: Any, doc: Doc) -> None:
+    from akdctl.drive.values import value_words
+
     if isinstance(value, dict):
         for key, sub in value.items():
             _flatten(f"{prefix}.{key}" if prefix else key, sub, doc)
-    elif isinstance(value, int) and not isinstance(value, bool) and value > 9:
-        doc.kv(prefix, f"{value} (0x{value:X})")
+    elif isinstance(value, int) and not isinstance(value, bool):
+        where = _WORDS.get(prefix)
+        notes = [f"0x{value:X}" if value > 9 else "", value_words(value, **where) if where else ""]  # type: ignore[arg-type]
+        shown = ", ".join(n for n in notes if n)
+        doc.kv(prefix, f"{value} ({shown})" if shown else str(value))
     else:
         doc.kv(prefix, value)
 
 
 @click.command()
 def info() -> None:
-    """Identify the drive: PNU 964/965/975 and/or 0x1018, 0x1008-0x100A (and I&M0 on PROFINET)."""
-    from akdctl.drive.identity import read_identity
+    """Identify the drive: vendor, model, firmware, serial, profile; then PNU 964/965/975, 0x1018 and
+    0x1008-0x100A, I&M0 on PROFINET, the CIP identity on EtherNet/IP.
+
+    \b
+    Example:
+      akdctl -T pn://192.168.0.10 info
+    """
+    from akdctl.drive.identity import read_identity, summary
 
     app = get_app()
     identity = read_identity(app.connection)
+    brief = summary(identity)
 
     def human() -> Doc:
         doc = Doc("drive identity", app.target.display)
+        for key, value in brief.items():
+            doc.kv(key, value)
         _flatten("", identity, doc)
         return doc
 
-    app.emit({"target": app.target.display, **identity}, human)
+    app.emit({"target": app.target.display, "summary": brief, **identity}, human)

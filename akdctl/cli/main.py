@@ -16,7 +16,7 @@ import click
 
 from akdctl import __version__
 from akdctl.cli.context import AppContext
-from akdctl.errors import EXIT_INTERRUPTED, EXIT_USAGE, AkdError
+from akdctl.errors import EXIT_USAGE, AkdError, InternalError, Interrupted, UsageError
 
 # name -> (module, attribute, short help). Order is the order of `akdctl --help`.
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -64,15 +64,17 @@ class LazyGroup(click.Group):
         return present + sorted(set(self.commands) - set(present))
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
-        if name in self.commands:
-            return self.commands[name]
-        entry = self.lazy.get(name)
-        if entry is None or not _module_present(entry[0]):
-            return None
-        module = importlib.import_module(entry[0])
-        command = getattr(module, entry[1])
-        self.commands[name] = command
-        return command
+        """The subcommand, imported on first use and adopted into the tree's parsing rules (cli/parsing.py)."""
+        from akdctl.cli.parsing import adopt
+
+        command = self.commands.get(name)
+        if command is None:
+            entry = self.lazy.get(name)
+            if entry is None or not _module_present(entry[0]):
+                return None
+            command = getattr(importlib.import_module(entry[0]), entry[1])
+            self.commands[name] = command
+        return adopt(command, ctx.find_root().command)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = []
@@ -87,6 +89,7 @@ class LazyGroup(click.Group):
 
 
 EPILOG = (
+    "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
     "can://INTERFACE/CHANNEL/NODE, eip://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
     "4 safety refusal, 5 check failed, 130 interrupted."
@@ -115,64 +118,86 @@ def cli(ctx: click.Context, target: str | None, config_path: str | None, profile
     through its state machine and moves the axis safely, over PROFINET,
     EtherCAT, CANopen or the built-in simulated AKD (the default target).
     """
+    from akdctl.cli.parsing import APP_FIELDS
+
     app = ctx.ensure_object(AppContext)
-    app.target_text = target
-    app.config_path = config_path
-    app.profile_name = profile_name
-    app.json = json_output
-    app.timeout = timeout
-    app.yes = yes
-    app.verbose = verbose
-    app.trace = trace
-    app.pcap = pcap
-    app.debug = debug
+    for name, field in APP_FIELDS.items():  # the same fields the options after a command fill (cli/parsing.py)
+        setattr(app, field, ctx.params[name])
     ctx.call_on_close(app.close)
 
 
-def _print_error(app: AppContext | None, exc: AkdError) -> None:
+def _json_wanted(app: AppContext | None, args: list[str]) -> bool:
+    """``--json`` anywhere before ``--`` (also when parsing failed before any option took effect)."""
+    if app is not None and app.json:
+        return True
+    return "--json" in (args[: args.index("--")] if "--" in args else args)
+
+
+def _click_hint(exc: click.ClickException) -> list[str]:
+    """click's usage line and its ``Try '... --help'`` hint, kept under our one error line."""
+    ctx = getattr(exc, "ctx", None)
+    if ctx is None:
+        return []
+    option = "--help" if "--help" in ctx.help_option_names else (ctx.help_option_names or ["--help"])[0]
+    return [ctx.get_usage(), f"Try '{ctx.command_path} {option}' for help."]
+
+
+def _from_click(exc: click.ClickException) -> AkdError:
+    """A click error in our words: every click error is an input error (exit 2), its usage line kept as detail."""
+    error = UsageError(exc.format_message())
+    hint = _click_hint(exc)
+    if hint:
+        error.details["usage"] = hint[0].removeprefix("Usage: ")
+    return error
+
+
+def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = False, hint: list[str] = ()) -> None:
+    """The one error style: ``akdctl: error: <message> [target T]`` (plus click's usage hint for usage errors),
+    and with ``--json`` the error document on stdout unless the command already printed its result."""
+    from akdctl.cli.output import emit_json, inert
+
     if exc.target is None and app is not None and app._target is not None:
         exc.target = app._target.display
     target = exc.target
-    prefix = f"akdctl: error: {exc.message}"
+    line = f"akdctl: error: {exc.message}"
     if target and target not in exc.message:
-        prefix += f" [target {target}]"
-    sys.stderr.write(prefix + "\n")
-    if app is not None and app.json and not exc.reported:
-        from akdctl.cli.output import emit_json
-
+        line += f" [target {target}]"
+    sys.stderr.write("".join(inert(text) + "\n" for text in [line, *hint]))
+    if (json_wanted or (app is not None and app.json)) and not exc.reported:
         emit_json({"error": exc.to_json()})
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the CLI and map every error to its documented exit code."""
+    """Entry point: run the CLI and map every error to its documented exit code, in one style."""
     args = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in args or os.environ.get("AKDCTL_DEBUG") == "1"
     app: AppContext | None = None
+    error: AkdError | None = None
+    hint: list[str] = []
     try:
-        with cli.make_context("akdctl", args) as ctx:
+        with cli.make_context("akdctl", list(args)) as ctx:  # click consumes the list it parses
             app = ctx.ensure_object(AppContext)  # the root callback fills this same object
             cli.invoke(ctx)
         code = 0
     except click.exceptions.Exit as exc:
         code = exc.exit_code
     except click.exceptions.Abort:
-        sys.stderr.write("akdctl: aborted\n")
-        code = EXIT_INTERRUPTED
-    except click.ClickException as exc:
+        error = Interrupted("aborted")
+    except click.exceptions.NoArgsIsHelpError as exc:  # a group without its command: its help, exit 2
         exc.show()
-        code = EXIT_USAGE if isinstance(exc, click.UsageError) else exc.exit_code
-        if code == 1 and not isinstance(exc, click.UsageError):
-            code = EXIT_USAGE  # file/parameter errors raised by click are input errors
+        code = EXIT_USAGE
+        if _json_wanted(app, args):
+            error = _from_click(click.UsageError("missing command", exc.ctx))
+    except click.ClickException as exc:
+        error, hint = _from_click(exc), _click_hint(exc) if isinstance(exc, click.UsageError) else []
     except AkdError as exc:
         if debug:
             import traceback
 
             traceback.print_exc()
-        _print_error(app, exc)
-        code = exc.exit_code
+        error = exc
     except KeyboardInterrupt:
-        sys.stderr.write("akdctl: interrupted\n")
-        code = EXIT_INTERRUPTED
+        error = Interrupted("interrupted")
     except BrokenPipeError:
         # stdout closed early (e.g. piped into `head`): not an error worth a message.
         try:
@@ -183,6 +208,8 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:  # a bug: one line unless --debug
         if debug:
             raise
-        sys.stderr.write(f"akdctl: internal error: {type(exc).__name__}: {exc} (run with --debug for a traceback)\n")
-        code = 70
+        error = InternalError(f"internal error: {type(exc).__name__}: {exc} (run with --debug for a traceback)")
+    if error is not None:
+        _print_error(app, error, json_wanted=_json_wanted(app, args), hint=hint)
+        code = error.exit_code
     sys.exit(code)

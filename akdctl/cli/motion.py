@@ -56,7 +56,7 @@ def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None 
     if status.homed is not None:
         doc.kv("homed", "yes" if status.homed else "no")
     doc.kv("standstill", "yes" if status.standstill else "no")
-    doc.kv("warning", "yes" if status.warning else "no")
+    doc.kv("warning", status.warning_summary())
     doc.kv("fault", status.fault_summary() if status.fault else "none")
     return doc
 
@@ -131,28 +131,11 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     _emit_status(app, result, title, extra, plan=plan.to_json())
 
 
-def _common(func: Any) -> Any:
-    """``--json`` and ``--yes`` after the command name too (``akdctl move 3 --json --yes``)."""
-    import functools
-
-    @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
-    @click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent to motion without a prompt.")
-    @functools.wraps(func)
-    def wrapper(*args: Any, json_output: bool = False, yes_flag: bool = False, **kwargs: Any) -> Any:
-        app = get_app()
-        app.json = app.json or json_output
-        app.yes = app.yes or yes_flag
-        return func(*args, **kwargs)
-
-    return wrapper
-
-
 # ---------------------------------------------------------------------- commands
 @click.command()
 @click.option("--watch", is_flag=True, help="Refresh until Ctrl-C.")
 @click.option("--interval", type=click.FloatRange(min=0.05), default=0.5, show_default=True,
               help="Seconds between refreshes with --watch.")
-@_common
 def status(watch: bool, interval: float) -> None:
     """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults."""
     app = get_app()
@@ -170,7 +153,6 @@ def status(watch: bool, interval: float) -> None:
 
 
 @click.command()
-@_common
 def enable() -> None:
     """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded."""
     from akdctl.drive.motion_plan import MotionRequest
@@ -179,7 +161,6 @@ def enable() -> None:
 
 
 @click.command()
-@_common
 def disable() -> None:
     """Disable the power stage; a moving axis is brought to standstill along its ramp first."""
     app = get_app()
@@ -188,7 +169,6 @@ def disable() -> None:
 
 @click.command()
 @click.option("--quick", is_flag=True, help="Quick stop (steep ramp; leaves the drive disabled).")
-@_common
 def stop(quick: bool) -> None:
     """Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed)."""
     app = get_app()
@@ -196,14 +176,13 @@ def stop(quick: bool) -> None:
     _emit_status(app, status, "axis stopped (quick stop)" if quick else "axis stopped")
 
 
-@click.command(context_settings={"ignore_unknown_options": True})
+@click.command()
 @click.argument("velocity", type=float)
 @click.option("--for", "duration", metavar="DURATION",
               help=f"Jog for this long (e.g. 2s, 500ms; at most {MAX_JOG_S:g} s), then stop.")
 @click.option("--distance", type=float, help="Jog this far (in --units), a finite move; sign gives the direction.")
 @click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
 @click.option("--units", "unit", type=click.Choice(UNITS), help="Units of --distance (default: rev, or user).")
-@_common
 def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None) -> None:
     """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance)."""
     from akdctl.drive.motion_plan import MotionRequest
@@ -223,7 +202,6 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
 @click.option("--mode", "home_mode", type=int, help="Homing mode: PNU 1001 (HOME.MODE) or 0x6098 method.")
 @click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
               help="Seconds the whole homing may take before the axis is stopped.")
-@_common
 def home(home_mode: int | None, home_timeout: float) -> None:
     """Run the drive's homing procedure and wait until the home position is set."""
     from akdctl.drive.motion_plan import MotionRequest
@@ -232,7 +210,7 @@ def home(home_mode: int | None, home_timeout: float) -> None:
                   {"homed": True})
 
 
-@click.command(context_settings={"ignore_unknown_options": True})
+@click.command()
 @click.argument("target", type=float)
 @click.option("--relative/--absolute", default=False, help="Relative to the current position (default absolute).")
 @click.option("--velocity", type=float, help=f"rpm (default {DEFAULT_RPM:g}, capped by the profile).")
@@ -242,7 +220,6 @@ def home(home_mode: int | None, home_timeout: float) -> None:
 @click.option("--no-wait", is_flag=True,
               help="Return once the drive accepted the move; the simulator's watchdog then stops it within about "
                    "1 s unless something keeps polling (a real AKD finishes the task).")
-@_common
 def move(target: float, relative: bool, velocity: float | None, accel: float | None, decel: float | None,
          unit: str | None, no_wait: bool) -> None:
     """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move)."""

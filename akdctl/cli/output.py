@@ -4,11 +4,22 @@ Commands build a small *document* (title, key/value pairs, tables, lines) and
 hand it to :func:`render`; they never print directly. Rich is imported only
 when a document is rendered to a terminal, so ``--help`` and piped output stay
 fast. Data goes to stdout; messages go to stderr through :func:`message`.
+
+**Everything is shown inert** (issue 14, 17.11). Text that reaches a terminal may
+come from a user (a recipe named ``Line 3 [/axis1]``), a drive (a visible string
+object holding ``ESC ]0;title BEL``) or a file (a support bundle). One rule,
+here: :func:`inert` makes every control character visible (``\x1b``, ``\n``, C1
+controls, bidirectional overrides), and the rich renderer never parses markup in
+what it prints (cells are :class:`rich.text.Text`, not markup strings), so
+neither an escape sequence nor ``[link=...]`` can act on the terminal. Every
+printer in akdctl goes through this module (documents, messages, errors, live
+views); JSON output escapes control characters by itself.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import Any, TextIO
@@ -44,71 +55,119 @@ class Doc:
         return self
 
 
+# C0 controls, DEL, C1 controls, and the Unicode bidirectional overrides/isolates (text that reorders itself).
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+_CONTROL_KEEP_LINES = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+_NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def _visible(match: re.Match[str]) -> str:
+    char = match.group()
+    if char in _NAMED:
+        return _NAMED[char]
+    code = ord(char)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def inert(value: Any, *, lines: bool = False) -> str:
+    """``value`` as text that cannot act on a terminal: every control character shown as an escape.
+
+    ``ESC`` becomes ``\\x1b``, a newline ``\\n``, C1 controls ``\\x9b``, bidirectional overrides
+    ``\\u202e``; printable text (any script) is unchanged. ``lines=True`` keeps newlines and tabs
+    (a message of several lines we wrote ourselves). Rich markup is not this function's concern:
+    the renderer never parses markup in what it prints.
+    """
+    shown = value if isinstance(value, str) else str(value)
+    return (_CONTROL_KEEP_LINES if lines else _CONTROL).sub(_visible, shown)
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
         return f"{value:g}"
-    return str(value)
+    return inert(value)
 
 
 def render_plain(doc: Doc, out: TextIO) -> None:
     """Aligned plain text: stable, grep-friendly, no colour."""
-    header = doc.title
+    header = inert(doc.title)
     if doc.source:
-        header = f"{header} ({doc.source})" if header else f"target: {doc.source}"
+        header = f"{header} ({inert(doc.source)})" if header else f"target: {inert(doc.source)}"
     if header:
         out.write(header + "\n")
     if doc.pairs:
-        width = max(len(k) for k, _ in doc.pairs)
-        for key, value in doc.pairs:
+        keys = [inert(k) for k, _ in doc.pairs]
+        width = max(len(k) for k in keys)
+        for key, (_, value) in zip(keys, doc.pairs):
             out.write(f"  {key.ljust(width)}  {_cell(value)}\n")
     for table in doc.tables:
         if table.title:
-            out.write(f"{table.title}\n")
+            out.write(f"{inert(table.title)}\n")
+        columns = [inert(c) for c in table.columns]
         cells = [[_cell(c) for c in row] for row in table.rows]
-        widths = [len(c) for c in table.columns]
+        widths = [len(c) for c in columns]
         for row in cells:
             for i, c in enumerate(row):
                 widths[i] = max(widths[i], len(c))
-        out.write("  ".join(c.ljust(w) for c, w in zip(table.columns, widths)).rstrip() + "\n")
+        out.write("  ".join(c.ljust(w) for c, w in zip(columns, widths)).rstrip() + "\n")
         for row in cells:
             out.write("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() + "\n")
     for line in doc.lines:
-        out.write(line + "\n")
+        out.write(inert(line) + "\n")
 
 
-def render_rich(doc: Doc) -> None:
-    from rich.console import Console
+def text(value: Any, style: str = "") -> Any:
+    """A :class:`rich.text.Text` of ``value`` made :func:`inert`: rich shows it literally, never as markup."""
+    from rich.text import Text
+
+    return Text(_cell(value), style=style)
+
+
+def rich_doc(doc: Doc) -> Any:
+    """The rich renderable of a document (also what ``status --watch`` redraws in place)."""
+    from rich.console import Group
     from rich.table import Table as RichTable
 
-    console = Console()
-    header = doc.title or "result"
+    parts: list[Any] = []
+    header = text(doc.title or "result", "bold")
     if doc.source:
-        header += f" [dim]({doc.source})[/dim]"
-    console.print(f"[bold]{header}[/bold]")
+        header.append_text(text(f" ({doc.source})", "dim"))
+    parts.append(header)
     if doc.pairs:
         grid = RichTable.grid(padding=(0, 2))
         grid.add_column(style="cyan")
         grid.add_column()
         for key, value in doc.pairs:
-            grid.add_row(key, _cell(value))
-        console.print(grid)
+            grid.add_row(text(key), text(value))
+        parts.append(grid)
     for table in doc.tables:
-        rt = RichTable(title=table.title or None, title_justify="left")
+        rt = RichTable(title=text(table.title) if table.title else None, title_justify="left")
         for col in table.columns:
-            rt.add_column(col)
+            rt.add_column(text(col), overflow="fold")  # data is wrapped, never cut off
         for row in table.rows:
-            rt.add_row(*(_cell(c) for c in row))
-        console.print(rt)
-    for line in doc.lines:
-        console.print(line, highlight=False, markup=False)
+            rt.add_row(*(text(c) for c in row))
+        parts.append(rt)
+    parts.extend(text(line) for line in doc.lines)
+    return Group(*parts)
+
+
+def console(stderr: bool = False) -> Any:
+    """The one rich Console (markup and highlighting off: nothing we print is parsed)."""
+    from rich.console import Console
+
+    return Console(stderr=stderr, markup=False, highlight=False, emoji=False)
+
+
+def render_rich(doc: Doc) -> None:
+    console().print(rich_doc(doc))
 
 
 def render(doc: Doc | str, out: TextIO | None = None) -> None:
     out = out or sys.stdout
     if isinstance(doc, str):
-        out.write(doc if doc.endswith("\n") else doc + "\n")
+        shown = inert(doc.rstrip("\n"), lines=True)
+        out.write(shown + "\n")
         return
     if out is sys.stdout and sys.stdout.isatty():
         render_rich(doc)
@@ -130,7 +189,7 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
-def message(text: str) -> None:
-    """A message for the user (stderr), never mixed with data."""
-    sys.stderr.write(text + "\n")
+def message(words: str) -> None:
+    """A message for the user (stderr), never mixed with data; shown :func:`inert` (its own newlines kept)."""
+    sys.stderr.write(inert(words, lines=True) + "\n")
     sys.stderr.flush()

@@ -38,6 +38,7 @@ def _singleturn_bits(channel: Any, readings: list[Any]) -> int:
 
 
 def _rows(readings: list[Any], singleturn_bits: int = 16) -> list[list[Any]]:
+    from akdctl.drive.values import pnu_display
     from akdctl.profiles.units import describe_scaled
 
     rows = []
@@ -51,7 +52,7 @@ def _rows(readings: list[Any], singleturn_bits: int = 16) -> list[list[Any]]:
         for offset, value in enumerate(reading.values or []):
             label = spec.label if len(reading.values or []) == 1 else f"{spec.pnu}[{spec.subindex + offset}]"
             if isinstance(value, int):
-                rows.append([label, name, value, _hex(value, bits),
+                rows.append([label, name, pnu_display(spec.pnu, spec.subindex + offset, value), _hex(value, bits),
                              describe_scaled(info.unit, value, singleturn_bits) if info else ""])
             else:
                 rows.append([label, name, value, "", ""])

@@ -2,14 +2,33 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Iterator
 
 import click
 
 from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
-from akdctl.errors import CheckFailed, UsageError
+from akdctl.errors import CheckFailed, SdoAborted, UsageError
+
+#: SDO abort "object does not exist in the object dictionary" (CiA 301).
+_NO_OBJECT = 0x06020000
+
+
+@contextlib.contextmanager
+def _hinting(address_text: str) -> Iterator[None]:
+    """An unknown object (catalogue or drive) named by a bare decimal index gets the hex reading as a hint."""
+    from akdctl.drive.objects import hex_hint
+
+    try:
+        yield
+    except (UsageError, SdoAborted) as exc:
+        if isinstance(exc, UsageError) or exc.code == _NO_OBJECT:
+            exc.message += hex_hint(address_text)
+        raise
+
 
 @click.group()
 def sdo() -> None:
@@ -26,18 +45,20 @@ def read(address: str, type_name: str | None) -> None:
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive.objects import parse_address
-    from akdctl.drive.values import decode, display, json_value, resolve_type
+    from akdctl.drive.values import decode_as, display, json_value, resolve_type, value_words
 
     app = get_app()
     addr = parse_address(address)
-    dtype, entry = resolve_type(addr, type_name)
-    data = app.objects().upload(addr.index, addr.subindex)
-    value = decode(dtype, data)
-    text, hex_text = display(dtype, value)
+    with _hinting(address):
+        dtype, entry = resolve_type(addr, type_name)
+        data = app.objects().upload(addr.index, addr.subindex)
+    value = decode_as(dtype, data, f"object {addr.label}", named_by_user=type_name is not None)
+    text, hex_text = display(dtype, value, (addr.index, addr.subindex))
     name = entry.name if entry is not None else (object_name(addr.index) or "")
+    words = value_words(value, obj=(addr.index, addr.subindex))
     app.emit(
         {"target": app.target.display, "index": addr.index, "subindex": addr.subindex, "name": name,
-         "type": dtype, "value": json_value(dtype, value), "raw": data.hex()},
+         "type": dtype, "value": json_value(dtype, value), "raw": data.hex(), **({"meaning": words} if words else {})},
         lambda: Doc(f"object {addr.label}", app.target.display)
         .kv("name", name).kv("type", dtype).kv("value", text).kv("hex", hex_text or data.hex(" ")),
     )
@@ -64,7 +85,8 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
         type_name, value_text = args
     else:
         raise UsageError(f"too many values for sdo write: expected [TYPE] VALUE, got {len(args)} arguments")
-    dtype, entry = resolve_type(addr, type_name)
+    with _hinting(address):
+        dtype, entry = resolve_type(addr, type_name)
     if value_text == "-":
         value_text = sys.stdin.read().strip()
     if entry is not None and not entry.writable:
@@ -72,7 +94,8 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     value, data = encode(dtype, value_text)
     channel = app.objects()
     gate_write(app, [gate.classify_object(addr.index, addr.subindex, entry.name if entry is not None else "")])
-    channel.download(addr.index, addr.subindex, data)
+    with _hinting(address):
+        channel.download(addr.index, addr.subindex, data)
     if verify:
         back = channel.upload(addr.index, addr.subindex)
         if decode(dtype, back) != value:

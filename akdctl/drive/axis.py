@@ -50,6 +50,8 @@ class AxisStatus:
     fault: bool
     warning: bool
     faults: list[dict[str, Any]] = field(default_factory=list)
+    #: active warnings (number, code, text) when the drive names them (0x2000); empty when it only sets the bit
+    warnings: list[dict[str, Any]] = field(default_factory=list)
     homed: bool | None = None
     target_reached: bool = False
     standstill: bool = True
@@ -71,6 +73,12 @@ class AxisStatus:
             return "a fault is present (the drive did not report its number)"
         return "; ".join(f"{f['code']} {f['text']}".strip() for f in self.faults)
 
+    def warning_summary(self) -> str:
+        """'n503 ...; n179 ...', 'none', or the bit alone when the drive does not say which warning."""
+        if self.warnings:
+            return "; ".join(f"{w['code']} {w['text']}".strip() for w in self.warnings)
+        return "a warning is present (the drive did not report its number)" if self.warning else "none"
+
     def to_json(self) -> dict[str, Any]:
         return {
             "profile": self.profile,
@@ -85,6 +93,7 @@ class AxisStatus:
             "fault": self.fault,
             "warning": self.warning,
             "faults": self.faults,
+            "warnings": self.warnings,
             "homed": self.homed,
             "target_reached": self.target_reached,
             "standstill": self.standstill,
@@ -143,15 +152,34 @@ class JogSpec:
     dec_raw: int
 
 
-def _fault_entries(numbers: list[int]) -> list[dict[str, Any]]:
+def _fault_entries(numbers: list[int], *, warning: bool = False) -> list[dict[str, Any]]:
     from akdctl.catalog import faults as catalog
 
     out = []
     for number in numbers:
-        fault = catalog.by_number(number)
-        out.append({"number": number, "code": fault.code if fault else f"F{number}",
-                    "text": fault.name if fault else "unknown fault"})
+        fault = catalog.by_number(number, warning=warning)
+        out.append({"number": number, "code": fault.code if fault else f"{'n' if warning else 'F'}{number}",
+                    "text": fault.name if fault else f"unknown {'warning' if warning else 'fault'}"})
     return out
+
+
+#: The AKD's current warnings (DRV.WARNING1..3, UDINT; reference/cia402_and_canopen_reference.md).
+OBJ_WARNINGS, WARNING_SLOTS = 0x2000, 3
+
+
+def _warning_entries(objects: Any) -> list[dict[str, Any]]:
+    """The warnings the drive names in 0x2000 sub 1..3 (zeros are empty slots); [] when it cannot tell."""
+    numbers = []
+    try:
+        for sub in range(1, WARNING_SLOTS + 1):
+            number = read_object(objects, OBJ_WARNINGS, sub)
+            if number:
+                numbers.append(number)
+    except CommError:
+        raise
+    except AkdError:
+        return []
+    return _fault_entries(numbers, warning=True)
 
 
 class Axis(ABC):
@@ -375,6 +403,8 @@ class ProfidriveAxis(Axis):
             except AkdError:
                 faults = []
         position = None
+        warning = bool(zsw1 & sw.ZSW1_WARNING)
+        warnings = _warning_entries(self.objects) if warning and self.objects is not None else []
         if self.objects is not None:
             try:
                 position = read_object(self.objects, 0x6064, 0) / CIA_COUNTS_PER_REV
@@ -390,8 +420,8 @@ class ProfidriveAxis(Axis):
         return AxisStatus(
             profile=self.profile, state=state, state_text=sw.PD_STATES[state], word=zsw1, control=stw1,
             mode=opmode, mode_text=sw.PROFIDRIVE_MODES.get(opmode, f"mode {opmode}"),
-            enabled=state in ("S4", "S5") and not fault, fault=fault, warning=bool(zsw1 & sw.ZSW1_WARNING),
-            faults=faults, homed=homed, target_reached=bool(zsw1 & sw.ZSW1_BIT10), standstill=standstill,
+            enabled=state in ("S4", "S5") and not fault, fault=fault, warning=warning,
+            faults=faults, warnings=warnings, homed=homed, target_reached=bool(zsw1 & sw.ZSW1_BIT10), standstill=standstill,
             task_ack=bool(zsw1 & sw.ZSW1_TASK_ACK), control_honoured=bool(zsw1 & sw.ZSW1_CONTROL_REQUESTED),
             position_rev=position, counts_per_rev=1 << bits, velocity_rpm=velocity,
             current_pct=itist * 100.0 / (1 << 14), bits=sw.zsw1_bits(zsw1, opmode),
@@ -574,6 +604,7 @@ class Cia402Axis(Axis):
             except AkdError:
                 pass
             faults = _fault_entries(numbers)
+        warnings = _warning_entries(self.objects) if word & sw.SW_WARNING else []
         homed = None
         if mode == 6:
             homed = bool(word & sw.SW_BIT12)
@@ -581,7 +612,7 @@ class Cia402Axis(Axis):
             profile=self.profile, state=state, state_text=state, word=word, control=control, mode=mode,
             mode_text=sw.CIA402_MODES.get(mode, f"mode {mode}"),
             enabled=state in ("operation enabled", "quick stop active"), fault=fault,
-            warning=bool(word & sw.SW_WARNING), faults=faults, homed=homed,
+            warning=bool(word & sw.SW_WARNING), faults=faults, warnings=warnings, homed=homed,
             target_reached=bool(word & sw.SW_TARGET_REACHED), standstill=velocity == 0.0,
             task_ack=bool(word & sw.SW_BIT12) and mode == 1, homing_error=bool(word & sw.SW_BIT13) and mode == 6,
             position_rev=position, counts_per_rev=CIA_COUNTS_PER_REV, velocity_rpm=velocity, current_pct=torque,

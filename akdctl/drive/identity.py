@@ -109,3 +109,48 @@ def backup_drive_unit(unit: dict[str, Any]) -> dict[str, Any]:
     """:func:`drive_unit` in the backup's words (``firmware`` for the software version)."""
     return {"manufacturer": unit["manufacturer"], "drive_unit_type": unit["drive_unit_type"],
             "firmware": unit["software_version"], "firmware_date": unit["firmware_date"]}
+
+
+def summary(identity: dict[str, Any]) -> dict[str, Any]:
+    """Who the drive is, in words, from whatever :func:`read_identity` got: vendor, model, firmware, hardware,
+    serial and profile (keys missing where no channel told).
+
+    Why a summary: ``info`` used to show ``manufacturer 256 (0x100)``; a technician wants "Kollmorgen" and the
+    model. Each field takes the most specific source there is: the model is the I&M0 order number on PROFINET
+    (``AKD-P00306-NBPN-0000``), the CIP product name on EtherNet/IP, else the device name (0x1018:2 product code
+    'AKD', 0x1008); vendor names come from ``catalog/texts.py`` (CANopen/EtherCAT 0x1018:1, PI 964[0], CIP).
+    """
+    from akdctl.catalog.texts import CANOPEN_VENDORS, PI_VENDORS
+
+    canopen = identity.get("canopen") or {}
+    unit = (identity.get("profidrive") or {}).get("drive_unit") or {}
+    profile = (identity.get("profidrive") or {}).get("profile") or {}
+    cip = identity.get("cip_identity") or {}
+    im0 = identity.get("im0") or {}
+
+    def first(*values: Any) -> Any:
+        return next((v for v in values if v not in (None, "", {})), None)
+
+    im0_vendor = int(str(im0["vendor_id"]), 16) if isinstance(im0.get("vendor_id"), str) else None
+    out: dict[str, Any] = {
+        "vendor": first(CANOPEN_VENDORS.get(canopen.get("vendor_id")),  # type: ignore[arg-type]
+                        PI_VENDORS.get(unit.get("manufacturer")),  # type: ignore[arg-type]
+                        cip.get("vendor_name") if cip else None,
+                        PI_VENDORS.get(im0_vendor) if im0_vendor is not None else None,
+                        _vendor_number(canopen.get("vendor_id"), unit.get("manufacturer"), im0_vendor)),
+        "model": first(im0.get("order_id"), cip.get("product_name"), canopen.get("device_name"),
+                       f"drive unit type {unit['drive_unit_type']}" if "drive_unit_type" in unit else None),
+        "firmware": first(canopen.get("software_version"), im0.get("software_revision"), cip.get("revision"),
+                          unit.get("software_version")),
+        "hardware": first(canopen.get("hardware_version"), im0.get("hardware_revision")),
+        "serial": first(im0.get("serial_number"), cip.get("serial"),
+                        f"{canopen['serial']}" if canopen.get("serial") is not None else None),
+        "profile": first(f"{profile['name']} {profile['version']}" if "name" in profile else None,
+                         "CiA 402" if canopen else None, "CIP" if cip else None),
+    }
+    return {key: value for key, value in out.items() if value is not None}
+
+
+def _vendor_number(*numbers: Any) -> str | None:
+    number = next((n for n in numbers if isinstance(n, int)), None)
+    return None if number is None else f"vendor {number} (0x{number:X})"

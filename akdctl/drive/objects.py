@@ -49,3 +49,23 @@ def parse_address(text: str) -> ObjectAddress:
     if not 0 <= sub <= 0xFF:
         raise UsageError(f"subindex {sub} is outside 0..255")
     return ObjectAddress(index, sub)
+
+
+def hex_hint(text: str) -> str:
+    """A hint when ``text`` is a bare decimal index the catalogue lacks but whose hex reading it has, else ``""``.
+
+    Why: object indices are written in hex everywhere in the manuals, so ``sdo read 6041`` almost always means
+    0x6041; we keep decimal as the rule (as for PNUs) and say what was probably meant.
+    """
+    from akdctl.catalog.objects import object_name
+
+    match = _ADDRESS.match(text)
+    index_text = match.group("index") if match else ""
+    if not index_text.isdigit():
+        return ""
+    decimal, as_hex = int(index_text, 10), int(index_text, 16)
+    if object_name(decimal) is not None or as_hex > 0xFFFF or object_name(as_hex) is None:
+        return ""
+    sub = f":{match.group('sub')}" if match and match.group("sub") else ""
+    return (f"; a bare index is decimal ({index_text} = 0x{decimal:04X}): did you mean 0x{as_hex:04X}{sub} "
+            f"({object_name(as_hex)})?")

@@ -113,6 +113,22 @@ def decode(type_name: str, data: bytes) -> Any:
         raise MalformedReply(f"reply does not fit type {type_name}: {exc} (raw {data.hex(' ') or 'empty'})") from None
 
 
+def decode_as(type_name: str, data: bytes, what: str, *, named_by_user: bool) -> Any:
+    """:func:`decode`, where a type the user named that the drive's bytes do not fit is the user's input error.
+
+    ``sdo read 0x6041 u8`` on a 2-byte object is a wrong type given on the command line (exit 2), not a
+    malformed reply (exit 3); a reply that does not fit the catalogue's own type stays a MalformedReply.
+    """
+    try:
+        return decode(type_name, data)
+    except MalformedReply as exc:
+        if not named_by_user:
+            raise MalformedReply(f"{what}: {exc.message}") from None
+        raise UsageError(f"{what}: the drive answered {len(data)} byte(s) ({bytes(data).hex(' ') or 'empty'}), "
+                         f"which type {type_name} does not fit; name a type of that size, or none to use the "
+                         "catalogue's") from None
+
+
 def encode_value(type_name: str, value: Any, what: str = "") -> bytes:
     """A python value → the bytes an SDO download carries; UsageError naming the allowed range."""
     from akdctl.protocol.datatypes import DataTypeError, pack
@@ -150,15 +166,38 @@ def write_object(channel: Any, index: int, subindex: int, value: Any, type_name:
     channel.download(index, subindex, encode_value(kind, value, f"object {object_label(index, subindex)}"))
 
 
-def display(type_name: str, value: Any) -> tuple[str, str]:
-    """(value text, hex text) for human output."""
+def value_words(value: Any, *, pnu: int | None = None, element: int = 0,
+                obj: tuple[int, int] | None = None) -> str | None:
+    """A PNU element's or an object's value in words where the catalogue knows them (``catalog/meanings.py``):
+    ``2`` of PNU 930 is ``position``, a statusword its set bits by name; None otherwise."""
+    from akdctl.catalog.meanings import object_meaning, pnu_meaning
+
+    meaning = pnu_meaning(pnu, element) if pnu is not None else object_meaning(*obj) if obj is not None else None
+    return meaning.words(value) if meaning is not None else None
+
+
+def with_words(text: str, words: str | None) -> str:
+    """``2 (position)``: the one way a value and its meaning are shown together."""
+    return f"{text} ({words})" if words else text
+
+
+def display(type_name: str, value: Any, obj: tuple[int, int] | None = None) -> tuple[str, str]:
+    """(value text, hex text) for human output; the value text carries its meaning when ``obj`` (index, subindex)
+    has one in the catalogue."""
     from akdctl.protocol.datatypes import TYPES, format_value
 
     t = TYPES[type_name]
     text = format_value(type_name, value)
+    if obj is not None:
+        text = with_words(text, value_words(value, obj=obj))
     if t.kind in ("int", "uint") and t.size:
         return text, f"0x{value & ((1 << (8 * t.size)) - 1):0{2 * t.size}X}"
     return text, ""
+
+
+def pnu_display(pnu: int, element: int, value: Any) -> str:
+    """A PNU element's value for human output, with its meaning (``pnu get 930`` → ``2 (position)``)."""
+    return with_words(str(value), value_words(value, pnu=pnu, element=element))
 
 
 def json_value(type_name: str, value: Any) -> Any:
@@ -249,6 +288,10 @@ class PnuReading:
         if self.ok:
             data["values"] = self.values
             data["format"] = self.format
+            words = [value_words(v, pnu=self.spec.pnu, element=self.spec.subindex + i)
+                     for i, v in enumerate(self.values or [])]
+            if any(words):
+                data["meanings"] = words
             if info and info.unit:
                 data["unit"] = info.unit
         else:

@@ -1,0 +1,116 @@
+"""How every command of the tree reads its command line — one rule for all of them, applied where they are found.
+
+Why here and not in each command module: a technician types ``akdctl pnu get 930 --json`` as readily as
+``akdctl --json pnu get 930``, and ``sdo write 0x6081:0 -1`` means minus one, not an option named ``-1``. Putting
+``--json`` on some commands and ``ignore_unknown_options`` on others made the answer depend on the command (issue
+14). Instead the root group *adopts* every command it resolves (:func:`adopt`, called from ``LazyGroup``), so a
+command added tomorrow follows the same rules without doing anything:
+
+* **global options after the command** — each root option (``-T``, ``--json``, ``--timeout``, ``-y``, ``-v``,
+  ``--trace``, ``--pcap``, ``--debug``, ``--config``, ``--profile``) is also accepted after any group or command
+  name, unless that command has an option of the same spelling (``home --timeout`` is home's own). They are hidden
+  in the command's help (the root help lists them) and land in the same :class:`AppContext` fields;
+* **negative numbers are values** — a token such as ``-1``, ``-0.5`` or ``-0x10`` that is not one of the
+  command's options is an argument, while a mistyped option (``--bogus``) is still an error.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import click
+
+try:  # click >= 8.2
+    from click.parser import _OptionParser as _Parser
+except ImportError:  # click 8.1
+    from click.parser import OptionParser as _Parser  # type: ignore[attr-defined,no-redef]
+
+#: Root option name -> AppContext field (the root callback and the late copies both use it).
+APP_FIELDS = {
+    "target": "target_text", "config_path": "config_path", "profile_name": "profile_name", "json_output": "json",
+    "timeout": "timeout", "yes": "yes", "verbose": "verbose", "trace": "trace", "pcap": "pcap", "debug": "debug",
+}
+
+_NEGATIVE = re.compile(r"^-(?:\d[\d_]*(?:\.\d*)?(?:[eE][-+]?\d+)?|\.\d+|0[xX][0-9A-Fa-f_]+|inf|nan)$")
+
+
+def is_negative_number(token: str) -> bool:
+    """``-1``, ``-2.5``, ``-.5``, ``-1e3``, ``-0x10``: a value, not an option."""
+    return bool(_NEGATIVE.match(token))
+
+
+class _NumberAwareParser(_Parser):  # type: ignore[misc,valid-type]
+    """click's parser, except that a negative number that is no option of the command is an argument."""
+
+    def _process_opts(self, arg: str, state: Any) -> None:
+        if is_negative_number(arg) and arg not in self._short_opt and arg not in self._long_opt:
+            state.largs.append(arg)
+            return
+        super()._process_opts(arg, state)
+
+
+def _make_parser(command: click.Command, ctx: click.Context) -> Any:
+    parser = _NumberAwareParser(ctx)
+    for param in command.get_params(ctx):
+        param.add_to_parser(parser, ctx)
+    return parser
+
+
+_LATE = "akdctl_global_"  # the copies' parameter names, apart from any name a command uses
+
+
+def _set_late(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
+    """A root option given after a command: store it where the root callback stores it."""
+    from akdctl.cli.context import AppContext
+
+    if value is None or value is False or value == 0:
+        return value
+    app = ctx.find_object(AppContext) or ctx.ensure_object(AppContext)
+    field = APP_FIELDS[(param.name or "").removeprefix(_LATE)]
+    if getattr(param, "count", False):
+        setattr(app, field, getattr(app, field) + value)
+    else:
+        setattr(app, field, value)
+    return value
+
+
+def _late_copies(root: click.Command, command: click.Command) -> list[click.Option]:
+    """Hidden copies of the root's options that ``command`` does not spell itself."""
+    taken = {decl for param in command.params for decl in (*param.opts, *getattr(param, "secondary_opts", []))}
+    copies = []
+    for option in root.params:
+        if not isinstance(option, click.Option) or option.name not in APP_FIELDS:
+            continue
+        decls = [d for d in option.opts if d not in taken]
+        if not decls:
+            continue
+        kwargs: dict[str, Any] = {"hidden": True, "expose_value": False, "callback": _set_late, "help": option.help}
+        if option.count:
+            kwargs["count"] = True
+        elif option.is_flag:
+            kwargs["is_flag"] = True
+        else:
+            kwargs["type"] = option.type
+            kwargs["metavar"] = option.metavar
+        copies.append(click.Option([*decls, f"{_LATE}{option.name}"], **kwargs))
+    return copies
+
+
+def adopt(command: click.Command, root: click.Command) -> click.Command:
+    """Give ``command`` (and every subcommand it already holds) the tree's parsing rules; idempotent.
+
+    The command's own ``params`` list is left as its module wrote it (tools and tests read it); the late copies
+    are added where click asks for the parameters of one invocation (``get_params``).
+    """
+    if getattr(command, "_akdctl_adopted", False) or command is root:
+        return command
+    command._akdctl_adopted = True  # type: ignore[attr-defined]
+    late = _late_copies(root, command)
+    own_params = command.get_params
+    command.get_params = lambda ctx: [*own_params(ctx), *late]  # type: ignore[method-assign]
+    command.make_parser = _make_parser.__get__(command)  # type: ignore[method-assign]
+    if isinstance(command, click.Group):
+        for sub in command.commands.values():
+            adopt(sub, root)
+    return command
