@@ -34,7 +34,12 @@ def bundle(output: str, all_objects: bool) -> None:
     """
     from akdctl.drive import bundle as bundle_mod
 
+    from pathlib import Path
+
+    from akdctl.io.atomic import require_directory
+
     app = get_app()
+    require_directory(Path(output))  # before the drive is read
     data = bundle_mod.collect(app.connection, all_objects=all_objects)
     path = bundle_mod.write(data, output)
     errors = data.get("errors", {})
@@ -153,7 +158,11 @@ def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
 @click.argument("file", metavar="FILE")
 @click.option("--trace-all", is_flag=True, help="Show every frame of the session trace (default: the first 20).")
 def show(file: str, trace_all: bool) -> None:
-    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2."""
+    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2.
+
+    Only a regular file is read (a FIFO or a device is refused at once), at most 32 MiB, and a zip's
+    members at most 64 MiB each unpacked (128 MiB together).
+    """
     from akdctl.cli.fault import dump_doc
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.bundle import load
@@ -177,7 +186,7 @@ def show(file: str, trace_all: bool) -> None:
     for name, build in builders:
         try:
             docs.append(build())
-        except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, AttributeError, ValueError, IndexError, RecursionError) as exc:
             raise UsageError(f"{file}: damaged support bundle (section {name}: {type(exc).__name__})") from None
     for doc in docs:
         render(doc)

@@ -109,6 +109,11 @@ class PcapWriter:
     """A pcap file that grows one flushed frame at a time. Use ``write`` as a tracer sink."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
+        from pathlib import Path
+
+        from akdctl.io.atomic import require_directory
+
+        require_directory(Path(path))  # the rule for every file akdctl writes (io/atomic.py); open() honours the umask
         try:
             self._file: BinaryIO | None = open(path, "wb")
         except OSError as exc:
