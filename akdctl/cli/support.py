@@ -30,7 +30,8 @@ def bundle(output: str, all_objects: bool) -> None:
     """Collect identity, fault dump, status, parameters, mapping and the session trace into one file.
 
     A section the drive refuses is recorded in the file; the file is written
-    atomically, never half. Exit 3 (file still written) if the drive did not answer at all.
+    atomically, never half. When the drive does not answer (or stops answering), the
+    remaining sections are not read, the file is still written, and the exit code is 3.
     """
     from akdctl.drive import bundle as bundle_mod
 
@@ -50,9 +51,12 @@ def bundle(output: str, all_objects: bool) -> None:
              .kv("file", str(path)).kv("trace frames", summary["trace_frames"])
              .kv("sections with errors", ", ".join(sorted(errors)) or "none"))
     for section, text in sorted(errors.items()):
-        message(f"akdctl: warning: {section}: {text}")
-    if "transport" in errors:
-        exc = CommError(f"bundle written to {path}, but the drive could not be reached: {errors['transport']}")
+        if section != bundle_mod.LINK_ERROR and not text.startswith(bundle_mod.SKIPPED):
+            message(f"akdctl: warning: {section}: {text}")
+    lost = errors.get("transport") or errors.get(bundle_mod.LINK_ERROR)
+    if lost:
+        exc = CommError(f"bundle written to {path}, but the drive did not answer ({lost}); "
+                        "the sections after it were not read")
         exc.reported = True
         raise exc
 

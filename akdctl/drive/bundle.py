@@ -50,10 +50,30 @@ CORE_OBJECTS: tuple[tuple[int, int], ...] = (
 
 
 # ---------------------------------------------------------------------------- sections
+#: The ``errors`` key that says the link failed ("SECTION: message"): the bundle is written, the command exits 3.
+LINK_ERROR = "link"
+#: What a section not read after a link failure says.
+SKIPPED = "not read: the drive did not answer earlier"
+
+
 def _guard(errors: dict[str, str], name: str, func: Any) -> Any:
-    """Run one section; its failure is recorded (communication failures too: the rest may still work)."""
+    """Run one section; a refusal is recorded and the next section runs.
+
+    A communication failure (no answer, timeout, lost link) is recorded too, but it ends the reading:
+    every later section would wait its own timeout for the same silent drive (an unreachable gateway
+    made ``support bundle`` take 30 s). The sections after it say they were not read, and
+    ``errors["link"]`` makes the command exit 3 once the bundle is written.
+    """
+    if LINK_ERROR in errors:
+        text = f"{SKIPPED} (section {errors[LINK_ERROR].split(':', 1)[0]})"
+        errors[name] = text
+        return {"error": text, "kind": "skipped"}
     try:
         return func()
+    except CommError as exc:
+        errors[name] = exc.message
+        errors[LINK_ERROR] = f"{name}: {exc.message}"
+        return {"error": exc.message, "kind": exc.kind}
     except AkdError as exc:
         errors[name] = exc.message
         return {"error": exc.message, "kind": exc.kind}
@@ -148,6 +168,7 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     }
     transport = _guard(errors, "transport", conn.transport)
     if isinstance(transport, dict):  # could not open: every section says why
+        errors.pop(LINK_ERROR, None)  # "transport" says it
         for key in ("identity", "faults", "status", "parameters", "mapping"):
             bundle[key] = {"error": errors["transport"]}
     else:
