@@ -93,7 +93,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcom
 complete -c akdctl -n '__fish_seen_subcommand_from params' -a backup -d 'Read every readable catalogue parameter (batched) into FILE with ta...'
 complete -c akdctl -n '__fish_seen_subcommand_from params' -a diff -d 'Compare backup A with the drive, or with backup B.'
 complete -c akdctl -n '__fish_seen_subcommand_from params' -a restore -d 'Write the values of FILE that differ from the drive, in a safe orde...'
-complete -c akdctl -n '__fish_seen_subcommand_from params && __fish_seen_subcommand_from backup' -l output -d 'Backup file; .toml or .json chooses the format. Written atomically.'
+complete -c akdctl -n '__fish_seen_subcommand_from params && __fish_seen_subcommand_from backup' -l output -d 'Backup file in an existing directory; .toml or .json chooses the forma'
 complete -c akdctl -n '__fish_seen_subcommand_from params && __fish_seen_subcommand_from backup' -l source -d 'PNUs (PROFIdrive), objects (CoE/CANopen) or both; auto = PNUs where th'
 complete -c akdctl -n '__fish_seen_subcommand_from params && __fish_seen_subcommand_from backup' -l group -d 'Only these groups (PNU: signal, profidrive, telegram, fault, identity,'
 complete -c akdctl -n '__fish_seen_subcommand_from params && __fish_seen_subcommand_from backup' -l only -d 'Only these PNUs/objects, comma-separated (930,922,0x6060:0). Repeatabl'

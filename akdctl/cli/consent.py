@@ -1,14 +1,22 @@
-"""The one consent for anything that can power or move the axis.
+"""The one consent for anything that can power or move the axis, and the axis's one owner.
 
 Motion commands, recipes with motion or gated set steps, and gated raw writes
 (``pnu set``, ``sdo write``; :mod:`akdctl.drive.gate`) all ask here: a prompt on a
 terminal naming the target and what will happen, or ``--yes``; otherwise exit 4
 with the reason. Nothing is written to the drive before this returns.
+
+Whoever passes also *owns the axis* for the rest of the command (:func:`own_axis`):
+a second akdctl process that wants to power or move the same target meanwhile is
+refused (exit 4) naming the owner's pid and command, so five parallel ``move
+--relative 1`` never add up on one axis. The owner is taken before the prompt, so
+nobody is asked for a consent that could not be used.
 """
 
 from __future__ import annotations
 
+import shlex
 import sys
+import time
 from typing import Any
 
 import click
@@ -19,18 +27,56 @@ from akdctl.errors import SafetyRefusal
 def require_consent(app: Any, action: str) -> None:
     """Return when the user consents to ``action`` on this target; SafetyRefusal (exit 4) otherwise."""
     text = f"{action} on {app.target.display}"
-    if app.yes:
-        return
-    if not sys.stdin.isatty():
+    if not app.yes and not sys.stdin.isatty():
         raise SafetyRefusal(f"refusing to {text}: no terminal to ask for consent and --yes was not given; "
                             "nothing was written")
+    own_axis(app)
+    if app.yes:
+        return
     if not click.confirm(f"About to {text}. Proceed?", default=False, err=True):
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 
 def gate_write(app: Any, gated: list[Any]) -> None:
     """The write gate for raw write commands: consent when the addresses can power or move the axis
-    (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive."""
+    (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive.
+    A write touching a gated address owns the axis like a motion (also with ``--yes``)."""
     from akdctl.drive import gate
 
+    if any(g is not None for g in gated) and app.yes:
+        own_axis(app)
     gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)
+
+
+def own_axis(app: Any) -> None:
+    """Own the target's axis until the command ends (released when the invocation closes, or when
+    the process dies); SafetyRefusal (exit 4) naming the owner when another command holds it."""
+    from akdctl.drive.gate import owner_key
+    from akdctl.io.owner_lock import OwnerBusy, OwnerLock
+    from akdctl.sim.drive import state_dir
+
+    if getattr(app, "axis_owner", None) is not None:
+        return
+    lock = OwnerLock(state_dir() / "owners" / f"{owner_key(app.target)}.lock")
+    try:
+        lock.acquire(_command_line())
+    except OwnerBusy as busy:
+        raise SafetyRefusal(f"refusing: the axis of {app.target.display} is in use by {_owner_text(busy.owner)}; "
+                            "wait until it ends, or stop it ('akdctl stop' is never refused); nothing was written",
+                            details={"owner": busy.owner}) from None
+    except OSError as exc:
+        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock {lock.path} "
+                            f"({exc.strerror or exc}); nothing was written") from None
+    app.axis_owner = lock
+    app._cleanups.insert(0, lock.release)  # the last cleanup: after the connection is closed
+
+
+def _command_line() -> str:
+    return shlex.join(["akdctl", *sys.argv[1:]])
+
+
+def _owner_text(owner: dict[str, Any]) -> str:
+    if "pid" not in owner:
+        return "another akdctl command that is just starting"
+    since = f", since {time.strftime('%H:%M:%S', time.localtime(owner['since']))}" if "since" in owner else ""
+    return f"pid {owner['pid']} ({owner.get('command', 'akdctl')}{since})"

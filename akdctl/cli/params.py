@@ -24,7 +24,7 @@ def params() -> None:
 
 @params.command("backup")
 @click.option("-o", "--output", "output", required=True, metavar="FILE",
-              help="Backup file; .toml or .json chooses the format. Written atomically.")
+              help="Backup file in an existing directory; .toml or .json chooses the format. Written atomically.")
 @click.option("--source", type=click.Choice(["auto", "pnu", "objects", "all"]), default="auto", show_default=True,
               help="PNUs (PROFIdrive), objects (CoE/CANopen) or both; auto = PNUs where the target has them.")
 @click.option("--group", "groups", multiple=True, metavar="GROUP",
@@ -41,6 +41,11 @@ def backup(output: str, source: str, groups: tuple[str, ...], only: tuple[str, .
         from akdctl.errors import UsageError
 
         raise UsageError(f"backup file {output}: use a .toml or .json suffix (the format follows it)")
+    from pathlib import Path
+
+    from akdctl.io.atomic import require_directory
+
+    require_directory(Path(output))  # before the drive is read: akdctl creates no directories
     conn = app.connection
     if only:
         items = snapshot.select_items([], only=only)

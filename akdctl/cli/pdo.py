@@ -160,12 +160,11 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
         message(f"akdctl: warning: --force: {problem}")
     steps = dp.startup_list(plan)
     if export:
-        try:
-            with open(export, "w", encoding="utf-8") as fh:
-                jsonlib.dump(dp.export_json(steps, plan), fh, indent=2)
-                fh.write("\n")
-        except OSError as exc:
-            raise UsageError(f"cannot write {export}: {exc.strerror}") from None
+        from pathlib import Path
+
+        from akdctl.io.atomic import write_user_file  # the one rule for files akdctl writes (mode, directory)
+
+        write_user_file(Path(export), jsonlib.dumps(dp.export_json(steps, plan), indent=2) + "\n")
     data: dict[str, Any] = {"plan": plan.to_json(), "startup": [s.to_json() for s in steps], "problems": problems,
                             "dry_run": dry_run}
     if dry_run:

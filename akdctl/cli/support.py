@@ -30,11 +30,17 @@ def bundle(output: str, all_objects: bool) -> None:
     """Collect identity, fault dump, status, parameters, mapping and the session trace into one file.
 
     A section the drive refuses is recorded in the file; the file is written
-    atomically, never half. Exit 3 (file still written) if the drive did not answer at all.
+    atomically, never half. When the drive does not answer (or stops answering), the
+    remaining sections are not read, the file is still written, and the exit code is 3.
     """
     from akdctl.drive import bundle as bundle_mod
 
+    from pathlib import Path
+
+    from akdctl.io.atomic import require_directory
+
     app = get_app()
+    require_directory(Path(output))  # before the drive is read
     data = bundle_mod.collect(app.connection, all_objects=all_objects)
     path = bundle_mod.write(data, output)
     errors = data.get("errors", {})
@@ -45,9 +51,12 @@ def bundle(output: str, all_objects: bool) -> None:
              .kv("file", str(path)).kv("trace frames", summary["trace_frames"])
              .kv("sections with errors", ", ".join(sorted(errors)) or "none"))
     for section, text in sorted(errors.items()):
-        message(f"akdctl: warning: {section}: {text}")
-    if "transport" in errors:
-        exc = CommError(f"bundle written to {path}, but the drive could not be reached: {errors['transport']}")
+        if section != bundle_mod.LINK_ERROR and not text.startswith(bundle_mod.SKIPPED):
+            message(f"akdctl: warning: {section}: {text}")
+    lost = errors.get("transport") or errors.get(bundle_mod.LINK_ERROR)
+    if lost:
+        exc = CommError(f"bundle written to {path}, but the drive did not answer ({lost}); "
+                        "the sections after it were not read")
         exc.reported = True
         raise exc
 
@@ -153,7 +162,11 @@ def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
 @click.argument("file", metavar="FILE")
 @click.option("--trace-all", is_flag=True, help="Show every frame of the session trace (default: the first 20).")
 def show(file: str, trace_all: bool) -> None:
-    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2."""
+    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2.
+
+    Only a regular file is read (a FIFO or a device is refused at once), at most 32 MiB, and a zip's
+    members at most 64 MiB each unpacked (128 MiB together).
+    """
     from akdctl.cli.fault import dump_doc
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.bundle import load
@@ -177,7 +190,7 @@ def show(file: str, trace_all: bool) -> None:
     for name, build in builders:
         try:
             docs.append(build())
-        except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, AttributeError, ValueError, IndexError, RecursionError) as exc:
             raise UsageError(f"{file}: damaged support bundle (section {name}: {type(exc).__name__})") from None
     for doc in docs:
         render(doc)

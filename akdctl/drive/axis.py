@@ -564,6 +564,10 @@ class ProfidriveAxis(Axis):
                              "target outside the software limits, or the drive not in position mode/S4") from None
         self.stw1(ready)  # handshake: drop bit 6 once bit 12 is seen; the task keeps running
 
+    def issued_target(self) -> int | None:
+        """The MDI target the drive holds (PNU 34), to tell our task from another's (motion_plan)."""
+        return int(self._read(34)[34][0])
+
 
 # ====================================================================== CiA 402
 class Cia402Axis(Axis):
@@ -798,6 +802,10 @@ class Cia402Axis(Axis):
             raise DriveError("the drive did not acknowledge the new set-point (statusword bit 12 stayed clear): "
                              "target outside the software limits 0x607D, or the drive not in profile position") from None
         self.controlword(base)  # handshake: drop bit 4 once bit 12 is seen
+
+    def issued_target(self) -> int | None:
+        """The target position the drive holds (0x607A), to tell our set point from another's (motion_plan)."""
+        return int(self._up(0x607A, 0))
 
 
 # ====================================================================== choosing

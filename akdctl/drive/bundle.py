@@ -39,7 +39,6 @@ FORMAT_VERSION = 1
 ZIP_MEMBER = "bundle.json"
 ZIP_TRACE = "trace.txt"
 REQUIRED_KEYS = ("format", "format_version", "created", "tool", "target")
-MAX_BUNDLE_BYTES = 256 * 1024 * 1024  # refuse to load anything larger (not a bundle of ours)
 
 # Objects worth a support engineer's look on every CoE/CANopen drive (the whole dictionary is opt-in).
 CORE_OBJECTS: tuple[tuple[int, int], ...] = (
@@ -51,10 +50,30 @@ CORE_OBJECTS: tuple[tuple[int, int], ...] = (
 
 
 # ---------------------------------------------------------------------------- sections
+#: The ``errors`` key that says the link failed ("SECTION: message"): the bundle is written, the command exits 3.
+LINK_ERROR = "link"
+#: What a section not read after a link failure says.
+SKIPPED = "not read: the drive did not answer earlier"
+
+
 def _guard(errors: dict[str, str], name: str, func: Any) -> Any:
-    """Run one section; its failure is recorded (communication failures too: the rest may still work)."""
+    """Run one section; a refusal is recorded and the next section runs.
+
+    A communication failure (no answer, timeout, lost link) is recorded too, but it ends the reading:
+    every later section would wait its own timeout for the same silent drive (an unreachable gateway
+    made ``support bundle`` take 30 s). The sections after it say they were not read, and
+    ``errors["link"]`` makes the command exit 3 once the bundle is written.
+    """
+    if LINK_ERROR in errors:
+        text = f"{SKIPPED} (section {errors[LINK_ERROR].split(':', 1)[0]})"
+        errors[name] = text
+        return {"error": text, "kind": "skipped"}
     try:
         return func()
+    except CommError as exc:
+        errors[name] = exc.message
+        errors[LINK_ERROR] = f"{name}: {exc.message}"
+        return {"error": exc.message, "kind": exc.kind}
     except AkdError as exc:
         errors[name] = exc.message
         return {"error": exc.message, "kind": exc.kind}
@@ -149,6 +168,7 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     }
     transport = _guard(errors, "transport", conn.transport)
     if isinstance(transport, dict):  # could not open: every section says why
+        errors.pop(LINK_ERROR, None)  # "transport" says it
         for key in ("identity", "faults", "status", "parameters", "mapping"):
             bundle[key] = {"error": errors["transport"]}
     else:
@@ -207,47 +227,81 @@ def _json_default(value: Any) -> Any:
 
 
 def write(bundle: dict[str, Any], path: str | os.PathLike[str]) -> Path:
-    """Write atomically: JSON, or a zip when the name ends in ``.zip``."""
+    """Write atomically into an existing directory (io/atomic.py's rules): JSON, or a zip when the name ends
+    in ``.zip``."""
     target = Path(path)
-    data = encode(bundle, as_zip=target.suffix.lower() == ".zip")
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise UsageError(f"cannot write {target}: directory {directory} does not exist")
-    write_user_file(target, data)
+    write_user_file(target, encode(bundle, as_zip=target.suffix.lower() == ".zip"))
     return target
 
 
+#: A bundle file at most this large is read (ours are a few MB even with ``--all-objects``).
+MAX_BUNDLE_BYTES = 32 * 1024 * 1024
+#: Every zip member's *uncompressed* size (as the zip declares it, and as read) at most this, all of them at most
+#: :data:`MAX_UNPACKED_BYTES`, and at most :data:`MAX_ZIP_MEMBERS` members: a small zip can unpack to gigabytes.
+MAX_MEMBER_BYTES = 64 * 1024 * 1024
+MAX_UNPACKED_BYTES = 128 * 1024 * 1024
+MAX_ZIP_MEMBERS = 16
+_WHAT = "a support bundle"
+
+
+def _zip_members(raw: bytes, name: str) -> int | None:
+    """The member count the zip's end record declares (read before zipfile builds its index); None if no record."""
+    end = raw.rfind(b"PK\x05\x06", max(0, len(raw) - 65557))
+    if end < 0 or end + 22 > len(raw):
+        return None
+    return int.from_bytes(raw[end + 10:end + 12], "little")
+
+
+def _unzip(raw: bytes, name: str) -> bytes:
+    """``bundle.json`` from a zip bundle, within the member, total and count caps."""
+    count = _zip_members(raw, name)
+    if count is not None and count > MAX_ZIP_MEMBERS:
+        raise UsageError(f"{name}: a zip of {count} members is not {_WHAT} (at most {MAX_ZIP_MEMBERS})")
+    with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+        infos = zf.infolist()
+        if len(infos) > MAX_ZIP_MEMBERS:
+            raise UsageError(f"{name}: a zip of {len(infos)} members is not {_WHAT} (at most {MAX_ZIP_MEMBERS})")
+        for info in infos:
+            if info.file_size > MAX_MEMBER_BYTES:
+                raise UsageError(f"{name}: member {info.filename!r} unpacks to {info.file_size} bytes, more than the "
+                                 f"{MAX_MEMBER_BYTES} a bundle member may have")
+        total = sum(info.file_size for info in infos)
+        if total > MAX_UNPACKED_BYTES:
+            raise UsageError(f"{name}: unpacks to {total} bytes, more than the {MAX_UNPACKED_BYTES} {_WHAT} may have")
+        if ZIP_MEMBER not in zf.namelist():
+            raise UsageError(f"{name} is not an akdctl support bundle (zip without {ZIP_MEMBER})")
+        with zf.open(ZIP_MEMBER) as member:
+            data = member.read(MAX_MEMBER_BYTES + 1)  # the declared size bounds the read; this bounds a liar
+        if len(data) > MAX_MEMBER_BYTES:
+            raise UsageError(f"{name}: member {ZIP_MEMBER} unpacks to more than {MAX_MEMBER_BYTES} bytes")
+        return data
+
+
 def load(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a bundle (JSON or zip); a damaged or foreign file is a one-line :class:`UsageError`."""
+    """Read a bundle (JSON or zip); a damaged, foreign, oversized or non-regular file is a one-line
+    :class:`UsageError` (exit 2), decided before anything large is read or unpacked."""
+    from akdctl.io.safe_read import read_regular
+
     name = str(path)
-    try:
-        size = os.path.getsize(path)
-        if size > MAX_BUNDLE_BYTES:
-            raise UsageError(f"{name} is not an akdctl support bundle (too large)")
-        if zipfile.is_zipfile(path):
-            with zipfile.ZipFile(path) as zf:
-                if ZIP_MEMBER not in zf.namelist():
-                    raise UsageError(f"{name} is not an akdctl support bundle (zip without {ZIP_MEMBER})")
-                raw = zf.read(ZIP_MEMBER)
-        else:
-            raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise UsageError(f"no such file: {name}") from None
-    except IsADirectoryError:
-        raise UsageError(f"{name} is a directory, not a support bundle") from None
-    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, RuntimeError, ValueError) as exc:
-        if isinstance(exc, UsageError):
-            raise
-        raise UsageError(f"{name} is not a readable support bundle ({type(exc).__name__}: {exc})") from None
+    raw = read_regular(path, limit=MAX_BUNDLE_BYTES, what=_WHAT)
+    if raw[:4] == b"PK\x03\x04" or _zip_members(raw, name) is not None:
+        try:
+            raw = _unzip(raw, name)
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, RuntimeError, ValueError, OSError, EOFError) as exc:
+            if isinstance(exc, UsageError):
+                raise
+            raise UsageError(f"{name} is not a readable support bundle ({type(exc).__name__}: {exc})"
+                             .splitlines()[0]) from None
     try:
         data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UsageError(f"{name} is not an akdctl support bundle (damaged JSON: {exc})".splitlines()[0]) from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # JSONDecodeError, int digit limit, nesting
+        raise UsageError(f"{name} is not an akdctl support bundle (damaged JSON: {type(exc).__name__}: {exc})"
+                         .splitlines()[0][:300]) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UsageError(f"{name} is not an akdctl support bundle (format key missing or foreign)")
     if data.get("format_version") != FORMAT_VERSION:
-        raise UsageError(f"{name}: support bundle format version {data.get('format_version')!r} is not supported "
-                         f"(this akdctl reads version {FORMAT_VERSION})")
+        raise UsageError(f"{name}: support bundle format version {str(data.get('format_version'))[:20]!r} is not "
+                         f"supported (this akdctl reads version {FORMAT_VERSION})")
     missing = [k for k in REQUIRED_KEYS if k not in data]
     if missing:
         raise UsageError(f"{name}: damaged support bundle (missing {', '.join(missing)})")

@@ -21,10 +21,18 @@ Position Controller 0x25's enable (17), load handshake (11) and home move (101) 
 control, its target position/velocity and incremental flag (6, 7, 10) set points, its
 mode (3) gated while enabled; the Parameter object's HOME.MOVE command and the command
 assembly (0x04/100) move the axis.
+
+Ownership: whatever passes this gate (a motion, a recipe that moves, a gated raw
+write) also owns the target's axis for the rest of the command, so two akdctl
+processes never command one axis at once (:func:`owner_key` names the axis;
+:func:`akdctl.cli.consent.own_axis` holds it). ``stop``, ``disable`` and ``fault
+ack`` only take power away and never wait for an owner.
 """
 
 from __future__ import annotations
 
+import hashlib
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,3 +142,25 @@ def check_write(conn: Any, gated: list[Gated | None], consent: Any, given: bool 
     needing = needing_consent(present, enabled)
     if needing:
         consent(consent_action(needing))
+
+
+#: Schemes that reach the same drive by another route share one owner name.
+_SAME_DRIVE = {"ecat+soem": "ecat"}
+
+
+def owner_key(target: Any) -> str:
+    """A file-name-safe name for the axis a target addresses (the owner lock's key).
+
+    What selects the drive counts (scheme, host, port, path, the PROFINET ``axis``/``slot``);
+    options that only change how it is spoken to (``drive=``, ``timeout``, ``bitrate``) do not,
+    so ``sim`` and ``sim?drive=cia402`` are one axis. Two spellings of one host (a name and
+    its address) are two keys: the lock cannot know they meet.
+    """
+    scheme = _SAME_DRIVE.get(target.scheme, target.scheme)
+    if scheme == "sim":
+        who = f"sim/{target.host or 'default'}"
+    else:
+        extra = "".join(f"&{k}={target.query[k]}" for k in ("slot", "subslot", "axis", "api") if k in target.query)
+        who = f"{scheme}/{target.host.lower()}:{target.port or ''}/{target.path.strip('/')}{extra}"
+    readable = re.sub(r"[^A-Za-z0-9._-]+", "_", who).strip("_")[:80]
+    return f"{readable}-{hashlib.sha256(who.encode()).hexdigest()[:12]}"

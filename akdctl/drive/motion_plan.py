@@ -111,6 +111,7 @@ class MotionPlan:
     homed: bool | None = None  # as read before consent (None: only visible after the mode switch)
     mode_text: str = ""
     notes: list[str] = field(default_factory=list)
+    limits: dict[str, Any] = field(default_factory=dict)  # the profile's, for the re-check under the owner lock
 
     @property
     def what(self) -> str:
@@ -265,7 +266,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
     if r.kind not in KINDS:
         raise UsageError(f"unknown motion {r.kind!r}")
     limits = limits_of(conn)
-    plan = MotionPlan(request=r, profile=axis_cls.profile, mode_kind="")
+    plan = MotionPlan(request=r, profile=axis_cls.profile, mode_kind="", limits=limits)
     if r.timeout_s is not None:
         timeout = finite(r.timeout_s, "timeout")
         if not 0 < timeout <= MAX_WAIT_S:
@@ -451,16 +452,61 @@ def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
             axis.safe_stop()
             raise
         return axis.read_status()
-    return run.run(lambda: axis.start_move(move), lambda s: True if s.target_reached and s.standstill else None,
-                   deadline_s=accepted.deadline_s, what="jog" if r.kind == "jog" else "move")
+    what = "jog" if r.kind == "jog" else "move"
+    status = run.run(lambda: axis.start_move(move), lambda s: True if s.target_reached and s.standstill else None,
+                     deadline_s=accepted.deadline_s, what=what)
+    return confirm_own_target(axis, accepted, status, what)
+
+
+#: How far from the position this command aimed at the axis may stand when the drive says "target
+#: reached" (revolutions). The drive's own position window is not known here; one hundredth of a
+#: revolution is far inside any move another command could have run instead, and far outside the
+#: following error of a settled axis.
+TARGET_TOLERANCE_REV = 0.01
+
+
+def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) -> Any:
+    """"Target reached" only for the set point this command issued (issue 17.7).
+
+    The drive's target-reached bit says that *a* positioning task ended, not that it was ours: a task
+    loaded by someone else (another master, a command that did not pass the owner lock) reports the
+    same bit. So the axis must stand where this command's set point puts it (the start position read
+    after the owner lock was taken, plus the distance; or the absolute target), and where the
+    position cannot be read, the drive's set point must still be the one written here. Otherwise
+    DriveError (exit 1) in words; the axis is at standstill already.
+    """
+    from akdctl.errors import DriveError
+
+    expected = accepted.end_rev
+    if expected is not None and status.position_rev is not None:
+        if abs(status.position_rev - expected) > TARGET_TOLERANCE_REV:
+            raise DriveError(f"the drive reports target reached, but the axis stands at {status.position_rev:.4f} rev, "
+                             f"not at {expected:.4f} rev where this {what} was going: another command or master "
+                             "moved the axis meanwhile; check the position before moving again",
+                             details={"expected_rev": round(expected, 6),
+                                      "position_rev": round(status.position_rev, 6)})
+        return status
+    issued = getattr(axis, "issued_target", None)
+    drive_target = issued() if issued is not None else None
+    if drive_target is not None and drive_target != accepted.target_raw:
+        raise DriveError(f"the drive reports target reached for set point {drive_target}, not for {accepted.target_raw} "
+                         f"which this {what} wrote: another command or master loaded a task meanwhile",
+                         details={"expected_raw": accepted.target_raw, "drive_raw": drive_target})
+    return status
 
 
 def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
-    """Re-check (the drive may have changed since the plan), confirm homed, switch the mode, enable."""
+    """Re-check under the owner lock (the drive may have changed since the plan), confirm homed,
+    switch the mode, enable. A relative move is measured from the position read here."""
     status = axis.read_status()
     axis.refuse_if_fault(status)
     if not status.standstill:
         raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
+    relative = accepted.request.kind == "jog" or accepted.request.relative
+    if relative and accepted.move_rev is not None and status.position_rev is not None:
+        accepted.start_rev = status.position_rev
+        accepted.end_rev = status.position_rev + accepted.move_rev
+        _check_travel(accepted.limits, accepted.end_rev)
     if accepted.needs_homed and accepted.homed is None and not axis.confirm_homed():
         raise SafetyRefusal(_not_homed_text(axis, accepted.request))
     axis.ensure_mode(accepted.mode_kind)

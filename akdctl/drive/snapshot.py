@@ -441,37 +441,38 @@ def write_file(snapshot: Snapshot, path: str | os.PathLike[str]) -> Path:
         text = json.dumps(snapshot.to_data(), indent=2) + "\n"
     else:
         raise UsageError(f"backup file {target.name}: use a .toml or .json suffix (the format follows it)")
-    atomic_write(target, text)
+    write_user_file(target, text)
     return target
 
 
-def atomic_write(target: Path, text: str) -> None:
-    directory = target.parent if str(target.parent) else Path(".")
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"cannot write {target}: {exc.strerror}") from None
-    write_user_file(target, text)
+#: A backup file at most this large is read (a full AKD snapshot is a few hundred kB).
+MAX_BACKUP_BYTES = 16 * 1024 * 1024
 
 
 def load_file(path: str | os.PathLike[str]) -> Snapshot:
+    """A backup file: a regular file (no FIFO or device), at most :data:`MAX_BACKUP_BYTES`, TOML or JSON;
+    every problem is one line, exit 2."""
+    from akdctl.io.safe_read import read_regular_text
+
     source = Path(path)
+    if not source.exists() and not source.is_symlink():
+        raise UsageError(f"backup file {source} does not exist")
+    text = read_regular_text(source, limit=MAX_BACKUP_BYTES, what="a backup file")
     try:
-        text = source.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UsageError(f"backup file {source} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"cannot read backup file {source}: {getattr(exc, 'strerror', None) or exc}") from None
-    if source.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise UsageError(f"{source}:{exc.lineno}: not valid JSON: {exc.msg}") from None
-    else:
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise UsageError(f"{source}: not valid TOML: {exc}") from None
+        if source.suffix.lower() == ".json":
+            try:
+                data = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise UsageError(f"{source}:{exc.lineno}: not valid JSON: {exc.msg}") from None
+        else:
+            try:
+                data = tomllib.loads(text)
+            except tomllib.TOMLDecodeError as exc:
+                raise UsageError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise UsageError(f"{source}: nested too deeply to be a backup file") from None
+    except ValueError as exc:  # e.g. an integer beyond Python's digit limit
+        raise UsageError(f"{source}: not a backup file ({exc})".splitlines()[0][:300]) from None
     return Snapshot.from_data(data, str(source))
 
 

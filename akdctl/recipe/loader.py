@@ -110,21 +110,19 @@ def _top_key_line(text: str, key: str) -> int | None:
 
 
 def read_recipe_file(path: Path, display_root: Path | None = None) -> tuple[dict[str, Any], str]:
+    from akdctl.io.safe_read import read_regular_text
+
     name = display_path(path, display_root)
+    if not path.exists() and not path.is_symlink():
+        raise RecipeError([f"{name}: no such recipe file"])
     try:
-        if path.stat().st_size > MAX_RECIPE_BYTES:
-            raise RecipeError([f"{name}: larger than {MAX_RECIPE_BYTES} bytes; not a recipe"])
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RecipeError([f"{name}: no such recipe file"]) from None
-    except IsADirectoryError:
-        raise RecipeError([f"{name}: is a directory, not a recipe file"]) from None
-    except UnicodeDecodeError:
-        raise RecipeError([f"{name}: not a text file (UTF-8 expected); a recipe is TOML"]) from None
-    except OSError as exc:
-        raise RecipeError([f"{name}: cannot read: {exc.strerror}"]) from None
+        text = read_regular_text(path, limit=MAX_RECIPE_BYTES, what="a recipe (TOML)", name=name)
+    except UsageError as exc:
+        raise RecipeError([exc.message]) from None
     try:
         data = tomllib.loads(text)
+    except RecursionError:
+        raise RecipeError([f"{name}: nested too deeply to be a recipe"]) from None
     except tomllib.TOMLDecodeError as exc:
         detail = str(exc)
         match = re.search(r"\(at line (\d+), column (\d+)\)", detail)

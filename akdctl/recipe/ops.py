@@ -45,6 +45,18 @@ class Session:
             self._axis = self.conn.axis()
         return self._axis
 
+    def output_file(self, relative: str, what: str) -> Path:
+        """Where a file the recipe names is written: below the output directory, also once symbolic links are
+        resolved (io/atomic.py ``confined``). The output directory itself is created if missing (the one
+        directory akdctl makes for a file); directories below it are not."""
+        from akdctl.io.atomic import confined
+
+        try:
+            self.output_dir.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"cannot create the output directory {self.output_dir}: {exc.strerror or exc}") from None
+        return confined(self.output_dir, relative, what)
+
     @property
     def axis_opened(self) -> bool:
         return self._axis is not None
@@ -258,7 +270,7 @@ def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
         sources = snapshot.choose_sources(conn, params["source"])
         items = snapshot.select_items(sources, params["groups"])
     snap = snapshot.take(conn, items, conn.target.display, sources)
-    snapshot.write_file(snap, session.output_dir / params["file"])
+    snapshot.write_file(snap, session.output_file(params["file"], "backup file"))
     session.files.append(str(params["file"]))
     return {"file": params["file"], "pnus": len(snap.pnus), "objects": len(snap.objects), "refused": snap.refused}
 

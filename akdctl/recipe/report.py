@@ -14,8 +14,8 @@ import socket
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from akdctl.drive.snapshot import atomic_write
 from akdctl.errors import UsageError
+from akdctl.io.atomic import require_directory, write_user_file
 from akdctl.recipe.runner import FAILED, PLANNED, SKIPPED, RunResult
 
 KINDS = {".json": "json", ".xml": "junit"}
@@ -25,12 +25,13 @@ def kind_of(path: str) -> str:
     suffix = Path(path).suffix.lower()
     if suffix not in KINDS:
         raise UsageError(f"report {path}: the suffix chooses the kind: .json (JSON report) or .xml (JUnit XML)")
+    require_directory(Path(path))  # checked before the run, so a run is never lost for want of a directory
     return KINDS[suffix]
 
 
 def write(result: RunResult, path: str) -> None:
     text = to_json_text(result) if kind_of(path) == "json" else to_junit(result)
-    atomic_write(Path(path), text)
+    write_user_file(Path(path), text)
 
 
 def to_json_text(result: RunResult) -> str:

@@ -12,8 +12,15 @@ frames. So this sink synthesises the lower headers from the record's ``meta``:
   Ethernet header in front of ``data``;
 * ``{"proto": "ethernet"}`` without an EtherType: ``data`` is already a whole frame.
 
-Records without usable meta (an in-process simulated drive has no wire) are
-counted in ``skipped`` and left out. Every frame is flushed at once, so a
+* ``{"proto": "sim"}`` (the in-process simulated drive, which has no wire): the
+  bytes it exchanged are put in the frames a real drive would carry them in
+  (:class:`SimWire`) — PROFIdrive blocks as PNIO record Write requests and Read
+  responses over UDP on 127.0.0.1, CoE mailboxes as EtherCAT FPWR/FPRD datagrams
+  to station 0x1001's mailbox sync managers (0x1800 / 0x1C00). The addresses,
+  AR and sequence numbers are synthetic; the payload is byte for byte what the
+  simulator was sent and answered, and tshark dissects it.
+
+Records without usable meta are counted in ``skipped`` and left out. Every frame is flushed at once, so a
 capture cut short by a crash or Ctrl-C still opens.
 """
 
@@ -105,10 +112,74 @@ def tcp_frame(src: tuple[object, int], dst: tuple[object, int], payload: bytes, 
     return _mac_for(dip) + _mac_for(sip) + struct.pack("!H", ETHERTYPE_IPV4) + ip + tcp
 
 
+class SimWire:
+    """The frames a real link would have carried for the simulated drive's records (module docstring).
+
+    Why synthesise rather than refuse: ``--pcap`` on the simulator is how a technician learns what the
+    tool will send to a real drive, and Wireshark only decodes whole frames. One direction per record,
+    so a PROFIdrive exchange is a Write request (the request block) and a Read response (the answer).
+    """
+
+    CLIENT = ("127.0.0.1", 49152)
+    DEVICE = ("127.0.0.1", 34964)
+    STATION = 0x1001
+    SM_WRITE, SM_READ = 0x1800, 0x1C00
+
+    def __init__(self) -> None:
+        import uuid
+
+        from akdctl.protocol import pnio
+
+        self.ar = uuid.UUID("00000000-0000-4000-8000-0000000000a1")  # synthetic, constant: captures compare
+        self.activity = uuid.UUID("00000000-0000-4000-8000-0000000000a2")
+        self.read_activity = uuid.UUID("00000000-0000-4000-8000-0000000000a3")
+        self.object = pnio.object_uuid(0x0100, 0x0001)
+        self.sequence = 0
+
+    def frame(self, record: TraceRecord) -> tuple[str, bytes] | None:
+        """(kind, payload): ``("udp", datagram)`` or ``("ecat", frame)``; None for other layers."""
+        if record.layer == "bmp":
+            return "udp", self._pnio(record.direction == "tx", record.data)
+        if record.layer == "mailbox":
+            return "ecat", self._ecat(record.direction == "tx", record.data)
+        return None
+
+    def _pnio(self, request: bool, block: bytes) -> bytes:
+        from akdctl.protocol import dcerpc, pnio
+
+        if request:
+            self.sequence = (self.sequence + 1) & 0xFFFFFFFF
+            body = pnio.encode_request_args(pnio.IODWriteReq(self.sequence, self.ar, pnio.RecordAddress(),
+                                                             block).encode())
+        else:
+            body = pnio.encode_response_args(pnio.OK, pnio.IODReadRes(self.sequence, self.ar, pnio.RecordAddress(),
+                                                                      block).encode())
+        # The answer travels in a Read response; on its own activity, so Wireshark does not pair it with the
+        # Write request (a real client sends a Read request in between, which has no bytes of its own here).
+        header = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST if request else dcerpc.PT_RESPONSE,
+                                  object_uuid=self.object, interface_uuid=pnio.DEVICE_INTERFACE,
+                                  activity_uuid=self.activity if request else self.read_activity,
+                                  sequence=self.sequence,
+                                  opnum=pnio.OP_WRITE if request else pnio.OP_READ, flags1=dcerpc.FLAG_IDEMPOTENT)
+        return dcerpc.encode_packet(header, body)
+
+    def _ecat(self, to_slave: bool, mailbox: bytes) -> bytes:
+        from akdctl.protocol import ethercat
+
+        datagram = ethercat.Datagram(ethercat.Cmd.FPWR if to_slave else ethercat.Cmd.FPRD, self.STATION,
+                                     self.SM_WRITE if to_slave else self.SM_READ, bytes(mailbox), wkc=1)
+        return ethercat.encode_frame([datagram], b"\x02\x00\x00\x00\x00\x01")
+
+
 class PcapWriter:
     """A pcap file that grows one flushed frame at a time. Use ``write`` as a tracer sink."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
+        from pathlib import Path
+
+        from akdctl.io.atomic import require_directory
+
+        require_directory(Path(path))  # the rule for every file akdctl writes (io/atomic.py); open() honours the umask
         try:
             self._file: BinaryIO | None = open(path, "wb")
         except OSError as exc:
@@ -118,6 +189,7 @@ class PcapWriter:
         self.skipped = 0
         self._ident = 0
         self._tcp_seq: dict[tuple[str, int, str, int], int] = {}
+        self._sim_wire: SimWire | None = None
         self._lock = threading.Lock()
         self._file.write(struct.pack("<IHHiIII", PCAP_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_ETHERNET))
         self._file.flush()
@@ -137,6 +209,17 @@ class PcapWriter:
             self._tcp_seq[key] = seq + len(record.data)
             self._ident = (self._ident + 1) & 0xFFFF
             return tcp_frame(src, dst, record.data, seq, self._tcp_seq.get(back, 1), self._ident)  # type: ignore[arg-type]
+        if proto == "sim":
+            wire = self._sim_wire = self._sim_wire or SimWire()
+            made = wire.frame(record)
+            if made is None:
+                return None
+            kind, payload = made
+            if kind == "ecat":
+                return payload
+            self._ident = (self._ident + 1) & 0xFFFF
+            src, dst = (wire.CLIENT, wire.DEVICE) if record.direction == "tx" else (wire.DEVICE, wire.CLIENT)
+            return udp_frame(src, dst, payload, self._ident)
         if proto == "ethernet":
             ethertype = meta.get("ethertype")
             if ethertype is None:

@@ -20,6 +20,8 @@ from akdctl.transport.target import Target
 class SimRecordLink(RecordLink):
     """BMP request bytes in, BMP response bytes out, via the simulated parameter manager."""
 
+    trace_meta = {"proto": "sim"}  # no wire: --pcap wraps the blocks as a PROFINET device would carry them
+
     def __init__(self, drive: SimDrive) -> None:
         self.drive = drive
         self.trace_note = f"sim:{drive.name}"
@@ -42,6 +44,7 @@ class SimMailboxLink(MailboxLink):
     """EtherCAT mailboxes to and from the simulated SDO server."""
 
     mailbox_size = 512
+    trace_meta = {"proto": "sim"}  # no wire: --pcap wraps the mailboxes as an EtherCAT master would carry them
 
     def __init__(self, drive: SimDrive) -> None:
         self.drive = drive

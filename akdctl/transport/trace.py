@@ -117,12 +117,13 @@ class TracedRecordLink(RecordLink):
         self.max_record = link.max_record
         self.axis = link.axis
         self.trace_note = link.trace_note
+        self.trace_meta = getattr(link, "trace_meta", None)  # a capture sink's hint (the sim: no wire)
 
     def exchange(self, request: bytes) -> bytes:
-        self.tracer.frame("tx", "bmp", request, note=self.trace_note)
+        self.tracer.frame("tx", "bmp", request, note=self.trace_note, meta=self.trace_meta)
         response = self.link.exchange(request)
         if isinstance(response, (bytes, bytearray, memoryview)):
-            self.tracer.frame("rx", "bmp", bytes(response), note=self.trace_note)
+            self.tracer.frame("rx", "bmp", bytes(response), note=self.trace_note, meta=self.trace_meta)
         return response
 
 
@@ -134,19 +135,20 @@ class TracedMailboxLink(MailboxLink):
         self.tracer = tracer
         self.mailbox_address = link.mailbox_address
         self.trace_note = link.trace_note
+        self.trace_meta = getattr(link, "trace_meta", None)
 
     @property
     def mailbox_size(self) -> int:  # type: ignore[override]
         return self.link.mailbox_size  # the raw master learns it from the sync managers
 
     def send(self, mailbox: bytes) -> None:
-        self.tracer.frame("tx", "mailbox", mailbox, note=self.trace_note)
+        self.tracer.frame("tx", "mailbox", mailbox, note=self.trace_note, meta=self.trace_meta)
         self.link.send(mailbox)
 
     def receive(self, timeout: float) -> bytes | None:
         reply = self.link.receive(timeout)
         if reply is not None:
-            self.tracer.frame("rx", "mailbox", reply, note=self.trace_note)
+            self.tracer.frame("rx", "mailbox", reply, note=self.trace_note, meta=self.trace_meta)
         return reply
 
 
