@@ -15,7 +15,7 @@ data, not homed) and the stop-on-error behaviour exist exactly once.
   point stream and are refused acyclically. Scaling assumed: 65536 counts per
   revolution, counts/s, counts/s² (the simulator's; set a real drive alike).
 
-Every wait polls with a deadline; nothing here sleeps unbounded.
+Every wait polls with a deadline (how often: :mod:`akdctl.drive.polling`); nothing here sleeps unbounded.
 """
 
 from __future__ import annotations
@@ -26,13 +26,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from akdctl.drive.polling import Poll
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
 from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-
-POLL_S = 0.05
 
 
 @dataclass
@@ -214,9 +213,17 @@ class Axis(ABC):
     HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
     HOME_MODE_FIELD = ""
 
+    #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the transport's
+    #: ``time_scale``, which only the simulator has); None: a real drive's 1.
+    time_scale_source: Callable[[], float] | None = None
+
     def __init__(self, timeout: float = 2.0, target: str = "") -> None:
         self.timeout = timeout
         self.target = target
+
+    def poll(self, deadline: float | None = None) -> Poll:
+        """The pauses of one wait (drive/polling.py: fast after a command or a change, then steady)."""
+        return Poll(self.time_scale_source() if self.time_scale_source is not None else 1.0, deadline)
 
     # ---------------------------------------------------------------- primitives per profile
     @abstractmethod
@@ -301,8 +308,10 @@ class Axis(ABC):
                  allow_fault: bool = False) -> AxisStatus:
         """Poll the status until ``predicate`` holds; DriveFault on a fault, DriveError on timeout."""
         deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        poll = self.poll(deadline)
         while True:
-            status = self.read_status()
+            status = poll.read(self.read_status)
+            poll.observe(status.word)
             if predicate(status):
                 return status
             if status.fault and not allow_fault:
@@ -311,7 +320,7 @@ class Axis(ABC):
             if time.monotonic() > deadline:
                 raise DriveError(f"the drive did not reach {what} within {self.timeout if timeout is None else timeout:g} s "
                                  f"(state {status.state} {status.state_text}, word 0x{status.word:04X})")
-            time.sleep(POLL_S)
+            poll.pause()
 
     def refuse_if_fault(self, status: AxisStatus) -> None:
         if status.fault:
@@ -708,10 +717,11 @@ class Cia402Axis(Axis):
         if self._up(0x6061, 0) != wanted:
             self._down(0x6060, 0, wanted)
             deadline = time.monotonic() + self.timeout
-            while self._up(0x6061, 0) != wanted:
+            poll = self.poll(deadline)
+            while poll.read(lambda: self._up(0x6061, 0)) != wanted:
                 if time.monotonic() > deadline:
                     raise DriveError(f"the drive did not switch to mode {wanted} (0x6061) within {self.timeout:g} s")
-                time.sleep(POLL_S)
+                poll.pause()
 
     # Object ranges (EtherCAT manual, CiA 402): 0x60FF i32, 0x6081/0x6083/0x6084 u32, 0x607A i32; the
     # simulator's scaling of 65536 counts/rev, counts/s, counts/s² (module docstring).
@@ -856,16 +866,21 @@ def open_axis(conn: "Connection") -> Axis:
     chosen = profile_name(conn)
     timeout = conn.options.timeout
     target = conn.target.display
+    axis: Axis
     if chosen == "cip":
         from akdctl.drive.cip_axis import CipAxis
 
-        return CipAxis(conn.cip(), timeout=timeout, target=target)
-    if chosen == "profidrive":
-        return ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
+        axis = CipAxis(conn.cip(), timeout=timeout, target=target)
+    elif chosen == "profidrive":
+        axis = ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)
-    if chosen == "cia402":
-        return Cia402Axis(conn.objects(), conn.transport(), timeout=timeout, target=target)
-    raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
+    elif chosen == "cia402":
+        axis = Cia402Axis(conn.objects(), conn.transport(), timeout=timeout, target=target)
+    else:
+        raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
+    transport = conn.transport()
+    axis.time_scale_source = lambda: float(getattr(transport, "time_scale", 1.0))
+    return axis
 
 
 # ====================================================================== running a motion safely
@@ -900,14 +915,16 @@ class MotionRun:
         except AkdError as exc:
             self._stop_and_raise(exc)
         end = time.monotonic() + deadline_s
+        poll = self.axis.poll()
         while True:
             if self.interrupted():
                 _, outcome = self.axis.safe_stop()
                 raise Interrupted(f"interrupted during {what}; {outcome}", details={"stop": outcome})
             try:
-                status = self.axis.read_status()
+                status = poll.read(self.axis.read_status)
             except AkdError as exc:
                 self._stop_and_raise(exc)
+            poll.observe(status.word)
             if self.progress is not None:
                 self.progress(status)
             if status.fault:
@@ -927,4 +944,4 @@ class MotionRun:
                 if on_deadline == "stop":
                     return status
                 self._stop_and_raise(DriveError(f"{what} did not finish within {deadline_s:.1f} s"))
-            time.sleep(POLL_S)
+            poll.pause()

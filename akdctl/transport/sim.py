@@ -75,6 +75,13 @@ class SimTransport(Transport):
         self.record_link = None
         self.mailbox_link = None
 
+    @property
+    def time_scale(self) -> float:
+        """Seconds of the drive's virtual time per wall second (``sim speed``) as of its last transaction: the
+        axis' waits poll that much faster (drive/polling.py). Transports of real drives have no such attribute."""
+        meta = getattr(self.drive, "meta", None)
+        return float(meta.get("time_scale", 1.0)) if isinstance(meta, dict) else 1.0
+
     def al_state(self) -> str | None:
         """The simulated drive's EtherCAT AL state (its ``pdo`` component), so commands whose rules
         depend on it (PDO mapping only in PRE-OP) can check before writing; None if unknown."""

@@ -1,0 +1,178 @@
+"""The measuring rules every benchmark row follows, written once.
+
+Why one module: a benchmark flatters as soon as one row measures differently from the others (blocks instead of
+pairs, a baseline from another run, PNU/s divided by round trips/s). So every row uses the same three tools:
+
+* :func:`interleave` - two workloads A and B run in alternating blocks (A, B, A, B ...) and every figure is the
+  median over the rounds, so a noisy neighbour on this shared machine slows both sides of a pair alike and a ratio
+  is only ever taken between two blocks measured side by side;
+* :class:`Sample` - one block's wall time and the client's CPU time (``time.thread_time``), per operation;
+* :class:`ProcessCpu` - the CPU time another process (a server) spent, from ``/proc/PID/task/*/schedstat``
+  (nanoseconds, every thread) with ``/proc/PID/stat`` (clock ticks) as the fallback.
+
+Which akdctl is measured: the one ``import akdctl`` finds (``PYTHONPATH`` first), never this checkout by accident,
+so another work package measures its own tree with this runner. Subprocesses get the same tree first on
+``PYTHONPATH`` (:func:`akdctl_env`).
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def akdctl_root() -> Path:
+    """The directory holding the ``akdctl`` package that is measured (PYTHONPATH first, else the installed one)."""
+    try:
+        import akdctl
+    except ImportError:  # run from a bare checkout without PYTHONPATH: measure that checkout
+        sys.path.insert(0, str(HERE.parent))
+        import akdctl
+    return Path(akdctl.__file__).resolve().parent.parent
+
+
+def akdctl_env(**extra: str) -> dict[str, str]:
+    """This environment with the measured tree first on PYTHONPATH (and bytecode writing allowed: an installed
+    package has its .pyc files, so a cold start must not include compiling)."""
+    env = dict(os.environ)
+    root = str(akdctl_root())
+    paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
+    env["PYTHONPATH"] = os.pathsep.join([root, *paths])
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env.pop("AKDCTL_TARGET", None)
+    env.pop("AKDCTL_PROFILE", None)
+    env.update(extra)
+    return env
+
+
+@dataclass
+class Sample:
+    """One block of ``n`` operations: wall seconds, client CPU seconds, server CPU seconds (None if unknown)."""
+
+    n: int
+    wall: float
+    cpu: float
+    server_cpu: float | None = None
+    extra: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def wall_us(self) -> float:
+        return self.wall / self.n * 1e6
+
+    @property
+    def cpu_us(self) -> float:
+        return self.cpu / self.n * 1e6
+
+    @property
+    def server_us(self) -> float | None:
+        return None if self.server_cpu is None else self.server_cpu / self.n * 1e6
+
+
+def run_block(op: Callable[[], object], n: int, server: ProcessCpu | None = None) -> Sample:
+    """``op`` ``n`` times in this thread; wall time, this thread's CPU time and the server's CPU time."""
+    s0 = server.seconds() if server is not None else None
+    c0, t0 = time.thread_time(), time.perf_counter()
+    for _ in range(n):
+        op()
+    wall, cpu = time.perf_counter() - t0, time.thread_time() - c0
+    s1 = server.seconds() if server is not None else None
+    return Sample(n, wall, cpu, None if s0 is None or s1 is None else s1 - s0)
+
+
+class Interleaved:
+    """The samples of an interleaved run: ``runs[k][i]`` is workload k's block in round i (all side by side)."""
+
+    def __init__(self, count: int) -> None:
+        self.runs: list[list[Sample]] = [[] for _ in range(count)]
+
+    def ratio(self, a: int, b: int, key: Callable[[Sample], float] = lambda s: s.wall_us) -> float:
+        """Median over rounds of key(a)/key(b)."""
+        return statistics.median(key(x) / key(y) for x, y in zip(self.runs[a], self.runs[b]))
+
+    def diff(self, a: int, b: int, key: Callable[[Sample], float] = lambda s: s.wall_us) -> float:
+        """Median over rounds of key(a) - key(b)."""
+        return statistics.median(key(x) - key(y) for x, y in zip(self.runs[a], self.runs[b]))
+
+    def median(self, k: int, key: Callable[[Sample], float | None] = lambda s: s.wall_us) -> float | None:
+        values = [v for v in (key(s) for s in self.runs[k]) if v is not None]
+        return statistics.median(values) if values else None
+
+
+def interleave(*workloads: Callable[[], Sample], rounds: int, warmup: bool = True) -> Interleaved:
+    """Blocks A, B, (C ...), A, B ... for ``rounds`` rounds, after one unmeasured block of each."""
+    if warmup:
+        for work in workloads:
+            work()
+    out = Interleaved(len(workloads))
+    for _ in range(rounds):
+        for k, work in enumerate(workloads):
+            out.runs[k].append(work())
+    return out
+
+
+class ProcessCpu:
+    """CPU seconds a process has used so far (all its threads), read from /proc."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.source = "schedstat" if self._schedstat() is not None else "stat"
+
+    def _schedstat(self) -> float | None:
+        total = 0
+        try:
+            tasks = os.listdir(f"/proc/{self.pid}/task")
+            for task in tasks:
+                try:
+                    with open(f"/proc/{self.pid}/task/{task}/schedstat") as fh:
+                        total += int(fh.read().split()[0])
+                except FileNotFoundError:
+                    continue  # a thread that ended meanwhile (its time is lost: threads are not used per request)
+        except (OSError, ValueError, IndexError):
+            return None
+        return total / 1e9
+
+    def seconds(self) -> float | None:
+        if self.source == "schedstat":
+            return self._schedstat()
+        try:
+            with open(f"/proc/{self.pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, ValueError, IndexError):
+            return None
+
+
+@dataclass
+class Settings:
+    """How long the rows measure: ``rounds`` interleaved rounds of ``block`` operations (``--quick`` shrinks both)."""
+
+    quick: bool
+    tmp: Path
+    rounds: int
+    block: int
+    process_rounds: int  # interleaved pairs of process starts (cold start, raw master workers)
+
+
+@dataclass
+class Result:
+    """One goal row's outcome: the measured figure as printed, pass (True), short (False) or skipped (None)."""
+
+    value: str
+    ok: bool | None
+    notes: list[str] = field(default_factory=list)
+    figures: dict[str, float | None] = field(default_factory=dict)
+
+
+def fmt_us(value: float | None) -> str:
+    return "-" if value is None else f"{value:.0f} µs" if value >= 10 else f"{value:.1f} µs"
+
+
+def fmt_ratio(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3g}"
