@@ -30,6 +30,8 @@ from canopen.sdo.constants import (
     SDO_STRUCT,
 )
 
+from akdctl.protocol.coe import ABORT_GENERAL
+
 logger = logging.getLogger(__name__)
 
 #: Segments per sub-block the server offers (CiA 301: 1..127).
@@ -81,7 +83,7 @@ class BlockSdoServer(SdoServer):
             self._reset()
         super().on_request(can_id, data, timestamp)
 
-    def abort(self, abort_code: int = 0x08000000) -> None:
+    def abort(self, abort_code: int = ABORT_GENERAL) -> None:
         """Send an abort and forget any block transfer in progress."""
         self._reset()
         super().abort(abort_code)

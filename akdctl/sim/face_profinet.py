@@ -26,10 +26,10 @@ from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
-from akdctl.errors import UsageError
+from akdctl.errors import CommError, UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
@@ -254,7 +254,10 @@ class ProfinetFace(Face):
                     data, peer = self._sock.recvfrom(65535)
                 except OSError:
                     continue
-                self._datagram(data, peer[:2])
+                try:
+                    self._datagram(data, peer[:2])
+                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                    request_failed("profinet", exc)
 
     def _send_due(self) -> None:
         now = time.monotonic()
@@ -333,6 +336,9 @@ class ProfinetFace(Face):
                 status, blocks = self._call(head, packet.body, peer)
             except CodecError:
                 status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+            except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
+                request_failed("profinet", exc)
+                status, blocks = _failure_status(head.opnum, exc), b""
             body = pnio.encode_response_args(status, blocks, little=head.little_endian)
             reply = self._reply_header(head, dcerpc.PT_RESPONSE)
             frames = (dcerpc.fragment_body(reply, body, self.fragment) if self.fragment
@@ -420,7 +426,11 @@ class ProfinetFace(Face):
             self.stats.busy_answers += 1
             return answer(pnio.rw_error(True, 0xB5))                  # still working on the last request
         self.stats.bmp_requests += 1
-        response = self.drive.handle_bmp(req.data)
+        try:
+            response = self.drive.handle_bmp(req.data)
+        except Exception as exc:  # noqa: BLE001 - the parameter manager failed: a record error, not silence
+            request_failed("profinet", exc)
+            return answer(_failure_status(pnio.OP_WRITE, exc))
         ar.pending = (now + self.delay, response)
         return answer(pnio.OK)
 
@@ -459,6 +469,15 @@ class ProfinetFace(Face):
         return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
                         hardware_revision=4, sw_revision=("V", 1, 13, 0), revision_counter=0,
                         profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)
+
+
+def _failure_status(opnum: int, exc: Exception) -> pnio.PnioStatus:
+    """The status for a request the device failed to carry out: a record access gets "resource busy" (0xC2, the
+    client retries) while the drive is locked by another process, else "resource unavailable" (0xC3); any other
+    call a CMRPC state conflict."""
+    if opnum in (pnio.OP_READ, pnio.OP_WRITE, pnio.OP_READ_IMPLICIT):
+        return pnio.rw_error(opnum == pnio.OP_WRITE, 0xC2 if isinstance(exc, CommError) else 0xC3)
+    return pnio.PnioStatus(0x81, 0x81, 0x40, 0x06)
 
 
 def _nca(status: int, head: dcerpc.RpcHeader) -> bytes:
