@@ -191,3 +191,67 @@ def test_ethernetip_face_answers_a_failing_drive_with_a_cip_status_and_keeps_ser
         assert code == 0, err
     finally:
         face.stop()
+
+
+# ------------------------------------------------------------------ 17.2: a stray block download never sticks
+STRAY_BLOCK_DOWNLOAD = bytes.fromhex("C6 00 20 01 00 00 00 00")  # 601#C6.00.20.01.00.00.00.00, as in the report
+
+
+@pytest.fixture
+def can_node(tmp_path: Path):  # type: ignore[no-untyped-def]
+    """A CANopen face (node 1) on a private virtual channel, and a raw bus on the same channel."""
+    import uuid
+
+    import can
+
+    channel = f"akd-{uuid.uuid4().hex[:10]}"
+    face = _served(face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec(f"virtual:{channel}:1")))
+    bus = can.Bus(interface="virtual", channel=channel)
+    try:
+        yield channel, bus
+    finally:
+        bus.shutdown()
+        face.stop()
+
+
+def _sdo_reply(bus, timeout: float = 2.0) -> bytes:  # type: ignore[no-untyped-def]
+    """The next frame the node sends on 0x581 (other traffic, e.g. the boot-up message, is skipped)."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while (left := deadline - time.monotonic()) > 0:
+        msg = bus.recv(left)
+        if msg is not None and msg.arbitration_id == 0x581:
+            return bytes(msg.data)
+    raise AssertionError("the node sent no SDO reply")
+
+
+def _send(bus, cob: int, data: bytes) -> None:  # type: ignore[no-untyped-def]
+    import can
+
+    bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
+
+
+def test_nmt_reset_forgets_a_stray_block_download(can_node, akd_inproc) -> None:  # type: ignore[no-untyped-def]
+    channel, bus = can_node
+    _send(bus, 0x601, STRAY_BLOCK_DOWNLOAD)
+    assert _sdo_reply(bus)[0] & 0xE0 == 0xA0  # block download initiate response: the server waits for segments
+    target = ("-T", f"can://virtual/{channel}/1", "--timeout", "1")
+    code, _, err = akd_inproc(*target, "can", "nmt", "reset")
+    assert code == 0, err
+    code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+    assert code == 0 and "106" in out, err
+
+
+def test_an_unfinished_block_download_is_aborted_after_the_sdo_timeout(
+        can_node, akd_inproc, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    from akdctl.sim.can_sdo import BlockSdoServer
+
+    monkeypatch.setattr(BlockSdoServer, "TRANSFER_TIMEOUT", 0.05)
+    channel, bus = can_node
+    _send(bus, 0x601, STRAY_BLOCK_DOWNLOAD)
+    assert _sdo_reply(bus)[0] & 0xE0 == 0xA0
+    abort = _sdo_reply(bus)  # CiA 301: the server aborts the transfer it waited for in vain
+    assert abort[0] == 0x80 and abort[1:4] == bytes.fromhex("00 20 01") and abort[4:] == bytes.fromhex("00 00 04 05")
+    code, out, err = akd_inproc("-T", f"can://virtual/{channel}/1", "--timeout", "1", "sdo", "read", "0x1018:1")
+    assert code == 0 and "106" in out, err

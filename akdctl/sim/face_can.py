@@ -296,6 +296,8 @@ class CanFace(Face):
 
         while not self._stop.wait(POLL):
             try:
+                if self.node is not None:
+                    self.node.sdo.expire()
                 self._send_emergencies()
                 if self.state != 5:
                     continue
@@ -343,6 +345,8 @@ def _make_node(face: CanFace) -> Any:
         """NMT slave with a drive's reset behaviour: reset -> boot-up -> PRE-OPERATIONAL."""
 
         def boot(self) -> None:
+            """Power-on and NMT reset: no SDO transfer survives, boot-up message, PRE-OPERATIONAL."""
+            face.node.sdo.reset()
             self._state = 0
             self.network.send_message(0x700 + self.id, bytes([0]))
             self._state = 127
