@@ -4,6 +4,7 @@ No test here sends a packet off the machine: sockets bind to 127.0.0.1 and the C
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -255,3 +256,27 @@ def test_an_unfinished_block_download_is_aborted_after_the_sdo_timeout(
     assert abort[0] == 0x80 and abort[1:4] == bytes.fromhex("00 20 01") and abort[4:] == bytes.fromhex("00 00 04 05")
     code, out, err = akd_inproc("-T", f"can://virtual/{channel}/1", "--timeout", "1", "sdo", "read", "0x1018:1")
     assert code == 0 and "106" in out, err
+
+
+# ------------------------------------------------------------------ 17.3: slcan-pty removes only its own link
+def test_slcan_pty_never_replaces_an_existing_path(akd_inproc, tmp_path: Path) -> None:
+    notes = tmp_path / "notes.txt"
+    notes.write_text("keep me\n")
+    code, out, err = akd_inproc("sim", "serve", "--can", f"slcan-pty:{notes}:1", "--duration", "0")
+    assert code == 2 and "already exists and is left alone" in err and len(err.strip().splitlines()) == 1, err
+    assert notes.read_text() == "keep me\n" and "listening" not in out
+
+
+def test_slcan_pty_link_is_made_and_removed_only_while_it_is_ours(tmp_path: Path) -> None:
+    from akdctl.sim.slcan_device import SlcanDeviceBus
+
+    link = tmp_path / "akd-tty"
+    bus = SlcanDeviceBus(link=str(link))
+    assert os.readlink(link) == bus.tty_path
+    bus.shutdown()
+    assert not link.exists() and not link.is_symlink()
+    bus = SlcanDeviceBus(link=str(link))
+    link.unlink()
+    link.write_text("someone else's file now\n")  # replaced while the face ran
+    bus.shutdown()
+    assert link.read_text() == "someone else's file now\n"
