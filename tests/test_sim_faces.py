@@ -280,3 +280,56 @@ def test_slcan_pty_link_is_made_and_removed_only_while_it_is_ours(tmp_path: Path
     link.write_text("someone else's file now\n")  # replaced while the face ran
     bus.shutdown()
     assert link.read_text() == "someone else's file now\n"
+
+
+# ------------------------------------------------------------------ 17.4: PROFINET AR slots and timeout
+def _connect_without_release(port: int, station: bytes) -> None:
+    """One Device Access AR Connect, never released (a client that crashed)."""
+    import socket
+    import uuid
+
+    from akdctl.protocol import dcerpc, pnio
+
+    req = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, uuid.uuid4(), 1, b"\x02\x00\x00\x00\x00\x01", pnio.object_uuid(0, 0, 0),
+                          pnio.DEVICE_ACCESS_PROPERTIES, 1000, station)  # activity timeout 100 s
+    head = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=pnio.object_uuid(0x100, 1),
+                            interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=uuid.uuid4(), sequence=0,
+                            opnum=pnio.OP_CONNECT, flags1=dcerpc.FLAG_IDEMPOTENT)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.settimeout(2)
+        sock.sendto(dcerpc.encode_packet(head, pnio.encode_request_args(req.encode())), ("127.0.0.1", port))
+        reply = dcerpc.decode_packet(sock.recv(4096))
+    assert pnio.decode_response_args(reply.body, reply.header.little_endian)[0].ok
+
+
+def test_profinet_ar_slots_and_timeout_are_options_and_a_full_device_names_the_holders(
+        akd_inproc, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.harness import wait_until
+
+    face = face_profinet.from_options(SimDrive("default", tmp_path), profinet="127.0.0.1:0", pn_ars=2,
+                                      pn_ar_timeout=0.5)
+    assert face is not None and face.max_ars == 2
+    face.start()
+    target = ("-T", f"pn://127.0.0.1:{face.port}", "--timeout", "2")
+    try:
+        _connect_without_release(face.port, b"crashed-tool-1")
+        _connect_without_release(face.port, b"crashed-tool-2")
+        code, _, err = akd_inproc(*target, "pnu", "get", "930")
+        assert code == 1 and "out of AR resources (DB 81 40 04)" in err and "activity timeout" in err, err
+        assert "profinet: Connect from 127.0.0.1" in err and "2 held: AR " in err
+        assert "of crashed-tool-1 at 127.0.0.1" in err and "of crashed-tool-2" in err
+        wait_until(lambda: not face._ars, "the face to drop the stale ARs after --pn-ar-timeout", timeout=10)
+        code, out, err = akd_inproc(*target, "pnu", "get", "930")
+        assert code == 0 and "930" in out, err
+    finally:
+        face.stop()
+
+
+def test_profinet_face_defaults_keep_the_devices_behaviour() -> None:
+    face = face_profinet.from_options(None, profinet="127.0.0.1:0")
+    assert face is not None and face.max_ars == face_profinet.MAX_ARS and face.ar_timeout is None
+
+
+def test_bad_ar_timeout_is_a_usage_error(akd_inproc) -> None:
+    code, _, err = akd_inproc("sim", "serve", "--profinet", "127.0.0.1:0", "--pn-ar-timeout", "-1", "--duration", "0")
+    assert code == 2 and "--pn-ar-timeout" in err

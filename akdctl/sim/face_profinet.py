@@ -19,6 +19,7 @@ import itertools
 import os
 import select
 import socket
+import sys
 import threading
 import time
 import uuid
@@ -34,7 +35,7 @@ from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
-MAX_ARS = 4
+MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
 
 
@@ -93,6 +94,11 @@ OPTIONS = (
                help="Split response bodies into DCE/RPC fragments of this many bytes (0: only when needed)."),
     FaceOption("--pn-refuse-ar", "pn_refuse_ar", is_flag=True, default=False,
                help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
+    FaceOption("--pn-ars", "pn_ars", type=int, range=(1, 64), default=MAX_ARS, show_default=True, metavar="N",
+               help="ARs the device holds at once; one more Connect is refused 'out of AR resources'."),
+    FaceOption("--pn-ar-timeout", "pn_ar_timeout", type=float, metavar="SECONDS",
+               help="Drop an AR after this many seconds without a request (default: the client's activity "
+                    "timeout factor x 100 ms, as a device does)."),
     FaceOption("--pn-station", "pn_station", default="akd-sim", show_default=True,
                help="PROFINET station name (NameOfStation) the simulated device reports."),
     FaceOption("--dcp", "dcp_iface", metavar="IFNAME",
@@ -116,7 +122,16 @@ def from_options(drive: Any, **kwargs: Any) -> "ProfinetFace | None":
         slot=int(kwargs.get("pn_slot", 1)), subslot=int(kwargs.get("pn_subslot", 1)), api=api,
         fragment=int(kwargs.get("pn_fragment") or 0), refuse_ar=bool(kwargs.get("pn_refuse_ar")),
         station_name=str(kwargs.get("pn_station") or "akd-sim"), dcp_iface=kwargs.get("dcp_iface"),
+        max_ars=int(kwargs.get("pn_ars") or MAX_ARS), ar_timeout=_ar_timeout(kwargs.get("pn_ar_timeout")),
     )
+
+
+def _ar_timeout(value: Any) -> float | None:
+    if value is None:
+        return None
+    if not 0 < float(value) <= 3600:
+        raise UsageError(f"--pn-ar-timeout {value}: give seconds greater than 0 and at most 3600")
+    return float(value)
 
 
 # ---------------------------------------------------------------- AR state
@@ -128,6 +143,7 @@ class _AR:
     timeout: float
     peer: tuple[str, int]
     last_activity: float
+    station: str = ""  # the CM initiator's station name (who holds this AR)
     # the parameter manager's one response slot: (ready at monotonic time, response bytes)
     pending: tuple[float, bytes] | None = None
 
@@ -165,7 +181,8 @@ class ProfinetFace(Face):
                  delay: float = 0.0, injection: Injection | None = None, slot: int = 1, subslot: int = 1,
                  api: int = pnio.API_PROFIDRIVE, fragment: int = 0, refuse_ar: bool = False,
                  station_name: str = "akd-sim", dcp_iface: str | None = None,
-                 mac: bytes = b"\x02\x00\x00\x00\xAD\x01") -> None:
+                 mac: bytes = b"\x02\x00\x00\x00\xAD\x01", max_ars: int = MAX_ARS,
+                 ar_timeout: float | None = None) -> None:
         self.drive = drive
         self.host, self.port = host, port
         self.delay = max(0.0, delay)
@@ -175,6 +192,8 @@ class ProfinetFace(Face):
         self.refuse_ar = refuse_ar
         self.station_name = station_name
         self.dcp_iface = dcp_iface
+        self.max_ars = max_ars
+        self.ar_timeout = ar_timeout  # None: each AR's own activity timeout, as the client asked
         self.mac = mac
         self.stats = FaceStats()
         self.vendor_id, self.device_id = 0x0100, 0x0001
@@ -377,11 +396,27 @@ class ProfinetFace(Face):
             return pnio.PnioStatus(*pnio.AR_PROPERTIES_REFUSED), b""
         if not 1 <= req.timeout_factor <= 1000:
             return pnio.PnioStatus(0xDB, 0x81, 0x01, 0x0A), b""
-        if req.ar_uuid not in self._ars and len(self._ars) >= MAX_ARS:
-            return pnio.PnioStatus(0xDB, 0x81, 0x3E, 0x00), b""       # out of AR resources
-        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, req.timeout_factor * 0.1, peer, time.monotonic())
+        if req.ar_uuid not in self._ars and len(self._ars) >= self.max_ars:
+            self._report_full(peer)
+            return pnio.PnioStatus(*pnio.OUT_OF_AR_RESOURCES), b""
+        timeout = self.ar_timeout if self.ar_timeout is not None else req.timeout_factor * 0.1
+        station = req.station_name.decode("ascii", "replace")
+        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, timeout, peer, time.monotonic(), station)
         res = pnio.ARBlockRes(req.ar_type, req.ar_uuid, req.session_key, self.mac)
         return pnio.OK, res.encode()
+
+    def _report_full(self, peer: tuple[str, int]) -> None:
+        """Name the ARs holding every slot: the refused client cannot learn it from the device (PROFINET has no
+        field for it), the person running the simulator can."""
+        now = time.monotonic()
+        holders = "; ".join(
+            f"AR {ar.ar_uuid} of {ar.station or '?'} at {ar.peer[0]}:{ar.peer[1]}, idle {now - ar.last_activity:.1f} s, "
+            f"dropped in {max(0.0, ar.timeout - (now - ar.last_activity)):.1f} s without a request"
+            for ar in self._ars.values())
+        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(self._ars)} held: {holders})"
+        self.stats.log.append(text)
+        sys.stderr.write(f"akdctl: warning: profinet: {text}\n")
+        sys.stderr.flush()
 
     def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
         rel = pnio.ReleaseBlock.decode(blocks)
