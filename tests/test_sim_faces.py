@@ -44,7 +44,12 @@ def test_udp_multicast_face_warns_that_the_bus_reaches_the_lan(tmp_path: Path) -
     drive = SimDrive("default", tmp_path)
     lan = face_can.CanFace(drive, face_can.parse_spec("udp_multicast:239.74.163.2:1"))
     assert any("reachable from the LAN" in w for w in lan.warnings())
-    assert face_can.CanFace(drive, face_can.parse_spec("virtual:bench:1")).warnings() == []
+    assert face_can.CanFace(drive, face_can.parse_spec("slcan-pty:-:1")).warnings() == []
+
+
+def test_virtual_can_face_warns_that_the_bus_is_process_local(tmp_path: Path) -> None:
+    (warning,) = face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec("virtual:0")).warnings()
+    assert "exists only inside this process" in warning and "slcan-pty" in warning
 
 
 def test_serve_help_says_udp_multicast_reaches_the_lan() -> None:
@@ -333,3 +338,29 @@ def test_profinet_face_defaults_keep_the_devices_behaviour() -> None:
 def test_bad_ar_timeout_is_a_usage_error(akd_inproc) -> None:
     code, _, err = akd_inproc("sim", "serve", "--profinet", "127.0.0.1:0", "--pn-ar-timeout", "-1", "--duration", "0")
     assert code == 2 and "--pn-ar-timeout" in err
+
+
+
+# ------------------------------------------------------------------ 14: sim serve with a CAN face
+@pytest.mark.slow
+@pytest.mark.parametrize("spec", ["virtual:0", "slcan-pty:-:1"])
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_serve_with_a_can_face_stops_on_a_signal(spec: str, signame: str) -> None:
+    """The process ends by itself, cleanly, after the signal (the deadline only guards against a hang)."""
+    import signal
+    import subprocess
+
+    from tests.harness import SimServer
+
+    with SimServer("--can", spec) as server:
+        proc = server.proc
+        assert proc is not None
+        proc.send_signal(getattr(signal, signame))
+        try:
+            code = proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"sim serve --can {spec} still runs 10 s after {signame}")
+        assert code == 0, server.stderr
+        assert "Traceback" not in server.stderr
+        if spec.startswith("virtual"):
+            assert "virtual bus exists only inside this process" in server.stderr

@@ -178,6 +178,11 @@ class CanFace(Face):
         close_bus(network, bus)
 
     def warnings(self) -> list[str]:
+        """What the chosen bus means beyond this process: the LAN for udp_multicast, nothing for virtual."""
+        if self.spec.interface == "virtual":
+            return [f"--can {self.spec.interface}: python-can's virtual bus exists only inside this process, so no "
+                    "other process (akdctl -T can://virtual/..., candump) can reach this node; use slcan-pty or a vcan "
+                    "interface (socketcan) to reach it from other processes"]
         if self.spec.interface != "udp_multicast":
             return []
         return [f"--can {self.spec.interface}: python-can's udp_multicast listens on all interfaces and sends "
