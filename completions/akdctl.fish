@@ -170,6 +170,8 @@ complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-api -d 'API of the parameter channel.'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-fragment -d 'Split response bodies into DCE/RPC fragments of this many bytes (0: on'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-refuse-ar -d 'Refuse every AR (as a device that does not allow supervisor/device-acc'
+complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-ars -d 'ARs the device holds at once; one more Connect is refused \'out of AR r'
+complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-ar-timeout -d 'Drop an AR after this many seconds without a request (default: the cli'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l pn-station -d 'PROFINET station name (NameOfStation) the simulated device reports.'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l dcp -d 'Also answer DCP identify/set/signal on this interface (raw socket, nee'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ethercat-udp -d 'Serve an ETG.8200 EtherCAT mailbox gateway on UDP (default 127.0.0.1:3'

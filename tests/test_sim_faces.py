@@ -4,6 +4,7 @@ No test here sends a packet off the machine: sockets bind to 127.0.0.1 and the C
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -43,7 +44,12 @@ def test_udp_multicast_face_warns_that_the_bus_reaches_the_lan(tmp_path: Path) -
     drive = SimDrive("default", tmp_path)
     lan = face_can.CanFace(drive, face_can.parse_spec("udp_multicast:239.74.163.2:1"))
     assert any("reachable from the LAN" in w for w in lan.warnings())
-    assert face_can.CanFace(drive, face_can.parse_spec("virtual:bench:1")).warnings() == []
+    assert face_can.CanFace(drive, face_can.parse_spec("slcan-pty:-:1")).warnings() == []
+
+
+def test_virtual_can_face_warns_that_the_bus_is_process_local(tmp_path: Path) -> None:
+    (warning,) = face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec("virtual:0")).warnings()
+    assert "exists only inside this process" in warning and "slcan-pty" in warning
 
 
 def test_serve_help_says_udp_multicast_reaches_the_lan() -> None:
@@ -78,3 +84,283 @@ def test_serve_prints_ready_line_on_stdout_and_face_warnings_on_stderr(monkeypat
     assert result.exit_code == 0, result.output
     assert "listening: can udp_multicast 239.74.163.2 node 1\n" in result.stdout
     assert "akdctl: warning: this CAN bus is reachable from the LAN" in result.stderr
+
+
+# ------------------------------------------------------------------ 17.1: a failing drive never ends a face
+class _FailingDrive:
+    """Makes the next ``count`` drive transactions raise ``exc``, as a state file locked by another process or a
+    full disk does, then lets them through again."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.left, self.exc = 0, OSError(28, "No space left on device")
+        original = SimDrive.transaction
+
+        def transaction(drive: SimDrive, *args: object, **kwargs: object):  # type: ignore[no-untyped-def]
+            if self.left > 0:
+                self.left -= 1
+                raise self.exc
+            return original(drive, *args, **kwargs)
+
+        monkeypatch.setattr(SimDrive, "transaction", transaction)
+
+    def fail(self, exc: BaseException | None = None, count: int = 1) -> None:
+        self.exc, self.left = exc or self.exc, count
+
+
+@pytest.fixture
+def failing(monkeypatch: pytest.MonkeyPatch) -> _FailingDrive:
+    return _FailingDrive(monkeypatch)
+
+
+def _served(face: Face) -> Face:
+    face.start()
+    return face
+
+
+def test_profinet_face_answers_a_failing_drive_with_a_record_error_and_keeps_serving(
+        akd_inproc, failing: _FailingDrive, tmp_path: Path) -> None:
+    from akdctl.errors import CommError
+
+    face = _served(face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0))
+    target = ("-T", f"pn://127.0.0.1:{face.port}", "--timeout", "2")
+    try:
+        failing.fail()
+        code, _, err = akd_inproc(*target, "pnu", "get", "930")
+        assert code != 0 and "resource unavailable" in err
+        assert "akdctl: warning: profinet: a request failed" in err and "No space left on device" in err
+        failing.fail(CommError("simulated drive 'default' is locked by another process for more than 5 s"))
+        code, out, err = akd_inproc(*target, "pnu", "get", "930")  # "busy" (0xC2): the client asks again
+        assert code == 0 and "930" in out, err
+        assert akd_inproc(*target, "pnu", "get", "930")[0] == 0
+    finally:
+        face.stop()
+
+
+def test_ethercat_udp_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_serving(
+        akd_inproc, failing: _FailingDrive, tmp_path: Path) -> None:
+    face = _served(face_ethercat_udp.from_options(SimDrive("default", tmp_path), ethercat_udp="127.0.0.1:0"))
+    target = ("-T", f"ecat-udp://127.0.0.1:{face.port}/1001", "--timeout", "2")  # type: ignore[attr-defined]
+    try:
+        failing.fail()
+        code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+        assert code == 1 and "0x08000000" in err
+        code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+        assert code == 0 and "106" in out, err
+    finally:
+        face.stop()
+
+
+def test_ethercat_raw_slave_answers_a_failing_drive_with_an_sdo_abort(failing: _FailingDrive, tmp_path: Path) -> None:
+    from akdctl.protocol.coe import SdoAbort, decode_coe, decode_sdo
+    from akdctl.protocol.mailbox import decode_mailbox
+    from akdctl.sim.ecat_inject import WARMUP_REQUEST
+    from akdctl.sim.face_ethercat_raw import EthercatRawFace
+
+    worker = EthercatRawFace("pair0", SimDrive("default", tmp_path), face_ethercat_udp.Injector()).worker
+    failing.fail()
+    (reply,), lost = worker.answer(WARMUP_REQUEST)
+    abort = decode_sdo(decode_coe(decode_mailbox(reply).data)[2], from_server=True)
+    assert not lost and isinstance(abort, SdoAbort) and abort.code == 0x08000000
+    (reply,), _ = worker.answer(WARMUP_REQUEST)
+    assert not isinstance(decode_sdo(decode_coe(decode_mailbox(reply).data)[2], from_server=True), SdoAbort)
+
+
+def test_can_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_serving(
+        akd_inproc, failing: _FailingDrive, tmp_path: Path) -> None:
+    import uuid
+
+    channel = f"akd-{uuid.uuid4().hex[:10]}"
+    face = _served(face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec(f"virtual:{channel}:1")))
+    target = ("-T", f"can://virtual/{channel}/1", "--timeout", "2")
+    try:
+        failing.fail()
+        code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+        assert code == 1 and "0x08000000" in err
+        code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+        assert code == 0 and "106" in out, err
+    finally:
+        face.stop()
+
+
+def test_ethernetip_face_answers_a_failing_drive_with_a_cip_status_and_keeps_serving(
+        akd_inproc, failing: _FailingDrive, tmp_path: Path) -> None:
+    from akdctl.sim import face_ethernetip
+
+    face = _served(face_ethernetip.EthernetIpFace(SimDrive("default", tmp_path), "127.0.0.1", 0, io_port=0))
+    target = ("-T", f"eip://127.0.0.1:{face.port}", "--timeout", "2")
+    try:
+        failing.fail(count=5)
+        code, _, err = akd_inproc(*target, "cip", "get", "0x25/1/1", "u8")
+        assert code == 1, err
+        failing.fail(count=0)
+        code, out, err = akd_inproc(*target, "cip", "get", "0x25/1/1", "u8")
+        assert code == 0, err
+    finally:
+        face.stop()
+
+
+# ------------------------------------------------------------------ 17.2: a stray block download never sticks
+STRAY_BLOCK_DOWNLOAD = bytes.fromhex("C6 00 20 01 00 00 00 00")  # 601#C6.00.20.01.00.00.00.00, as in the report
+
+
+@pytest.fixture
+def can_node(tmp_path: Path):  # type: ignore[no-untyped-def]
+    """A CANopen face (node 1) on a private virtual channel, and a raw bus on the same channel."""
+    import uuid
+
+    import can
+
+    channel = f"akd-{uuid.uuid4().hex[:10]}"
+    face = _served(face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec(f"virtual:{channel}:1")))
+    bus = can.Bus(interface="virtual", channel=channel)
+    try:
+        yield channel, bus
+    finally:
+        bus.shutdown()
+        face.stop()
+
+
+def _sdo_reply(bus, timeout: float = 2.0) -> bytes:  # type: ignore[no-untyped-def]
+    """The next frame the node sends on 0x581 (other traffic, e.g. the boot-up message, is skipped)."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while (left := deadline - time.monotonic()) > 0:
+        msg = bus.recv(left)
+        if msg is not None and msg.arbitration_id == 0x581:
+            return bytes(msg.data)
+    raise AssertionError("the node sent no SDO reply")
+
+
+def _send(bus, cob: int, data: bytes) -> None:  # type: ignore[no-untyped-def]
+    import can
+
+    bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
+
+
+def test_nmt_reset_forgets_a_stray_block_download(can_node, akd_inproc) -> None:  # type: ignore[no-untyped-def]
+    channel, bus = can_node
+    _send(bus, 0x601, STRAY_BLOCK_DOWNLOAD)
+    assert _sdo_reply(bus)[0] & 0xE0 == 0xA0  # block download initiate response: the server waits for segments
+    target = ("-T", f"can://virtual/{channel}/1", "--timeout", "1")
+    code, _, err = akd_inproc(*target, "can", "nmt", "reset")
+    assert code == 0, err
+    code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
+    assert code == 0 and "106" in out, err
+
+
+def test_an_unfinished_block_download_is_aborted_after_the_sdo_timeout(
+        can_node, akd_inproc, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    from akdctl.sim.can_sdo import BlockSdoServer
+
+    monkeypatch.setattr(BlockSdoServer, "TRANSFER_TIMEOUT", 0.05)
+    channel, bus = can_node
+    _send(bus, 0x601, STRAY_BLOCK_DOWNLOAD)
+    assert _sdo_reply(bus)[0] & 0xE0 == 0xA0
+    abort = _sdo_reply(bus)  # CiA 301: the server aborts the transfer it waited for in vain
+    assert abort[0] == 0x80 and abort[1:4] == bytes.fromhex("00 20 01") and abort[4:] == bytes.fromhex("00 00 04 05")
+    code, out, err = akd_inproc("-T", f"can://virtual/{channel}/1", "--timeout", "1", "sdo", "read", "0x1018:1")
+    assert code == 0 and "106" in out, err
+
+
+# ------------------------------------------------------------------ 17.3: slcan-pty removes only its own link
+def test_slcan_pty_never_replaces_an_existing_path(akd_inproc, tmp_path: Path) -> None:
+    notes = tmp_path / "notes.txt"
+    notes.write_text("keep me\n")
+    code, out, err = akd_inproc("sim", "serve", "--can", f"slcan-pty:{notes}:1", "--duration", "0")
+    assert code == 2 and "already exists and is left alone" in err and len(err.strip().splitlines()) == 1, err
+    assert notes.read_text() == "keep me\n" and "listening" not in out
+
+
+def test_slcan_pty_link_is_made_and_removed_only_while_it_is_ours(tmp_path: Path) -> None:
+    from akdctl.sim.slcan_device import SlcanDeviceBus
+
+    link = tmp_path / "akd-tty"
+    bus = SlcanDeviceBus(link=str(link))
+    assert os.readlink(link) == bus.tty_path
+    bus.shutdown()
+    assert not link.exists() and not link.is_symlink()
+    bus = SlcanDeviceBus(link=str(link))
+    link.unlink()
+    link.write_text("someone else's file now\n")  # replaced while the face ran
+    bus.shutdown()
+    assert link.read_text() == "someone else's file now\n"
+
+
+# ------------------------------------------------------------------ 17.4: PROFINET AR slots and timeout
+def _connect_without_release(port: int, station: bytes) -> None:
+    """One Device Access AR Connect, never released (a client that crashed)."""
+    import socket
+    import uuid
+
+    from akdctl.protocol import dcerpc, pnio
+
+    req = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, uuid.uuid4(), 1, b"\x02\x00\x00\x00\x00\x01", pnio.object_uuid(0, 0, 0),
+                          pnio.DEVICE_ACCESS_PROPERTIES, 1000, station)  # activity timeout 100 s
+    head = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=pnio.object_uuid(0x100, 1),
+                            interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=uuid.uuid4(), sequence=0,
+                            opnum=pnio.OP_CONNECT, flags1=dcerpc.FLAG_IDEMPOTENT)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.settimeout(2)
+        sock.sendto(dcerpc.encode_packet(head, pnio.encode_request_args(req.encode())), ("127.0.0.1", port))
+        reply = dcerpc.decode_packet(sock.recv(4096))
+    assert pnio.decode_response_args(reply.body, reply.header.little_endian)[0].ok
+
+
+def test_profinet_ar_slots_and_timeout_are_options_and_a_full_device_names_the_holders(
+        akd_inproc, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.harness import wait_until
+
+    face = face_profinet.from_options(SimDrive("default", tmp_path), profinet="127.0.0.1:0", pn_ars=2,
+                                      pn_ar_timeout=0.5)
+    assert face is not None and face.max_ars == 2
+    face.start()
+    target = ("-T", f"pn://127.0.0.1:{face.port}", "--timeout", "2")
+    try:
+        _connect_without_release(face.port, b"crashed-tool-1")
+        _connect_without_release(face.port, b"crashed-tool-2")
+        code, _, err = akd_inproc(*target, "pnu", "get", "930")
+        assert code == 1 and "out of AR resources (DB 81 40 04)" in err and "activity timeout" in err, err
+        assert "profinet: Connect from 127.0.0.1" in err and "2 held: AR " in err
+        assert "of crashed-tool-1 at 127.0.0.1" in err and "of crashed-tool-2" in err
+        wait_until(lambda: not face._ars, "the face to drop the stale ARs after --pn-ar-timeout", timeout=10)
+        code, out, err = akd_inproc(*target, "pnu", "get", "930")
+        assert code == 0 and "930" in out, err
+    finally:
+        face.stop()
+
+
+def test_profinet_face_defaults_keep_the_devices_behaviour() -> None:
+    face = face_profinet.from_options(None, profinet="127.0.0.1:0")
+    assert face is not None and face.max_ars == face_profinet.MAX_ARS and face.ar_timeout is None
+
+
+def test_bad_ar_timeout_is_a_usage_error(akd_inproc) -> None:
+    code, _, err = akd_inproc("sim", "serve", "--profinet", "127.0.0.1:0", "--pn-ar-timeout", "-1", "--duration", "0")
+    assert code == 2 and "--pn-ar-timeout" in err
+
+
+
+# ------------------------------------------------------------------ 14: sim serve with a CAN face
+@pytest.mark.slow
+@pytest.mark.parametrize("spec", ["virtual:0", "slcan-pty:-:1"])
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_serve_with_a_can_face_stops_on_a_signal(spec: str, signame: str) -> None:
+    """The process ends by itself, cleanly, after the signal (the deadline only guards against a hang)."""
+    import signal
+    import subprocess
+
+    from tests.harness import SimServer
+
+    with SimServer("--can", spec) as server:
+        proc = server.proc
+        assert proc is not None
+        proc.send_signal(getattr(signal, signame))
+        try:
+            code = proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"sim serve --can {spec} still runs 10 s after {signame}")
+        assert code == 0, server.stderr
+        assert "Traceback" not in server.stderr
+        if spec.startswith("virtual"):
+            assert "virtual bus exists only inside this process" in server.stderr

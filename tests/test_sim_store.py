@@ -153,3 +153,117 @@ def test_stale_temporaries_of_a_killed_writer_are_removed(isolated_env: Path) ->
     other.write_text("{")
     SimDrive("default").handle_bmp(READ_PNU_930)
     assert not stale.exists() and other.exists()
+
+
+# ------------------------------------------------------------------ hostile or unusable state files (17.13, 14)
+def _one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("akdctl: error: "), err
+    return lines[0]
+
+
+@pytest.mark.parametrize("content, words", [
+    (os.urandom(64) + b"\xff\xfe", "not UTF-8"),
+    (b'{"version": 1, "clock": NaN}', "NaN"),
+    (b'{"version": 1, "clock": 1e999}', "finite"),
+    (b'{"version": 1, "sim": {"wall": "yesterday"}}', "sim"),
+    (b"[" * 100000 + b"]" * 100000, "nested too deeply"),
+    (b'{"version": 1, "components": {"motion": {"state": "flying"}}}', "flying"),
+    (b"[]", "not a JSON object"),
+])
+def test_a_hostile_state_file_is_a_one_line_error_and_sim_reset_recovers(
+        akd_inproc, isolated_env: Path, content: bytes, words: str) -> None:
+    isolated_env.mkdir(parents=True, exist_ok=True)
+    (isolated_env / "sim-default.json").write_bytes(content)
+    for argv in (("pnu", "get", "930"), ("sdo", "read", "0x6041"), ("sim", "show")):
+        code, _, err = akd_inproc(*argv)
+        line = _one_line(err)
+        assert code == 2 and "corrupt" in line and words in line and "akdctl sim reset" in line, err
+    assert akd_inproc("sim", "reset")[0] == EXIT_OK
+    assert akd_inproc("pnu", "get", "930")[0] == EXIT_OK
+
+
+def test_a_state_file_that_is_not_a_regular_file_is_refused(akd_inproc, isolated_env: Path) -> None:
+    isolated_env.mkdir(parents=True, exist_ok=True)
+    os.mkfifo(isolated_env / "sim-default.json")  # reading it would block for ever
+    code, _, err = akd_inproc("pnu", "get", "930")
+    assert code == 2 and "not a regular file" in _one_line(err)
+
+
+@pytest.mark.parametrize("errno_, words", [(28, "No space left on device"), (30, "Read-only file system")])
+def test_an_unwritable_state_directory_is_a_one_line_error(
+        akd_inproc, isolated_env: Path, monkeypatch, errno_: int, words: str) -> None:
+    import akdctl.sim.drive as store
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise OSError(errno_, os.strerror(errno_))
+
+    monkeypatch.setattr(store, "atomic_open", refuse)
+    code, _, err = akd_inproc("pnu", "set", "930=2")
+    line = _one_line(err)
+    assert code == 2 and "cannot save simulator state" in line and words in line and "AKDCTL_STATE_DIR" in line
+    assert akd_inproc("pnu", "get", "930")[0] == EXIT_OK  # reads need no write
+    monkeypatch.undo()
+    assert akd_inproc("pnu", "set", "930=2")[0] == EXIT_OK
+
+
+def test_a_state_directory_that_cannot_exist_is_a_one_line_error(akd_inproc, tmp_path: Path, monkeypatch) -> None:
+    (tmp_path / "a-file").write_text("")
+    monkeypatch.setenv("AKDCTL_STATE_DIR", str(tmp_path / "a-file" / "state"))
+    code, _, err = akd_inproc("pnu", "get", "930")
+    assert code == 2 and "cannot open the simulator's lock file" in _one_line(err)
+
+
+def test_stale_temporaries_are_cleaned_by_the_next_command(akd_inproc, isolated_env: Path) -> None:
+    """A writer killed (kill -9) between writing its temporary file and the rename leaves it behind."""
+    assert akd_inproc("pnu", "set", "930=2")[0] == EXIT_OK
+    stale = isolated_env / ".sim-default.a1b2c3d4.tmp"
+    stale.write_text('{"half": ')
+    code, out, _ = akd_inproc("--json", "pnu", "get", "930")
+    assert code == EXIT_OK and json.loads(out)["parameters"][0]["values"] == [2]
+    assert not stale.exists()
+
+
+def test_mutated_state_files_either_load_or_are_reported_corrupt(isolated_env: Path) -> None:
+    """Seeded mutations of a real state file (wrong types, huge numbers, empty containers at any path): every
+    request either works or raises the one-line SimStateError, never anything the CLI would call internal."""
+    import random
+
+    from akdctl.sim.drive import SimStateError
+
+    drive = SimDrive("default")
+    with drive.transaction() as model:
+        model.set_stored_pnu(930, [2])
+        model.set_stored_object(0x6081, 0, b"\x01\x00\x00\x00")
+    base = json.loads(drive.path.read_text())
+    values = [None, True, -1, 0, 2**70, 1.5, -1e300, "x", "", [], {}, [1, "a"], {"a": 1}, "switch_on_disabled"]
+
+    def paths(node: object, at: tuple = ()):  # type: ignore[no-untyped-def]
+        yield at
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for key, child in items:
+            yield from paths(child, at + (key,))
+
+    every = [p for p in paths(base) if p]
+    rng = random.Random(17)
+    for _ in range(300):
+        state = json.loads(json.dumps(base))
+        for _ in range(rng.randint(1, 3)):
+            *parents, last = rng.choice(every)
+            node = state
+            try:
+                for key in parents:
+                    node = node[key]
+                node[last] = rng.choice(values)
+            except (KeyError, IndexError, TypeError):
+                continue  # an earlier mutation removed the path
+        drive.path.write_text(json.dumps(state))
+        fresh = SimDrive("default")
+        try:
+            fresh.handle_bmp(READ_PNU_930)
+            fresh.handle_mailbox(bytes.fromhex("0a00 0000 0003 0020 4064 6000 0000 0000"))  # position actual value
+            fresh.snapshot()
+        except SimStateError:
+            pass
+        finally:
+            fresh.close()

@@ -303,6 +303,14 @@ def pnio_status_text(b0: int, b1: int, b2: int, b3: int) -> str:
     return f"{what}: {detail}{hint} [{hexed}]"
 
 
+# A Connect refused with "out of AR resources" (DB 81 40 04): what holds the device's ARs and when they come free.
+# The device does not say which AR holds a slot; the simulator's face names the holders on its stderr.
+PN_OUT_OF_ARS_HINT = (
+    "every AR the device offers is held, by other supervisors or controllers, or by a client that ended without "
+    "releasing its AR (the device frees that one after the AR's activity timeout); on 'akdctl sim serve' the "
+    "server's stderr names the AR holding each slot")
+
+
 # --- EtherCAT AL status codes (ETG.1000.6) ----------------------------------------------
 
 AL_STATUS_CODE_TEXTS: dict[int, str] = {

@@ -104,12 +104,13 @@ AR_BLOCK_FIELDS = {0: "block type", 1: "block length", 2: "block version high", 
 PNIO_CODE1 = {0x01: "faulty ARBlockReq", 0x02: "faulty IOCRBlockReq", 0x03: "faulty ExpectedSubmoduleBlockReq",
               0x04: "faulty AlarmCRBlockReq", 0x05: "faulty PrmServerBlockReq", 0x08: "faulty IODControlReq",
               0x14: "faulty IODReleaseBlock", 0x3C: "RPC: faulty or unknown opnum", 0x3D: "CM: state conflict",
-              0x3F: "RMPM: argument length invalid", 0x40: "RMPM: unknown blocks", 0x41: "RMPM: invalid state",
-              0x3E: "RPC: out of AR resources"}
+              0x3F: "RMPM: argument length invalid", 0x40: "CMRPC", 0x41: "RMPM: invalid state"}
 
 #: ``DB 81 01 04``: the device does not accept this AR type.
 AR_TYPE_REFUSED = (0xDB, 0x81, 0x01, 0x04)
 AR_PROPERTIES_REFUSED = (0xDB, 0x81, 0x01, 0x09)
+#: ``DB 81 40 04``: Connect refused, CMRPC "out of AR resources" (every AR the device offers is held).
+OUT_OF_AR_RESOURCES = (0xDB, 0x81, 0x40, 0x04)
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,12 @@ block transfer (CiA 301 7.2.4.3.9 ff.), and akdctl's client can use it
 block download with sub-block acknowledgement, retransmission from the last
 good sequence number, and the CRC-16 (XMODEM polynomial 0x1021) when the
 client asks for it. Everything else stays canopen's code.
+
+A block transfer the client leaves unfinished is aborted with 0x05040000
+("SDO protocol timed out") after :attr:`BlockSdoServer.TRANSFER_TIMEOUT`, as a
+CiA 301 server does, and an NMT reset forgets any transfer: otherwise one stray
+block-download initiate would make the server take every later request for a
+sub-block segment.
 """
 
 from __future__ import annotations
@@ -14,14 +20,18 @@ from __future__ import annotations
 import binascii
 import logging
 import struct
+import threading
+import time
 from typing import Any
 
 from canopen.sdo import SdoAbortedError, SdoServer
 from canopen.sdo.constants import (
     ABORT_CRC_ERROR,
+    ABORT_GENERAL_ERROR,
     ABORT_INVALID_BLOCK_SIZE,
     ABORT_INVALID_COMMAND_SPECIFIER,
     ABORT_NO_DATA_AVAILABLE,
+    ABORT_TIMED_OUT,
     REQUEST_ABORTED,
     REQUEST_BLOCK_DOWNLOAD,
     REQUEST_BLOCK_UPLOAD,
@@ -44,8 +54,14 @@ def crc16(data: bytes, value: int = 0) -> int:
 class BlockSdoServer(SdoServer):
     """SDO server with CiA 301 block upload and block download."""
 
+    #: Seconds a block transfer may wait for the client's next frame (CiA 301 leaves the value to the device; the
+    #: AKD's is not documented [I]; 1 s is well above a client's pace between sub-blocks).
+    TRANSFER_TIMEOUT = 1.0
+
     def __init__(self, rx_cobid: int, tx_cobid: int, node: Any) -> None:
         super().__init__(rx_cobid, tx_cobid, node)
+        self._guard = threading.RLock()  # requests arrive on the bus thread, expiry on the face's worker
+        self._last = 0.0  # monotonic time of the last frame of the transfer in progress
         self._index = 0
         self._subindex = 0
         self._mode: str | None = None  # None, "up", "down"
@@ -61,6 +77,25 @@ class BlockSdoServer(SdoServer):
 
     # -- dispatch ---------------------------------------------------------------------------------------------
     def on_request(self, can_id: int, data: bytes, timestamp: float) -> None:
+        with self._guard:
+            if self._mode is not None and time.monotonic() - self._last > self.TRANSFER_TIMEOUT:
+                self._reset()  # stale: expire() normally aborted it already; this frame starts afresh
+            self._last = time.monotonic()
+            self._on_request(can_id, data, timestamp)
+
+    def expire(self) -> None:
+        """Abort a block transfer the client left unfinished for longer than :attr:`TRANSFER_TIMEOUT`."""
+        with self._guard:
+            if self._mode is not None and time.monotonic() - self._last > self.TRANSFER_TIMEOUT:
+                self.abort(ABORT_TIMED_OUT)
+
+    def reset(self) -> None:
+        """Forget any transfer in progress (NMT reset node / reset communication)."""
+        with self._guard:
+            self._reset()
+            self._buffer, self._toggle = None, 0
+
+    def _on_request(self, can_id: int, data: bytes, timestamp: float) -> None:
         if len(data) < 8:
             data = bytes(data).ljust(8, b"\0")
         if self._mode == "down" and not self._down_done:
@@ -81,7 +116,7 @@ class BlockSdoServer(SdoServer):
             self._reset()
         super().on_request(can_id, data, timestamp)
 
-    def abort(self, abort_code: int = 0x08000000) -> None:
+    def abort(self, abort_code: int = ABORT_GENERAL_ERROR) -> None:
         """Send an abort and forget any block transfer in progress."""
         self._reset()
         super().abort(abort_code)

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from akdctl.sim.inject_spec import parse_every_nth
 
 KINDS = ("drop", "mbxerr", "abort")
-ABORT_GENERAL = 0x08000000
 MBX_ERR_SERVICE_NOT_SUPPORTED = 4
+MBX_ERR_NO_MORE_MEMORY = 7
 
 
 @dataclass
@@ -78,9 +78,10 @@ def mailbox_error_reply(request: bytes, code: int = MBX_ERR_SERVICE_NOT_SUPPORTE
                                   counter=mbx.counter))
 
 
-def sdo_abort_reply(request: bytes, code: int = ABORT_GENERAL) -> bytes | None:
-    """An SDO abort answering the SDO request in ``request``; None if it is no SDO request."""
-    from akdctl.protocol.coe import CoeService, SdoAbort, decode_coe, encode_coe, encode_sdo
+def sdo_abort_reply(request: bytes, code: int | None = None) -> bytes | None:
+    """An SDO abort (``code``, default general error) answering the SDO request in ``request``; None if it is no
+    SDO request."""
+    from akdctl.protocol.coe import ABORT_GENERAL, CoeService, SdoAbort, decode_coe, encode_coe, encode_sdo
     from akdctl.protocol.errors import CodecError
     from akdctl.protocol.mailbox import Mailbox, MailboxType, decode_mailbox, encode_mailbox
 
@@ -92,9 +93,21 @@ def sdo_abort_reply(request: bytes, code: int = ABORT_GENERAL) -> bytes | None:
         if service != CoeService.SDO_REQUEST or len(payload) < 4:
             return None
         index, sub = struct.unpack_from("<HB", payload, 1)
-        abort = encode_sdo(SdoAbort(index, sub, code))
+        abort = encode_sdo(SdoAbort(index, sub, ABORT_GENERAL if code is None else code))
         # an abort travels as CoE service 2 (SDO request), as ETG.1000.6 has it and SOEM expects
         return encode_mailbox(Mailbox(MailboxType.COE, encode_coe(CoeService.SDO_REQUEST, abort), mbx.address,
                                       counter=mbx.counter))
     except CodecError:
         return None
+
+
+def failure_reply(request: bytes) -> list[bytes]:
+    """What the slave answers a mailbox it failed to carry out (its drive raised): an SDO abort (general error) for
+    an SDO request, else a mailbox error; nothing when the request is not even a mailbox. Shared by the EtherCAT
+    faces so the master always learns that the request failed instead of waiting for its timeout."""
+    from akdctl.protocol.errors import CodecError
+
+    try:
+        return [sdo_abort_reply(request) or mailbox_error_reply(request, MBX_ERR_NO_MORE_MEMORY)]
+    except CodecError:
+        return []

@@ -10,6 +10,8 @@ test can bind port 0 and read the port from it).
 
 from __future__ import annotations
 
+import sys
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,3 +48,22 @@ class Face:
     def warnings(self) -> list[str]:
         """Things the user must know once the face runs (printed on stderr by ``sim serve``)."""
         return []
+
+
+_reported: dict[str, str] = {}
+_report_lock = threading.Lock()
+
+
+def request_failed(where: str, exc: BaseException) -> None:
+    """A request made the drive raise (state file locked or unwritable, a model error): the face answers it with
+    its protocol's error and keeps serving. Say why on stderr, once per face and distinct message, so the cause is
+    visible without a flood when every request fails the same way."""
+    from akdctl.errors import AkdError
+
+    text = str(exc) if isinstance(exc, AkdError) else f"{type(exc).__name__}: {exc}"  # ours say it in words
+    with _report_lock:
+        if _reported.get(where) == text:
+            return
+        _reported[where] = text
+    sys.stderr.write(f"akdctl: warning: {where}: a request failed, answered with an error: {text}\n")
+    sys.stderr.flush()

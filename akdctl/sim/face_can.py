@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qsl
 
-from akdctl.errors import AkdError, UsageError
+from akdctl.errors import UsageError
 from akdctl.io.canbus import BusConfig, close_bus, open_bus
-from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.face import Face, FaceOption, request_failed
 
 if TYPE_CHECKING:
     import can
@@ -178,6 +178,11 @@ class CanFace(Face):
         close_bus(network, bus)
 
     def warnings(self) -> list[str]:
+        """What the chosen bus means beyond this process: the LAN for udp_multicast, nothing for virtual."""
+        if self.spec.interface == "virtual":
+            return [f"--can {self.spec.interface}: python-can's virtual bus exists only inside this process, so no "
+                    "other process (akdctl -T can://virtual/..., candump) can reach this node; use slcan-pty or a vcan "
+                    "interface (socketcan) to reach it from other processes"]
         if self.spec.interface != "udp_multicast":
             return []
         return [f"--can {self.spec.interface}: python-can's udp_multicast listens on all interfaces and sends "
@@ -201,9 +206,8 @@ class CanFace(Face):
     def heartbeat_time(self) -> int:
         try:
             return int.from_bytes(self.drive.object_read(0x1017, 0), "little")
-        except AkdError:
-            return 0
-        except Exception:
+        except Exception as exc:  # noqa: BLE001 - no heartbeat rather than no node
+            request_failed("can", exc)
             return 0
 
     def on_state(self, state: int) -> None:
@@ -246,14 +250,28 @@ class CanFace(Face):
         config = self._rpdos.get(can_id)
         if config is None or self.state != 5:
             return
-        with self._lock, self.drive.transaction() as model:
-            ok = can_pdo.unpack(model, config, bytes(data))
+        try:
+            with self._lock, self.drive.transaction() as model:
+                ok = can_pdo.unpack(model, config, bytes(data))
+        except Exception as exc:  # noqa: BLE001 - a PDO the drive could not take is lost, as on a busy node
+            request_failed("can", exc)
+            return
         if not ok and self.node is not None:
             self.node.emcy.send(0x8210, 0x10)  # PDO not processed due to length error
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self.state != 5:
             return
+        try:
+            out = self._sync_pdos()
+        except Exception as exc:  # noqa: BLE001 - no TPDOs this SYNC; the next one tries again
+            request_failed("can", exc)
+            return
+        for config, payload in out:
+            self._send_pdo(config, payload)
+
+    def _sync_pdos(self) -> list[tuple[Any, bytes]]:
+        """The synchronous TPDOs due at this SYNC, with their payloads."""
         with self._lock, self.drive.transaction() as model:
             if self._pdo_dirty:
                 self._reload_pdos(model)
@@ -270,8 +288,7 @@ class CanFace(Face):
                     payload = can_pdo.pack(model, config)
                     if payload != config.last:
                         out.append((config, payload))
-        for config, payload in out:
-            self._send_pdo(config, payload)
+        return out
 
     def _send_pdo(self, config: Any, payload: bytes) -> None:
         config.last = payload
@@ -284,6 +301,8 @@ class CanFace(Face):
 
         while not self._stop.wait(POLL):
             try:
+                if self.node is not None:
+                    self.node.sdo.expire()
                 self._send_emergencies()
                 if self.state != 5:
                     continue
@@ -303,7 +322,8 @@ class CanFace(Face):
                             out.append((config, payload))
                 for config, payload in out:
                     self._send_pdo(config, payload)
-            except Exception:  # a busy state file or a bus hiccup must not end the node
+            except Exception as exc:  # noqa: BLE001 - a busy state file or a bus hiccup must not end the node
+                request_failed("can", exc)
                 continue
 
     def _send_emergencies(self) -> None:
@@ -323,12 +343,15 @@ def _make_node(face: CanFace) -> Any:
     from canopen.sdo import SdoAbortedError
 
     from akdctl.sim.can_sdo import BlockSdoServer
+    from akdctl.protocol.coe import ABORT_GENERAL
     from akdctl.sim.errors import SdoAccessError
 
     class SimNmt(NmtSlave):
         """NMT slave with a drive's reset behaviour: reset -> boot-up -> PRE-OPERATIONAL."""
 
         def boot(self) -> None:
+            """Power-on and NMT reset: no SDO transfer survives, boot-up message, PRE-OPERATIONAL."""
+            face.node.sdo.reset()
             self._state = 0
             self.network.send_message(0x700 + self.id, bytes([0]))
             self._state = 127
@@ -372,16 +395,18 @@ def _make_node(face: CanFace) -> Any:
                 return predefined_cob_id(index, subindex, face.drive.object_read(index, subindex), self.id)
             except SdoAccessError as exc:
                 raise SdoAbortedError(exc.code) from None
-            except AkdError:
-                raise SdoAbortedError(0x08000000) from None
+            except Exception as exc:  # noqa: BLE001 - the drive failed: general error abort, the node goes on
+                request_failed("can", exc)
+                raise SdoAbortedError(ABORT_GENERAL) from None
 
         def set_data(self, index: int, subindex: int, data: bytes, check_writable: bool = False) -> None:
             try:
                 face.drive.object_write(index, subindex, bytes(data))
             except SdoAccessError as exc:
                 raise SdoAbortedError(exc.code) from None
-            except AkdError:
-                raise SdoAbortedError(0x08000000) from None
+            except Exception as exc:  # noqa: BLE001 - the drive failed: general error abort, the node goes on
+                request_failed("can", exc)
+                raise SdoAbortedError(ABORT_GENERAL) from None
             face.on_written(index, subindex, bytes(data))
 
     return SimNode()

@@ -21,9 +21,9 @@ from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import akd_sii_image
 from akdctl.sim.drive import SimDrive
-from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
+from akdctl.sim.ecat_inject import Injector, failure_reply, mailbox_error_reply, sdo_abort_reply, warm_up
 from akdctl.sim.esc import Esc
-from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.pdo import AL_STATE_CODES
 
 
@@ -58,9 +58,13 @@ class SlaveWorker:
             request = self.esc.take_request(0.2)
             if request is None:
                 continue
-            self.esc.post_replies(*self.answer(request))
+            try:
+                self.esc.post_replies(*self.answer(request))
+            except Exception as exc:  # noqa: BLE001 - the application must outlive any one mailbox
+                request_failed("ethercat-raw", exc)
 
     def answer(self, request: bytes) -> tuple[list[bytes], bool]:
+        """The replies to one mailbox and whether injection loses them; never raises."""
         fault = self.injector.decide()
         try:
             if fault == "mbxerr":
@@ -69,9 +73,12 @@ class SlaveWorker:
                 return [abort], False
             return self.drive.handle_mailbox(request), fault == "drop"
         except CodecError:
-            return [mailbox_error_reply(request, 1)], False
-        except Exception:  # noqa: BLE001 - the slave must keep running; the master sees a mailbox error
-            return [mailbox_error_reply(request, 7)], False
+            with contextlib.suppress(CodecError):
+                return [mailbox_error_reply(request, 1)], False  # syntax of the mailbox protocol header wrong
+            return [], False
+        except Exception as exc:  # noqa: BLE001 - the slave must keep running; the master sees an abort
+            request_failed("ethercat-raw", exc)
+            return failure_reply(request), False
 
     def stop(self) -> None:
         self._stop.set()
@@ -162,11 +169,11 @@ class EthercatRawFace(Face):
         if src[0] & 0x02:
             return None  # already passed a slave's port 0 (our own echo on a shared segment)
         al = self.al if self.al is not None and self.al.touches(datagrams) else None
-        if al is not None:
-            al.pull()
+        if al is not None and not _synced(al.pull):
+            al = None  # the ESC still answers the frame; the AL state is synced when the registers are next touched
         self.esc.process(datagrams)
         if al is not None:
-            al.push()
+            _synced(al.push)
         if self.esc.lost_frame:
             return None
         # an ESC sets bit 1 of the source MAC's first byte when the frame leaves port 0
@@ -183,7 +190,8 @@ class EthercatRawFace(Face):
                 break
             try:
                 reply = self.handle_frame(frame)
-            except Exception:  # noqa: BLE001 - a frame that breaks the ESC is lost, as on a wire
+            except Exception as exc:  # noqa: BLE001 - a frame that breaks the ESC is lost, as on a wire
+                request_failed("ethercat-raw", exc)
                 reply = None
             if reply is not None:
                 with contextlib.suppress(OSError):
@@ -204,6 +212,17 @@ class EthercatRawFace(Face):
         inject = self.injector.describe()
         extra = f" inject {inject}" if inject != "none" else ""
         return f"ethercat-raw {self.ifname} slave AKD serial {self.esc.sii.serial}{extra}"
+
+
+def _synced(step: object) -> bool:
+    """Run one AL-state sync step with the drive model; a failing model (its state file locked) costs the sync, not
+    the frame."""
+    try:
+        step()  # type: ignore[operator]
+        return True
+    except Exception as exc:  # noqa: BLE001
+        request_failed("ethercat-raw", exc)
+        return False
 
 
 def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:

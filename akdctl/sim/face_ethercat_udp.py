@@ -18,8 +18,8 @@ from dataclasses import replace
 
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
-from akdctl.sim.ecat_inject import Injector, warm_up, mailbox_error_reply, sdo_abort_reply
-from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.ecat_inject import Injector, failure_reply, mailbox_error_reply, sdo_abort_reply, warm_up
+from akdctl.sim.face import Face, FaceOption, request_failed
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
@@ -97,6 +97,9 @@ class GatewayHandler:
                 replies = drive.handle_mailbox(raw)
             except CodecError:
                 replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
+            except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
+                request_failed("ethercat-udp", exc)
+                replies = failure_reply(raw)
         out = []
         for reply in replies:
             try:
@@ -142,7 +145,8 @@ class EthercatUdpFace(Face):
                 break
             try:
                 replies = self.handler.handle(data)
-            except Exception:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
+            except Exception as exc:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
+                request_failed("ethercat-udp", exc)
                 replies = []
             for reply in replies:
                 with contextlib.suppress(OSError):

@@ -31,7 +31,7 @@ from akdctl.protocol import akd_assembly as asm
 from akdctl.protocol import cip, enip
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.cip_device import CipDevice, IdentitySettings
-from akdctl.sim.face import Face, FaceOption
+from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:44818"
@@ -219,7 +219,12 @@ class EthernetIpFace(Face):
                 body = _recv_exact(client, header.length) if header.length else b""
                 if body is None:
                     return
-                reply = self._handle_tcp(header, body, sessions, peer)
+                try:
+                    reply = self._handle_tcp(header, body, sessions, peer)
+                except Exception as exc:  # noqa: BLE001 - answered with an encapsulation error, the session goes on
+                    request_failed("ethernetip", exc)
+                    reply = enip.Packet(header.command, b"", header.session, enip.STATUS_NO_MEMORY,
+                                        header.context).encode()
                 if reply is _CLOSE:
                     return
                 if reply is not None:
@@ -409,11 +414,13 @@ class EthernetIpFace(Face):
             except CodecError:
                 continue
             if packet.command == enip.LIST_IDENTITY:
-                answer = enip.Packet(enip.LIST_IDENTITY, self._list_identity(), 0, 0, packet.context).encode()
                 try:
+                    answer = enip.Packet(enip.LIST_IDENTITY, self._list_identity(), 0, 0, packet.context).encode()
                     self.udp.sendto(answer, peer)
                 except OSError:
                     pass
+                except Exception as exc:  # noqa: BLE001 - no answer this time; the face goes on
+                    request_failed("ethernetip", exc)
 
     def _io_loop(self) -> None:
         assert self.io_sock is not None
@@ -440,7 +447,10 @@ class EthernetIpFace(Face):
                 self._close_io("consumer timeout")
                 continue
             if now >= io.next_produce:
-                self._produce(io)
+                try:
+                    self._produce(io)
+                except Exception as exc:  # noqa: BLE001 - this production is lost (the originator sees a gap)
+                    request_failed("ethernetip", exc)
                 io.next_produce = max(io.next_produce + io.to_rpi_s, now)
 
     def _consume(self, data: bytes) -> None:

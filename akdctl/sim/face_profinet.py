@@ -19,6 +19,7 @@ import itertools
 import os
 import select
 import socket
+import sys
 import threading
 import time
 import uuid
@@ -26,16 +27,16 @@ from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
-from akdctl.errors import UsageError
+from akdctl.errors import CommError, UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.sim.face import Face, FaceOption
 from akdctl.sim.errors import RecordRefused
+from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
-MAX_ARS = 4
+MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
 
 
@@ -94,6 +95,11 @@ OPTIONS = (
                help="Split response bodies into DCE/RPC fragments of this many bytes (0: only when needed)."),
     FaceOption("--pn-refuse-ar", "pn_refuse_ar", is_flag=True, default=False,
                help="Refuse every AR (as a device that does not allow supervisor/device-access ARs)."),
+    FaceOption("--pn-ars", "pn_ars", type=int, range=(1, 64), default=MAX_ARS, show_default=True, metavar="N",
+               help="ARs the device holds at once; one more Connect is refused 'out of AR resources'."),
+    FaceOption("--pn-ar-timeout", "pn_ar_timeout", type=float, metavar="SECONDS",
+               help="Drop an AR after this many seconds without a request (default: the client's activity "
+                    "timeout factor x 100 ms, as a device does)."),
     FaceOption("--pn-station", "pn_station", default="akd-sim", show_default=True,
                help="PROFINET station name (NameOfStation) the simulated device reports."),
     FaceOption("--dcp", "dcp_iface", metavar="IFNAME",
@@ -117,7 +123,16 @@ def from_options(drive: Any, **kwargs: Any) -> "ProfinetFace | None":
         slot=int(kwargs.get("pn_slot", 1)), subslot=int(kwargs.get("pn_subslot", 1)), api=api,
         fragment=int(kwargs.get("pn_fragment") or 0), refuse_ar=bool(kwargs.get("pn_refuse_ar")),
         station_name=str(kwargs.get("pn_station") or "akd-sim"), dcp_iface=kwargs.get("dcp_iface"),
+        max_ars=int(kwargs.get("pn_ars") or MAX_ARS), ar_timeout=_ar_timeout(kwargs.get("pn_ar_timeout")),
     )
+
+
+def _ar_timeout(value: Any) -> float | None:
+    if value is None:
+        return None
+    if not 0 < float(value) <= 3600:
+        raise UsageError(f"--pn-ar-timeout {value}: give seconds greater than 0 and at most 3600")
+    return float(value)
 
 
 # ---------------------------------------------------------------- AR state
@@ -129,6 +144,7 @@ class _AR:
     timeout: float
     peer: tuple[str, int]
     last_activity: float
+    station: str = ""  # the CM initiator's station name (who holds this AR)
     # the parameter manager's one response slot: (ready at monotonic time, response bytes)
     pending: tuple[float, bytes] | None = None
 
@@ -166,7 +182,8 @@ class ProfinetFace(Face):
                  delay: float = 0.0, injection: Injection | None = None, slot: int = 1, subslot: int = 1,
                  api: int = pnio.API_PROFIDRIVE, fragment: int = 0, refuse_ar: bool = False,
                  station_name: str = "akd-sim", dcp_iface: str | None = None,
-                 mac: bytes = b"\x02\x00\x00\x00\xAD\x01") -> None:
+                 mac: bytes = b"\x02\x00\x00\x00\xAD\x01", max_ars: int = MAX_ARS,
+                 ar_timeout: float | None = None) -> None:
         self.drive = drive
         self.host, self.port = host, port
         self.delay = max(0.0, delay)
@@ -176,6 +193,8 @@ class ProfinetFace(Face):
         self.refuse_ar = refuse_ar
         self.station_name = station_name
         self.dcp_iface = dcp_iface
+        self.max_ars = max_ars
+        self.ar_timeout = ar_timeout  # None: each AR's own activity timeout, as the client asked
         self.mac = mac
         self.stats = FaceStats()
         self.vendor_id, self.device_id = 0x0100, 0x0001
@@ -255,7 +274,10 @@ class ProfinetFace(Face):
                     data, peer = self._sock.recvfrom(65535)
                 except OSError:
                     continue
-                self._datagram(data, peer[:2])
+                try:
+                    self._datagram(data, peer[:2])
+                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                    request_failed("profinet", exc)
 
     def _send_due(self) -> None:
         now = time.monotonic()
@@ -334,6 +356,9 @@ class ProfinetFace(Face):
                 status, blocks = self._call(head, packet.body, peer)
             except CodecError:
                 status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+            except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
+                request_failed("profinet", exc)
+                status, blocks = _failure_status(head.opnum, exc), b""
             body = pnio.encode_response_args(status, blocks, little=head.little_endian)
             reply = self._reply_header(head, dcerpc.PT_RESPONSE)
             frames = (dcerpc.fragment_body(reply, body, self.fragment) if self.fragment
@@ -372,11 +397,27 @@ class ProfinetFace(Face):
             return pnio.PnioStatus(*pnio.AR_PROPERTIES_REFUSED), b""
         if not 1 <= req.timeout_factor <= 1000:
             return pnio.PnioStatus(0xDB, 0x81, 0x01, 0x0A), b""
-        if req.ar_uuid not in self._ars and len(self._ars) >= MAX_ARS:
-            return pnio.PnioStatus(0xDB, 0x81, 0x3E, 0x00), b""       # out of AR resources
-        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, req.timeout_factor * 0.1, peer, time.monotonic())
+        if req.ar_uuid not in self._ars and len(self._ars) >= self.max_ars:
+            self._report_full(peer)
+            return pnio.PnioStatus(*pnio.OUT_OF_AR_RESOURCES), b""
+        timeout = self.ar_timeout if self.ar_timeout is not None else req.timeout_factor * 0.1
+        station = req.station_name.decode("ascii", "replace")
+        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, timeout, peer, time.monotonic(), station)
         res = pnio.ARBlockRes(req.ar_type, req.ar_uuid, req.session_key, self.mac)
         return pnio.OK, res.encode()
+
+    def _report_full(self, peer: tuple[str, int]) -> None:
+        """Name the ARs holding every slot: the refused client cannot learn it from the device (PROFINET has no
+        field for it), the person running the simulator can."""
+        now = time.monotonic()
+        holders = "; ".join(
+            f"AR {ar.ar_uuid} of {ar.station or '?'} at {ar.peer[0]}:{ar.peer[1]}, idle {now - ar.last_activity:.1f} s, "
+            f"dropped in {max(0.0, ar.timeout - (now - ar.last_activity)):.1f} s without a request"
+            for ar in self._ars.values())
+        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(self._ars)} held: {holders})"
+        self.stats.log.append(text)
+        sys.stderr.write(f"akdctl: warning: profinet: {text}\n")
+        sys.stderr.flush()
 
     def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
         rel = pnio.ReleaseBlock.decode(blocks)
@@ -425,6 +466,9 @@ class ProfinetFace(Face):
             response = self.drive.handle_bmp(req.data)
         except RecordRefused as exc:  # a request no base-mode response can answer (docs/fidelity.md F1)
             return answer(pnio.rw_error(True, exc.code1))
+        except Exception as exc:  # noqa: BLE001 - the parameter manager failed: a record error, not silence
+            request_failed("profinet", exc)
+            return answer(_failure_status(pnio.OP_WRITE, exc))
         ar.pending = (now + self.delay, response)
         return answer(pnio.OK)
 
@@ -463,6 +507,15 @@ class ProfinetFace(Face):
         return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
                         hardware_revision=4, sw_revision=("V", 1, 13, 0), revision_counter=0,
                         profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)
+
+
+def _failure_status(opnum: int, exc: Exception) -> pnio.PnioStatus:
+    """The status for a request the device failed to carry out: a record access gets "resource busy" (0xC2, the
+    client retries) while the drive is locked by another process, else "resource unavailable" (0xC3); any other
+    call a CMRPC state conflict."""
+    if opnum in (pnio.OP_READ, pnio.OP_WRITE, pnio.OP_READ_IMPLICIT):
+        return pnio.rw_error(opnum == pnio.OP_WRITE, 0xC2 if isinstance(exc, CommError) else 0xC3)
+    return pnio.PnioStatus(0x81, 0x81, 0x40, 0x06)
 
 
 def _nca(status: int, head: dcerpc.RpcHeader) -> bytes:

@@ -27,6 +27,8 @@ from typing import Any
 
 import can
 
+from akdctl.errors import UsageError
+
 OK = b"\r"
 ERROR = b"\a"
 #: Bitrates of the ``Sn`` command (Lawicel).
@@ -37,7 +39,8 @@ class SlcanDeviceBus(can.BusABC):
     """A python-can bus whose wire is the master side of a fresh pseudo-terminal.
 
     ``tty_path`` is the device a host opens (``can://slcan//dev/pts/N/NODE``);
-    ``link`` optionally names a symlink to it that is created and removed with the bus.
+    ``link`` optionally names a symlink to it that is created and removed with the bus. The link must be a new
+    path: whatever already exists there (a user's file, a link of another run) is never replaced or removed.
     """
 
     def __init__(self, channel: Any = None, link: str | None = None, **kwargs: Any) -> None:
@@ -48,10 +51,10 @@ class SlcanDeviceBus(can.BusABC):
         self.link = link
         if link:
             try:
-                os.unlink(link)
-            except FileNotFoundError:
-                pass
-            os.symlink(self.tty_path, link)
+                os.symlink(self.tty_path, link)  # fails on any existing path: nothing is overwritten
+            except OSError as exc:
+                self._close_pty()
+                raise UsageError(_link_refusal(link, exc)) from None
         self.is_open = False
         self.bitrate: int | None = None
         self._buffer = bytearray()
@@ -163,16 +166,27 @@ class SlcanDeviceBus(can.BusABC):
             return
         self._closed = True
         super().shutdown()
+        self._close_pty()
+        if self.link:
+            try:
+                if os.readlink(self.link) == self.tty_path:  # still the link we made, not a path put there since
+                    os.unlink(self.link)
+            except OSError:
+                pass
+
+    def _close_pty(self) -> None:
         for fd in (self._master, self._slave):
             try:
                 os.close(fd)
             except OSError:
                 pass
-        if self.link:
-            try:
-                os.unlink(self.link)
-            except OSError:
-                pass
+
+
+def _link_refusal(link: str, exc: OSError) -> str:
+    if exc.errno == errno.EEXIST:
+        return (f"--can slcan-pty:{link}: {link} already exists and is left alone; name a new path for the link "
+                "(remove it yourself if it is a link an earlier run left behind)")
+    return f"--can slcan-pty:{link}: cannot create the link: {exc.strerror or exc}"
 
 
 def format_frame(msg: can.Message) -> bytes:

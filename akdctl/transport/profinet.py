@@ -277,6 +277,11 @@ class ProfinetTransport(Transport):
                         f"{self.label}: device refuses device-access AR ({status.describe()}); the device does not "
                         "allow a supervisor/device-access connection, which cannot be changed from akdctl",
                         code=status.value)
+                if (status.code, status.decode, status.code1, status.code2) == pnio.OUT_OF_AR_RESOURCES:
+                    from akdctl.catalog.texts import PN_OUT_OF_ARS_HINT
+
+                    raise RecordError(f"{self.label}: device refuses the connection, out of AR resources "
+                                      f"({status.hex()}): {PN_OUT_OF_ARS_HINT}", code=status.value)
                 raise RecordError(f"{self.label}: device refuses the connection: {status.describe()}",
                                   code=status.value)
             try:
