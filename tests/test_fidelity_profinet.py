@@ -147,3 +147,50 @@ def test_sixty_rpm_is_163_the_manuals_example_truncates(akd_inproc) -> None:
     with SimDrive("default").transaction() as model:                   # NIST_A of a drive at 60 rpm reads 163
         model.motion.axis.vel = 1.0
         assert model.pnu_read_raw(6, 0, 1)[1] == [163]
+
+
+# ---------------------------------------------------------------------------------------------------- item 1
+def test_stw2_zsw2_xist_a_are_pnus_and_free_mappable(akd_inproc) -> None:
+    """``004`` 5.8: "The signals are also available in the PNU list. Each signal can be read/write with the same
+    PNU number"; 5.6: "All supported PROFIdrive and manufacture specific signals can be mapped into telegram 0";
+    5.11.4: telegram 9 carries STW2, ZSW2 and XIST_A (SPEC-NOTES 10), ``003`` 6.11.6 telegram 351 XIST_A
+    (SPEC-NOTES 11). So signals 3, 4, 28 are PNUs 3, 4, 28 (docs/fidelity.md F7)."""
+    data = _ok(akd_inproc, "pnu", "get", "3", "4", "28")
+    assert [p["name"] for p in data["parameters"]] == ["STW2", "ZSW2", "XIST_A"]
+    assert _ok(akd_inproc, "--yes", "pnu", "set", "3=0x1000")["written"][0]["values"] == [0x1000]
+    assert akd_inproc("--yes", "pnu", "set", "28=5")[0] == 2                 # an actual value: read only
+    assert [3, 4, 28] == [n for n in _ok(akd_inproc, "telegram", "show")["signal_list"] if n in (3, 4, 28)]
+    assert any(p["pnu"] == 28 for p in _ok(akd_inproc, "pnu", "list", "--drive")["parameters"])
+    _ok(akd_inproc, "--yes", "telegram", "set", "0")
+    mapped = _ok(akd_inproc, "--yes", "telegram", "map", "--actual", "2,6,28", "--setpoint", "1,3,5")
+    assert [w["name"] for w in mapped["actual"]] == ["ZSW1", "NIST_A", "XIST_A", "XIST_A"]
+    for number, setpoint, actual in ((9, {"STW2"}, {"ZSW2", "XIST_A"}), (351, set(), {"XIST_A"})):
+        state = _ok(akd_inproc, "--yes", "telegram", "set", str(number))
+        assert setpoint <= {w["name"] for w in state["setpoint"]} and actual <= {w["name"] for w in state["actual"]}
+
+
+def test_xist_a_counts_follow_pnu_1002(akd_inproc) -> None:
+    """``004`` 5.12.2: positions count 2^PNU1002 per revolution; XIST_A at 1.5 rev is 98304 with 16 bits and
+    1572864 with 20, and ``status`` shows the position from it."""
+    with SimDrive("default").transaction() as model:
+        model.motion.axis.pos = 1.5
+    assert _ok(akd_inproc, "pnu", "get", "28")["parameters"][0]["values"] == [98304]
+    _ok(akd_inproc, "--yes", "pnu", "set", "1002=20")
+    assert _ok(akd_inproc, "pnu", "get", "28")["parameters"][0]["values"] == [1572864]
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["position_rev"] == 1.5 and status["counts_per_rev"] == 1 << 20
+
+
+@pytest.mark.slow
+def test_status_over_profinet_shows_the_position() -> None:
+    """Through the real CLI and the PNIO face: ``-T pn://… status`` has no object channel, and shows the position
+    from XIST_A (PNU 28)."""
+    from tests.harness import SimServer, run_akdctl
+
+    with SimDrive("default").transaction() as model:
+        model.motion.axis.pos = 2.25
+    with SimServer("--profinet", "127.0.0.1:0") as server:
+        code, out, err = run_akdctl("-T", f"pn://{server.host}:{server.port}", "--json", "status")
+    assert code == 0, err
+    status = json.loads(out)["status"]
+    assert status["position_rev"] == 2.25 and status["position_counts"] == 2.25 * 65536

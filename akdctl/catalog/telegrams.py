@@ -66,16 +66,18 @@ def _s(number: int, name: str, words: int, direction: str, signed: bool, pnu: in
     return Signal(number, name, words, direction, signed, pnu, text)
 
 
-# AKD signal table (004 5.8; signal number = PNU) plus STW2/ZSW2/XIST_A of the standard
-# telegrams (PROFIdrive signal numbers 3, 4, 28).
+# AKD signal table (004 5.8; signal number = PNU) plus STW2/ZSW2/XIST_A of the standard telegrams
+# (PROFIdrive signal numbers 3, 4, 28): 5.8 "Each signal can be read/write with the same PNU number" and 5.6
+# "All supported PROFIdrive and manufacture specific signals can be mapped into telegram 0", so they are PNUs
+# 3, 4, 28 and free mappable like the others (docs/fidelity.md F7).
 SIGNALS: dict[int, Signal] = {s.number: s for s in (
     _s(1, "STW1", 1, "setpoint", False, 1, "control word 1"),
     _s(2, "ZSW1", 1, "actual", False, 2, "status word 1"),
-    _s(3, "STW2", 1, "setpoint", False, None, "control word 2"),
-    _s(4, "ZSW2", 1, "actual", False, None, "status word 2"),
+    _s(3, "STW2", 1, "setpoint", False, 3, "control word 2"),
+    _s(4, "ZSW2", 1, "actual", False, 4, "status word 2"),
     _s(5, "NSOLL_A", 1, "setpoint", True, 5, "velocity set point (VL.CMD)"),
     _s(6, "NIST_A", 1, "actual", True, 6, "velocity actual value (VL.FB)"),
-    _s(28, "XIST_A", 2, "actual", True, None, "position actual value"),
+    _s(28, "XIST_A", 2, "actual", True, 28, "position actual value"),
     _s(32, "SATZANW", 1, "setpoint", False, 32, "motion task selection (MT.MOVE)"),
     _s(33, "AKTSATZ", 1, "actual", False, 33, "actual motion task (MT.PARAMS)"),
     _s(34, "MDI_TARPOS", 2, "setpoint", True, 34, "MDI target position (MT.P)"),

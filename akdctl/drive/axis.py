@@ -27,7 +27,16 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
-from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
+from akdctl.errors import (
+    AkdError,
+    CommError,
+    DriveError,
+    DriveFault,
+    Interrupted,
+    ParameterRefused,
+    SafetyRefusal,
+    UsageError,
+)
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
@@ -360,9 +369,23 @@ class ProfidriveAxis(Axis):
     def stw1(self, word: int) -> None:
         self._write((1, word))
 
+    def _read_with_position(self, *pnus: int) -> dict[int, list[int]]:
+        """``pnus`` (a refusal raises) plus XIST_A (PNU 28) in the same request, left out when refused: the
+        manual's PNU table does not list it, so a drive may not offer it (docs/fidelity.md F7)."""
+        from akdctl.drive.values import pnu_spec, read_pnus
+
+        out: dict[int, list[int]] = {}
+        for reading in read_pnus(self.params, [pnu_spec(p) for p in (*pnus, 28)]):
+            if reading.ok:
+                out[reading.spec.pnu] = list(reading.values or [])
+            elif reading.spec.pnu != 28:
+                raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
+                                       code=reading.error)
+        return out
+
     # ---------------------------------------------------------------- status
     def read_status(self) -> AxisStatus:
-        values = self._read(2, 1, 930, 6, 52, 1002)
+        values = self._read_with_position(2, 1, 930, 6, 52, 1002)
         zsw1, stw1, opmode = values[2][0], values[1][0], values[930][0]
         nist, itist, bits = values[6][0], values[52][0], values[1002][0]
         state = sw.profidrive_state(zsw1, stw1)
@@ -375,7 +398,9 @@ class ProfidriveAxis(Axis):
             except AkdError:
                 faults = []
         position = None
-        if self.objects is not None:
+        if 28 in values:  # XIST_A, 2^PNU1002 counts per revolution (docs/fidelity.md F7)
+            position = units.counts_to_rev(values[28][0], bits)
+        elif self.objects is not None:
             try:
                 position = read_object(self.objects, 0x6064, 0) / CIA_COUNTS_PER_REV
             except AkdError:

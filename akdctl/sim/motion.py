@@ -272,6 +272,8 @@ class MotionComponent(Component):
         m.bind_pnu(2, read=pnu_reader(pd.zsw1))
         m.bind_pnu(5, write=pd.write_nsoll)
         m.bind_pnu(6, read=pnu_reader(lambda: units.rpm_to_x(max(-12000.0, min(12000.0, self.velocity_rpm)), 15)))
+        m.bind_pnu(4, read=pnu_reader(lambda: 0))  # ZSW2: no clock synchronism, so no slave sign of life
+        m.bind_pnu(28, read=pnu_reader(lambda: _clamp32(self.position_counts)))  # XIST_A, 2^PNU1002 per rev
         m.bind_pnu(33, read=pnu_reader(lambda: pd.aktsatz))
         m.bind_pnu(52, read=pnu_reader(lambda: round(self._current_fraction() * (1 << 14))))
         m.bind_pnu(930, read=pnu_reader(lambda: self.opmode), write=pd.write_opmode)
