@@ -47,7 +47,6 @@ from akdctl.sim.kinematics import (
     STOPPING,
     Kinematics,
     rpm_s,
-    sign,
 )
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
 from akdctl.sim.stw1_machine import Stw1Machine
@@ -300,6 +299,9 @@ class MotionComponent(Component):
         m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
         m.bind_object(0x60FF, write=cia.write_target_velocity)
+        m.bind_object(0x6071, write=cia.write_target_torque)          # torque mode (4)
+        m.bind_object(0x60C1, write=cia.write_ip_setpoint)            # interpolated position (7)
+        m.bind_object(0x607A, write=cia.write_target_position)        # profile position (1) and CSP (8)
         m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
         m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
@@ -308,8 +310,7 @@ class MotionComponent(Component):
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""
         if self.state not in POWERED:
             return 0.0
-        frac = (self.axis.acc_now * 60.0) / 100000.0 + 0.02 * sign(self.axis.vel)
-        return max(-1.0, min(1.0, frac))
+        return self.axis.torque_fraction()
 
     # ================================================================== persistence
     def to_state(self) -> dict[str, Any]:
