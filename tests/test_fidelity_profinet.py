@@ -194,3 +194,75 @@ def test_status_over_profinet_shows_the_position() -> None:
     assert code == 0, err
     status = json.loads(out)["status"]
     assert status["position_rev"] == 2.25 and status["position_counts"] == 2.25 * 65536
+
+
+# ---------------------------------------------------------------------------------------------------- item 6
+def _homed_position_mode(model) -> None:
+    from akdctl.profiles import statusword as sw
+
+    model.motion.watchdog_s = 0
+    model.pnu_write_raw(930, 0, 0x42, [2])
+    for word in sw.S7_ENABLE_SEQUENCE:
+        model.pnu_write_raw(1, 0, 0x42, [word])
+    model.pnu_write_raw(1001, 0, 0x42, [0])
+    model.pnu_write_raw(1, 0, 0x42, [0x040F | sw.STW1_START_HOMING])
+    model.pnu_write_raw(1, 0, 0x42, [0x040F])
+
+
+@pytest.mark.parametrize("telegram, satzanw, starts", [
+    (1, 4, False), (7, 4, True), (9, 4, True),                   # program mode: SATZANW in the telegram
+    (1, 0x8000, False), (7, 0x8000, False), (9, 0x8000, True),   # MDI: the MDI signals in the telegram
+    (350, 4, False), (351, 0x8000, False),
+])
+def test_program_mode_and_mdi_need_their_telegram(telegram: int, satzanw: int, starts: bool) -> None:
+    """``004`` 5.10.1 Requirements: "Standard telegram 7 needs to be configured"; 5.10.2 Requirements: "Standard
+    telegram 9 needs to be configured" (the same in ``000`` 5.9.1/5.9.2 and ``003`` 6.10.1/6.10.2); 5.10.2: "If an
+    error occurs or the configured motion task can not be executed, bit 12 in ZSW1 will not be set".
+    docs/fidelity.md F9: the selected telegram must carry the submode's signals; otherwise no task starts."""
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    _homed_position_mode(model)
+    model.pnu_write_raw(922, 0, 0x42, [telegram])
+    model.pnu_write_raw(32, 0, 0x42, [satzanw])
+    model.pnu_write_raw(34, 0, 0x43, [65536])
+    model.pnu_write_raw(35, 0, 0x43, [(600 << 32) // 12000])
+    model.pnu_write_raw(36, 0, 0x42, [13])
+    model.pnu_write_raw(37, 0, 0x42, [13])
+    model.pnu_write_raw(1, 0, 0x42, [0x043F])
+    model.pnu_write_raw(1, 0, 0x42, [0x047F])                    # bit 6 edge: activate the traversing task
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert bool(zsw1 & sw.ZSW1_TASK_ACK) is starts
+    model.advance(5.0)
+    assert (model.motion.position_counts != 0) is starts
+
+
+def test_telegram_0_with_the_signals_counts() -> None:
+    """5.6: every signal "can be mapped into telegram 0": a free telegram carrying SATZANW and MDI_* serves MDI."""
+    from akdctl.catalog import telegrams as tc
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    _homed_position_mode(model)
+    model.pnu_write_raw(922, 0, 0x42, [0])
+    model.pnu_write_raw(915, 0, 0x42, tc.expand_words([1, 32, 34, 35, 36, 37, 38]))
+    for pnu, fmt, value in ((32, 0x42, 0x8000), (34, 0x43, 65536), (35, 0x43, (600 << 32) // 12000),
+                            (36, 0x42, 13), (37, 0x42, 13)):
+        model.pnu_write_raw(pnu, 0, fmt, [value])
+    model.pnu_write_raw(1, 0, 0x42, [0x043F])
+    model.pnu_write_raw(1, 0, 0x42, [0x047F])
+    assert model.pnu_read_raw(2, 0, 1)[1][0] & sw.ZSW1_TASK_ACK
+
+
+def test_move_selects_telegram_9(akd_inproc) -> None:
+    """akdctl's ``move`` (MDI) selects telegram 9 when the drive has a telegram without the MDI signals, after
+    consent, and the consent text says so (docs/fidelity.md F9)."""
+    _ok(akd_inproc, "sim", "speed", "100000")
+    assert _ok(akd_inproc, "telegram", "show")["telegram"] == 1
+    _ok(akd_inproc, "--yes", "home", "--mode", "0")
+    result = _ok(akd_inproc, "--yes", "move", "2")
+    assert "telegram 9" in result["plan"]["mode"]
+    assert result["status"]["position_rev"] == 2.0 and result["status"]["target_reached"]
+    assert _ok(akd_inproc, "telegram", "show")["telegram"] == 9

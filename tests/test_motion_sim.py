@@ -154,6 +154,7 @@ def test_jog_bits_8_and_9(model: DriveModel, pd: Bmp) -> None:
 
 def _position_mode(pd: Bmp) -> None:
     pd.write(930, 2)
+    pd.write(922, 9)  # telegram 9 carries SATZANW and the MDI signals (docs/fidelity.md F9)
     for word in sw.S7_ENABLE_SEQUENCE:
         pd.write(1, word)
 

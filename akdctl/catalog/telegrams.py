@@ -19,7 +19,7 @@ from dataclasses import dataclass
 __all__ = [
     "Signal", "SIGNALS", "TELEGRAMS", "TelegramLayout", "FREE_TELEGRAM", "PZD_MAX_WORDS", "SIGNAL_LIST_LENGTH",
     "signal", "signal_by_name", "telegram", "free_mappable", "signal_list", "expand_words", "words_to_signals",
-    "WordSlot", "word_layout", "TelegramDataError",
+    "WordSlot", "word_layout", "TelegramDataError", "SUBMODES", "missing_for_submode",
 ]
 
 PZD_MAX_WORDS = 10          # PNU 915/916 have 10 elements
@@ -221,3 +221,26 @@ def word_layout(signals: list[int] | tuple[int, ...]) -> list[WordSlot]:
             slots.append(WordSlot(len(slots) + 1, sig, "high"))
             slots.append(WordSlot(len(slots) + 1, sig, "low"))
     return slots
+
+
+# Position mode submodes (004 5.10.1/5.10.2, 000 5.9.1/5.9.2, 003 6.10.1/6.10.2): "Standard telegram 7 needs to be
+# configured" (program mode) / "Standard telegram 9 needs to be configured" (MDI). Ruling docs/fidelity.md F9: what
+# the requirement protects is that the submode's set-point signals travel in the selected telegram, so telegram 0
+# carrying them counts too (5.6: every signal can be mapped into telegram 0). Each submode names the telegram
+# akdctl selects when the current one lacks its signals.
+@dataclass(frozen=True)
+class Submode:
+    name: str
+    signals: tuple[int, ...]  # set-point signals the submode reads
+    telegram: int             # the standard telegram that carries them
+
+
+SUBMODES: dict[str, Submode] = {
+    "program": Submode("program mode (SATZANW selects a stored motion task)", (1, 32), 7),
+    "mdi": Submode("MDI (SATZANW bit 15, MDI_TARPOS .. MDI_MOD)", (1, 32, 34, 35, 36, 37, 38), 9),
+}
+
+
+def missing_for_submode(submode: str, setpoint: list[int] | tuple[int, ...]) -> list[int]:
+    """The set-point signals ``submode`` needs that the selected telegram (its PNU 915 signals) lacks."""
+    return [n for n in SUBMODES[submode].signals if n not in setpoint]

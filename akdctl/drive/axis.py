@@ -465,13 +465,19 @@ class ProfidriveAxis(Axis):
     @classmethod
     def mode_name(cls, kind: str) -> str:
         return {"velocity": "velocity (PNU 930 = 1), jog via STW1 bit 8",
-                "position": "position (PNU 930 = 2), MDI via SATZANW bit 15",
+                "position": "position (PNU 930 = 2), MDI via SATZANW bit 15 (telegram 9)",
                 "homing": "position (PNU 930 = 2), homing via STW1 bit 11"}[kind]
 
-    def ensure_mode(self, kind: str) -> None:
-        wanted = 1 if kind == "velocity" else 2
+    def _ensure_opmode(self, wanted: int) -> None:
         if self._read(930)[930][0] != wanted:
             self._write((930, wanted))
+
+    def ensure_mode(self, kind: str) -> None:
+        self._ensure_opmode(1 if kind == "velocity" else 2)
+        if kind == "position":  # MDI reads the telegram 9 signals (docs/fidelity.md F9)
+            from akdctl.drive.telegram import ensure_submode
+
+            ensure_submode(self.params, "mdi")
 
     def _operating_word(self) -> int:
         return self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION  # 0x040F
@@ -508,7 +514,7 @@ class ProfidriveAxis(Axis):
 
     def confirm_homed(self) -> bool:
         before = self._read(930)[930][0]
-        self.ensure_mode("position")
+        self._ensure_opmode(2)  # ZSW1 bit 11 reads "home position set" in position mode only
         homed = bool(self.read_status().homed)
         if not homed and before != 2:
             self._write((930, before))  # leave the mode as it was: the refusal changes nothing

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from akdctl.catalog import telegrams as tc
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.sim.component import PE_OPERATING_STATE, FieldState
@@ -205,11 +206,17 @@ class Stw1Machine(FieldState):
                 axis.run_task(task)
 
     def _load_task(self) -> dict[str, Any] | None:
-        """Load SATZANW's task (program mode) or the MDI signals (bit 15); None if it cannot run."""
+        """Load SATZANW's task (program mode) or the MDI signals (bit 15); None if it cannot run: not homed, or
+        the selected telegram does not carry the submode's signals (telegram 7 / 9, or 0 mapping them; manual
+        5.10.1/5.10.2 "Standard telegram 7 (9) needs to be configured", docs/fidelity.md F9). ZSW1 bit 12 then
+        stays clear, as 5.10.2 says for a task that cannot be executed."""
         axis, model = self.drive.axis, self.drive.model
         if not axis.homed or axis.activity == "jog":
             return None  # manual 5.10.1/5.10.2: the axis must be homed
         satzanw = self._pnu(32)
+        setpoint, _ = model.pdo.telegram_signals()
+        if tc.missing_for_submode("mdi" if satzanw & 0x8000 else "program", setpoint):
+            return None  # docs/fidelity.md F9: the selected telegram must carry the submode's signals
         if satzanw & 0x8000:
             self.aktsatz = 0x8000
             rpm = units.x_to_rpm(model.stored_pnu(35)[0], 32)
