@@ -183,7 +183,8 @@ class Axis(ABC):
     * :meth:`refuse_if_not_commandable`: a read-only check that this link's commands will be
       obeyed (PROFIdrive: STW1 bit 10; CiA 402: the controlword not owned by process data in OP);
     * motion: ``start_jog(JogSpec)``, ``end_jog``, ``start_home``, ``home_finished``,
-      ``start_move(MoveSpec)`` write the raw values they are handed, nothing else.
+      ``start_move(MoveSpec)`` write the raw values they are handed, nothing else;
+      ``start_task(number)`` starts a stored motion task where ``TASKS`` (else ``NO_TASKS`` says why).
     """
 
     profile = "?"
@@ -194,6 +195,10 @@ class Axis(ABC):
     #: The homing modes/methods the drive accepts, and where they go.
     HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
     HOME_MODE_FIELD = ""
+    #: Whether ``start_task`` can start a stored motion task, and why not (``task start``, docs/fidelity.md F11).
+    TASKS = False
+    NO_TASKS = ("the drive's manual documents no way to start a stored motion task over this profile; "
+                "use a PROFIdrive target (program mode) or 'akdctl move'")
 
     def __init__(self, timeout: float = 2.0, target: str = "") -> None:
         self.timeout = timeout
@@ -466,7 +471,8 @@ class ProfidriveAxis(Axis):
     def mode_name(cls, kind: str) -> str:
         return {"velocity": "velocity (PNU 930 = 1), jog via STW1 bit 8",
                 "position": "position (PNU 930 = 2), MDI via SATZANW bit 15 (telegram 9)",
-                "homing": "position (PNU 930 = 2), homing via STW1 bit 11"}[kind]
+                "homing": "position (PNU 930 = 2), homing via STW1 bit 11",
+                "task": "position (PNU 930 = 2), program mode via SATZANW (telegram 7)"}[kind]
 
     def _ensure_opmode(self, wanted: int) -> None:
         if self._read(930)[930][0] != wanted:
@@ -474,10 +480,10 @@ class ProfidriveAxis(Axis):
 
     def ensure_mode(self, kind: str) -> None:
         self._ensure_opmode(1 if kind == "velocity" else 2)
-        if kind == "position":  # MDI reads the telegram 9 signals (docs/fidelity.md F9)
+        if kind in ("position", "task"):  # MDI / program mode read their telegram's signals (docs/fidelity.md F9)
             from akdctl.drive.telegram import ensure_submode
 
-            ensure_submode(self.params, "mdi")
+            ensure_submode(self.params, "mdi" if kind == "position" else "program")
 
     def _operating_word(self) -> int:
         return self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION  # 0x040F
@@ -495,6 +501,7 @@ class ProfidriveAxis(Axis):
     _MDI_DEC = Scale("MDI_DEC (PNU 37, X2: 2^16 = 50,000,000 rpm/s)", "rpm/s", units.MAX_ACC_RPM_S / (1 << 16),
                      1, 65535)
     RELATIVE_MOVES_NEED_HOME = True
+    TASKS = True
     HOMED_SOURCE = "ZSW1 bit 11; PROFINET manual 5.10.2"
     HOME_MODE_RANGE = (0, 20)
     HOME_MODE_FIELD = "HOME.MODE (PNU 1001)"
@@ -552,17 +559,28 @@ class ProfidriveAxis(Axis):
     def start_move(self, move: MoveSpec) -> None:
         self._write((32, 0x8000), (34, move.target_raw), (35, move.velocity_raw), (36, move.acc_raw),
                     (37, move.dec_raw), (38, 0 if move.relative else 1))
+        self._activate_task("the MDI traversing task", "target outside the software limits, or the drive not in "
+                                                       "position mode/S4, or not in telegram 9")
+
+    def start_task(self, number: int) -> None:
+        """Program mode (PROFINET manual 5.10.1): SATZANW = the stored task, then the bit 6 handshake."""
+        self._write((32, number & 0x7FFF))
+        self._activate_task(f"motion task {number}", "the task is not configured or its target is outside the "
+                                                     "software limits, or the drive not in position mode/S4, or "
+                                                     "not in telegram 7/9")
+
+    def _activate_task(self, what: str, reasons: str) -> None:
+        """STW1 bits 4/5, a rising edge of bit 6, wait for ZSW1 bit 12, drop bit 6 (5.10.1/5.10.2 handshake)."""
         ready = self._operating_word() | sw.STW1_BIT4 | sw.STW1_BIT5
         self.stw1(ready)
-        self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the MDI task
+        self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the task
         try:
             self.wait_for(lambda s: s.task_ack, "traversing task acknowledged (ZSW1 bit 12)")
         except DriveError as exc:
             if isinstance(exc, DriveFault):
                 raise
             self.stw1(ready)
-            raise DriveError("the drive did not accept the MDI traversing task (ZSW1 bit 12 stayed clear): "
-                             "target outside the software limits, or the drive not in position mode/S4") from None
+            raise DriveError(f"the drive did not accept {what} (ZSW1 bit 12 stayed clear): {reasons}") from None
         self.stw1(ready)  # handshake: drop bit 6 once bit 12 is seen; the task keeps running
 
 

@@ -50,6 +50,7 @@ from akdctl.sim.kinematics import (
 )
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
 from akdctl.sim.stw1_machine import Stw1Machine
+from akdctl.sim.task_table import TaskTable
 
 if TYPE_CHECKING:
     from akdctl.sim.model import DriveModel
@@ -82,7 +83,9 @@ class MotionComponent(Component):
         self.axis = Kinematics(self)
         self.pd = Stw1Machine(self)
         self.cia = Cia402Machine(self)
+        self.tasks = TaskTable(self)
         self._bind()
+        self.tasks.bind()
 
     # ================================================================== contract
     @property
@@ -318,6 +321,7 @@ class MotionComponent(Component):
         data = FieldState.to_state(self)
         data.update(self.pd.to_state())
         data.update(self.cia.to_state())
+        data.update(self.tasks.to_state())
         data.update(self.axis.to_state())
         data["last_writer"] = self.last_writer
         data["position_counts"] = self.position_counts  # for `sim show`; ignored on load
@@ -328,6 +332,7 @@ class MotionComponent(Component):
         FieldState.load_state(self, state)
         self.pd.load_state(state)
         self.cia.load_state(state)
+        self.tasks.load_state(state)
         self.axis.load_state(state)
         if state.get("last_writer") in ("pd", "cia"):
             self.last_writer = state["last_writer"]
