@@ -266,3 +266,13 @@ def test_move_selects_telegram_9(akd_inproc) -> None:
     assert "telegram 9" in result["plan"]["mode"]
     assert result["status"]["position_rev"] == 2.0 and result["status"]["target_reached"]
     assert _ok(akd_inproc, "telegram", "show")["telegram"] == 9
+
+
+def test_units_of_5_12() -> None:
+    """``004`` 5.12.1 "a value of 2^32 for MDI_VELOCITY is equal 12000 rpm"; 5.12.3 "x = 16 is equal to 100% and
+    means 50000000 rpm /sec^2"; 5.12.4 "for 3 amps AKD ... -182 ... (9/2^14) * (-182) = -0.1 Arms" (SPEC-NOTES 13)."""
+    from akdctl.profiles import units
+
+    assert units.x_to_rpm(1 << 32, 32) == 12000 and units.x_to_rpm(1 << 15, 15) == 12000
+    assert units.acc_to_rpm_s(1 << 16) == 50_000_000
+    assert round(units.current_to_amps(-182, 9.0), 1) == -0.1
