@@ -83,7 +83,7 @@ def test_torque_interpolated_and_cyclic_synchronous_modes_show_their_effect(akd_
     assert akd_inproc(*t, "--yes", "sdo", "write", "0x6060", "i8", "7")[0] == 0
     _json(akd_inproc, *t, "--yes", "enable")
     assert akd_inproc(*t, "--yes", "sdo", "write", "0x6040", "u16", "0x1F")[0] == 0
-    assert akd_inproc(*t, "--yes", "sdo", "write", "0x60C1:1", "i32", str(start - 65536))[0] == 0
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x60C1:1", "i32", str(start + 3 * 65536))[0] == 0
     status = _json(akd_inproc, *t, "status")["status"]
-    assert status["position_counts"] == start - 65536 and status["word"] & (1 << 12)
+    assert status["position_counts"] == start + 3 * 65536 and status["word"] & (1 << 12)
     assert any(b["bit"] == 12 and b["name"] == "ip mode active" for b in status["bits"])
