@@ -14,6 +14,7 @@ _akdctl() {
             ":jog") path="jog" ;;
             ":home") path="home" ;;
             ":move") path="move" ;;
+            ":task") path="task" ;;
             ":pnu") path="pnu" ;;
             ":sdo") path="sdo" ;;
             ":pdo") path="pdo" ;;
@@ -30,6 +31,10 @@ _akdctl() {
             ":cip") path="cip" ;;
             ":eip") path="eip" ;;
             ":sim") path="sim" ;;
+            "task:list") path="task list" ;;
+            "task:set") path="task set" ;;
+            "task:show") path="task show" ;;
+            "task:start") path="task start" ;;
             "pnu:describe") path="pnu describe" ;;
             "pnu:get") path="pnu get" ;;
             "pnu:list") path="pnu list" ;;
@@ -78,7 +83,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -86,6 +91,11 @@ _akdctl() {
         "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --units" -- "$cur")) ;;
         "home") COMPREPLY=($(compgen -W "--help --mode --timeout" -- "$cur")) ;;
         "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --no-wait --relative --units --velocity" -- "$cur")) ;;
+        "task") COMPREPLY=($(compgen -W "list set show start --help" -- "$cur")) ;;
+        "task list") COMPREPLY=($(compgen -W "--all --count --help" -- "$cur")) ;;
+        "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --position --relative --velocity" -- "$cur")) ;;
+        "task show") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "task start") COMPREPLY=($(compgen -W "--help --json --timeout --yes -y" -- "$cur")) ;;
         "pnu") COMPREPLY=($(compgen -W "describe get list set --help" -- "$cur")) ;;
         "pnu describe") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

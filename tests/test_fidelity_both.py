@@ -46,3 +46,44 @@ def test_watchdog_warning_has_a_number_and_a_text(akd_inproc) -> None:
     _json(akd_inproc, "--yes", "pnu", "set", "1=0x047E")               # the next control word clears it
     assert _json(akd_inproc, "sdo", "read", "0x2000:1")["value"] == 0
     assert not _json(akd_inproc, "status")["status"]["warning"]
+
+
+# ---------------------------------------------------------------------------------------------------- item 13
+def test_torque_interpolated_and_cyclic_synchronous_modes_show_their_effect(akd_inproc) -> None:
+    """``001`` 5.8: "Torque DRV.OPMODE 0 ... 0x6060sub0 Data: 4 Commands torque in % of drive peak torque";
+    "Interpolated position ... 0x6060Sub0 Data: 7 In this mode of operation the EtherCAT master sends cyclic
+    position command values to the AKD. These command values are interpolated by the AKD according to the
+    fieldbus sample rate"; "Cyclic Synchronous Position ... Data: 8 Master calculates move profile and commands
+    motion with position points"; 5.7: 0x6071 "Target Torque ... 0.1% resolution", 0x60C1 sub 1 "Interpolation
+    data record in IP-mode". docs/fidelity.md F8: the simulator acts on each (acyclic) set point write."""
+    t = ["-T", "sim?drive=cia402"]
+    _json(akd_inproc, "sim", "speed", "--realtime")       # torque runs until stopped: keep the travel short
+    # torque: 10 % of peak accelerates the load up to the torque mode's velocity limit
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6060", "i8", "4")[0] == 0
+    assert _json(akd_inproc, *t, "--yes", "enable")["status"]["enabled"]         # enabled with halt (bit 8) set
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6071", "i16", "100")[0] == 0
+    assert _json(akd_inproc, *t, "status")["status"]["velocity_rpm"] == 0           # halt: no torque
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6040", "u16", "0x0F")[0] == 0  # halt cleared
+    status = _json(akd_inproc, *t, "status")["status"]
+    assert status["mode"] == 4 and status["velocity_rpm"] > 0
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6071", "i16", "0")[0] == 0
+    _json(akd_inproc, "sim", "speed", "100000")
+    assert _json(akd_inproc, *t, "status")["status"]["velocity_rpm"] == 0   # friction brings it to rest
+    # cyclic synchronous position: the drive reaches each target position
+    assert _json(akd_inproc, *t, "--yes", "disable")["status"]["enabled"] is False
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6060", "i8", "8")[0] == 0
+    _json(akd_inproc, *t, "--yes", "enable")
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6040", "u16", "0x0F")[0] == 0
+    start = _json(akd_inproc, *t, "status")["status"]["position_counts"]
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x607A", "i32", str(start + 65536))[0] == 0
+    status = _json(akd_inproc, *t, "status")["status"]
+    assert status["position_counts"] == start + 65536 and status["word"] & (1 << 12)
+    # interpolated position: with ip mode enabled (controlword bit 4) the drive follows 0x60C1:1
+    assert _json(akd_inproc, *t, "--yes", "disable")["status"]["enabled"] is False
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6060", "i8", "7")[0] == 0
+    _json(akd_inproc, *t, "--yes", "enable")
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x6040", "u16", "0x1F")[0] == 0
+    assert akd_inproc(*t, "--yes", "sdo", "write", "0x60C1:1", "i32", str(start + 3 * 65536))[0] == 0
+    status = _json(akd_inproc, *t, "status")["status"]
+    assert status["position_counts"] == start + 3 * 65536 and status["word"] & (1 << 12)
+    assert any(b["bit"] == 12 and b["name"] == "ip mode active" for b in status["bits"])

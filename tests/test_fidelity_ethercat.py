@@ -112,3 +112,63 @@ def test_cycle_time_rule_and_write_order() -> None:
     assert units.cycle_time_problem(0, -3) == units.CYCLE_TOO_SHORT
     assert units.cycle_time_write_order((2, -3), (25, -5)) == (1, 2)    # the manual's order from the ESI default
     assert units.cycle_time_write_order((25, -5), (2, -3)) == (2, 1)    # 20 µs in between would be refused
+
+
+# ---------------------------------------------------------------------------------------------------- item 11
+def _foe(link, frame):
+    """One FoE frame to the simulated drive's mailbox; the decoded FoE reply, or None."""
+    from akdctl.protocol import foe
+    from akdctl.protocol import mailbox as mbx
+
+    link.send(mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.FOE, foe.encode_foe(frame), counter=2)))
+    raw = link.receive(0.1)
+    if raw is None:
+        return None
+    reply = mbx.decode_mailbox(raw)
+    assert reply.type == mbx.MailboxType.FOE and reply.counter == 2
+    return foe.decode_foe(reply.data)
+
+
+def test_foe_write_and_read_back() -> None:
+    """``001`` 4.6.3: "Downloading a new firmware in the drive must be performed using File over EtherCAT (FoE)";
+    the real AKD's SII advertises FoE (mailbox protocols 0x0E = EoE | CoE | FoE, ``reference/akd_sii_eeprom_dump``).
+    docs/fidelity.md F10: the simulated drive implements FoE read and write (ETG.1000.6) and keeps the file."""
+    from akdctl.protocol import foe
+    from akdctl.protocol.sii import akd_sii_image
+    from akdctl.sim.drive import SimDrive
+    from akdctl.transport.sim import SimMailboxLink
+
+    assert akd_sii_image().mailbox_protocols & 0x08                      # FoE is advertised ...
+    link = SimMailboxLink(SimDrive("foe"))
+    size = link.mailbox_size - 6 - 6                                      # data per packet
+    image = bytes(range(256)) * 5                                         # 1280 bytes: 3 packets of 502 at most
+    assert _foe(link, foe.write_request("akd_fw.i00")) == foe.ack(0)      # ... and answered
+    packets = [image[i:i + size] for i in range(0, len(image), size)]
+    for number, chunk in enumerate(packets, start=1):
+        assert _foe(link, foe.data_packet(number, chunk)) == foe.ack(number)
+    link = SimMailboxLink(SimDrive("foe"))                                # a later session: the file persists
+    received = b""
+    reply = _foe(link, foe.read_request("akd_fw.i00"))
+    while reply is not None:
+        assert reply.opcode == foe.FoeOpcode.DATA
+        received += reply.data
+        reply = _foe(link, foe.ack(reply.value))
+    assert received == image
+
+
+def test_foe_refusals_are_foe_errors() -> None:
+    """ETG.1000.6 FoE error codes: an unknown file is 0x8001 "Not found", a packet out of order 0x8005."""
+    from akdctl.catalog.texts import foe_error_text
+    from akdctl.protocol import foe
+    from akdctl.sim.drive import SimDrive
+    from akdctl.transport.sim import SimMailboxLink
+
+    link = SimMailboxLink(SimDrive("foe-err"))
+    reply = _foe(link, foe.read_request("missing.bin"))
+    assert reply.opcode == foe.FoeOpcode.ERROR and reply.value == foe.ERR_NOT_FOUND
+    assert foe_error_text(reply.value) == "Not found"
+    assert _foe(link, foe.write_request("x.bin")) == foe.ack(0)
+    reply = _foe(link, foe.data_packet(2, b"late"))
+    assert reply.opcode == foe.FoeOpcode.ERROR and reply.value == foe.ERR_PACKET_NUMBER
+    reply = _foe(link, foe.data_packet(1, b"no transfer any more"))
+    assert reply.opcode == foe.FoeOpcode.ERROR and reply.value == foe.ERR_ILLEGAL

@@ -147,3 +147,132 @@ def test_sixty_rpm_is_163_the_manuals_example_truncates(akd_inproc) -> None:
     with SimDrive("default").transaction() as model:                   # NIST_A of a drive at 60 rpm reads 163
         model.motion.axis.vel = 1.0
         assert model.pnu_read_raw(6, 0, 1)[1] == [163]
+
+
+# ---------------------------------------------------------------------------------------------------- item 1
+def test_stw2_zsw2_xist_a_are_pnus_and_free_mappable(akd_inproc) -> None:
+    """``004`` 5.8: "The signals are also available in the PNU list. Each signal can be read/write with the same
+    PNU number"; 5.6: "All supported PROFIdrive and manufacture specific signals can be mapped into telegram 0";
+    5.11.4: telegram 9 carries STW2, ZSW2 and XIST_A (SPEC-NOTES 10), ``003`` 6.11.6 telegram 351 XIST_A
+    (SPEC-NOTES 11). So signals 3, 4, 28 are PNUs 3, 4, 28 (docs/fidelity.md F7)."""
+    data = _ok(akd_inproc, "pnu", "get", "3", "4", "28")
+    assert [p["name"] for p in data["parameters"]] == ["STW2", "ZSW2", "XIST_A"]
+    assert _ok(akd_inproc, "--yes", "pnu", "set", "3=0x1000")["written"][0]["values"] == [0x1000]
+    assert akd_inproc("--yes", "pnu", "set", "28=5")[0] == 2                 # an actual value: read only
+    assert [3, 4, 28] == [n for n in _ok(akd_inproc, "telegram", "show")["signal_list"] if n in (3, 4, 28)]
+    assert any(p["pnu"] == 28 for p in _ok(akd_inproc, "pnu", "list", "--drive")["parameters"])
+    _ok(akd_inproc, "--yes", "telegram", "set", "0")
+    mapped = _ok(akd_inproc, "--yes", "telegram", "map", "--actual", "2,6,28", "--setpoint", "1,3,5")
+    assert [w["name"] for w in mapped["actual"]] == ["ZSW1", "NIST_A", "XIST_A", "XIST_A"]
+    for number, setpoint, actual in ((9, {"STW2"}, {"ZSW2", "XIST_A"}), (351, set(), {"XIST_A"})):
+        state = _ok(akd_inproc, "--yes", "telegram", "set", str(number))
+        assert setpoint <= {w["name"] for w in state["setpoint"]} and actual <= {w["name"] for w in state["actual"]}
+
+
+def test_xist_a_counts_follow_pnu_1002(akd_inproc) -> None:
+    """``004`` 5.12.2: positions count 2^PNU1002 per revolution; XIST_A at 1.5 rev is 98304 with 16 bits and
+    1572864 with 20, and ``status`` shows the position from it."""
+    with SimDrive("default").transaction() as model:
+        model.motion.axis.pos = 1.5
+    assert _ok(akd_inproc, "pnu", "get", "28")["parameters"][0]["values"] == [98304]
+    _ok(akd_inproc, "--yes", "pnu", "set", "1002=20")
+    assert _ok(akd_inproc, "pnu", "get", "28")["parameters"][0]["values"] == [1572864]
+    status = _ok(akd_inproc, "status")["status"]
+    assert status["position_rev"] == 1.5 and status["counts_per_rev"] == 1 << 20
+
+
+@pytest.mark.slow
+def test_status_over_profinet_shows_the_position() -> None:
+    """Through the real CLI and the PNIO face: ``-T pn://… status`` has no object channel, and shows the position
+    from XIST_A (PNU 28)."""
+    from tests.harness import SimServer, run_akdctl
+
+    with SimDrive("default").transaction() as model:
+        model.motion.axis.pos = 2.25
+    with SimServer("--profinet", "127.0.0.1:0") as server:
+        code, out, err = run_akdctl("-T", f"pn://{server.host}:{server.port}", "--json", "status")
+    assert code == 0, err
+    status = json.loads(out)["status"]
+    assert status["position_rev"] == 2.25 and status["position_counts"] == 2.25 * 65536
+
+
+# ---------------------------------------------------------------------------------------------------- item 6
+def _homed_position_mode(model) -> None:
+    from akdctl.profiles import statusword as sw
+
+    model.motion.watchdog_s = 0
+    model.pnu_write_raw(930, 0, 0x42, [2])
+    for word in sw.S7_ENABLE_SEQUENCE:
+        model.pnu_write_raw(1, 0, 0x42, [word])
+    model.pnu_write_raw(1001, 0, 0x42, [0])
+    model.pnu_write_raw(1, 0, 0x42, [0x040F | sw.STW1_START_HOMING])
+    model.pnu_write_raw(1, 0, 0x42, [0x040F])
+
+
+@pytest.mark.parametrize("telegram, satzanw, starts", [
+    (1, 4, False), (7, 4, True), (9, 4, True),                   # program mode: SATZANW in the telegram
+    (1, 0x8000, False), (7, 0x8000, False), (9, 0x8000, True),   # MDI: the MDI signals in the telegram
+    (350, 4, False), (351, 0x8000, False),
+])
+def test_program_mode_and_mdi_need_their_telegram(telegram: int, satzanw: int, starts: bool) -> None:
+    """``004`` 5.10.1 Requirements: "Standard telegram 7 needs to be configured"; 5.10.2 Requirements: "Standard
+    telegram 9 needs to be configured" (the same in ``000`` 5.9.1/5.9.2 and ``003`` 6.10.1/6.10.2); 5.10.2: "If an
+    error occurs or the configured motion task can not be executed, bit 12 in ZSW1 will not be set".
+    docs/fidelity.md F9: the selected telegram must carry the submode's signals; otherwise no task starts."""
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    _homed_position_mode(model)
+    model.pnu_write_raw(922, 0, 0x42, [telegram])
+    model.pnu_write_raw(32, 0, 0x42, [satzanw])
+    model.pnu_write_raw(34, 0, 0x43, [65536])
+    model.pnu_write_raw(35, 0, 0x43, [(600 << 32) // 12000])
+    model.pnu_write_raw(36, 0, 0x42, [13])
+    model.pnu_write_raw(37, 0, 0x42, [13])
+    model.pnu_write_raw(1, 0, 0x42, [0x043F])
+    model.pnu_write_raw(1, 0, 0x42, [0x047F])                    # bit 6 edge: activate the traversing task
+    zsw1 = model.pnu_read_raw(2, 0, 1)[1][0]
+    assert bool(zsw1 & sw.ZSW1_TASK_ACK) is starts
+    model.advance(5.0)
+    assert (model.motion.position_counts != 0) is starts
+
+
+def test_telegram_0_with_the_signals_counts() -> None:
+    """5.6: every signal "can be mapped into telegram 0": a free telegram carrying SATZANW and MDI_* serves MDI."""
+    from akdctl.catalog import telegrams as tc
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.model import DriveModel
+
+    model = DriveModel()
+    _homed_position_mode(model)
+    model.pnu_write_raw(922, 0, 0x42, [0])
+    model.pnu_write_raw(915, 0, 0x42, tc.expand_words([1, 32, 34, 35, 36, 37, 38]))
+    for pnu, fmt, value in ((32, 0x42, 0x8000), (34, 0x43, 65536), (35, 0x43, (600 << 32) // 12000),
+                            (36, 0x42, 13), (37, 0x42, 13)):
+        model.pnu_write_raw(pnu, 0, fmt, [value])
+    model.pnu_write_raw(1, 0, 0x42, [0x043F])
+    model.pnu_write_raw(1, 0, 0x42, [0x047F])
+    assert model.pnu_read_raw(2, 0, 1)[1][0] & sw.ZSW1_TASK_ACK
+
+
+def test_move_selects_telegram_9(akd_inproc) -> None:
+    """akdctl's ``move`` (MDI) selects telegram 9 when the drive has a telegram without the MDI signals, after
+    consent, and the consent text says so (docs/fidelity.md F9)."""
+    _ok(akd_inproc, "sim", "speed", "100000")
+    assert _ok(akd_inproc, "telegram", "show")["telegram"] == 1
+    _ok(akd_inproc, "--yes", "home", "--mode", "0")
+    result = _ok(akd_inproc, "--yes", "move", "2")
+    assert "telegram 9" in result["plan"]["mode"]
+    assert result["status"]["position_rev"] == 2.0 and result["status"]["target_reached"]
+    assert _ok(akd_inproc, "telegram", "show")["telegram"] == 9
+
+
+def test_units_of_5_12() -> None:
+    """``004`` 5.12.1 "a value of 2^32 for MDI_VELOCITY is equal 12000 rpm"; 5.12.3 "x = 16 is equal to 100% and
+    means 50000000 rpm /sec^2"; 5.12.4 "for 3 amps AKD ... -182 ... (9/2^14) * (-182) = -0.1 Arms" (SPEC-NOTES 13)."""
+    from akdctl.profiles import units
+
+    assert units.x_to_rpm(1 << 32, 32) == 12000 and units.x_to_rpm(1 << 15, 15) == 12000
+    assert units.acc_to_rpm_s(1 << 16) == 50_000_000
+    assert round(units.current_to_amps(-182, 9.0), 1) == -0.1

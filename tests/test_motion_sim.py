@@ -154,6 +154,7 @@ def test_jog_bits_8_and_9(model: DriveModel, pd: Bmp) -> None:
 
 def _position_mode(pd: Bmp) -> None:
     pd.write(930, 2)
+    pd.write(922, 9)  # telegram 9 carries SATZANW and the MDI signals (docs/fidelity.md F9)
     for word in sw.S7_ENABLE_SEQUENCE:
         pd.write(1, word)
 
@@ -403,7 +404,7 @@ def test_watchdog_aborted_task_is_not_target_reached(model: DriveModel, pd: Bmp)
     _home(model, pd)
     motion.watchdog_s = 1.0
     model.time_scale = 1.0
-    motion.pd.tasks["4"]["rpm"] = 60.0  # the simulator's task 4 (absolute 5 rev), slowed to 5 s
+    motion.tasks.tasks["4"]["rpm"] = 60.0  # the simulator's task 4 (absolute 5 rev), slowed to 5 s
     pd.write(32, 4)
     pd.write(1, 0x043F)
     pd.write(1, 0x047F)

@@ -90,7 +90,6 @@ def test_free_mapping_in_telegram_0(akd_inproc) -> None:
 @pytest.mark.parametrize("args,fragment", [
     (("--setpoint", "2"), "cannot go into PNU 915"),            # ZSW1 is an actual value
     (("--actual", "1"), "cannot go into PNU 916"),              # STW1 is a set point
-    (("--actual", "2,28"), "not in the signal list"),           # XIST_A only inside telegrams 9/351
     (("--setpoint", "1,34,35,35,36"), "mapped twice"),
     (("--setpoint", "1,34,35,5,32,36,37,38,34"), "at most 10"),  # 12 words
 ])
@@ -124,7 +123,16 @@ def test_unknown_signal_names(akd_inproc) -> None:
 
 def test_signal_list_pnu_923(akd_inproc) -> None:
     code, out, _ = akd_inproc("--json", "telegram", "show")
-    assert json.loads(out)["signal_list"] == [1, 2, 5, 6, 32, 33, 34, 35, 36, 37, 38, 52]
+    # STW2, ZSW2, XIST_A too: every signal is a PNU (004 5.8; docs/fidelity.md F7)
+    assert json.loads(out)["signal_list"] == [1, 2, 3, 4, 5, 6, 28, 32, 33, 34, 35, 36, 37, 38, 52]
+
+
+def test_signal_missing_from_the_drives_list_is_refused() -> None:
+    """A drive whose PNU 923 lacks a signal (an older firmware) cannot map it into telegram 0."""
+    from akdctl.drive.telegram import validate_free_map
+
+    offered = [0 if n == 28 else pnu for n, pnu in enumerate(tc.signal_list())]
+    assert any("not in the signal list" in p for p in validate_free_map([1], [2, 28], offered))
 
 
 def test_catalogue_word_lists_round_trip() -> None:

@@ -89,10 +89,20 @@ _TABLE: tuple[PnuInfo, ...] = (
     # signals (manufacturer table of 5.6; the signal number equals the PNU, 5.8)
     _p(1, "STW1", "U16", "rw", "control word 1 (I/O control word)", group="signal", akd_parameter="control word 1"),
     _p(2, "ZSW1", "U16", "ro", "status word 1 (I/O status word)", group="signal", akd_parameter="status word 1"),
+    # STW2/ZSW2/XIST_A travel in telegrams 9 and 351 (5.11.4, 003 6.11.6); 5.8: "The signals are also available
+    # in the PNU list. Each signal can be read/write with the same PNU number", 5.6: all can go into telegram 0.
+    _p(3, "STW2", "U16", "rw", "control word 2 (bits 12-15 master sign of life)", group="signal",
+       note="not in the manual's PNU table; a signal of telegram 9, so a PNU by 5.8 (docs/fidelity.md F7)"),
+    _p(4, "ZSW2", "U16", "ro", "status word 2 (bits 12-15 slave sign of life; 0 without clock synchronism)",
+       group="signal", note="not in the manual's PNU table; a signal of telegram 9, so a PNU by 5.8 "
+                            "(docs/fidelity.md F7)"),
     _p(5, "NSOLL_A", "S16", "rw", "velocity set point (X2, x=15: 2^15 = 12000 rpm)", unit="N2:12000rpm",
        group="signal", akd_parameter="VL.CMD"),
     _p(6, "NIST_A", "S16", "ro", "velocity actual value (X2, x=15: 2^15 = 12000 rpm)", unit="N2:12000rpm",
        group="signal", akd_parameter="VL.FB"),
+    _p(28, "XIST_A", "S32", "ro", "position actual value A (counts; 2^PNU1002 per revolution)", unit="counts",
+       group="signal", note="not in the manual's PNU table; a signal of telegrams 9 and 351, so a PNU by 5.8 "
+                            "(docs/fidelity.md F7)"),
     _p(32, "SATZANW", "U16", "rw", "motion task selection (bit 15 selects MDI)", group="signal", akd_parameter="MT.MOVE"),
     _p(33, "AKTSATZ", "U16", "ro", "actual motion task (bit 15: MDI active)", group="signal", akd_parameter="MT.PARAMS"),
     _p(34, "MDI_TARPOS", "S32", "rw", "MDI target position (counts; 2^PNU1002 per revolution)", unit="counts",

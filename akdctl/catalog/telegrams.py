@@ -19,7 +19,7 @@ from dataclasses import dataclass
 __all__ = [
     "Signal", "SIGNALS", "TELEGRAMS", "TelegramLayout", "FREE_TELEGRAM", "PZD_MAX_WORDS", "SIGNAL_LIST_LENGTH",
     "signal", "signal_by_name", "telegram", "free_mappable", "signal_list", "expand_words", "words_to_signals",
-    "WordSlot", "word_layout", "TelegramDataError",
+    "WordSlot", "word_layout", "TelegramDataError", "SUBMODES", "missing_for_submode",
 ]
 
 PZD_MAX_WORDS = 10          # PNU 915/916 have 10 elements
@@ -66,16 +66,18 @@ def _s(number: int, name: str, words: int, direction: str, signed: bool, pnu: in
     return Signal(number, name, words, direction, signed, pnu, text)
 
 
-# AKD signal table (004 5.8; signal number = PNU) plus STW2/ZSW2/XIST_A of the standard
-# telegrams (PROFIdrive signal numbers 3, 4, 28).
+# AKD signal table (004 5.8; signal number = PNU) plus STW2/ZSW2/XIST_A of the standard telegrams
+# (PROFIdrive signal numbers 3, 4, 28): 5.8 "Each signal can be read/write with the same PNU number" and 5.6
+# "All supported PROFIdrive and manufacture specific signals can be mapped into telegram 0", so they are PNUs
+# 3, 4, 28 and free mappable like the others (docs/fidelity.md F7).
 SIGNALS: dict[int, Signal] = {s.number: s for s in (
     _s(1, "STW1", 1, "setpoint", False, 1, "control word 1"),
     _s(2, "ZSW1", 1, "actual", False, 2, "status word 1"),
-    _s(3, "STW2", 1, "setpoint", False, None, "control word 2"),
-    _s(4, "ZSW2", 1, "actual", False, None, "status word 2"),
+    _s(3, "STW2", 1, "setpoint", False, 3, "control word 2"),
+    _s(4, "ZSW2", 1, "actual", False, 4, "status word 2"),
     _s(5, "NSOLL_A", 1, "setpoint", True, 5, "velocity set point (VL.CMD)"),
     _s(6, "NIST_A", 1, "actual", True, 6, "velocity actual value (VL.FB)"),
-    _s(28, "XIST_A", 2, "actual", True, None, "position actual value"),
+    _s(28, "XIST_A", 2, "actual", True, 28, "position actual value"),
     _s(32, "SATZANW", 1, "setpoint", False, 32, "motion task selection (MT.MOVE)"),
     _s(33, "AKTSATZ", 1, "actual", False, 33, "actual motion task (MT.PARAMS)"),
     _s(34, "MDI_TARPOS", 2, "setpoint", True, 34, "MDI target position (MT.P)"),
@@ -219,3 +221,26 @@ def word_layout(signals: list[int] | tuple[int, ...]) -> list[WordSlot]:
             slots.append(WordSlot(len(slots) + 1, sig, "high"))
             slots.append(WordSlot(len(slots) + 1, sig, "low"))
     return slots
+
+
+# Position mode submodes (004 5.10.1/5.10.2, 000 5.9.1/5.9.2, 003 6.10.1/6.10.2): "Standard telegram 7 needs to be
+# configured" (program mode) / "Standard telegram 9 needs to be configured" (MDI). Ruling docs/fidelity.md F9: what
+# the requirement protects is that the submode's set-point signals travel in the selected telegram, so telegram 0
+# carrying them counts too (5.6: every signal can be mapped into telegram 0). Each submode names the telegram
+# akdctl selects when the current one lacks its signals.
+@dataclass(frozen=True)
+class Submode:
+    name: str
+    signals: tuple[int, ...]  # set-point signals the submode reads
+    telegram: int             # the standard telegram that carries them
+
+
+SUBMODES: dict[str, Submode] = {
+    "program": Submode("program mode (SATZANW selects a stored motion task)", (1, 32), 7),
+    "mdi": Submode("MDI (SATZANW bit 15, MDI_TARPOS .. MDI_MOD)", (1, 32, 34, 35, 36, 37, 38), 9),
+}
+
+
+def missing_for_submode(submode: str, setpoint: list[int] | tuple[int, ...]) -> list[int]:
+    """The set-point signals ``submode`` needs that the selected telegram (its PNU 915 signals) lacks."""
+    return [n for n in SUBMODES[submode].signals if n not in setpoint]

@@ -21,6 +21,7 @@ __all__ = [
     "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text",
     "ERROR_REGISTER_BITS", "error_register_text",
     "MAILBOX_ERROR_TEXTS", "mailbox_error_text",
+    "FOE_ERROR_TEXTS", "foe_error_text",
     "CIP_STATUS_TEXTS", "CIP_CM_EXTENDED_TEXTS", "ENIP_STATUS_TEXTS", "cip_status_text", "enip_status_text", "CIP_VENDORS", "cip_vendor_name",
     "CANOPEN_VENDORS", "PI_VENDORS",
 ]
@@ -449,6 +450,32 @@ def mailbox_error_text(code: int) -> str:
     if text is not None:
         return text
     return f"unknown mailbox error 0x{code & 0xFFFF:04X}"
+
+
+# --- FoE error codes (ETG.1000.6, File access over EtherCAT) -----------------------------
+
+FOE_ERROR_TEXTS: dict[int, str] = {
+    0x8000: "Not defined",
+    0x8001: "Not found",
+    0x8002: "Access denied",
+    0x8003: "Disk full",
+    0x8004: "Illegal",
+    0x8005: "Packet number wrong",
+    0x8006: "Already exists",
+    0x8007: "No user",
+    0x8008: "Bootstrap only",
+    0x8009: "Not in bootstrap",
+    0x800A: "No rights",
+    0x800B: "Program error",
+}
+
+
+def foe_error_text(code: int) -> str:
+    try:
+        code = int(code)
+    except (TypeError, ValueError):
+        return f"unknown FoE error {code!r}"
+    return FOE_ERROR_TEXTS.get(code, f"FoE error 0x{code:04X}")
 
 
 # --- CIP general status (CIP Vol. 1 appendix B) and EtherNet/IP ------------------------

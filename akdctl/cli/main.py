@@ -27,6 +27,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "jog": ("akdctl.cli.motion", "jog", "Jog at a velocity for a bounded time or distance."),
     "home": ("akdctl.cli.motion", "home", "Run the homing procedure."),
     "move": ("akdctl.cli.motion", "move", "Move to a position (absolute or relative) and wait for target reached."),
+    "task": ("akdctl.cli.task", "task", "List, show, set and start the drive's stored motion tasks."),
     "pnu": ("akdctl.cli.pnu", "pnu", "Read, write, describe and list PROFIdrive parameters (PNUs)."),
     "sdo": ("akdctl.cli.sdo", "sdo", "Read and write CANopen/CoE objects by SDO."),
     "pdo": ("akdctl.cli.pdo", "pdo", "Show, plan and apply process-data (PDO) mapping."),

@@ -28,7 +28,16 @@ from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.polling import Poll
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
-from akdctl.errors import AkdError, CommError, DriveError, DriveFault, Interrupted, SafetyRefusal, UsageError
+from akdctl.errors import (
+    AkdError,
+    CommError,
+    DriveError,
+    DriveFault,
+    Interrupted,
+    ParameterRefused,
+    SafetyRefusal,
+    UsageError,
+)
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
@@ -201,7 +210,8 @@ class Axis(ABC):
     * :meth:`refuse_if_not_commandable`: a read-only check that this link's commands will be
       obeyed (PROFIdrive: STW1 bit 10; CiA 402: the controlword not owned by process data in OP);
     * motion: ``start_jog(JogSpec)``, ``end_jog``, ``start_home``, ``home_finished``,
-      ``start_move(MoveSpec)`` write the raw values they are handed, nothing else.
+      ``start_move(MoveSpec)`` write the raw values they are handed, nothing else;
+      ``start_task(number)`` starts a stored motion task where ``TASKS`` (else ``NO_TASKS`` says why).
     """
 
     profile = "?"
@@ -212,6 +222,10 @@ class Axis(ABC):
     #: The homing modes/methods the drive accepts, and where they go.
     HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
     HOME_MODE_FIELD = ""
+    #: Whether ``start_task`` can start a stored motion task, and why not (``task start``, docs/fidelity.md F11).
+    TASKS = False
+    NO_TASKS = ("the drive's manual documents no way to start a stored motion task over this profile; "
+                "use a PROFIdrive target (program mode) or 'akdctl move'")
 
     #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the transport's
     #: ``time_scale``, which only the simulator has); None: a real drive's 1.
@@ -397,9 +411,23 @@ class ProfidriveAxis(Axis):
     def stw1(self, word: int) -> None:
         self._write((1, word))
 
+    def _read_with_position(self, *pnus: int) -> dict[int, list[int]]:
+        """``pnus`` (a refusal raises) plus XIST_A (PNU 28) in the same request, left out when refused: the
+        manual's PNU table does not list it, so a drive may not offer it (docs/fidelity.md F7)."""
+        from akdctl.drive.values import pnu_spec, read_pnus
+
+        out: dict[int, list[int]] = {}
+        for reading in read_pnus(self.params, [pnu_spec(p) for p in (*pnus, 28)]):
+            if reading.ok:
+                out[reading.spec.pnu] = list(reading.values or [])
+            elif reading.spec.pnu != 28:
+                raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
+                                       code=reading.error)
+        return out
+
     # ---------------------------------------------------------------- status
     def read_status(self) -> AxisStatus:
-        values = self._read(2, 1, 930, 6, 52, 1002)
+        values = self._read_with_position(2, 1, 930, 6, 52, 1002)
         zsw1, stw1, opmode = values[2][0], values[1][0], values[930][0]
         nist, itist, bits = values[6][0], values[52][0], values[1002][0]
         state = sw.profidrive_state(zsw1, stw1)
@@ -414,7 +442,9 @@ class ProfidriveAxis(Axis):
         position = None
         warning = bool(zsw1 & sw.ZSW1_WARNING)
         warnings = _warning_entries(self.objects) if warning and self.objects is not None else []
-        if self.objects is not None:
+        if 28 in values:  # XIST_A, 2^PNU1002 counts per revolution (docs/fidelity.md F7)
+            position = units.counts_to_rev(values[28][0], bits)
+        elif self.objects is not None:
             try:
                 position = read_object(self.objects, 0x6064, 0) / CIA_COUNTS_PER_REV
             except AkdError:
@@ -479,13 +509,20 @@ class ProfidriveAxis(Axis):
     @classmethod
     def mode_name(cls, kind: str) -> str:
         return {"velocity": "velocity (PNU 930 = 1), jog via STW1 bit 8",
-                "position": "position (PNU 930 = 2), MDI via SATZANW bit 15",
-                "homing": "position (PNU 930 = 2), homing via STW1 bit 11"}[kind]
+                "position": "position (PNU 930 = 2), MDI via SATZANW bit 15 (telegram 9)",
+                "homing": "position (PNU 930 = 2), homing via STW1 bit 11",
+                "task": "position (PNU 930 = 2), program mode via SATZANW (telegram 7)"}[kind]
 
-    def ensure_mode(self, kind: str) -> None:
-        wanted = 1 if kind == "velocity" else 2
+    def _ensure_opmode(self, wanted: int) -> None:
         if self._read(930)[930][0] != wanted:
             self._write((930, wanted))
+
+    def ensure_mode(self, kind: str) -> None:
+        self._ensure_opmode(1 if kind == "velocity" else 2)
+        if kind in ("position", "task"):  # MDI / program mode read their telegram's signals (docs/fidelity.md F9)
+            from akdctl.drive.telegram import ensure_submode
+
+            ensure_submode(self.params, "mdi" if kind == "position" else "program")
 
     def _operating_word(self) -> int:
         return self.BASE | sw.STW1_ON | sw.STW1_ENABLE_OPERATION  # 0x040F
@@ -503,6 +540,7 @@ class ProfidriveAxis(Axis):
     _MDI_DEC = Scale("MDI_DEC (PNU 37, X2: 2^16 = 50,000,000 rpm/s)", "rpm/s", units.MAX_ACC_RPM_S / (1 << 16),
                      1, 65535)
     RELATIVE_MOVES_NEED_HOME = True
+    TASKS = True
     HOMED_SOURCE = "ZSW1 bit 11; PROFINET manual 5.10.2"
     HOME_MODE_RANGE = (0, 20)
     HOME_MODE_FIELD = "HOME.MODE (PNU 1001)"
@@ -522,7 +560,7 @@ class ProfidriveAxis(Axis):
 
     def confirm_homed(self) -> bool:
         before = self._read(930)[930][0]
-        self.ensure_mode("position")
+        self._ensure_opmode(2)  # ZSW1 bit 11 reads "home position set" in position mode only
         homed = bool(self.read_status().homed)
         if not homed and before != 2:
             self._write((930, before))  # leave the mode as it was: the refusal changes nothing
@@ -560,17 +598,28 @@ class ProfidriveAxis(Axis):
     def start_move(self, move: MoveSpec) -> None:
         self._write((32, 0x8000), (34, move.target_raw), (35, move.velocity_raw), (36, move.acc_raw),
                     (37, move.dec_raw), (38, 0 if move.relative else 1))
+        self._activate_task("the MDI traversing task", "target outside the software limits, or the drive not in "
+                                                       "position mode/S4, or not in telegram 9")
+
+    def start_task(self, number: int) -> None:
+        """Program mode (PROFINET manual 5.10.1): SATZANW = the stored task, then the bit 6 handshake."""
+        self._write((32, number & 0x7FFF))
+        self._activate_task(f"motion task {number}", "the task is not configured or its target is outside the "
+                                                     "software limits, or the drive not in position mode/S4, or "
+                                                     "not in telegram 7/9")
+
+    def _activate_task(self, what: str, reasons: str) -> None:
+        """STW1 bits 4/5, a rising edge of bit 6, wait for ZSW1 bit 12, drop bit 6 (5.10.1/5.10.2 handshake)."""
         ready = self._operating_word() | sw.STW1_BIT4 | sw.STW1_BIT5
         self.stw1(ready)
-        self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the MDI task
+        self.stw1(ready | sw.STW1_BIT6)  # rising edge loads the task
         try:
             self.wait_for(lambda s: s.task_ack, "traversing task acknowledged (ZSW1 bit 12)")
         except DriveError as exc:
             if isinstance(exc, DriveFault):
                 raise
             self.stw1(ready)
-            raise DriveError("the drive did not accept the MDI traversing task (ZSW1 bit 12 stayed clear): "
-                             "target outside the software limits, or the drive not in position mode/S4") from None
+            raise DriveError(f"the drive did not accept {what} (ZSW1 bit 12 stayed clear): {reasons}") from None
         self.stw1(ready)  # handshake: drop bit 6 once bit 12 is seen; the task keeps running
 
     def issued_target(self) -> int | None:

@@ -14,7 +14,8 @@ returns anything. README "Safety model" lists the same addresses.
 * gated while the drive is enabled (or its state cannot be read) — what changes
   the meaning of the running set points: the operating mode (PNU 930, 0x6060) and
   the telegram / process-data mapping (PNU 915, 916, 922; 0x1600..0x17FF,
-  0x1A00..0x1BFF, 0x1C12, 0x1C13).
+  0x1A00..0x1BFF, 0x1C12, 0x1C13), and MT.LOAD 0x3432 (it loads a motion task into
+  those profile-position set points; ``task list|show``).
 
 CIP attributes (``cip set``, ``eip param set|run``) are classified the same way: the
 Position Controller 0x25's enable (17), load handshake (11) and home move (101) are
@@ -40,6 +41,7 @@ _CONTROL = "the control word powers and moves the axis"
 _SETPOINT = "a set point the drive acts on"
 _MODE = "the operating mode of an enabled drive changes what its set points mean"
 _MAPPING = "the process-data mapping of an enabled drive changes which set points it follows"
+_MT_LOAD = "MT.LOAD replaces the profile-position set points 0x607A/0x6081/0x6083/0x6084 of an enabled drive"
 
 PNU_ALWAYS: dict[int, str] = {1: _CONTROL, 5: _SETPOINT, 32: _SETPOINT, 34: _SETPOINT, 35: _SETPOINT,
                               36: _SETPOINT, 37: _SETPOINT, 38: _SETPOINT, 1004: _SETPOINT, 1005: _SETPOINT,
@@ -48,7 +50,7 @@ PNU_WHEN_ENABLED: dict[int, str] = {930: _MODE, 915: _MAPPING, 916: _MAPPING, 92
 OBJECT_ALWAYS: dict[int, str] = {0x6040: _CONTROL, 0x607A: _SETPOINT, 0x60FF: _SETPOINT, 0x6071: _SETPOINT,
                                  0x60C1: _SETPOINT, 0x60B1: _SETPOINT, 0x60B2: _SETPOINT, 0x6081: _SETPOINT,
                                  0x6083: _SETPOINT, 0x6084: _SETPOINT}
-OBJECT_WHEN_ENABLED: dict[int, str] = {0x6060: _MODE, 0x1C12: _MAPPING, 0x1C13: _MAPPING}
+OBJECT_WHEN_ENABLED: dict[int, str] = {0x6060: _MODE, 0x1C12: _MAPPING, 0x1C13: _MAPPING, 0x3432: _MT_LOAD}
 MAPPING_RANGES = ((0x1600, 0x17FF), (0x1A00, 0x1BFF))
 #: Position Controller 0x25 instance 1 attributes (AKD EtherNet/IP manual appendix A, reference/ethernetip.md 1.8).
 CIP_PC_ALWAYS: dict[int, str] = {17: "the enable attribute powers the axis",

@@ -48,7 +48,7 @@ MAX_JOG_S = 60.0
 #: Homing, moves and waits are bounded by this many seconds at most.
 MAX_WAIT_S = 3600.0
 UNITS = ("counts", "rev", "deg", "user")
-KINDS = ("enable", "home", "move", "jog")
+KINDS = ("enable", "home", "move", "jog", "task")
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,7 @@ class MotionRequest:
     distance: float | None = None
     home_mode: int | None = None
     timeout_s: float | None = None
+    task: int | None = None  # kind "task": the stored motion task to start (program mode)
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,9 @@ class MotionPlan:
     mode_text: str = ""
     notes: list[str] = field(default_factory=list)
     limits: dict[str, Any] = field(default_factory=dict)  # the profile's, for the re-check under the owner lock
+    #: Checks that can only read by writing (a stored task is read through MT.LOAD): run after consent, before
+    #: anything is enabled or moved; they refuse like the planner (kind "task").
+    after_consent: Callable[[], None] | None = field(default=None, repr=False)
 
     @property
     def what(self) -> str:
@@ -122,6 +126,8 @@ class MotionPlan:
         if r.kind == "home":
             return "run the homing procedure (the axis searches for its reference)" + (
                 f", homing mode {r.home_mode}" if r.home_mode is not None else "")
+        if r.kind == "task":
+            return f"start motion task {r.task} as stored in the drive (program mode)"
         assert self.velocity is not None and self.accel is not None
         v, a = self.velocity.executed, self.accel.executed
         if r.kind == "jog" and r.duration_s is not None:
@@ -284,6 +290,17 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
                                  f"expected {lo}..{hi}")
         plan.deadline_s = r.timeout_s if r.timeout_s is not None else 60.0
         return plan
+    if r.kind == "task":
+        from akdctl.drive.tasks import check_number
+
+        if not getattr(axis_cls, "TASKS", False):
+            raise UsageError(f"task start: {axis_cls.NO_TASKS}")
+        check_number(r.task)  # type: ignore[arg-type]
+        plan.mode_kind = "task"
+        plan.mode_text = axis_cls.mode_name("task")
+        plan.needs_homed = True  # PROFINET manual 5.10.1: "Axis needs to be homed"
+        plan.deadline_s = r.timeout_s if r.timeout_s is not None else 60.0
+        return plan
     kind = "velocity" if r.kind == "jog" and r.duration_s is not None else "position"
     plan.mode_kind = kind
     plan.mode_text = axis_cls.mode_name(kind)
@@ -370,6 +387,8 @@ def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
         accepted.homed = axis.homed_reading(status)
         if accepted.homed is False:
             raise SafetyRefusal(_not_homed_text(axis, r))
+    if r.kind == "task":
+        return _plan_task(conn, accepted, status.position_rev, limits)
     pos = status.position_rev
     if r.kind == "jog" and r.duration_s is not None:
         assert accepted.velocity is not None and accepted.accel is not None
@@ -410,6 +429,45 @@ def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
     return accepted
 
 
+def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[str, Any]) -> MotionPlan:
+    """A stored task: its parameters are only known by loading it (MT.LOAD writes), so the limits are checked
+    after consent (:attr:`MotionPlan.after_consent`); a link that cannot read the table refuses when the profile
+    sets limits, because they could not be checked (docs/fidelity.md F11)."""
+    from akdctl.drive import tasks
+
+    number = accepted.request.task
+    limited = [k for k in ("max_velocity", "max_acceleration", "travel") if limits.get(k) is not None]
+    if not conn.has_objects:
+        if limited:
+            raise SafetyRefusal(f"refusing: the profile limits {', '.join(limited)} but motion task {number} cannot "
+                                f"be read over this link to check it ({tasks.NO_TABLE})")
+        accepted.notes.append(f"motion task {number} cannot be read over this link; it runs as stored")
+        return accepted
+
+    def check() -> None:
+        task = tasks.read_task(conn.objects(), number)  # type: ignore[arg-type]
+        if not task.configured:
+            raise SafetyRefusal(f"refusing: motion task {number} is not configured (MT.V/MT.ACC/MT.DEC are 0); "
+                                f"set it with 'akdctl task set {number} ...'")
+        executed_by = f"motion task {number}"
+        _refuse_over_limit("velocity", task.velocity_rpm, _limit(limits, "max_velocity"), "max_velocity", "rpm",
+                           executed_by)
+        for what, value in (("acceleration", task.acc_rpm_s), ("deceleration", task.dec_rpm_s)):
+            _refuse_over_limit(what, value, _limit(limits, "max_acceleration"), "max_acceleration", "rpm/s",
+                               executed_by)
+        end = (pos or 0.0) + task.position_rev if task.relative else task.position_rev
+        if task.relative and pos is None and limits.get("travel") is not None:
+            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
+        _check_travel(limits, end)
+        accepted.start_rev, accepted.end_rev = pos, end
+        if accepted.request.timeout_s is None:
+            distance = task.position_rev if task.relative else end - (pos or 0.0)
+            accepted.deadline_s = _move_time(distance, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s) + 5.0
+
+    accepted.after_consent = check
+    return accepted
+
+
 def _not_homed_text(axis: Any, request: MotionRequest) -> str:
     if axis.RELATIVE_MOVES_NEED_HOME:
         return ("refusing: the axis is not homed; the drive runs positioning tasks (absolute and relative) only on a "
@@ -430,11 +488,16 @@ def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
     r = accepted.request
     if r.kind == "enable":
         return axis.enable()
+    if accepted.after_consent is not None:
+        accepted.after_consent()
     _prepare(axis, accepted, interrupted)
     run = MotionRun(axis, interrupted, progress)
     if r.kind == "home":
         return run.run(lambda: axis.start_home(r.home_mode), axis.home_finished, deadline_s=accepted.deadline_s,
                        what="homing")
+    if r.kind == "task":
+        return run.run(lambda: axis.start_task(r.task), lambda s: True if s.target_reached and s.standstill else None,
+                       deadline_s=accepted.deadline_s, what=f"motion task {r.task}")
     assert accepted.velocity and accepted.accel and accepted.decel
     if r.kind == "jog" and r.duration_s is not None:
         spec = JogSpec(accepted.velocity.raw, accepted.accel.raw, accepted.decel.raw)

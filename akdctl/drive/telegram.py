@@ -157,3 +157,23 @@ def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int]
     if differences:
         raise CheckFailed("telegram 0 mapping read back differs: " + "; ".join(differences))
     return state
+
+
+def ensure_submode(channel: Any, submode: str) -> int | None:
+    """Make the selected telegram carry what a position submode reads (``program`` or ``mdi``).
+
+    Why: the manuals require "Standard telegram 7 (program mode) / 9 (MDI) needs to be configured" (004
+    5.10.1/5.10.2); the drive starts no task otherwise (docs/fidelity.md F9). A telegram that already carries the
+    signals (9 for both, 7 for program mode, or 0 mapping them) is kept; else the submode's standard telegram is
+    selected. Returns the telegram selected, or None when nothing changed.
+    """
+    wanted = tc.SUBMODES[submode]
+    state = read_state(channel)
+    if not tc.missing_for_submode(submode, state.setpoint):
+        return None
+    try:
+        select_telegram(channel, wanted.telegram)
+    except ParameterRefused as exc:
+        raise ParameterRefused(f"{wanted.name} needs telegram {wanted.telegram} (PROFINET manual 5.10), and the "
+                               f"drive refused to select it: {exc.message}", code=exc.code) from None
+    return wanted.telegram

@@ -130,6 +130,8 @@ _SW_GENERAL = {
 _SW_MODE = {
     1: {12: "set-point acknowledge", 13: "following error"},
     6: {12: "homing attained", 13: "homing error"},
+    7: {12: "ip mode active", 13: "following error"},
+    8: {12: "drive follows the target position", 13: "following error"},
 }
 
 #: CiA 402 modes of operation (0x6060/0x6061, SPEC-NOTES 20).

@@ -73,6 +73,16 @@ def describe_scaled(unit: str, value: int, singleturn_bits: int = 16) -> str:
 CIA_COUNTS_PER_REV = 65536
 
 
+def cia_rpm(counts_per_s: float) -> float:
+    """CiA 402 counts/s → rpm (and counts/s² → rpm/s): 0x6081/0x6083/0x6084, MT.V/MT.ACC/MT.DEC."""
+    return counts_per_s * 60.0 / CIA_COUNTS_PER_REV
+
+
+def cia_per_s(rpm: float) -> int:
+    """rpm → counts/s (rpm/s → counts/s²), truncated toward zero like every set point (F6: never rounded up)."""
+    return int(round(rpm * CIA_COUNTS_PER_REV / 60.0, 6))
+
+
 #: EtherCAT cycle time (EtherCAT manual 5.9/5.10, SPEC-NOTES 20): FBUS.SAMPLEPERIOD counts 62.5 µs ticks, and the
 #: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque).
 CYCLE_TICK_S = Fraction(1, 16000)

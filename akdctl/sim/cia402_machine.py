@@ -2,11 +2,19 @@
 
 Why a module of its own: the CiA 402 device state machine, its quick stop
 option code and its modes of operation (profile position 1, profile velocity 3,
-homing 6; EtherCAT manual 5.4, SPEC-NOTES 20-23) are a different standard from
+torque 4, homing 6, interpolated position 7, cyclic synchronous position 8;
+EtherCAT manual 5.4/5.8, SPEC-NOTES 20-23) are a different standard from
 PROFIdrive's STW1/ZSW1 (``stw1_machine``), though both drive the one power
 stage (``power_states``) and the one axis (``kinematics``) of the motion
 component. SPEC-NOTES 23: while the controlword is mapped in an assigned RxPDO
 in OP, an SDO write of it has no effect.
+
+Modes 4, 7 and 8 take set points a master normally streams cyclically; the
+simulator acts on every write of them, acyclic ones included, so their effect
+shows in ``status`` (docs/fidelity.md F8): torque mode accelerates the load with
+0x6071 (0.1 % of peak torque) up to a velocity limit; interpolated position
+(controlword bit 4 "enable ip mode") and cyclic synchronous position reach each
+new set point (0x60C1:1, 0x607A) within one interpolation period (0x60C2).
 """
 
 from __future__ import annotations
@@ -139,6 +147,14 @@ class Cia402Machine(FieldState):
         if d.mode == 3:
             self.velocity(halt)
             return
+        if d.mode == 4:
+            self.torque(halt)
+            return
+        if d.mode in (7, 8):
+            if halt or (d.mode == 7 and not new & sw.CW_NEW_SETPOINT):
+                if axis.activity == "follow":
+                    axis.stop_motion(quick=False, activity="stop")  # halt / ip mode disabled: hold the position
+            return
         if d.mode == 1:
             if not new & sw.CW_NEW_SETPOINT:
                 axis.task_ack = False
@@ -166,7 +182,55 @@ class Cia402Machine(FieldState):
             return
         axis.run_velocity(target, acc, dec, "velocity" if abs(target) > EPS else "stop")
 
+    def torque(self, halt: bool | None = None) -> None:
+        """Torque mode: run with 0x6071 (0.1 % of peak; 0x6072 caps it when set; 0 while halt is set)."""
+        if halt is None:
+            halt = bool(self.controlword & sw.CW_HALT)
+        model = self.drive.model
+        permille = 0 if halt else model.object_value(0x6071, 0)
+        cap = model.object_value(0x6072, 0)
+        if cap:
+            permille = max(-cap, min(cap, permille))
+        self.drive.axis.run_torque(permille / 1000.0)
+
+    def _period_s(self) -> float:
+        """The interpolation period 0x60C2 (sub 1 × 10^sub 2 s)."""
+        from akdctl.profiles.units import cycle_time_s
+
+        model = self.drive.model
+        return float(cycle_time_s(model.object_value(0x60C2, 1), model.object_value(0x60C2, 2)))
+
+    def _follows(self, mode: int) -> bool:
+        d = self.drive
+        if d.state != ENABLED or d.stopping_to is not None or d.mode != mode or self.controlword & sw.CW_HALT:
+            return False
+        return mode != 7 or bool(self.controlword & sw.CW_NEW_SETPOINT)  # ip: controlword bit 4 enables ip mode
+
     # ------------------------------------------------------------------ set point and mode objects
+    def write_target_torque(self, sub: int, data: bytes) -> None:
+        d = self.drive
+        d.feed()
+        d.model.set_stored_object(0x6071, sub, data)
+        if d.state == ENABLED and d.stopping_to is None and d.mode == 4:
+            d.clear_watchdog()
+            self.torque()
+
+    def write_ip_setpoint(self, sub: int, data: bytes) -> None:
+        d = self.drive
+        d.feed()
+        d.model.set_stored_object(0x60C1, sub, data)
+        if sub == 1 and self._follows(7):
+            d.clear_watchdog()
+            d.axis.follow(struct.unpack("<i", data)[0] / CIA_COUNTS_PER_REV, self._period_s())
+
+    def write_target_position(self, sub: int, data: bytes) -> None:
+        d = self.drive
+        d.feed()
+        d.model.set_stored_object(0x607A, sub, data)  # profile position reads it on the bit 4 edge
+        if self._follows(8):
+            d.clear_watchdog()
+            d.axis.follow(struct.unpack("<i", data)[0] / CIA_COUNTS_PER_REV, self._period_s())
+
     def write_target_velocity(self, sub: int, data: bytes) -> None:
         d = self.drive
         d.feed()
@@ -233,8 +297,15 @@ class Cia402Machine(FieldState):
                     word |= sw.SW_BIT12
                 if axis.homing_error:
                     word |= sw.SW_BIT13
-            elif d.mode == 3:
+            elif d.mode in (3, 4):
                 goal = axis.gen["v"] if axis.gen is not None and axis.gen["kind"] == "velocity" else 0.0
                 if abs(axis.vel - goal) < 1e-6:
+                    word |= sw.SW_TARGET_REACHED  # pv: target velocity; tq: the torque's end state
+            elif d.mode in (7, 8):
+                if axis.activity != "follow" and axis.at_rest() and axis.at_target:
                     word |= sw.SW_TARGET_REACHED
+                if d.mode == 8 or self.controlword & sw.CW_NEW_SETPOINT:
+                    word |= sw.SW_BIT12  # ip: ip mode active; csp: the drive follows the target position
+                if abs(axis.following_error) > d.fe_window():
+                    word |= sw.SW_BIT13
         return word

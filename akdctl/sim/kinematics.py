@@ -42,6 +42,16 @@ LIMIT_SWITCH_REV = (-5.0, 5.0)  # simulated hardware limit switches (physical)
 FOLLOWING_LAG_S = 0.002  # following error = velocity × this (a stiff position loop)
 SEARCH_STEP_S = 0.001  # homing searches integrate in steps of 1 ms to catch the switch edge
 
+# The load model behind torque mode and the current estimate: at 100 % of peak torque the unloaded motor
+# accelerates at ACC_AT_PEAK_RPM_S; FRICTION_FRACTION of peak is lost to friction while it turns; in torque mode
+# the drive's velocity limit (VL.LIMITP on an AKD; the simulator's value) caps the speed.
+ACC_AT_PEAK_RPM_S = 100000.0
+FRICTION_FRACTION = 0.02
+TORQUE_MODE_LIMIT_RPM = 3000.0
+# Interpolated / cyclic synchronous position: the drive reaches a set point within one interpolation period
+# (0x60C2), at most at the AKD's top speed and the quick stop rate.
+FOLLOW_MAX_RPM = 12000.0
+
 #: Activities in which the axis is already being brought to standstill (the watchdog leaves them alone).
 STOPPING = ("stop", "quickstop", "fault", "coast")
 
@@ -169,6 +179,33 @@ class Kinematics(FieldState):
             return None
         self.internal_limit = False
         return {"target": target, "v": v, "acc": acc, "dec": dec}
+
+    def run_torque(self, fraction: float) -> None:
+        """Torque mode: ``fraction`` of peak torque accelerates the load (less friction) up to the mode's
+        velocity limit; below the friction the axis coasts down. :meth:`torque_fraction` reads it back."""
+        rate = max(0.0, abs(fraction) - FRICTION_FRACTION) * ACC_AT_PEAK_RPM_S
+        if rate > 0:
+            self.run_velocity(sign(fraction) * TORQUE_MODE_LIMIT_RPM / 60.0, rpm_s(rate), rpm_s(rate), "torque")
+        elif self.at_rest():
+            self.idle()
+        else:
+            self.run_velocity(0.0, rpm_s(FRICTION_FRACTION * ACC_AT_PEAK_RPM_S),
+                              rpm_s(FRICTION_FRACTION * ACC_AT_PEAK_RPM_S), "torque")
+
+    def torque_fraction(self) -> float:
+        """The torque (fraction of peak) the motion takes: acceleration plus friction while turning."""
+        frac = self.acc_now * 60.0 / ACC_AT_PEAK_RPM_S + FRICTION_FRACTION * sign(self.vel)
+        return max(-1.0, min(1.0, frac))
+
+    def follow(self, position: float, period_s: float) -> None:
+        """Interpolated / cyclic synchronous position: reach ``position`` (reported rev) within ``period_s``,
+        limited to the top speed and the quick stop rate; the set point becomes the target to be reached."""
+        target = position - self.offset
+        speed = min(FOLLOW_MAX_RPM / 60.0, max(abs(target - self.pos) / max(period_s, 1e-6), EPS))
+        rate = rpm_s(QUICK_STOP_RPM_S)
+        self.last_target = target
+        self.gen = {"kind": "position", "target": target, "v": speed, "acc": rate, "dec": rate}
+        self.activity = "follow"
 
     def pause_task(self) -> None:
         """Intermediate stop (STW1 bit 5 = 0, CiA 402 halt): brake along the ramp, keep the task."""

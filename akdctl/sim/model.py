@@ -39,6 +39,7 @@ from akdctl.sim.component import (
 )
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
 from akdctl.sim.faults import FaultComponent
+from akdctl.sim.foe import FoeFiles
 from akdctl.sim.motion import MotionComponent
 from akdctl.sim.pdo import PdoComponent
 
@@ -82,7 +83,8 @@ class DriveModel:
         self.motion = MotionComponent(self)
         self.faults = FaultComponent(self)
         self.pdo = PdoComponent(self)
-        self.components: list[Component] = [self.motion, self.faults, self.pdo]
+        self.foe = FoeFiles(self)
+        self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:
@@ -263,6 +265,16 @@ class DriveModel:
         entry = self.object_entry(index, subindex)
         data = self.object_read(index, subindex)
         return int.from_bytes(data, "little", signed=_entry_signed(entry))
+
+    # ------------------------------------------------------------------ files (FoE)
+    def foe_read(self, name: str, password: int) -> bytes:
+        """FileAccess: a file written before (any password: the AKD's is not documented); FoeRefused otherwise."""
+        return self.foe.read(name)
+
+    def foe_write(self, name: str, password: int, data: bytes) -> None:
+        """FileAccess: keep ``data`` as file ``name`` (docs/fidelity.md F10)."""
+        self.foe.write(name, data)
+        self.writes += 1
 
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:

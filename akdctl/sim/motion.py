@@ -47,10 +47,10 @@ from akdctl.sim.kinematics import (
     STOPPING,
     Kinematics,
     rpm_s,
-    sign,
 )
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
 from akdctl.sim.stw1_machine import Stw1Machine
+from akdctl.sim.task_table import TaskTable
 
 if TYPE_CHECKING:
     from akdctl.sim.model import DriveModel
@@ -83,7 +83,9 @@ class MotionComponent(Component):
         self.axis = Kinematics(self)
         self.pd = Stw1Machine(self)
         self.cia = Cia402Machine(self)
+        self.tasks = TaskTable(self)
         self._bind()
+        self.tasks.bind()
 
     # ================================================================== contract
     @property
@@ -272,6 +274,8 @@ class MotionComponent(Component):
         m.bind_pnu(2, read=pnu_reader(pd.zsw1))
         m.bind_pnu(5, write=pd.write_nsoll)
         m.bind_pnu(6, read=pnu_reader(lambda: units.rpm_to_x(max(-12000.0, min(12000.0, self.velocity_rpm)), 15)))
+        m.bind_pnu(4, read=pnu_reader(lambda: 0))  # ZSW2: no clock synchronism, so no slave sign of life
+        m.bind_pnu(28, read=pnu_reader(lambda: _clamp32(self.position_counts)))  # XIST_A, 2^PNU1002 per rev
         m.bind_pnu(33, read=pnu_reader(lambda: pd.aktsatz))
         m.bind_pnu(52, read=pnu_reader(lambda: round(self._current_fraction() * (1 << 14))))
         m.bind_pnu(930, read=pnu_reader(lambda: self.opmode), write=pd.write_opmode)
@@ -298,6 +302,9 @@ class MotionComponent(Component):
         m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
         m.bind_object(0x60FF, write=cia.write_target_velocity)
+        m.bind_object(0x6071, write=cia.write_target_torque)          # torque mode (4)
+        m.bind_object(0x60C1, write=cia.write_ip_setpoint)            # interpolated position (7)
+        m.bind_object(0x607A, write=cia.write_target_position)        # profile position (1) and CSP (8)
         m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
         m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
@@ -306,8 +313,7 @@ class MotionComponent(Component):
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""
         if self.state not in POWERED:
             return 0.0
-        frac = (self.axis.acc_now * 60.0) / 100000.0 + 0.02 * sign(self.axis.vel)
-        return max(-1.0, min(1.0, frac))
+        return self.axis.torque_fraction()
 
     # ================================================================== persistence
     def to_state(self) -> dict[str, Any]:
@@ -315,6 +321,7 @@ class MotionComponent(Component):
         data = FieldState.to_state(self)
         data.update(self.pd.to_state())
         data.update(self.cia.to_state())
+        data.update(self.tasks.to_state())
         data.update(self.axis.to_state())
         data["last_writer"] = self.last_writer
         data["position_counts"] = self.position_counts  # for `sim show`; ignored on load
@@ -325,6 +332,7 @@ class MotionComponent(Component):
         FieldState.load_state(self, state)
         self.pd.load_state(state)
         self.cia.load_state(state)
+        self.tasks.load_state(state)
         self.axis.load_state(state)
         if state.get("last_writer") in ("pd", "cia"):
             self.last_writer = state["last_writer"]

@@ -14,8 +14,11 @@ Behaviour, following ETG.1000.6 and SOEM/the Beckhoff slave stack:
   (0x05030000) and length checks (0x06070012/13) before anything is written;
 * unknown command specifiers (block transfer) abort with 0x05040001, complete
   access with 0x06010000 (the AKD's ESI does not declare it);
-* a mailbox that is not CoE, or whose header/size is broken, gets a mailbox
-  error reply (type 0) instead of an SDO answer;
+* FoE mailboxes (type 4) go to the drive's file store when the access object
+  has one (``foe_read``/``foe_write``; :mod:`akdctl.sim.foe`): the AKD names
+  FoE as its firmware path;
+* a mailbox of another protocol, or whose header/size is broken, gets a
+  mailbox error reply (type 0) instead of an SDO answer;
 * queued emergencies go out as CoE service-1 mailboxes ahead of the next reply.
 
 It never raises on hostile input: whatever the access object raises becomes
@@ -120,6 +123,7 @@ class SdoServer:
         self._download: _Download | None = None
         self._upload: _Upload | None = None
         self._emergencies: list[Emergency] = []
+        self._foe_server: object | None = None  # the FoE transfer in progress (built on the first FoE mailbox)
         self._emcy_counter = 0
 
     # --- public -----------------------------------------------------------------------------
@@ -176,6 +180,8 @@ class SdoServer:
             return [self._error_reply(None, mbx.ERR_INVALID_SIZE)]
         if mbx.HEADER_SIZE + len(request.data) > self.mailbox_size:
             return [self._error_reply(request, mbx.ERR_INVALID_SIZE)]
+        if request.type == mbx.MailboxType.FOE and hasattr(self.access, "foe_read"):
+            return self._foe(request)
         if request.type != mbx.MailboxType.COE:
             return [self._error_reply(request, mbx.ERR_UNSUPPORTED_PROTOCOL)]
         if request.channel != 0:
@@ -197,6 +203,26 @@ class SdoServer:
         if service == CoeService.SDO_INFO:
             return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
         return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
+
+    # --- FoE --------------------------------------------------------------------------------
+
+    def _foe(self, request: mbx.Mailbox) -> list[bytes]:
+        """File access (mailbox type 4): the AKD's firmware path (docs/fidelity.md F10, :mod:`akdctl.sim.foe`)."""
+        from akdctl.protocol import foe
+        from akdctl.sim.foe import FoeServer
+
+        try:
+            frame = foe.decode_foe(request.data)
+        except CodecError:
+            return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
+        if self._foe_server is None:
+            self._foe_server = FoeServer()
+        max_data = self.mailbox_size - mbx.HEADER_SIZE - foe.HEADER_SIZE
+        reply = self._foe_server.handle(self.access, frame, max_data)  # type: ignore[arg-type]
+        if reply is None:
+            return []
+        return [mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.FOE, foe.encode_foe(reply), address=request.address,
+                                               counter=request.counter))]
 
     # --- SDO --------------------------------------------------------------------------------
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from akdctl.catalog import telegrams as tc
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.sim.component import PE_OPERATING_STATE, FieldState
@@ -36,14 +37,6 @@ if TYPE_CHECKING:
 #: AKD HOME.MODE (PNU 1001) → the simulator's homing procedure; other modes end in a homing error.
 HOME_MODE_PROCEDURES = {0: "current", 1: "limit-", 2: "limit-index", 3: "switch", 4: "switch-index", 5: "index"}
 
-#: The simulator's motion task table (program mode, SATZANW 1..4): AKD MT.* parameters.
-DEFAULT_TASKS = {
-    "1": {"position": 1.0, "rpm": 600.0, "acc": 10000.0, "dec": 10000.0, "absolute": False},
-    "2": {"position": -1.0, "rpm": 600.0, "acc": 10000.0, "dec": 10000.0, "absolute": False},
-    "3": {"position": 0.0, "rpm": 600.0, "acc": 10000.0, "dec": 10000.0, "absolute": True},
-    "4": {"position": 5.0, "rpm": 1200.0, "acc": 10000.0, "dec": 10000.0, "absolute": True},
-}
-
 #: PNU 930 (DRV.OPMODE) → CiA 402 mode of the one axis (0 torque, 1 velocity, 2 position).
 OPMODE_TO_CIA = {0: 4, 1: 3, 2: 1}
 
@@ -51,7 +44,7 @@ OPMODE_TO_CIA = {0: 4, 1: 3, 2: 1}
 class Stw1Machine(FieldState):
     """STW1 writes, NSOLL_A and PNU 930 writes, and the ZSW1 they produce."""
 
-    FIELDS = ("stw1", "plc_control_allowed", "aktsatz", "frozen_vel", "tasks")
+    FIELDS = ("stw1", "plc_control_allowed", "aktsatz", "frozen_vel")
 
     def __init__(self, drive: "MotionComponent") -> None:
         self.drive = drive
@@ -59,7 +52,6 @@ class Stw1Machine(FieldState):
         self.plc_control_allowed = True  # False simulates a drive that does not honour STW1 bit 10
         self.aktsatz = 0
         self.frozen_vel: float | None = None
-        self.tasks = {k: dict(v) for k, v in DEFAULT_TASKS.items()}
 
     @property
     def honoured(self) -> bool:
@@ -205,11 +197,17 @@ class Stw1Machine(FieldState):
                 axis.run_task(task)
 
     def _load_task(self) -> dict[str, Any] | None:
-        """Load SATZANW's task (program mode) or the MDI signals (bit 15); None if it cannot run."""
+        """Load SATZANW's task (program mode) or the MDI signals (bit 15); None if it cannot run: not homed, or
+        the selected telegram does not carry the submode's signals (telegram 7 / 9, or 0 mapping them; manual
+        5.10.1/5.10.2 "Standard telegram 7 (9) needs to be configured", docs/fidelity.md F9). ZSW1 bit 12 then
+        stays clear, as 5.10.2 says for a task that cannot be executed."""
         axis, model = self.drive.axis, self.drive.model
         if not axis.homed or axis.activity == "jog":
             return None  # manual 5.10.1/5.10.2: the axis must be homed
         satzanw = self._pnu(32)
+        setpoint, _ = model.pdo.telegram_signals()
+        if tc.missing_for_submode("mdi" if satzanw & 0x8000 else "program", setpoint):
+            return None  # docs/fidelity.md F9: the selected telegram must carry the submode's signals
         if satzanw & 0x8000:
             self.aktsatz = 0x8000
             rpm = units.x_to_rpm(model.stored_pnu(35)[0], 32)
@@ -218,7 +216,7 @@ class Stw1Machine(FieldState):
             position = self._pnu(34) / self.drive.counts_per_rev
             absolute = bool(model.stored_pnu(38)[0] & 1)
         else:
-            entry = self.tasks.get(str(satzanw & 0x7FFF))
+            entry = self.drive.tasks.get(satzanw & 0x7FFF)  # the task table (sim/task_table.py)
             if entry is None:
                 return None
             self.aktsatz = satzanw & 0x7FFF
