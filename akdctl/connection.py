@@ -162,8 +162,8 @@ class Connection:
         if isinstance(client, CanopenSdoClient):
             from akdctl.channels.canopen_sdo import CanopenObjectChannel
 
-            return CanopenObjectChannel(client.node, timeout=self.options.timeout, retries=self.options.retries,
-                                        block=client.block, where=client.where)
+            return CanopenObjectChannel(client.node, budget=self.options.budget, block=client.block,
+                                        where=client.where)
         if isinstance(client, SoemSdoClient):
             from akdctl.channels.soem_sdo import SoemObjectChannel
 

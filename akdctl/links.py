@@ -122,6 +122,10 @@ class Budget:
         finally:
             self._current = None
 
+    def left(self) -> float:
+        """What a request started now would get (the rest of ``timeout``, or the probe share)."""
+        return max(self.timeout - self.silent, self.timeout * PROBE)
+
     @property
     def exhausted(self) -> bool:
         """True once the command has waited ``timeout`` for a drive that did not answer."""

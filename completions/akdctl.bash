@@ -83,7 +83,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

@@ -113,8 +113,9 @@ def test_nmt_states_by_guarding_and_heartbeat(face: CanFace, link: CanopenTransp
     assert link.transport().nmt_state() == "PRE-OPERATIONAL"  # heartbeat is off (0x1017 = 0): node guarding answers
     link.transport().nmt("stop")
     assert link.transport().nmt_state(fresh=True) == "STOPPED"
-    with pytest.raises(NoAnswer):
+    with pytest.raises(NoAnswer) as info:
         link.objects().upload(0x1018, 1)  # no SDO in STOPPED (CiA 301)
+    assert "NMT state STOPPED" in info.value.message and "can nmt preop" in info.value.message  # issue 14
     link.transport().nmt("start")
     assert link.transport().nmt_state(fresh=True) == "OPERATIONAL"
     link.objects().download(0x1017, 0, struct.pack("<H", 50))  # heartbeat producer on
@@ -254,6 +255,6 @@ def test_malformed_block_reply_is_comm_error(link: CanopenTransport, monkeypatch
     def broken(*args: object, **kwargs: object) -> bytes:
         raise SdoCommunicationError("Toggle bit mismatch")
 
-    monkeypatch.setattr(link.objects().sdo, "upload", broken)
+    monkeypatch.setattr(link.objects().sdo, "open", broken)  # the channel reads through sdo.open (capped)
     with pytest.raises(MalformedReply):
         link.objects().upload(0x1018, 1)

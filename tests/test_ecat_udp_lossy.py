@@ -187,8 +187,8 @@ def test_cli_silent_gateway_ends_within_timeout() -> None:
     """Issue 17.9: a silent target took 3.2 s at --timeout 1 (three attempts of a second)."""
     with FakeGateway(behaviour="silent") as gateway:
         started = time.monotonic()
-        result = run_akdctl("-T", f"ecat-udp://127.0.0.1:{gateway.port}/{STATION}", "--timeout", "1", "sdo", "read",
-                            "0x1018:1")
+        result = run_akdctl("-T", f"ecat-udp://127.0.0.1:{gateway.port}/{STATION}", "--timeout", "1", "--retries", "2",
+                            "sdo", "read", "0x1018:1")
         elapsed = time.monotonic() - started
     assert result.returncode == 3
     assert "within 1 s (3 attempts of 0.33 s)" in result.stderr, result.stderr

@@ -10,6 +10,9 @@ read can be partly good); link failures raise :class:`akdctl.errors.CommError`.
 :func:`sdo_aborted` is the one place an SDO abort code becomes the
 :class:`~akdctl.errors.SdoAborted` error, for every SDO client (CoE mailbox,
 CANopen, SOEM); the words come from :mod:`akdctl.catalog.texts`.
+:func:`confirm_write` is the one place a write whose answer went missing is
+judged (read back, never written again) for the SDO clients that run the
+protocol themselves or drive a library's client transfer by transfer.
 """
 
 from __future__ import annotations
@@ -18,7 +21,11 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from akdctl.errors import SdoAborted, UsageError
+from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageError
+
+#: The most bytes one SDO upload may bring on any SDO client, whatever the server declares: far above any
+#: AKD object (the longest are strings of a few hundred bytes), far below what would hurt the machine.
+MAX_UPLOAD = 1 << 20
 
 if TYPE_CHECKING:
     from akdctl.protocol.emcy import Emergency
@@ -136,3 +143,49 @@ def sdo_aborted(code: int, what: str, *, where: str | None = None, fallback: Map
 def sdo_what(verb: str, index: int, subindex: int) -> str:
     """"upload of 0x6041:00": how every SDO client names a transfer in its messages."""
     return f"{verb} of 0x{index:04X}:{subindex:02X}"
+
+
+def confirm_write(why: str, data: bytes, read_back: Callable[[], bytes] | None,
+                  details: dict[str, object] | None = None) -> None:
+    """A write's answer is missing or doubtful: success only if the object reads back ``data``.
+
+    ``why`` says what happened ("no answer to the SDO download to 0x6040:00 within 2 s"); ``read_back``
+    reads the object within what is left of the request's time (None: no time left). Anything else is
+    :class:`~akdctl.errors.UnknownOutcome`: the drive may or may not have applied the write, and akdctl
+    does not send it again -- a repeated controlword edge or command would act twice.
+    """
+    import logging
+
+    details = {**(details or {}), "written": data.hex()}
+    answered = False
+    if read_back is None:
+        found = "no time was left to read it back"
+    else:
+        try:
+            back = read_back()
+        except NoAnswer:
+            found = "reading it back got no answer either"
+        except AkdError as exc:
+            answered = True
+            found = f"it cannot be read back ({exc.message})"
+        else:
+            if _same_value(back, data):
+                logging.getLogger("akdctl").info("%s; the object reads back the value written", why)
+                return
+            answered = True
+            found = f"it reads back {back.hex(' ') or 'nothing'} (written: {data.hex(' ')})"
+            details["read_back"] = back.hex()
+    error = UnknownOutcome(
+        f"{why}, and {found}: the drive may or may not have applied it. akdctl does not send a write "
+        "twice; check the drive before repeating the command",
+        details=details,
+    )
+    error.unanswered = not answered  # type: ignore[attr-defined]  # how links.Budget counts it
+    raise error
+
+
+def _same_value(back: bytes, written: bytes) -> bool:
+    """Whether an object read back holds what was written (an expedited answer may pad to 4 bytes)."""
+    if back == written:
+        return True
+    return len(written) <= 4 and len(back) == 4 and back[: len(written)] == written and not any(back[len(written):])

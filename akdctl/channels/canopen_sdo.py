@@ -24,9 +24,11 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
-from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.errors import CommError, MalformedReply, NoAnswer
+from akdctl.links import Budget, Deadline
 from akdctl.protocol.emcy import Emergency
+from akdctl.protocol.nmt import state_name
 
 if TYPE_CHECKING:
     import canopen
@@ -35,34 +37,43 @@ if TYPE_CHECKING:
 class CanopenObjectChannel(ObjectChannel):
     """SDO upload/download on one ``canopen.RemoteNode``'s default SDO channel.
 
-    ``timeout`` bounds each wait for a server response; ``retries`` is how often
-    canopen repeats a request that got no answer.  ``block`` selects SDO block
-    transfer; if the node answers a block request with something else, the
-    channel falls back to normal transfers for the rest of the session (CiA 301
-    lets a server decline block transfer).
+    Each transfer waits within one deadline of the command's :class:`~akdctl.links.Budget`:
+    canopen's per-response timeout is set to an attempt's share of it before every call. An upload
+    is repeated by canopen up to ``retries`` times; a **download is sent once** (canopen would send
+    the same request again after a timeout, applying a write twice if only its answer was lost):
+    a lost answer is confirmed by reading back (:func:`~akdctl.channels.base.confirm_write`).
+    Uploads are read segment by segment and capped at the declared size and :data:`MAX_UPLOAD`.
+    ``block`` selects SDO block transfer; if the node answers a block request with something
+    else, the channel falls back to normal transfers for the rest of the session (CiA 301 lets
+    a server decline block transfer).
     """
 
     def __init__(
         self,
         node: "canopen.RemoteNode",
         *,
+        budget: Budget | None = None,
         timeout: float = 2.0,
         retries: int = 2,
         block: bool = False,
         where: str = "",
+        max_upload: int = MAX_UPLOAD,
     ) -> None:
         self.node = node
         self.sdo = node.sdo
-        self.sdo.RESPONSE_TIMEOUT = timeout
-        self.tries = self.sdo.MAX_RETRIES = max(1, retries + 1)
-        self.timeout = timeout
+        self.budget = budget if budget is not None else Budget(timeout, retries)
         self.block = block
         self.where = where or f"CANopen node {node.id}"
+        self.max_upload = max_upload
         self.requests = 0
         self._emcy: list[Emergency] = []
         self._emcy_cond = threading.Condition()
         self._attached = True
         node.emcy.add_callback(self._on_emcy)
+
+    @property
+    def timeout(self) -> float:
+        return self.budget.timeout
 
     # -- emergencies -------------------------------------------------------------------------------------------
     def _on_emcy(self, entry: "canopen.emcy.EmcyError") -> None:
@@ -104,29 +115,73 @@ class CanopenObjectChannel(ObjectChannel):
     def upload(self, index: int, subindex: int) -> bytes:
         what = sdo_what("upload", index, subindex)
         self.requests += 1
-        if self.block:
-            try:
-                return self._call(what, self._block_upload, index, subindex)
-            except _BlockDeclined:
-                self.block = False
-        return self._call(what, self.sdo.upload, index, subindex)
+        with self.budget.request() as deadline:
+            self._pace(deadline, deadline.attempts)
+            if self.block:
+                try:
+                    return self._call(what, deadline, self._read, index, subindex, True, deadline)
+                except _BlockDeclined:
+                    self.block = False
+            return self._call(what, deadline, self._read, index, subindex, False, deadline)
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
         what = sdo_what("download", index, subindex)
         self.requests += 1
         data = bytes(data)
-        if self.block:
+        with self.budget.request() as deadline:
+            self._pace(deadline, 1, share=deadline.attempts)  # sent once; the rest of the time reads back
             try:
-                self._call(what, self._block_download, index, subindex, data)
-                return
-            except _BlockDeclined:
-                self.block = False
-        self._call(what, self.sdo.download, index, subindex, data)
+                if self.block:
+                    try:
+                        self._call(what, deadline, self._block_download, index, subindex, data)
+                        return
+                    except _BlockDeclined:
+                        self.block = False
+                self._call(what, deadline, self.sdo.download, index, subindex, data)
+            except NoAnswer as exc:
+                attempts = deadline.attempts - 1
 
-    def _block_upload(self, index: int, subindex: int) -> bytes:
-        stream = self._open_block(index, subindex, "rb")
+                def read_back() -> bytes:
+                    self._pace(deadline, attempts)
+                    return self._call(sdo_what("upload", index, subindex), deadline, self._read, index, subindex,
+                                      False, deadline)
+
+                confirm_write(exc.message, data, None if attempts < 1 or deadline.expired() else read_back,
+                              {"index": index, "subindex": subindex})
+
+    def _pace(self, deadline: Deadline, tries: int, share: int | None = None) -> None:
+        """canopen's per-response timeout and repeats for the next call: a share of what is left."""
+        self.sdo.MAX_RETRIES = max(1, tries)
+        self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.share(share or tries))
+
+    def _read(self, index: int, subindex: int, block: bool, deadline: Deadline) -> bytes:
+        """One upload, segment by segment: never more than the declared size or ``max_upload``."""
+        stream = self._open_block(index, subindex, "rb") if block else self.sdo.open(index, subindex, "rb",
+                                                                                    buffering=0)
         with stream:
-            return bytes(stream.read())
+            size = stream.size
+            if size is not None and size > self.max_upload:
+                self.sdo.abort(0x05040005)  # out of memory
+                raise MalformedReply(f"{self.where} announces {size} bytes for SDO {sdo_what('upload', index, subindex)}"
+                                     f", more than the {self.max_upload} bytes akdctl accepts from one object "
+                                     "(transfer aborted)")
+            limit = self.max_upload if size is None else size
+            data = bytearray()
+            while True:
+                chunk = stream.read(7)
+                if not chunk:
+                    break
+                data += chunk
+                if len(data) > limit:
+                    self.sdo.abort(0x06070010)  # length does not match
+                    raise MalformedReply(f"{self.where} sent more than the {limit} bytes "
+                                         f"{'it announced' if size is not None else 'akdctl accepts'} for SDO "
+                                         f"{sdo_what('upload', index, subindex)} (transfer aborted)")
+                if deadline.expired():
+                    self.sdo.abort(0x05040000)  # SDO protocol timed out
+                    raise NoAnswer(f"SDO {sdo_what('upload', index, subindex)} from {self.where} did not finish "
+                                   f"within {deadline.describe()} (transfer aborted)")
+            return bytes(data)
 
     def _block_download(self, index: int, subindex: int, data: bytes) -> None:
         stream = self._open_block(index, subindex, "wb", size=len(data))
@@ -152,7 +207,7 @@ class CanopenObjectChannel(ObjectChannel):
                 raise _BlockDeclined() from None
             raise
 
-    def _call(self, what: str, func, *args):  # noqa: ANN001, ANN202
+    def _call(self, what: str, deadline: Deadline, func, *args):  # noqa: ANN001, ANN202
         """Run one canopen SDO call; every library failure becomes an akdctl error."""
         import can
         from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
@@ -164,12 +219,25 @@ class CanopenObjectChannel(ObjectChannel):
         except SdoCommunicationError as exc:
             text = str(exc)
             if "No SDO response" in text or "timed out" in text.lower():
-                raise NoAnswer(f"no answer from {self.where} to SDO {what} ({self.tries} tries of {self.timeout:g} s)") from None
+                raise NoAnswer(f"no answer from {self.where} to SDO {what} within {deadline.describe()}"
+                               f"{self._nmt_hint()}") from None
             raise MalformedReply(f"unexpected reply from {self.where} to SDO {what}: {text}") from None
         except can.CanError as exc:
             raise CommError(f"CAN bus error during SDO {what} on {self.where}: {exc}") from None
         except RuntimeError as exc:  # canopen: "Not connected to CAN bus" / network gone
             raise CommError(f"CAN bus not usable for SDO {what} on {self.where}: {exc}") from None
+
+    def _nmt_hint(self) -> str:
+        """What the node's heartbeat last said, when it explains the silence (a STOPPED node answers no SDO)."""
+        nmt = getattr(self.node, "nmt", None)
+        received = getattr(nmt, "_state_received", None)
+        if nmt is None or received is None:
+            return ""
+        state = state_name(received)
+        if state == "STOPPED":
+            return ("; its heartbeat says NMT state STOPPED, in which a node answers no SDO "
+                    "(akdctl can nmt preop brings it back)")
+        return f"; its heartbeat says NMT state {state}"
 
 
 class _BlockDeclined(Exception):

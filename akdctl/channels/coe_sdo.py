@@ -38,9 +38,9 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from akdctl.catalog.texts import mailbox_error_text
-from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
+from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.channels.reply_filter import ReplyFilter
-from akdctl.errors import AkdError, CommError, MalformedReply, NoAnswer, UnknownOutcome
+from akdctl.errors import CommError, MalformedReply, NoAnswer
 from akdctl.links import Budget, Deadline, MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
@@ -50,11 +50,6 @@ from akdctl.protocol.errors import CodecError
 log = logging.getLogger("akdctl")
 
 T = TypeVar("T")
-
-#: The most bytes one upload may bring, whatever the server declares: far above any AKD object (the longest
-#: are strings of a few hundred bytes), far below what would hurt the machine.
-MAX_UPLOAD = 1 << 20
-
 
 class _Silence(Exception):
     """Internal: no matching reply within the attempt's wait (the request may be repeated)."""
@@ -214,35 +209,11 @@ class CoeObjectChannel(ObjectChannel):
         return proven
 
     def _confirm(self, index: int, subindex: int, data: bytes, deadline: Deadline, why: str) -> None:
-        """Confirm a write whose answer is missing or doubtful by reading the object back, never by
-        writing again; UnknownOutcome if the object does not show the value written."""
-        details: dict[str, object] = {"index": index, "subindex": subindex, "written": data.hex()}
+        """Confirm a write whose answer is missing or doubtful by reading the object back."""
         attempts = deadline.attempts - 1  # the first attempt was the write itself
-        answered = False
-        if attempts < 1 or deadline.expired():
-            found = "no time was left to read it back"
-        else:
-            try:
-                back = self._read_back(index, subindex, deadline, attempts)
-            except _Silence:
-                found = "reading it back got no answer either"
-            except AkdError as exc:
-                answered = True
-                found = f"it cannot be read back ({exc.message})"
-            else:
-                if _same_value(back, data):
-                    log.info("%s; the object reads back the value written", why)
-                    return
-                answered = True
-                found = f"it reads back {back.hex(' ') or 'nothing'} (written: {data.hex(' ')})"
-                details["read_back"] = back.hex()
-        error = UnknownOutcome(
-            f"{why}, and {found}: the drive may or may not have applied it. akdctl does not send a write "
-            "twice; check the drive before repeating the command",
-            details=details,
-        )
-        error.unanswered = not answered  # type: ignore[attr-defined]  # how the Budget counts it
-        raise error
+        read = None if attempts < 1 or deadline.expired() else lambda: self._read_back(index, subindex, deadline,
+                                                                                      attempts)
+        confirm_write(why, data, read, {"index": index, "subindex": subindex})
 
     def _read_back(self, index: int, subindex: int, deadline: Deadline, attempts: int) -> bytes:
         for attempt in range(attempts):
@@ -251,7 +222,7 @@ class CoeObjectChannel(ObjectChannel):
             except _Silence:
                 if deadline.expired():
                     break
-        raise _Silence()
+        raise NoAnswer(f"no answer to reading {_where(index, subindex)} back")
 
     def _abort(self, index: int, subindex: int, code: int) -> None:
         """Tell the server to drop its transfer state (CiA 301: the client aborts what it gives up)."""
@@ -438,9 +409,3 @@ class CoeObjectChannel(ObjectChannel):
                 return value
             end = min(deadline.at, time.monotonic() + wait)  # a fragment arrived: wait for the next one
 
-
-def _same_value(back: bytes, written: bytes) -> bool:
-    """Whether an object read back holds what was written (an expedited answer may pad to 4 bytes)."""
-    if back == written:
-        return True
-    return len(written) <= 4 and len(back) == 4 and back[: len(written)] == written and not any(back[len(written):])

@@ -4,6 +4,9 @@ SOEM already runs the CoE SDO protocol (and its own framing), so this adapter on
 counts transfers and turns pysoem's exceptions into akdctl's errors: an abort
 through :func:`~akdctl.channels.base.sdo_aborted`, a missing working counter as
 :class:`~akdctl.errors.NoAnswer`, mailbox and packet errors as communication errors.
+An upload is bounded by pysoem's read buffer (256 bytes unless a size is given): SOEM
+stops there, so no hostile slave can make it grow; its waits are the transport's
+``sdo_read_timeout``/``sdo_write_timeout``, set from ``--timeout``.
 """
 
 from __future__ import annotations

@@ -34,6 +34,7 @@ class AppContext:
     profile_name: str | None = None
     json: bool = False
     timeout: float | None = None
+    retries: int | None = None
     yes: bool = False
     verbose: int = 0
     trace: bool = False
@@ -68,7 +69,7 @@ class AppContext:
 
     @property
     def options(self) -> "LinkOptions":
-        """Timeout, retries and the session's one tracer (``--trace``/``--pcap``), closed last at exit."""
+        """Timeout, retries (one Budget for the command) and the session's one tracer (``--trace``/``--pcap``), closed last at exit."""
         if self._options is None:
             from akdctl.connection import open_tracer
             from akdctl.transport.base import LinkOptions
@@ -78,7 +79,8 @@ class AppContext:
                 timeout = self.profile.timeout
             tracer = open_tracer(enabled=self.trace, pcap=self.pcap)
             self._cleanups.append(tracer.close)
-            self._options = LinkOptions(timeout=timeout if timeout is not None else 2.0, tracer=tracer,
+            self._options = LinkOptions(timeout=timeout if timeout is not None else 2.0,
+                                        retries=self.retries if self.retries is not None else 2, tracer=tracer,
                                         verbose=self.verbose)
         return self._options
 

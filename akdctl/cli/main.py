@@ -102,7 +102,13 @@ EPILOG = (
 @click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
-@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS", help="Bound on every wait for the drive (default 2).")
+@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS",
+              help="How long a request may wait for the drive, repeats included (default 2); a command "
+                   "against a silent drive gives up after about this long.")
+@click.option("--retries", type=click.IntRange(min=0, max=10), metavar="N",
+              help="Repeats of a request that got no answer, within --timeout (default 2). A write is "
+                   "repeated only where the drive recognises the repeat (PROFINET); elsewhere it is sent "
+                   "once and a lost answer is checked by reading back.")
 @click.option("-y", "--yes", is_flag=True, help="Consent to motion without a prompt (scripts, CI).")
 @click.option("-v", "--verbose", count=True, help="More detail on stderr (repeatable).")
 @click.option("--trace", is_flag=True, help="Hex dump of every request and response frame on stderr.")
@@ -111,7 +117,7 @@ EPILOG = (
 @click.version_option(__version__, "--version", prog_name="akdctl")
 @click.pass_context
 def cli(ctx: click.Context, target: str | None, config_path: str | None, profile_name: str | None,
-        json_output: bool, timeout: float | None, yes: bool, verbose: int, trace: bool, pcap: str | None,
+        json_output: bool, timeout: float | None, retries: int | None, yes: bool, verbose: int, trace: bool, pcap: str | None,
         debug: bool) -> None:
     """Commission and diagnose Kollmorgen AKD servo drives.
 

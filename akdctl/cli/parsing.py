@@ -29,7 +29,7 @@ except ImportError:  # click 8.1
 #: Root option name -> AppContext field (the root callback and the late copies both use it).
 APP_FIELDS = {
     "target": "target_text", "config_path": "config_path", "profile_name": "profile_name", "json_output": "json",
-    "timeout": "timeout", "yes": "yes", "verbose": "verbose", "trace": "trace", "pcap": "pcap", "debug": "debug",
+    "timeout": "timeout", "retries": "retries", "yes": "yes", "verbose": "verbose", "trace": "trace", "pcap": "pcap", "debug": "debug",
 }
 
 _NEGATIVE = re.compile(r"^-(?:\d[\d_]*(?:\.\d*)?(?:[eE][-+]?\d+)?|\.\d+|0[xX][0-9A-Fa-f_]+|inf|nan)$")

@@ -37,7 +37,13 @@ class BusConfig:
 
 
 def open_bus(config: BusConfig) -> "can.BusABC":
-    """Open the python-can bus, translating every failure into one akdctl error."""
+    """Open the python-can bus, translating every failure into one akdctl error.
+
+    python-can's backends fail in their own ways when a vendor library is missing: an
+    ``ImportError``, a ``CanInterfaceNotImplementedError``, an ``OSError`` -- or, for kvaser without
+    CANlib, a ``NameError`` from a function the backend never defined. Bad options (``TypeError``,
+    ``ValueError``) are the user's (exit 2); anything else is one line naming the interface (exit 3).
+    """
     import can
 
     where = config.describe()
@@ -62,6 +68,10 @@ def open_bus(config: BusConfig) -> "can.BusABC":
         raise CommError(f"cannot open CAN interface {where}: {reason(exc)}") from None
     except (TypeError, ValueError) as exc:
         raise UsageError(f"CAN interface {where} rejected its options {kwargs or '(none)'}: {reason(exc)}") from None
+    except Exception as exc:  # noqa: BLE001 - a backend failing in its own way (kvaser without CANlib: NameError)
+        raise CommError(f"CAN interface {where} is not available here: python-can's {config.interface or 'configured'} "
+                        f"backend failed while loading its driver library ({type(exc).__name__}: {reason(exc)}); "
+                        "is the vendor's library installed?") from None
 
 
 def reason(exc: BaseException) -> str:

@@ -194,9 +194,11 @@ class Reassembler:
     once every number up to the one flagged LASTFRAG has been seen.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_body: int | None = None) -> None:
         self._parts: dict[int, bytes] = {}
         self._last: int | None = None
+        self._size = 0
+        self.max_body = max_body  # the most one reassembled body may hold (a hostile peer's fragments end there)
         self.first: RpcHeader | None = None
 
     def add(self, packet: RpcPacket) -> bytes | None:
@@ -209,6 +211,10 @@ class Reassembler:
             raise DceRpcError(f"fragment number {head.fragment} is implausibly high")
         if self.first is None or head.fragment == 0:
             self.first = head if head.fragment == 0 or self.first is None else self.first
+        if head.fragment not in self._parts:
+            self._size += len(packet.body)
+            if self.max_body is not None and self._size > self.max_body:
+                raise DceRpcError(f"fragments of more than {self.max_body} bytes for one call")
         self._parts[head.fragment] = packet.body
         if head.flags1 & FLAG_LASTFRAG:
             self._last = head.fragment

@@ -55,6 +55,7 @@ from urllib.parse import unquote
 from akdctl.errors import AkdError, CommError, NoAnswer, UsageError
 from akdctl.io.canbus import BusConfig, close_bus, open_bus, reason
 from akdctl.links import CanopenSdoClient
+from akdctl.protocol.nmt import state_name as _state_name
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
@@ -81,13 +82,6 @@ NMT_COMMANDS: dict[str, int] = {
     "preop": 0x80,
     "reset": 0x81,
     "reset-comm": 0x82,
-}
-#: CiA 301 NMT states as heartbeat / node guarding report them.
-NMT_STATES: dict[int, str] = {
-    0x00: "BOOTUP",
-    0x04: "STOPPED",
-    0x05: "OPERATIONAL",
-    0x7F: "PRE-OPERATIONAL",
 }
 
 
@@ -385,14 +379,6 @@ class CanopenTransport(Transport):
         except AkdError:
             info.state = None
         return info
-
-
-def _state_name(code: int) -> str:
-    """Heartbeat state byte -> name; a boot-up (0) means the node is now PRE-OPERATIONAL (CiA 301)."""
-    code &= 0x7F
-    if code == 0:
-        return "PRE-OPERATIONAL"
-    return NMT_STATES.get(code, f"UNKNOWN (0x{code:02X})")
 
 
 class _StateWatch:

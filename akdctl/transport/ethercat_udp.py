@@ -48,7 +48,6 @@ class GatewayMailboxLink(MailboxLink):
         self.mailbox_size = mailbox_size
         self.sent = 0
         self.received = 0
-        self.refused = False  # an ICMP port-unreachable came back: nothing listens there
         try:
             infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
         except socket.gaierror as exc:
@@ -78,7 +77,7 @@ class GatewayMailboxLink(MailboxLink):
         try:
             sock.send(datagram)
         except ConnectionRefusedError:
-            self.refused = True  # an earlier datagram bounced; this one may still get through later
+            raise self._refused() from None
         except OSError as exc:
             raise CommError(f"cannot send to EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
         self.sent += 1
@@ -99,8 +98,7 @@ class GatewayMailboxLink(MailboxLink):
             try:
                 data = sock.recv(4096)
             except ConnectionRefusedError:
-                self.refused = True
-                continue
+                raise self._refused() from None
             except OSError as exc:
                 raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
             try:
@@ -115,6 +113,12 @@ class GatewayMailboxLink(MailboxLink):
             self.tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {mbx.address}", meta=self._meta("rx"))
             self.received += 1
             return encode_mailbox(mbx)
+
+    def _refused(self) -> CommError:
+        """ICMP port unreachable came back (ECONNREFUSED on the connected socket): no gateway listens there,
+        and the request bounced before reaching any drive, so failing now loses nothing."""
+        return CommError(f"no answer from an EtherCAT gateway: nothing listens on UDP port {self.port} of {self.host} "
+                         "(ICMP port unreachable); is the master's mailbox gateway enabled on that port?")
 
     def _socket(self) -> socket.socket:
         if self.sock is None:

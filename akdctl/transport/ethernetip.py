@@ -2,8 +2,9 @@
 
 One TCP connection, one RegisterSession, then unconnected (UCMM) requests: SendRRData with a
 Null address item and an unconnected data item, **no Unconnected_Send wrapper and no route path**
-(the AKD is not a backplane; reference/ethernetip.md 5). Every wait is bounded by the link
-timeout: connect, each receive, the session registration. A reply must echo our sender context
+(the AKD is not a backplane; reference/ethernetip.md 5). Every wait is bounded: the connect by
+the timeout, each request (its send and every receive of its reply) by one deadline of the command's
+Budget. A reply must echo our sender context
 and session, or it is a malformed reply. ``close`` unregisters the session and closes the socket
 on every way out.
 
@@ -25,7 +26,7 @@ from typing import TYPE_CHECKING
 from akdctl.errors import CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.protocol import cip, enip
 from akdctl.protocol.errors import CodecError
-from akdctl.links import MessageLink
+from akdctl.links import Deadline, MessageLink
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
@@ -58,13 +59,14 @@ class EnipSession(MessageLink):
         self.options.tracer.frame(direction, "enip", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "tcp", "src": src, "dst": dst})
 
-    def _recv_exact(self, size: int, what: str) -> bytes:
+    def _recv_exact(self, size: int, what: str, deadline: Deadline) -> bytes:
         data = bytearray()
         while len(data) < size:
+            self.sock.settimeout(max(0.001, deadline.remaining()))
             try:
                 chunk = self.sock.recv(size - len(data))
             except socket.timeout:
-                raise NoAnswer(f"{self.label}: no answer to {what} within {self.options.timeout:g} s") from None
+                raise NoAnswer(f"{self.label}: no answer to {what} within {deadline.describe()}") from None
             except OSError as exc:
                 raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
             if not chunk:
@@ -74,18 +76,24 @@ class EnipSession(MessageLink):
         return bytes(data)
 
     def exchange(self, command: int, data: bytes, what: str) -> enip.Packet:
-        """Send one encapsulation packet and return the reply that matches it."""
+        """Send one encapsulation packet and return the reply that matches it (one deadline for both:
+        TCP repeats for us, so the request is sent once)."""
+        with self.options.budget.request(attempts=1) as deadline:
+            return self._exchange(command, data, what, deadline)
+
+    def _exchange(self, command: int, data: bytes, what: str, deadline: Deadline) -> enip.Packet:
         context = struct.pack("<Q", next(self._context))
         packet = enip.Packet(command, data, self.session, 0, context)
         raw = packet.encode()
         self._trace("tx", raw, what)
+        self.sock.settimeout(max(0.001, deadline.remaining()))
         try:
             self.sock.sendall(raw)
         except socket.timeout:
-            raise NoAnswer(f"{self.label}: could not send {what} within {self.options.timeout:g} s") from None
+            raise NoAnswer(f"{self.label}: could not send {what} within {deadline.describe()}") from None
         except OSError as exc:
             raise CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})") from None
-        head_raw = self._recv_exact(enip.HEADER_SIZE, what)
+        head_raw = self._recv_exact(enip.HEADER_SIZE, what, deadline)
         try:
             head = enip.decode_header(head_raw)
         except CodecError as exc:
@@ -94,7 +102,7 @@ class EnipSession(MessageLink):
             raise MalformedReply(f"{self.label}: reply to {what} is a {enip.command_name(head.command)} packet")
         if head.length > enip.MAX_DATA:
             raise MalformedReply(f"{self.label}: reply to {what} announces {head.length} bytes")
-        body = self._recv_exact(head.length, what) if head.length else b""
+        body = self._recv_exact(head.length, what, deadline) if head.length else b""
         self._trace("rx", head_raw + body, what)
         if head.context != context:
             raise MalformedReply(f"{self.label}: reply to {what} carries another request's sender context")

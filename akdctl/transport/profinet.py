@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.links import RecordLink
+from akdctl.links import Deadline, RecordLink
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ DEFAULT_VENDOR_ID = 0x0100       # the simulator's PNU 964[0]; a real AKD is add
 DEFAULT_DEVICE_ID = 0x0001
 MAX_RECORD = 240
 BUSY_BACKOFF = (0.01, 0.1)       # first and longest pause between polls of a busy device
-RETRANSMIT = (0.2, 1.0)          # first and longest wait before a request is sent again
+MAX_BODY = 1 << 17               # the most a reassembled response may hold (a record is at most 64 KiB)
 NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C010002: "operation out of range",
              0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
 
@@ -81,40 +81,29 @@ class RpcClient:
         self.options.tracer.frame(direction, "pnio-rpc", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "udp", "src": src, "dst": dst})
 
-    def call(self, opnum: int, blocks: bytes, timeout: float | None = None) -> tuple[pnio.PnioStatus, bytes]:
-        """One PNIO call; returns the response's PNIOStatus and blocks. Raises NoAnswer / MalformedReply."""
-        total = self.options.timeout if timeout is None else timeout
+    def call(self, opnum: int, blocks: bytes, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
+        """One PNIO call within ``deadline`` (default: a request of the command's Budget); returns the
+        response's PNIOStatus and blocks. Raises NoAnswer / MalformedReply / CommError (port unreachable)."""
+        if deadline is None:
+            with self.options.budget.request() as own:
+                return self.call(opnum, blocks, own)
         self.sequence = (self.sequence + 1) & 0xFFFFFFFF
         header = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=self.object_uuid,
                                   interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=self.activity,
                                   sequence=self.sequence, opnum=opnum, flags1=dcerpc.FLAG_IDEMPOTENT)
         datagram = dcerpc.encode_packet(header, pnio.encode_request_args(blocks))
         name = pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
-        # Retransmit with back-off (0.2, 0.4, 0.8, 1 s ...) until the call's deadline: a record
-        # access is answered within milliseconds, and a working device says "busy" rather than nothing.
-        interval = min(RETRANSMIT[0], total / 2)
-        deadline = time.monotonic() + total
-        reassembler = dcerpc.Reassembler()
-        sent = 0
-        refused = False
-        while True:
-            now = time.monotonic()
-            if now >= deadline:
-                hint = " (the host reports that nothing listens on that UDP port)" if refused else ""
-                raise NoAnswer(f"{self.label}: no answer to PNIO {name} within {total:g} s "
-                               f"({sent} datagram{'s' if sent != 1 else ''} sent){hint}")
-            self._trace("tx", datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""))
-            try:
-                self.sock.send(datagram)
-            except OSError as exc:
-                if exc.errno not in (errno.ECONNREFUSED, errno.EHOSTUNREACH, errno.ENETUNREACH):
-                    raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
-                refused = refused or exc.errno == errno.ECONNREFUSED
+        # The same datagram again after each attempt's share of the deadline: the device recognises the
+        # repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
+        reassembler = dcerpc.Reassembler(max_body=MAX_BODY)
+        attempts = deadline.attempts
+        for sent in range(attempts):
+            if sent and deadline.expired():
+                break
+            resend_at = time.monotonic() + deadline.share(attempts - sent)
+            self._send(datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""), name)
             if sent:
                 self.retransmissions += 1
-            sent += 1
-            resend_at = min(deadline, time.monotonic() + interval)
-            interval = min(RETRANSMIT[1], interval * 2)
             while True:
                 wait = resend_at - time.monotonic()
                 if wait <= 0:
@@ -125,13 +114,30 @@ class RpcClient:
                 except socket.timeout:
                     break
                 except ConnectionRefusedError:
-                    refused = True
-                    continue
+                    raise self._refused(name) from None
                 except OSError as exc:
                     raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
                 result = self._accept(data, name, reassembler)
                 if result is not None:
                     return result
+        raise NoAnswer(f"{self.label}: no answer to PNIO {name} within {deadline.describe()}")
+
+    def _send(self, datagram: bytes, note: str, name: str) -> None:
+        self._trace("tx", datagram, note)
+        try:
+            self.sock.send(datagram)
+        except ConnectionRefusedError:
+            raise self._refused(name) from None
+        except OSError as exc:
+            if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
+                raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
+
+    def _refused(self, name: str) -> CommError:
+        """ICMP port unreachable came back (ECONNREFUSED on the connected socket): nothing listens there,
+        so waiting out the timeout would only hide that."""
+        host, port = self.remote
+        return CommError(f"{self.label}: nothing listens on UDP port {port} of {host} (ICMP port unreachable "
+                         f"in answer to the PNIO {name}): no PROFINET device there, or the wrong port")
 
     def _accept(self, data: bytes, name: str,
                 reassembler: dcerpc.Reassembler) -> tuple[pnio.PnioStatus, bytes] | None:
@@ -182,19 +188,18 @@ class PnioRecordLink(RecordLink):
         if len(request) > MAX_RECORD:
             raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
                              f"of {MAX_RECORD} bytes")
-        with t.lock:
-            deadline = time.monotonic() + t.options.timeout
-            self._until_not_busy(deadline, lambda: t.write_record(request), "write")
-            return self._until_not_busy(deadline, t.read_record, "read")
+        with t.lock, t.options.budget.request() as deadline:
+            self._until_not_busy(deadline, lambda: t.write_record(request, deadline), "write")
+            return self._until_not_busy(deadline, lambda: t.read_record(deadline), "read")
 
-    def _until_not_busy(self, deadline: float, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
+    def _until_not_busy(self, deadline: Deadline, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
         pause = BUSY_BACKOFF[0]
         while True:
             status, data = action()
             if not status.busy:
                 return data
-            if time.monotonic() + pause > deadline:
-                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {self.t.options.timeout:g} s "
+            if pause > deadline.remaining():
+                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
                                f"({what} record: {status.describe()})", code=status.value)
             time.sleep(pause)
             pause = min(BUSY_BACKOFF[1], pause * 2)
@@ -306,8 +311,10 @@ class ProfinetTransport(Transport):
                 continue
             try:
                 if self.ar_uuid is not None and not self._stop.is_set():
+                    # its own deadline: this thread must not share the command's Budget
                     self._read(pnio.RecordAddress(self.address.api, self.address.slot, self.address.subslot,
-                                                  pnio.INDEX_KEEPALIVE), 0)
+                                                  pnio.INDEX_KEEPALIVE), 0,
+                               deadline=Deadline(min(self.options.timeout, 1.0), 2))
             except (CommError, RecordError, OSError):
                 pass    # the next real request reports the problem in words
             finally:
@@ -323,8 +330,9 @@ class ProfinetTransport(Transport):
         self.ar_uuid = None
         if rpc is not None and ar is not None:
             try:
+                budget = self.options.budget
                 rpc.call(pnio.OP_RELEASE, pnio.ReleaseBlock(ar, self.session_key).encode(),
-                         timeout=min(self.options.timeout, 1.0))
+                         Deadline(min(budget.left(), 1.0), budget.attempts))
             except (CommError, OSError):
                 pass    # the device ends the AR by its activity timeout anyway
         if rpc is not None:
@@ -342,11 +350,11 @@ class ProfinetTransport(Transport):
             raise CommError(f"{self.label}: not connected (no application relation)")
         return self.ar_uuid
 
-    def write_record(self, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
+    def write_record(self, data: bytes, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
         """Write ``data`` to the parameter record; returns (status, b'') and raises on refusals other than busy."""
         ar = self._need_ar()
         req = pnio.IODWriteReq(self._next_rw_seq(), ar, self.address, data)
-        status, blocks = self._need_rpc().call(pnio.OP_WRITE, req.encode())
+        status, blocks = self._need_rpc().call(pnio.OP_WRITE, req.encode(), deadline)
         self._last_activity = time.monotonic()
         if status.ok and blocks:
             try:
@@ -358,18 +366,20 @@ class ProfinetTransport(Transport):
                               code=status.value)
         return status, b""
 
-    def read_record(self) -> tuple[pnio.PnioStatus, bytes]:
-        return self._read(self.address, MAX_RECORD)
+    def read_record(self, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
+        return self._read(self.address, MAX_RECORD, deadline=deadline)
 
     def _need_rpc(self) -> RpcClient:
         if self.rpc is None:
             raise CommError(f"{self.label}: not connected")
         return self.rpc
 
-    def _read(self, address: pnio.RecordAddress, length: int, implicit: bool = False) -> tuple[pnio.PnioStatus, bytes]:
+    def _read(self, address: pnio.RecordAddress, length: int, implicit: bool = False,
+              deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
         ar = pnio.NIL_UUID if implicit else self._need_ar()
         req = pnio.IODReadReq(self._next_rw_seq(), ar, address, length)
-        status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ, req.encode())
+        status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ, req.encode(),
+                                             deadline)
         if not implicit:
             self._last_activity = time.monotonic()
         if not status.ok:

@@ -87,6 +87,8 @@ class TransportSpec:
     check: Callable[[Target], None] | None = None
     extra: str = ""
     notes: tuple[str, ...] = field(default_factory=tuple)
+    #: The query keys the transport reads (``drive`` is every target's); None: any key is passed on (can://).
+    query: tuple[str, ...] | None = ()
 
 
 BUILTIN: dict[str, TransportSpec] = {
@@ -99,10 +101,11 @@ BUILTIN: dict[str, TransportSpec] = {
         TransportSpec("pn", "akdctl.transport.profinet", "ProfinetTransport",
                       "PROFINET record data: PROFIdrive base-mode parameter access over PNIO DCE/RPC/UDP",
                       "pn://HOST[:34964][?slot=1&subslot=1&api=0x3A00&index=47]", "parameters",
-                      check=_need_host),
+                      check=_need_host, query=("slot", "subslot", "api", "index", "axis", "vendor", "device",
+                                               "instance", "ar_timeout", "iface")),
         TransportSpec("ecat-udp", "akdctl.transport.ethercat_udp", "EthercatUdpTransport",
                       "EtherCAT mailbox (CoE SDO) through a master's ETG.8200 mailbox gateway",
-                      "ecat-udp://HOST[:34980]/STATION", "objects", check=_check_ecat_udp),
+                      "ecat-udp://HOST[:34980]/STATION", "objects", check=_check_ecat_udp, query=("mailbox",)),
         TransportSpec("ecat", "akdctl.transport.ethercat_raw", "EthercatRawTransport",
                       "EtherCAT: akdctl as master on a raw interface (needs CAP_NET_RAW)",
                       "ecat://IFNAME[/POSITION]", "objects", check=_check_ecat_raw),
@@ -113,7 +116,7 @@ BUILTIN: dict[str, TransportSpec] = {
         TransportSpec("can", "akdctl.transport.canopen_bus", "CanopenTransport",
                       "CANopen over any python-can interface (socketcan, slcan, pcan, kvaser, virtual, ...)",
                       "can://INTERFACE/CHANNEL/NODE[?bitrate=500000]", "objects",
-                      requires=("can", "canopen"), check=_check_can),
+                      requires=("can", "canopen"), check=_check_can, query=None),
         TransportSpec("eip", "akdctl.transport.ethernetip", "EthernetIpTransport",
                       "EtherNet/IP: CIP explicit messaging (UCMM over TCP), Parameter and Position Controller objects",
                       "eip://HOST[:44818]", "attributes", check=_need_host),
@@ -142,9 +145,29 @@ def parse_target(text: str, source: str = "--target") -> Target:
                 f"known schemes: {', '.join(known_schemes())}"
             )
         return target
+    _check_query(target, spec)
     if spec.check is not None:
         spec.check(target)
     return target
+
+
+#: The query key every target takes: the axis profile motion uses (the Connection reads it).
+COMMON_QUERY = ("drive",)
+
+
+def _check_query(target: Target, spec: TransportSpec) -> None:
+    """An unknown query key is a typo the transport would silently ignore (``pn://HOST?slott=2``): refuse it."""
+    if spec.query is None:
+        return
+    known = sorted({*spec.query, *COMMON_QUERY})
+    for key in target.query:
+        if key not in known:
+            import difflib
+
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise UsageError(f"target {target.raw!r}: unknown query key {key!r}{hint}; {spec.scheme}:// takes "
+                             f"{', '.join(known)}")
 
 
 def module_available(name: str) -> bool:
