@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import re
-import sys
 import time
 from typing import Any
 
@@ -26,7 +25,8 @@ import click
 
 from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
-from akdctl.cli.output import Doc, message
+from akdctl.cli.output import Doc, LiveView, message
+from akdctl.cli.progress import MotionProgress
 from akdctl.cli.signals import stop_signals
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 from akdctl.errors import Interrupted, UsageError
@@ -89,24 +89,6 @@ def _duration(text: str) -> float:
     return value / 1000.0 if unit == "ms" else value * 60.0 if unit in ("m", "min") else value
 
 
-def _progress(app: Any) -> Any:
-    if app.json or not sys.stderr.isatty():
-        return None
-
-    def show(status: Any) -> None:
-        pos = f"{status.position_rev:10.4f} rev" if status.position_rev is not None else "position n/a"
-        vel = f"{status.velocity_rpm:9.2f} rpm" if status.velocity_rpm is not None else ""
-        sys.stderr.write(f"\r  {pos}  {vel}  {status.state}  ")
-        sys.stderr.flush()
-
-    return show
-
-
-def _end_progress(app: Any) -> None:
-    if not app.json and sys.stderr.isatty():
-        sys.stderr.write("\n")
-
-
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
@@ -119,11 +101,8 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
     require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
-    with stop_signals() as stop:
-        try:
-            result = motion_plan.execute(axis, plan, stop, _progress(app), wait=wait)
-        finally:
-            _end_progress(app)
+    with stop_signals() as stop, MotionProgress(plan, quiet=app.json or not wait) as progress:
+        result = motion_plan.execute(axis, plan, stop, progress.update, wait=wait)
     extra = dict(extra or {})
     if not wait:
         extra["note"] = motion_plan.wait_hint(conn)
@@ -143,13 +122,24 @@ def status(watch: bool, interval: float) -> None:
     if not watch:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
         return
-    with contextlib.suppress(Interrupted), stop_signals() as stop:
+    with contextlib.suppress(Interrupted), stop_signals() as stop, LiveView(app.json) as view:
         while not stop():
-            _emit_status(app, axis.read_status(), f"axis status {time.strftime('%H:%M:%S')}", bits=not app.json)
-            sys.stdout.flush()
+            status, now = axis.read_status(), time.localtime()
+            view.show({"time": time.strftime("%Y-%m-%dT%H:%M:%S", now), "target": app.target.display,
+                       "status": status.to_json()},
+                      lambda s=status, t=time.strftime("%H:%M:%S", now): _watch_doc(app, s, t))
             end = time.monotonic() + interval
             while time.monotonic() < end and not stop():
                 time.sleep(0.05)
+
+
+def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:
+    """The status document, compact enough to redraw in place: the set bits on one line, not the bit table."""
+    from akdctl.profiles.statusword import set_names
+
+    doc = _status_doc(app, status, f"axis status {stamp} (Ctrl-C ends)")
+    doc.kv("bits set", ", ".join(set_names(status.bits)) or "none")
+    return doc
 
 
 @click.command()
