@@ -116,7 +116,14 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 @click.option("--interval", type=click.FloatRange(min=0.05), default=0.5, show_default=True,
               help="Seconds between refreshes with --watch.")
 def status(watch: bool, interval: float) -> None:
-    """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults."""
+    """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults.
+
+    \b
+    Examples:
+      akdctl status
+      akdctl status --watch --interval 0.2
+      akdctl status --watch --json > status.jsonl
+    """
     app = get_app()
     axis = _axis(app)
     if not watch:
@@ -144,7 +151,13 @@ def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:
 
 @click.command()
 def enable() -> None:
-    """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded."""
+    """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded.
+
+    \b
+    Examples:
+      akdctl -y enable
+      akdctl -T 'sim?drive=cia402' enable --yes
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     _plan_and_run(get_app(), MotionRequest("enable"), "drive enabled")
@@ -152,7 +165,12 @@ def enable() -> None:
 
 @click.command()
 def disable() -> None:
-    """Disable the power stage; a moving axis is brought to standstill along its ramp first."""
+    """Disable the power stage; a moving axis is brought to standstill along its ramp first.
+
+    \b
+    Examples:
+      akdctl disable
+    """
     app = get_app()
     _emit_status(app, _axis(app).disable(), "drive disabled")
 
@@ -160,7 +178,13 @@ def disable() -> None:
 @click.command()
 @click.option("--quick", is_flag=True, help="Quick stop (steep ramp; leaves the drive disabled).")
 def stop(quick: bool) -> None:
-    """Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed)."""
+    """Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed).
+
+    \b
+    Examples:
+      akdctl stop
+      akdctl stop --quick
+    """
     app = get_app()
     status = _axis(app).stop(quick=quick)
     _emit_status(app, status, "axis stopped (quick stop)" if quick else "axis stopped")
@@ -174,7 +198,13 @@ def stop(quick: bool) -> None:
 @click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
 @click.option("--units", "unit", type=click.Choice(UNITS), help="Units of --distance (default: rev, or user).")
 def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None) -> None:
-    """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance)."""
+    """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance).
+
+    \b
+    Examples:
+      akdctl -y jog 100 --for 2s
+      akdctl -y jog -50 --distance 0.25
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     if duration is not None and distance is not None:
@@ -193,7 +223,13 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
 @click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
               help="Seconds the whole homing may take before the axis is stopped.")
 def home(home_mode: int | None, home_timeout: float) -> None:
-    """Run the drive's homing procedure and wait until the home position is set."""
+    """Run the drive's homing procedure and wait until the home position is set.
+
+    \b
+    Examples:
+      akdctl -y home
+      akdctl -y home --mode 3 --timeout 30
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     _plan_and_run(get_app(), MotionRequest("home", home_mode=home_mode, timeout_s=home_timeout), "homing finished",
@@ -212,7 +248,14 @@ def home(home_mode: int | None, home_timeout: float) -> None:
                    "1 s unless something keeps polling (a real AKD finishes the task).")
 def move(target: float, relative: bool, velocity: float | None, accel: float | None, decel: float | None,
          unit: str | None, no_wait: bool) -> None:
-    """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move)."""
+    """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move).
+
+    \b
+    Examples:
+      akdctl -y move 10
+      akdctl -y move --relative -0.5 --velocity 60
+      akdctl -y move 90 --units deg --json
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     request = MotionRequest("move", target=target, relative=relative, velocity=velocity, accel=accel, decel=decel,

@@ -17,6 +17,11 @@ def pnu() -> None:
     """Read, write, describe and list PROFIdrive parameters (PNUs).
 
     Addresses: 930, 964[0..4], 947[3], or a signal name such as STW1.
+
+    \b
+    Examples:
+      akdctl pnu get 930
+      akdctl -y pnu set 930=2
     """
 
 
@@ -63,7 +68,13 @@ def _report_failures(readings: list[Any], verb: str) -> None:
 @pnu.command("get")
 @click.argument("addresses", nargs=-1, required=True, metavar="PNU[SUB|FROM..TO]...")
 def get(addresses: tuple[str, ...]) -> None:
-    """Read one or more PNUs in as few requests as the protocol allows (39 per request)."""
+    """Read one or more PNUs in as few requests as the protocol allows (39 per request).
+
+    \b
+    Examples:
+      akdctl pnu get 930 '964[0..4]' STW1
+      akdctl pnu get 947 --json
+    """
     from akdctl.drive.params import parse_pnu_spec
     from akdctl.drive.values import read_pnus
 
@@ -81,7 +92,13 @@ def get(addresses: tuple[str, ...]) -> None:
 @click.argument("assignments", nargs=-1, required=True, metavar="PNU[SUB]=VALUE[,VALUE...]...")
 @click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
 def set_(assignments: tuple[str, ...], verify: bool) -> None:
-    """Change one or more PNUs (all are checked before anything is sent)."""
+    """Change one or more PNUs (all are checked before anything is sent).
+
+    \b
+    Examples:
+      akdctl -y pnu set 930=2 --verify
+      akdctl -y pnu set 1004=-500 1005=500
+    """
     from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment
     from akdctl.drive.values import read_pnus, write_pnus
@@ -113,7 +130,13 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
 @pnu.command("describe")
 @click.argument("address", metavar="PNU")
 def describe(address: str) -> None:
-    """Show the catalogue entry and the drive's own description (attribute 0x20)."""
+    """Show the catalogue entry and the drive's own description (attribute 0x20).
+
+    \b
+    Examples:
+      akdctl pnu describe 930
+      akdctl -T pn://192.168.0.10 pnu describe 947
+    """
     from akdctl.drive.params import description_json, parse_pnu_spec
 
     app = get_app()
@@ -155,7 +178,13 @@ def describe(address: str) -> None:
               help="Only this group.")
 @click.option("--drive", "from_drive", is_flag=True, help="Ask the drive which PNUs it has (PNU 980..989).")
 def list_(group: str | None, from_drive: bool) -> None:
-    """List the catalogue's PNUs (name, type, access, elements)."""
+    """List the catalogue's PNUs (name, type, access, elements).
+
+    \b
+    Examples:
+      akdctl pnu list --group identity
+      akdctl pnu list --drive
+    """
     from akdctl.catalog.pnus import pnu_table
 
     app = get_app()

@@ -33,7 +33,13 @@ def _hinting(address_text: str) -> Iterator[None]:
 
 @click.group()
 def sdo() -> None:
-    """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0)."""
+    """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0).
+
+    \b
+    Examples:
+      akdctl sdo read 0x6041
+      akdctl sdo list --catalogue
+    """
 
 
 @sdo.command("read")
@@ -43,6 +49,12 @@ def read(address: str, type_name: str | None) -> None:
     """Upload an object; TYPE defaults to the catalogue's type.
 
     TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
+
+    \b
+    Examples:
+      akdctl sdo read 0x6041
+      akdctl sdo read 0x1018:1 u32
+      akdctl -T ecat-udp://10.0.0.5/1001 sdo read 0x1008
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive.objects import parse_address
@@ -72,7 +84,11 @@ def read(address: str, type_name: str | None) -> None:
 def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     """Download a value; TYPE defaults to the catalogue's type; VALUE '-' reads stdin.
 
-    Examples: sdo write 0x6060:0 i8 3 · sdo write 0x6060:0 3 · echo 01ff | sdo write 0x2013:1 os -
+    \b
+    Examples:
+      akdctl sdo write 0x6060:0 i8 3
+      akdctl -y sdo write 0x607A:0 -1000 --verify
+      echo 01ff | akdctl sdo write 0x2013:1 os -
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive import gate

@@ -18,7 +18,13 @@ from akdctl.errors import CommError, UsageError
 
 @click.group()
 def support() -> None:
-    """Write a support bundle from a drive, or show one without a drive."""
+    """Write a support bundle from a drive, or show one without a drive.
+
+    \b
+    Examples:
+      akdctl support bundle -o bundle.zip
+      akdctl support show bundle.zip
+    """
 
 
 @support.command("bundle")
@@ -31,6 +37,11 @@ def bundle(output: str, all_objects: bool) -> None:
 
     A section the drive refuses is recorded in the file; the file is written
     atomically, never half. Exit 3 (file still written) if the drive did not answer at all.
+
+    \b
+    Examples:
+      akdctl support bundle -o bundle.zip
+      akdctl -T pn://192.168.0.10 support bundle -o axis1.zip --all-objects
     """
     from akdctl.drive import bundle as bundle_mod
 
@@ -153,7 +164,13 @@ def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
 @click.argument("file", metavar="FILE")
 @click.option("--trace-all", is_flag=True, help="Show every frame of the session trace (default: the first 20).")
 def show(file: str, trace_all: bool) -> None:
-    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2."""
+    """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2.
+
+    \b
+    Examples:
+      akdctl support show bundle.zip
+      akdctl support show bundle.zip --trace-all
+    """
     from akdctl.cli.fault import dump_doc
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.bundle import load
