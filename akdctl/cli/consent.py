@@ -24,7 +24,9 @@ def require_consent(app: Any, action: str) -> None:
     if not sys.stdin.isatty():
         raise SafetyRefusal(f"refusing to {text}: no terminal to ask for consent and --yes was not given; "
                             "nothing was written")
-    if not click.confirm(f"About to {text}. Proceed?", default=False, err=True):
+    from akdctl.cli.output import inert
+
+    if not click.confirm(inert(f"About to {text}. Proceed?"), default=False, err=True):
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 

@@ -101,7 +101,7 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
     """
     from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment
-    from akdctl.drive.values import read_pnus, write_pnus
+    from akdctl.drive.values import pnu_display, read_pnus, write_pnus
 
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
@@ -118,7 +118,8 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
         lambda: Doc("PNU written", app.target.display).table(
             ["PNU", "name", "value", "result"],
             [[r.spec.label, r.spec.info.name if r.spec.info else "?",
-              ",".join(str(v) for v in (r.values or [])), "ok" if r.ok else f"refused: {r.error_text}"]
+              ",".join(pnu_display(r.spec.pnu, r.spec.subindex + i, v) for i, v in enumerate(r.values or [])),
+              "ok" if r.ok else f"refused: {r.error_text}"]
              for r in results],
         ),
     )
@@ -137,10 +138,12 @@ def describe(address: str) -> None:
       akdctl pnu describe 930
       akdctl -T pn://192.168.0.10 pnu describe 947
     """
+    from akdctl.catalog.meanings import pnu_meaning
     from akdctl.drive.params import description_json, parse_pnu_spec
 
     app = get_app()
     spec = parse_pnu_spec(address)
+    meaning = pnu_meaning(spec.pnu, spec.subindex)
     channel = app.parameters()
     description = description_json(channel.read_description(spec.pnu))
     info = spec.info
@@ -151,6 +154,8 @@ def describe(address: str) -> None:
             "limits": list(info.limits()), "unit": info.unit, "description": info.description,
             "akd_parameter": info.akd_parameter, "note": info.note,
         }
+        if meaning is not None and meaning.listing():
+            data["catalogue"]["values"] = meaning.listing()
 
     def human() -> Doc:
         doc = Doc(f"PNU {spec.pnu}", app.target.display)
@@ -166,6 +171,8 @@ def describe(address: str) -> None:
                 doc.kv("unit", info.unit)
             if info.note:
                 doc.kv("note", info.note)
+            if meaning is not None and meaning.listing():
+                doc.kv("values", meaning.listing())
         for key, value in description.items():
             doc.kv(f"drive: {key}", value)
         return doc
