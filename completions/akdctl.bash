@@ -39,6 +39,7 @@ _akdctl() {
             "pnu:get") path="pnu get" ;;
             "pnu:list") path="pnu list" ;;
             "pnu:set") path="pnu set" ;;
+            "sdo:list") path="sdo list" ;;
             "sdo:read") path="sdo read" ;;
             "sdo:write") path="sdo write" ;;
             "pdo:map") path="pdo map" ;;
@@ -101,7 +102,8 @@ _akdctl() {
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu list") COMPREPLY=($(compgen -W "--drive --group --help" -- "$cur")) ;;
         "pnu set") COMPREPLY=($(compgen -W "--help --verify" -- "$cur")) ;;
-        "sdo") COMPREPLY=($(compgen -W "read write --help" -- "$cur")) ;;
+        "sdo") COMPREPLY=($(compgen -W "list read write --help" -- "$cur")) ;;
+        "sdo list") COMPREPLY=($(compgen -W "--catalogue --help --objects-only" -- "$cur")) ;;
         "sdo read") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "sdo write") COMPREPLY=($(compgen -W "--help --verify" -- "$cur")) ;;
         "pdo") COMPREPLY=($(compgen -W "map presets show --help" -- "$cur")) ;;

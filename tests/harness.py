@@ -366,15 +366,17 @@ class LossyUdpRelay:
 
 
 def run_akdctl_tty(*args: str, env: dict[str, str] | None = None, timeout: float = 60, columns: int = 120,
-                   stdin_tty: bool = True) -> CliResult:
+                   stdin_tty: bool = True, interrupt_when: Callable[[str], bool] | None = None) -> CliResult:
     """The real CLI with stdout and stderr on a pseudo-terminal (``isatty()`` is true: rich, live views, prompts).
 
     Both streams share the terminal, as on a technician's screen: ``out`` is everything the terminal received
     (``\\r\\n`` line ends turned into ``\\n``), ``err`` is empty. stdin is the terminal too unless *stdin_tty* is
-    false (then it is empty, so a prompt cannot wait). The run ends within *timeout* seconds or is killed.
+    false (then it is empty, so a prompt cannot wait). *interrupt_when* (the output so far -> bool) sends SIGINT
+    once it holds, as Ctrl-C would (``status --watch``). The run ends within *timeout* seconds or is killed.
     """
     import pty
     import select
+    import signal
     import struct
     import termios
     import fcntl
@@ -402,6 +404,9 @@ def run_akdctl_tty(*args: str, env: dict[str, str] | None = None, timeout: float
                 if not data:
                     break
                 chunks.append(data)
+                if interrupt_when is not None and interrupt_when(b"".join(chunks).decode("utf-8", "replace")):
+                    interrupt_when = None
+                    proc.send_signal(signal.SIGINT)
             elif proc.poll() is not None:
                 # drain what is left without blocking, then stop
                 while select.select([master], [], [], 0)[0]:

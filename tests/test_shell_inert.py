@@ -109,3 +109,28 @@ def test_visible_string_with_control_bytes() -> None:
         result = run("sdo", "read", "0x6041", "vs")
         assert result.code == EXIT_OK, result
         assert "\\x02" in result.out and "\x02" not in result.out
+
+
+@pytest.mark.slow
+def test_support_bundle_fields_are_shown_inert(tmp_path: Path) -> None:
+    """17.11: a bundle whose fields carry an OSC title, a clear-screen and a rich link shows them as text."""
+    import json
+    import zipfile
+
+    bundle = tmp_path / "b.zip"
+    assert run_akdctl("support", "bundle", "-o", str(bundle)).code == EXIT_OK
+    with zipfile.ZipFile(bundle) as zf:
+        members = {name: zf.read(name) for name in zf.namelist()}
+    data = json.loads(members["bundle.json"])
+    hostile = "\x1b]0;owned\x07\x1b[2J[link=file:///etc/passwd]x[/link]"
+    data["target"]["display"] = hostile
+    data["identity"]["canopen"]["device_name"] = hostile
+    members["bundle.json"] = json.dumps(data).encode()
+    with zipfile.ZipFile(bundle, "w") as zf:
+        for name, content in members.items():
+            zf.writestr(name, content)
+    for run in (run_akdctl_tty, run_akdctl):
+        result = run("support", "show", str(bundle))
+        assert result.code == EXIT_OK, result
+        _no_raw(result.out + result.err, "\x1b]0;owned", "\x07", "\x1b[2J")
+        assert "\\x1b]0;owned\\x07" in result.out and "[link=file:///etc/passwd]x[/link]" in result.out

@@ -83,3 +83,11 @@ def test_status_names_warnings(akd_inproc, target: str) -> None:
     assert akd_inproc("sim", "clear")[0] == EXIT_OK
     code, out, _ = akd_inproc("-T", target, "status")
     assert "warning     none" in out
+
+
+def test_pnu_describe_lists_the_values_and_set_shows_words(akd_inproc) -> None:
+    code, out, _ = akd_inproc("pnu", "describe", "930")
+    assert code == EXIT_OK and "0 torque, 1 velocity, 2 position" in out
+    assert json.loads(akd_inproc("pnu", "describe", "930", "--json")[1])["catalogue"]["values"].startswith("0 torque")
+    code, out, _ = akd_inproc("-y", "pnu", "set", "930=2")
+    assert code == EXIT_OK and "2 (position)" in out

@@ -30,6 +30,12 @@ class Meaning:
     def name(self, key: int) -> str | None:
         return self.names(key) if callable(self.names) else self.names.get(key)
 
+    def listing(self) -> str | None:
+        """Every value (or bit) the catalogue has words for, for a description; None when they are computed."""
+        if callable(self.names):
+            return None
+        return ", ".join(f"{'bit ' if self.bits else ''}{key} {text}" for key, text in sorted(self.names.items()))
+
     def words(self, value: int) -> str | None:
         """The value in words, or None when the catalogue has no words for it."""
         if isinstance(value, bool) or not isinstance(value, int):

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageError
 
@@ -77,6 +77,14 @@ class ObjectChannel(ABC):
         """Indices of the objects the drive has (SDO information service)."""
         raise UsageError("this link does not offer the SDO information service (object list)")
 
+    def object_description(self, index: int) -> Any:
+        """One object's description (SDO information service): name, object code, max subindex."""
+        raise UsageError("this link does not offer the SDO information service (object description)")
+
+    def entry_description(self, index: int, subindex: int) -> Any:
+        """One entry's description (SDO information service): name, data type, bit length, access."""
+        raise UsageError("this link does not offer the SDO information service (entry description)")
+
     def close(self) -> None:
         """Stop whatever the channel registered on its link (emergency callbacks); safe to call twice."""
 
@@ -110,6 +118,12 @@ class LazyObjectChannel(ObjectChannel):
 
     def object_list(self) -> list[int]:
         return self.channel.object_list()
+
+    def object_description(self, index: int) -> Any:
+        return self.channel.object_description(index)
+
+    def entry_description(self, index: int, subindex: int) -> Any:
+        return self.channel.entry_description(index, subindex)
 
     def close(self) -> None:
         if self._channel is not None:

@@ -68,7 +68,13 @@ def _hex(value: int | None, width: int = 8) -> str:
 
 @click.group()
 def can() -> None:
-    """CANopen network management (needs a can://INTERFACE/CHANNEL/NODE target)."""
+    """CANopen network management (needs a can://INTERFACE/CHANNEL/NODE target).
+
+    \b
+    Examples:
+      akdctl -T can://socketcan/can0/1 can scan
+      akdctl -T can://socketcan/can0/1 can nmt start
+    """
 
 
 @can.command("scan")
@@ -77,7 +83,12 @@ def can() -> None:
 @click.option("--wait", type=click.FloatRange(min=0.05, max=60), default=None, metavar="SECONDS",
               help="How long to listen for answers (default: the --timeout).")
 def scan(nodes_text: str, wait: float | None) -> None:
-    """List the nodes that answer: identity (0x1018), device type, name and NMT state."""
+    """List the nodes that answer: identity (0x1018), device type, name and NMT state.
+
+    \b
+    Examples:
+      akdctl -T can://socketcan/can0/1 can scan --nodes 1-10
+    """
     app = get_app()
     nodes = parse_nodes(nodes_text)
     transport = _can_transport()
@@ -107,6 +118,11 @@ def nmt(command: str, node: str | None, no_wait: bool) -> None:
     NODE 'all' (or 0) addresses every node; then no state is confirmed.
     The new state is confirmed from the heartbeat or by node guarding (exit 3 if
     the node stays silent, 5 if it reports another state).
+
+    \b
+    Examples:
+      akdctl -T can://socketcan/can0/1 can nmt preop
+      akdctl -T can://pcan/PCAN_USBBUS1/1 can nmt reset all
     """
     app = get_app()
     if node is None:

@@ -34,7 +34,12 @@ def attributes(app) -> object:  # type: ignore[no-untyped-def]
 
 @click.group()
 def cip() -> None:
-    """Read and write CIP attributes (EtherNet/IP explicit messaging, eip:// targets)."""
+    """Read and write CIP attributes (EtherNet/IP explicit messaging, eip:// targets).
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 cip get 1/1/7 vs
+    """
 
 
 @cip.command("get")
@@ -43,7 +48,12 @@ def cip() -> None:
 def get(path: str, type_name: str | None) -> None:
     """Get_Attribute_Single; TYPE decodes the value (default: hex octets).
 
-    TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool. Example: cip get 0x0F/796/1 u32
+    TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 cip get 0x0F/796/1 u32
+      akdctl -T eip://192.168.0.20 cip get 1/1/7 vs
     """
     from akdctl.drive.values import check_type_name, decode_as, display, json_value
 
@@ -67,7 +77,9 @@ def get(path: str, type_name: str | None) -> None:
 def set_(path: str, type_name: str, value_text: str) -> None:
     """Set_Attribute_Single with VALUE packed as TYPE (decimal or 0x-hex numbers).
 
-    Example: cip set 0x25/1/7 i32 65536
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 -y cip set 0x25/1/7 i32 65536
     """
     from akdctl.cli.consent import gate_write
     from akdctl.drive.gate import classify_cip

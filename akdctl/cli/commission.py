@@ -38,7 +38,9 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
     enable, home, move, wait, check faults, save, back up.
 
     \b
-    akdctl --yes commission examples/commission-sim.toml --report report.json --report junit.xml
+    Examples:
+      akdctl commission examples/commission-sim.toml --dry-run
+      akdctl --yes commission examples/commission-sim.toml --report report.json --report junit.xml
     """
     from akdctl.recipe import load_and_validate, report, runner
     from akdctl.recipe.loader import RecipeError, display_path

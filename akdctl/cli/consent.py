@@ -33,7 +33,9 @@ def require_consent(app: Any, action: str) -> None:
     own_axis(app)
     if app.yes:
         return
-    if not click.confirm(f"About to {text}. Proceed?", default=False, err=True):
+    from akdctl.cli.output import inert
+
+    if not click.confirm(inert(f"About to {text}. Proceed?"), default=False, err=True):
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 

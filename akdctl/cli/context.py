@@ -11,6 +11,7 @@ no drive, such as ``fault explain``, never open one) and happens once per invoca
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -46,6 +47,7 @@ class AppContext:
     _options: "LinkOptions | None" = None
     _connection: "Connection | None" = None
     _cleanups: list[Callable[[], None]] = field(default_factory=list)
+    _started: float = field(default_factory=time.monotonic)
 
     # ---------------------------------------------------------------- resolution
     @property
@@ -91,6 +93,11 @@ class AppContext:
             from akdctl.connection import Connection
 
             options = self.options  # first: its tracer closes after the connection
+            if self.verbose:
+                from akdctl.cli.output import message
+                from akdctl.cli.verbose import link_line
+
+                message(link_line(self.target, options.timeout))
             self._connection = Connection(self.target, options, self.profile)
             self._cleanups.append(self._connection.close)
         return self._connection
@@ -121,6 +128,15 @@ class AppContext:
         return self.connection.axis()
 
     def close(self) -> None:
+        """Close what the invocation opened (last opened first); with ``-v`` first say what it did (cli/verbose.py)."""
+        if self.verbose:
+            from akdctl.cli.output import message
+            from akdctl.cli.verbose import summary_lines
+
+            records = list(self._options.tracer.records) if self._options is not None else []
+            for line in summary_lines(records, time.monotonic() - self._started, self.verbose,
+                                      contacted=self._connection is not None):
+                message(line)
         while self._cleanups:
             cleanup = self._cleanups.pop()
             with contextlib.suppress(Exception):

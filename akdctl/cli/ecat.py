@@ -42,12 +42,23 @@ def _bus() -> "EthercatRawTransport":
 
 @click.group()
 def ecat() -> None:
-    """EtherCAT: scan slaves, read or change the AL state, read the SII (target ecat://IFNAME[/POSITION])."""
+    """EtherCAT: scan slaves, read or change the AL state, read the SII (target ecat://IFNAME[/POSITION]).
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1 ecat scan
+      akdctl -T ecat://eth1/0 ecat state PREOP
+    """
 
 
 @ecat.command("scan")
 def scan() -> None:
-    """List the slaves: position, station address, identity from the SII, AL state."""
+    """List the slaves: position, station address, identity from the SII, AL state.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1 ecat scan
+    """
     app = get_app()
     transport = _bus()
     assert transport.master is not None
@@ -76,7 +87,13 @@ def _hex(value: int | None) -> str:
 @ecat.command("state")
 @click.argument("state", required=False, type=click.Choice(["INIT", "PREOP", "SAFEOP", "OP"], case_sensitive=False))
 def state(state: str | None) -> None:
-    """Show the slave's AL state, or request STATE (stepping through PRE-OP and SAFE-OP)."""
+    """Show the slave's AL state, or request STATE (stepping through PRE-OP and SAFE-OP).
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat state
+      akdctl -T ecat://eth1/0 ecat state OP
+    """
     from akdctl.protocol import ethercat as ec
 
     app = get_app()
@@ -106,7 +123,13 @@ def state(state: str | None) -> None:
 @ecat.command("sii")
 @click.option("--raw", is_flag=True, help="Show the EEPROM bytes as a hex dump instead of decoding them.")
 def sii(raw: bool) -> None:
-    """Read and decode the slave's SII EEPROM (identity, mailboxes, sync managers, PDOs)."""
+    """Read and decode the slave's SII EEPROM (identity, mailboxes, sync managers, PDOs).
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat sii
+      akdctl -T ecat://eth1/0 ecat sii --raw
+    """
     app = get_app()
     transport = _bus()
     master, slave = transport.master, transport.slave

@@ -13,7 +13,13 @@ from akdctl.errors import UsageError
 
 @click.group()
 def eip() -> None:
-    """EtherNet/IP: find drives (ListIdentity), AKD parameters by the Parameter object 0x0F."""
+    """EtherNet/IP: find drives (ListIdentity), AKD parameters by the Parameter object 0x0F.
+
+    \b
+    Examples:
+      akdctl eip scan 192.168.0.20
+      akdctl -T eip://192.168.0.20 eip param get DRV.OPMODE
+    """
 
 
 def _interface_addresses(iface: str) -> tuple[str, str]:
@@ -44,7 +50,13 @@ def _interface_addresses(iface: str) -> tuple[str, str]:
 @click.option("--wait", type=click.FloatRange(0.05, 60), default=None, metavar="SECONDS",
               help="How long to collect answers (default: --timeout).")
 def scan(host: str | None, iface: str | None, port: int, wait: float | None) -> None:
-    """ListIdentity: unicast to HOST, or broadcast on --iface IFNAME."""
+    """ListIdentity: unicast to HOST, or broadcast on --iface IFNAME.
+
+    \b
+    Examples:
+      akdctl eip scan 192.168.0.20
+      akdctl eip scan --iface eth1
+    """
     from akdctl.catalog.texts import cip_vendor_name
     from akdctl.transport.ethernetip import list_identity
 
@@ -73,7 +85,12 @@ def scan(host: str | None, iface: str | None, port: int, wait: float | None) -> 
 
 @eip.group("param")
 def param() -> None:
-    """AKD parameters by the Parameter object 0x0F (instance = parameter number)."""
+    """AKD parameters by the Parameter object 0x0F (instance = parameter number).
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 eip param get DRV.OPMODE
+    """
 
 
 def _channel(app: Any) -> Any:
@@ -94,7 +111,12 @@ def _gate_parameter(app: Any, ref: Any) -> None:
 @param.command("get")
 @click.argument("name", metavar="NAME|INSTANCE")
 def param_get(name: str) -> None:
-    """Read a parameter's value, type and length (attributes 1, 5, 6)."""
+    """Read a parameter's value, type and length (attributes 1, 5, 6).
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 eip param get DRV.OPMODE
+    """
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
@@ -110,7 +132,12 @@ def param_get(name: str) -> None:
 @click.argument("name", metavar="NAME|INSTANCE")
 @click.argument("value", metavar="VALUE")
 def param_set(name: str, value: str) -> None:
-    """Write a parameter: its type and length are read first, floats travel x1000."""
+    """Write a parameter: its type and length are read first, floats travel x1000.
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 -y eip param set DRV.OPMODE 2
+    """
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
@@ -126,7 +153,12 @@ def param_set(name: str, value: str) -> None:
 @param.command("run")
 @click.argument("name", metavar="NAME|INSTANCE")
 def param_run(name: str) -> None:
-    """Run a command parameter (a 1-byte write of attribute 1), e.g. HOME.MOVE."""
+    """Run a command parameter (a 1-byte write of attribute 1), e.g. HOME.MOVE.
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 -y eip param run HOME.MOVE
+    """
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
@@ -163,6 +195,11 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
     the Load/Start -> Load Complete handshake, waits for the move (or --for), then closes the
     connection - and the drive disables the axis when the connection ends (the Enable bit drops).
     VALUE is in EIP.POSUNIT units (position, move), EIP.PROFUNIT units/s (jog, velocity) or mA (torque).
+
+    \b
+    Examples:
+      akdctl -T eip://192.168.0.20 -y eip io move 10000 --velocity 2000
+      akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2
     """
     import time
 

@@ -19,7 +19,13 @@ from akdctl.errors import UsageError
 
 @click.group()
 def fault() -> None:
-    """Fault buffer dump, acknowledge, history and explanations (AKD F/n numbers)."""
+    """Fault buffer dump, acknowledge, history and explanations (AKD F/n numbers).
+
+    \b
+    Examples:
+      akdctl fault dump
+      akdctl fault explain F501
+    """
 
 
 # ---------------------------------------------------------------------------- rendering
@@ -132,6 +138,11 @@ def dump(fmt: str) -> None:
     PROFIdrive: PNU 944, 947 (8 situations x 8 numbers), 944 again, repeated if a
     fault arrived meanwhile. CoE/CANopen: 0x1001, 0x1003, 0x2001/0x2000,
     0x2012/0x2013 and the emergencies received.
+
+    \b
+    Examples:
+      akdctl fault dump
+      akdctl fault dump --format markdown > faults.md
     """
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.faults import dump as read_dump
@@ -159,6 +170,10 @@ def ack() -> None:
     """Acknowledge the active faults (STW1 bit 7 / controlword bit 7 rising edge).
 
     Exit 1 if a fault is still active afterwards (its cause persists).
+
+    \b
+    Examples:
+      akdctl fault ack
     """
     from akdctl.drive.faults import acknowledge
 
@@ -178,6 +193,10 @@ def clear_history() -> None:
     """Clear the CiA 301 error history (0x1003:0 = 0) where the drive allows it.
 
     PROFIdrive offers no way to clear PNU 947; the command says so (exit 2).
+
+    \b
+    Examples:
+      akdctl -T ecat-udp://10.0.0.5/1001 fault clear-history
     """
     from akdctl.drive.faults import clear_history as do_clear
 
@@ -196,7 +215,13 @@ def _fault_json(f: Any) -> dict[str, Any]:
 @click.argument("text", required=False)
 @click.option("--kind", type=click.Choice(["fault", "warning"]), help="Only faults (F) or warnings (n).")
 def list_(text: str | None, kind: str | None) -> None:
-    """The AKD fault/warning catalogue, optionally filtered by kind and by TEXT (code, name or EMCY code)."""
+    """The AKD fault/warning catalogue, optionally filtered by kind and by TEXT (code, name or EMCY code).
+
+    \b
+    Examples:
+      akdctl fault list
+      akdctl fault list --kind warning bus
+    """
     from akdctl.catalog.faults import faults
 
     app = get_app()
@@ -231,7 +256,13 @@ def _resolve(code: str) -> list[Any]:
 @fault.command("explain")
 @click.argument("code", metavar="CODE")
 def explain(code: str) -> None:
-    """Explain a fault or warning: F501, n503, 501 or an emergency code such as 0x3210."""
+    """Explain a fault or warning: F501, n503, 501 or an emergency code such as 0x3210.
+
+    \b
+    Examples:
+      akdctl fault explain F501
+      akdctl fault explain 0x3210
+    """
     from akdctl.catalog.faults import by_emcy, by_number
 
     app = get_app()

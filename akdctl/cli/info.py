@@ -39,8 +39,9 @@ def info() -> None:
     0x1008-0x100A, I&M0 on PROFINET, the CIP identity on EtherNet/IP.
 
     \b
-    Example:
-      akdctl -T pn://192.168.0.10 info
+    Examples:
+      akdctl info
+      akdctl -T pn://192.168.0.10 info --json
     """
     from akdctl.drive.identity import read_identity, summary
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import re
 import sys
 from typing import Any
 
@@ -75,15 +76,18 @@ class LazyGroup(click.Group):
                 return None
             command = getattr(importlib.import_module(entry[0]), entry[1])
             self.commands[name] = command
-        return adopt(command, ctx.find_root().command)
+        return adopt(command, cli)  # the root of the tree, whichever context asked
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The listing from the table's short help (nothing imported), else the one rule of cli/parsing.py."""
+        from akdctl.cli.parsing import short_help
+
         rows = []
         for name in self.list_commands(ctx):
             if name in self.lazy:
                 rows.append((name, self.lazy[name][2]))
             else:
-                rows.append((name, self.commands[name].get_short_help_str(limit=60)))
+                rows.append((name, short_help(self.commands[name])))
         if rows:
             with formatter.section("Commands"):
                 formatter.write_dl(rows)
@@ -151,7 +155,7 @@ def _click_hint(exc: click.ClickException) -> list[str]:
 
 def _from_click(exc: click.ClickException) -> AkdError:
     """A click error in our words: every click error is an input error (exit 2), its usage line kept as detail."""
-    error = UsageError(exc.format_message())
+    error = UsageError(re.sub(r"[ \t]*\n[ \t]*", " ", exc.format_message()))  # one line: "Choose from: a, b"
     hint = _click_hint(exc)
     if hint:
         error.details["usage"] = hint[0].removeprefix("Usage: ")

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import re
-import sys
 import time
 from typing import Any
 
@@ -26,7 +25,8 @@ import click
 
 from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
-from akdctl.cli.output import Doc, message
+from akdctl.cli.output import Doc, LiveView, message
+from akdctl.cli.progress import MotionProgress
 from akdctl.cli.signals import stop_signals
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 from akdctl.errors import Interrupted, UsageError
@@ -89,24 +89,6 @@ def _duration(text: str) -> float:
     return value / 1000.0 if unit == "ms" else value * 60.0 if unit in ("m", "min") else value
 
 
-def _progress(app: Any) -> Any:
-    if app.json or not sys.stderr.isatty():
-        return None
-
-    def show(status: Any) -> None:
-        pos = f"{status.position_rev:10.4f} rev" if status.position_rev is not None else "position n/a"
-        vel = f"{status.velocity_rpm:9.2f} rpm" if status.velocity_rpm is not None else ""
-        sys.stderr.write(f"\r  {pos}  {vel}  {status.state}  ")
-        sys.stderr.flush()
-
-    return show
-
-
-def _end_progress(app: Any) -> None:
-    if not app.json and sys.stderr.isatty():
-        sys.stderr.write("\n")
-
-
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
@@ -119,11 +101,8 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
     require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
-    with stop_signals() as stop:
-        try:
-            result = motion_plan.execute(axis, plan, stop, _progress(app), wait=wait)
-        finally:
-            _end_progress(app)
+    with stop_signals() as stop, MotionProgress(plan, quiet=app.json or not wait) as progress:
+        result = motion_plan.execute(axis, plan, stop, progress.update, wait=wait)
     extra = dict(extra or {})
     if not wait:
         extra["note"] = motion_plan.wait_hint(conn)
@@ -137,24 +116,48 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 @click.option("--interval", type=click.FloatRange(min=0.05), default=0.5, show_default=True,
               help="Seconds between refreshes with --watch.")
 def status(watch: bool, interval: float) -> None:
-    """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults."""
+    """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults.
+
+    \b
+    Examples:
+      akdctl status
+      akdctl status --watch --interval 0.2
+      akdctl status --watch --json > status.jsonl
+    """
     app = get_app()
     axis = _axis(app)
     if not watch:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
         return
-    with contextlib.suppress(Interrupted), stop_signals() as stop:
+    with contextlib.suppress(Interrupted), stop_signals() as stop, LiveView(app.json) as view:
         while not stop():
-            _emit_status(app, axis.read_status(), f"axis status {time.strftime('%H:%M:%S')}", bits=not app.json)
-            sys.stdout.flush()
+            status, now = axis.read_status(), time.localtime()
+            view.show({"time": time.strftime("%Y-%m-%dT%H:%M:%S", now), "target": app.target.display,
+                       "status": status.to_json()},
+                      lambda s=status, t=time.strftime("%H:%M:%S", now): _watch_doc(app, s, t))
             end = time.monotonic() + interval
             while time.monotonic() < end and not stop():
                 time.sleep(0.05)
 
 
+def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:
+    """The status document, compact enough to redraw in place: the set bits on one line, not the bit table."""
+    from akdctl.profiles.statusword import set_names
+
+    doc = _status_doc(app, status, f"axis status {stamp} (Ctrl-C ends)")
+    doc.kv("bits set", ", ".join(set_names(status.bits)) or "none")
+    return doc
+
+
 @click.command()
 def enable() -> None:
-    """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded."""
+    """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded.
+
+    \b
+    Examples:
+      akdctl -y enable
+      akdctl -T 'sim?drive=cia402' enable --yes
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     _plan_and_run(get_app(), MotionRequest("enable"), "drive enabled")
@@ -162,7 +165,12 @@ def enable() -> None:
 
 @click.command()
 def disable() -> None:
-    """Disable the power stage; a moving axis is brought to standstill along its ramp first."""
+    """Disable the power stage; a moving axis is brought to standstill along its ramp first.
+
+    \b
+    Examples:
+      akdctl disable
+    """
     app = get_app()
     _emit_status(app, _axis(app).disable(), "drive disabled")
 
@@ -170,7 +178,13 @@ def disable() -> None:
 @click.command()
 @click.option("--quick", is_flag=True, help="Quick stop (steep ramp; leaves the drive disabled).")
 def stop(quick: bool) -> None:
-    """Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed)."""
+    """Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed).
+
+    \b
+    Examples:
+      akdctl stop
+      akdctl stop --quick
+    """
     app = get_app()
     status = _axis(app).stop(quick=quick)
     _emit_status(app, status, "axis stopped (quick stop)" if quick else "axis stopped")
@@ -184,7 +198,13 @@ def stop(quick: bool) -> None:
 @click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
 @click.option("--units", "unit", type=click.Choice(UNITS), help="Units of --distance (default: rev, or user).")
 def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None) -> None:
-    """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance)."""
+    """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance).
+
+    \b
+    Examples:
+      akdctl -y jog 100 --for 2s
+      akdctl -y jog -50 --distance 0.25
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     if duration is not None and distance is not None:
@@ -203,7 +223,13 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
 @click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
               help="Seconds the whole homing may take before the axis is stopped.")
 def home(home_mode: int | None, home_timeout: float) -> None:
-    """Run the drive's homing procedure and wait until the home position is set."""
+    """Run the drive's homing procedure and wait until the home position is set.
+
+    \b
+    Examples:
+      akdctl -y home
+      akdctl -y home --mode 3 --timeout 30
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     _plan_and_run(get_app(), MotionRequest("home", home_mode=home_mode, timeout_s=home_timeout), "homing finished",
@@ -222,7 +248,14 @@ def home(home_mode: int | None, home_timeout: float) -> None:
                    "1 s unless something keeps polling (a real AKD finishes the task).")
 def move(target: float, relative: bool, velocity: float | None, accel: float | None, decel: float | None,
          unit: str | None, no_wait: bool) -> None:
-    """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move)."""
+    """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move).
+
+    \b
+    Examples:
+      akdctl -y move 10
+      akdctl -y move --relative -0.5 --velocity 60
+      akdctl -y move 90 --units deg --json
+    """
     from akdctl.drive.motion_plan import MotionRequest
 
     request = MotionRequest("move", target=target, relative=relative, velocity=velocity, accel=accel, decel=decel,

@@ -22,6 +22,7 @@ import json
 import re
 import sys
 from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any, TextIO
 
 
@@ -179,6 +180,48 @@ def emit_json(data: Any, out: TextIO | None = None) -> None:
     out = out or sys.stdout
     json.dump(data, out, indent=2, sort_keys=False, default=_json_default)
     out.write("\n")
+
+
+def emit_json_line(data: Any, out: TextIO | None = None) -> None:
+    """One JSON document on one line, flushed (a stream of documents: ``status --watch --json``)."""
+    out = out or sys.stdout
+    out.write(json.dumps(data, separators=(",", ":"), default=_json_default) + "\n")
+    out.flush()
+
+
+class LiveView:
+    """Successive states of one view (``status --watch``): redrawn in place on a terminal (rich Live), one JSON
+    document per line with ``--json``, plain documents one after another (a blank line between) when piped."""
+
+    def __init__(self, json_lines: bool) -> None:
+        self.json_lines = json_lines
+        self.terminal = not json_lines and sys.stdout.isatty()
+        self._live: Any = None
+        self._shown = 0
+
+    def __enter__(self) -> "LiveView":
+        if self.terminal:
+            from rich.live import Live
+
+            self._live = Live(console=console(), auto_refresh=False, transient=False)
+            self._live.start()
+        return self
+
+    def show(self, data: Any, human: Callable[[], Doc]) -> None:
+        if self.json_lines:
+            emit_json_line(data)
+        elif self._live is not None:
+            self._live.update(rich_doc(human()), refresh=True)
+        else:
+            if self._shown:
+                sys.stdout.write("\n")
+            render_plain(human(), sys.stdout)
+            sys.stdout.flush()
+        self._shown += 1
+
+    def __exit__(self, *exc: object) -> None:
+        if self._live is not None:
+            self._live.stop()
 
 
 def _json_default(value: Any) -> Any:

@@ -19,7 +19,13 @@ from akdctl.errors import CheckFailed
 
 @click.group()
 def params() -> None:
-    """Back up, restore and compare drive parameters (TOML or JSON files)."""
+    """Back up, restore and compare drive parameters (TOML or JSON files).
+
+    \b
+    Examples:
+      akdctl params backup -o axis1.toml
+      akdctl params diff axis1.toml
+    """
 
 
 @params.command("backup")
@@ -33,7 +39,13 @@ def params() -> None:
 @click.option("--only", "only", multiple=True, metavar="LIST",
               help="Only these PNUs/objects, comma-separated (930,922,0x6060:0). Repeatable.")
 def backup(output: str, source: str, groups: tuple[str, ...], only: tuple[str, ...]) -> None:
-    """Read every readable catalogue parameter (batched) into FILE with target, identity, firmware, time."""
+    """Read every readable catalogue parameter (batched) into FILE with target, identity, firmware, time.
+
+    \b
+    Examples:
+      akdctl params backup -o axis1.toml
+      akdctl params backup -o axis1.json --group identity
+    """
     from akdctl.drive import snapshot
 
     app = get_app()
@@ -91,6 +103,11 @@ def restore(file: str, dry_run: bool, force: bool, save: bool) -> None:
 
     The control word and set points are never written; the operating mode,
     units and telegram go before the values that depend on them.
+
+    \b
+    Examples:
+      akdctl params restore axis1.toml --dry-run
+      akdctl -y params restore axis1.toml --save
     """
     from akdctl.drive import snapshot
 
@@ -128,6 +145,11 @@ def diff(a: str, b: str | None, include_all: bool) -> None:
 
     Configuration values are compared (add --all for live values too); with two
     files, values only one of them holds are listed but do not count.
+
+    \b
+    Examples:
+      akdctl params diff axis1.toml
+      akdctl params diff axis1.toml axis2.toml --all
     """
     from akdctl.drive import snapshot
 

@@ -10,6 +10,7 @@ command added tomorrow follows the same rules without doing anything:
   ``--trace``, ``--pcap``, ``--debug``, ``--config``, ``--profile``) is also accepted after any group or command
   name, unless that command has an option of the same spelling (``home --timeout`` is home's own). They are hidden
   in the command's help (the root help lists them) and land in the same :class:`AppContext` fields;
+* **group listings are not cut** — a subcommand's line in ``--help`` is its whole first sentence, wrapped;
 * **negative numbers are values** — a token such as ``-1``, ``-0.5`` or ``-0x10`` that is not one of the
   command's options is an argument, while a mistyped option (``--bogus``) is still an error.
 """
@@ -97,6 +98,23 @@ def _late_copies(root: click.Command, command: click.Command) -> list[click.Opti
     return copies
 
 
+def short_help(command: click.Command) -> str:
+    """A command's line in its group's listing: the whole first sentence, wrapped by the formatter, never cut
+    off with "..." (click's default cuts it at the terminal width)."""
+    return command.get_short_help_str(limit=10_000)
+
+
+def _format_commands(group: click.Group, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+    rows = []
+    for name in group.list_commands(ctx):
+        command = group.get_command(ctx, name)
+        if command is not None and not command.hidden:
+            rows.append((name, short_help(command)))
+    if rows:
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
 def adopt(command: click.Command, root: click.Command) -> click.Command:
     """Give ``command`` (and every subcommand it already holds) the tree's parsing rules; idempotent.
 
@@ -111,6 +129,8 @@ def adopt(command: click.Command, root: click.Command) -> click.Command:
     command.get_params = lambda ctx: [*own_params(ctx), *late]  # type: ignore[method-assign]
     command.make_parser = _make_parser.__get__(command)  # type: ignore[method-assign]
     if isinstance(command, click.Group):
+        if not hasattr(command, "lazy"):  # LazyGroup lists its own (cli/main.py), with the same rule
+            command.format_commands = _format_commands.__get__(command)  # type: ignore[method-assign]
         for sub in command.commands.values():
             adopt(sub, root)
     return command

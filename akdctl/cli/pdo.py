@@ -17,6 +17,11 @@ def pdo() -> None:
 
     PDOs: fixed 0x1701, 0x1702, 0x1720-0x1725 (Rx) and 0x1B01, 0x1B20-0x1B26 (Tx);
     flexible 0x1600-0x1603 (Rx) and 0x1A00-0x1A03 (Tx), each at most 8 bytes.
+
+    \b
+    Examples:
+      akdctl -T ecat-udp://10.0.0.5/1001 pdo show
+      akdctl pdo presets 0x1B20
     """
 
 
@@ -48,6 +53,11 @@ def show() -> None:
     """The assignment (0x1C12/0x1C13), each assigned PDO and its entries, with bit offsets and byte totals.
 
     Bit offsets count from the start of the direction's process image.
+
+    \b
+    Examples:
+      akdctl -T ecat-udp://10.0.0.5/1001 pdo show
+      akdctl pdo show --json
     """
     from akdctl.drive.pdo import al_state_of, read_mapping
 
@@ -74,6 +84,11 @@ def presets(numbers: tuple[str, ...]) -> None:
     """Every fixed PDO of the AKD with its contents and size (from the catalogue; no drive needed).
 
     Name PDOs (e.g. 0x1B20) to see their entries one by one.
+
+    \b
+    Examples:
+      akdctl pdo presets
+      akdctl pdo presets 0x1701 0x1B20
     """
     from akdctl.catalog import objects as oc
     from akdctl.drive.pdo import SHORT, describe_pdo, parse_pdo_arg
@@ -133,11 +148,15 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
     """Change the mapping with the manual's sequence, then read it back and compare (exit 5 on a difference).
 
     \b
-    Fixed:     pdo map --rx 0x1701 --tx 0x1B20
-    Flexible:  pdo map --rx 0x1600=0x6040:0/16,0x60C1:1/32 --tx 0x1A00=0x6041:0/16,0x6063:0/32
     Entries are INDEX:SUB/BITS; pad odd lengths with 0x0002:0/8 (Rx) or 0x2002:1/8 (Tx).
     Everything is checked before the first write: PDO <= 8 bytes, Rx <= 22 and Tx <= 32
     bytes, even lengths, mappable objects in the right direction, drive in PRE-OP.
+
+    \b
+    Examples:
+      akdctl -y pdo map --rx 0x1701 --tx 0x1B20
+      akdctl -y pdo map --rx 0x1600=0x6040:0/16,0x60C1:1/32 --tx 0x1A00=0x6041:0/16,0x6063:0/32
+      akdctl pdo map --file mapping.toml --dry-run
     """
     import json as jsonlib
 

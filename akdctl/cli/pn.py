@@ -29,7 +29,13 @@ def _hex(value: int | None) -> str:
 
 @click.group()
 def pn() -> None:
-    """PROFINET: discover (DCP), name, address and blink devices."""
+    """PROFINET: discover (DCP), name, address and blink devices.
+
+    \b
+    Examples:
+      akdctl pn scan --iface eth1
+      akdctl pn blink --iface eth1 akd-axis1
+    """
 
 
 @pn.command("scan")
@@ -37,7 +43,13 @@ def pn() -> None:
 @click.option("--wait", type=click.FloatRange(min=0.1, max=60), default=None, metavar="SECONDS",
               help="How long to collect answers (default: the --timeout).")
 def scan(iface: str, wait: float | None) -> None:
-    """List the PROFINET devices on IFNAME: station name, IP, MAC, vendor/device ID, role."""
+    """List the PROFINET devices on IFNAME: station name, IP, MAC, vendor/device ID, role.
+
+    \b
+    Examples:
+      akdctl pn scan --iface eth1
+      akdctl pn scan --iface eth1 --wait 3 --json
+    """
     with _client(iface) as client:
         stations = client.identify(timeout=wait)
     app = get_app()
@@ -57,7 +69,12 @@ def scan(iface: str, wait: float | None) -> None:
 @click.argument("name")
 @click.option("--temporary", is_flag=True, help="Keep the name only until the device restarts.")
 def set_name(iface: str, device: str, name: str, temporary: bool) -> None:
-    """Give DEVICE (MAC or current station name) the station name NAME."""
+    """Give DEVICE (MAC or current station name) the station name NAME.
+
+    \b
+    Examples:
+      akdctl pn set-name --iface eth1 00:23:1b:00:00:01 akd-axis1
+    """
     from akdctl.protocol import dcp
     from akdctl.transport.dcp import find_station
 
@@ -79,7 +96,12 @@ def set_name(iface: str, device: str, name: str, temporary: bool) -> None:
 @click.option("--gateway", default="0.0.0.0", show_default=True)
 @click.option("--temporary", is_flag=True, help="Keep the address only until the device restarts.")
 def set_ip(iface: str, device: str, ip: str, netmask: str, gateway: str, temporary: bool) -> None:
-    """Give DEVICE (MAC or station name) the IPv4 address IP."""
+    """Give DEVICE (MAC or station name) the IPv4 address IP.
+
+    \b
+    Examples:
+      akdctl pn set-ip --iface eth1 akd-axis1 192.168.0.10 --netmask 255.255.255.0
+    """
     import ipaddress
 
     from akdctl.protocol import dcp
@@ -103,7 +125,12 @@ def set_ip(iface: str, device: str, ip: str, netmask: str, gateway: str, tempora
 @IFACE
 @click.argument("device")
 def blink(iface: str, device: str) -> None:
-    """Flash DEVICE's LED (DCP signal) so you can find it in the cabinet."""
+    """Flash DEVICE's LED (DCP signal) so you can find it in the cabinet.
+
+    \b
+    Examples:
+      akdctl pn blink --iface eth1 akd-axis1
+    """
     from akdctl.protocol import dcp
     from akdctl.transport.dcp import find_station
 

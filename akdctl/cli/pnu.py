@@ -17,6 +17,11 @@ def pnu() -> None:
     """Read, write, describe and list PROFIdrive parameters (PNUs).
 
     Addresses: 930, 964[0..4], 947[3], or a signal name such as STW1.
+
+    \b
+    Examples:
+      akdctl pnu get 930
+      akdctl -y pnu set 930=2
     """
 
 
@@ -76,7 +81,13 @@ def _report_failures(readings: list[Any], verb: str) -> None:
 @pnu.command("get")
 @click.argument("addresses", nargs=-1, required=True, metavar="PNU[SUB|FROM..TO]...")
 def get(addresses: tuple[str, ...]) -> None:
-    """Read one or more PNUs in as few requests as the protocol allows (39 per request)."""
+    """Read one or more PNUs in as few requests as the protocol allows (39 per request).
+
+    \b
+    Examples:
+      akdctl pnu get 930 '964[0..4]' STW1
+      akdctl pnu get 947 --json
+    """
     from akdctl.drive.params import parse_pnu_spec
     from akdctl.drive.values import read_pnus
 
@@ -96,10 +107,16 @@ def get(addresses: tuple[str, ...]) -> None:
 @click.argument("assignments", nargs=-1, required=True, metavar="PNU[SUB]=VALUE[,VALUE...]...")
 @click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
 def set_(assignments: tuple[str, ...], verify: bool) -> None:
-    """Change one or more PNUs (all are checked before anything is sent)."""
+    """Change one or more PNUs (all are checked before anything is sent).
+
+    \b
+    Examples:
+      akdctl -y pnu set 930=2 --verify
+      akdctl -y pnu set 1004=-500 1005=500
+    """
     from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment
-    from akdctl.drive.values import read_pnus, write_pnus
+    from akdctl.drive.values import pnu_display, read_pnus, write_pnus
 
     app = get_app()
     parsed = [parse_assignment(text) for text in assignments]
@@ -116,7 +133,8 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
         lambda: Doc("PNU written", app.target.display).table(
             ["PNU", "name", "value", "result"],
             [[r.spec.label, r.spec.info.name if r.spec.info else "?",
-              ",".join(str(v) for v in (r.values or [])), "ok" if r.ok else f"refused: {r.error_text}"]
+              ",".join(pnu_display(r.spec.pnu, r.spec.subindex + i, v) for i, v in enumerate(r.values or [])),
+              "ok" if r.ok else f"refused: {r.error_text}"]
              for r in results],
         ),
     )
@@ -128,11 +146,19 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
 @pnu.command("describe")
 @click.argument("address", metavar="PNU")
 def describe(address: str) -> None:
-    """Show the catalogue entry and the drive's own description (attribute 0x20)."""
+    """Show the catalogue entry and the drive's own description (attribute 0x20).
+
+    \b
+    Examples:
+      akdctl pnu describe 930
+      akdctl -T pn://192.168.0.10 pnu describe 947
+    """
+    from akdctl.catalog.meanings import pnu_meaning
     from akdctl.drive.params import description_json, parse_pnu_spec
 
     app = get_app()
     spec = parse_pnu_spec(address)
+    meaning = pnu_meaning(spec.pnu, spec.subindex)
     channel = app.parameters()
     description = description_json(channel.read_description(spec.pnu))
     info = spec.info
@@ -143,6 +169,8 @@ def describe(address: str) -> None:
             "limits": list(info.limits()), "unit": info.unit, "description": info.description,
             "akd_parameter": info.akd_parameter, "note": info.note,
         }
+        if meaning is not None and meaning.listing():
+            data["catalogue"]["values"] = meaning.listing()
 
     def human() -> Doc:
         doc = Doc(f"PNU {spec.pnu}", app.target.display)
@@ -158,6 +186,8 @@ def describe(address: str) -> None:
                 doc.kv("unit", info.unit)
             if info.note:
                 doc.kv("note", info.note)
+            if meaning is not None and meaning.listing():
+                doc.kv("values", meaning.listing())
         for key, value in description.items():
             doc.kv(f"drive: {key}", value)
         return doc
@@ -170,7 +200,13 @@ def describe(address: str) -> None:
               help="Only this group.")
 @click.option("--drive", "from_drive", is_flag=True, help="Ask the drive which PNUs it has (PNU 980..989).")
 def list_(group: str | None, from_drive: bool) -> None:
-    """List the catalogue's PNUs (name, type, access, elements)."""
+    """List the catalogue's PNUs (name, type, access, elements).
+
+    \b
+    Examples:
+      akdctl pnu list --group identity
+      akdctl pnu list --drive
+    """
     from akdctl.catalog.pnus import pnu_table
 
     app = get_app()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 import click
 
@@ -32,7 +33,13 @@ def _hinting(address_text: str) -> Iterator[None]:
 
 @click.group()
 def sdo() -> None:
-    """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0)."""
+    """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0).
+
+    \b
+    Examples:
+      akdctl sdo read 0x6041
+      akdctl sdo list --catalogue
+    """
 
 
 @sdo.command("read")
@@ -42,6 +49,12 @@ def read(address: str, type_name: str | None) -> None:
     """Upload an object; TYPE defaults to the catalogue's type.
 
     TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
+
+    \b
+    Examples:
+      akdctl sdo read 0x6041
+      akdctl sdo read 0x1018:1 u32
+      akdctl -T ecat-udp://10.0.0.5/1001 sdo read 0x1008
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive.objects import parse_address
@@ -71,7 +84,11 @@ def read(address: str, type_name: str | None) -> None:
 def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     """Download a value; TYPE defaults to the catalogue's type; VALUE '-' reads stdin.
 
-    Examples: sdo write 0x6060:0 i8 3 · sdo write 0x6060:0 3 · echo 01ff | sdo write 0x2013:1 os -
+    \b
+    Examples:
+      akdctl sdo write 0x6060:0 i8 3
+      akdctl -y sdo write 0x607A:0 -1000 --verify
+      echo 01ff | akdctl sdo write 0x2013:1 os -
     """
     from akdctl.catalog.objects import object_name
     from akdctl.drive import gate
@@ -107,3 +124,62 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
         lambda: Doc(f"object {addr.label} written", app.target.display)
         .kv("name", name).kv("type", dtype).kv("value", value_text).kv("bytes", data.hex(" ")),
     )
+
+
+@sdo.command("list")
+@click.argument("pattern", required=False, metavar="[TEXT|INDEX]")
+@click.option("--catalogue", is_flag=True, help="List akdctl's catalogue (the AKD ESI) instead of asking the drive.")
+@click.option("--objects-only", is_flag=True, help="Objects without their entries (one request per object).")
+def list_(pattern: str | None, catalogue: bool, objects_only: bool) -> None:
+    """List the object dictionary as the drive reports it (SDO information service, CoE service 8; like IgH's
+    'ethercat sdos'), or akdctl's catalogue with --catalogue. TEXT keeps objects whose name contains it,
+    INDEX (0x6041) one object.
+
+    \b
+    Examples:
+      akdctl -T ecat-udp://10.0.0.5/1001 sdo list
+      akdctl sdo list --catalogue homing
+    """
+    from akdctl.drive.dictionary import catalogue_dictionary, read_dictionary
+
+    app = get_app()
+    wanted = _wanted(pattern, catalogue, app)
+    if catalogue:
+        rows, source = catalogue_dictionary(entries=not objects_only, wanted=wanted), "catalogue"
+    else:
+        try:
+            rows = read_dictionary(app.objects(), entries=not objects_only, wanted=wanted)
+        except UsageError as exc:  # a link without the service (CANopen, PROFIdrive): say what does work
+            exc.message += "; 'akdctl sdo list --catalogue' lists akdctl's catalogue"
+            raise
+        source = app.target.display
+    if pattern is not None and not _is_index(pattern):
+        needle = pattern.lower()
+        rows = [r for r in rows if needle in r.name.lower() or any(needle in e.name.lower() for e in r.entries)]
+    app.emit({"source": source, "service": None if catalogue else "SDO information (CoE service 8)",
+              "objects": [r.to_json() for r in rows]},
+             lambda: _dictionary_doc(rows, source, catalogue))
+
+
+def _is_index(text: str) -> bool:
+    return text.lower().startswith("0x") or text.lower().endswith("h")
+
+
+def _wanted(pattern: str | None, catalogue: bool, app: Any) -> Any:
+    """One object when PATTERN is an index (0x6041, 6041h); None (all) otherwise."""
+    from akdctl.drive.objects import parse_address
+
+    if pattern is None or not _is_index(pattern):
+        return None
+    index = parse_address(pattern).index
+    return lambda i: i == index
+
+
+def _dictionary_doc(rows: list[Any], source: str, catalogue: bool) -> Doc:
+    title = "object dictionary" + (" (akdctl catalogue)" if catalogue else " (SDO information service)")
+    table: list[list[Any]] = []
+    for row in rows:
+        table.append([f"0x{row.index:04X}", "", row.name, row.object_code, "", "", ""])
+        table.extend(["", f"{e.subindex}", f"  {e.name}", e.type, e.bits, e.access, e.pdo] for e in row.entries)
+    doc = Doc(title, source).table(["index", "sub", "name", "type", "bits", "access", "pdo"], table)
+    return doc.line(f"{len(rows)} object(s), {sum(len(r.entries) for r in rows)} entries")

@@ -42,13 +42,26 @@ def _sim_drive(name: str | None) -> Any:
 
 @click.group(cls=LazyGroup, lazy=SIM_COMMANDS)
 def sim() -> None:
-    """The simulated AKD (the default target): its state persists between invocations."""
+    """The simulated AKD (the default target): its state persists between invocations.
+
+    \b
+    Examples:
+      akdctl sim show
+      akdctl sim fault F501
+      akdctl sim serve --profinet 127.0.0.1:34964
+    """
 
 
 @sim.command("reset")
 @click.option("--name", help="Simulated drive name (default: the target's, i.e. 'default').")
 def reset(name: str | None) -> None:
-    """Restore factory state (also recovers from a corrupt state file)."""
+    """Restore factory state (also recovers from a corrupt state file).
+
+    \b
+    Examples:
+      akdctl sim reset
+      akdctl sim reset --name bench2
+    """
     drive = _sim_drive(name)
     drive.reset()
     get_app().emit({"drive": drive.name, "reset": True}, f"simulated drive {drive.name!r} reset to factory state")
@@ -57,7 +70,13 @@ def reset(name: str | None) -> None:
 @sim.command("show")
 @click.option("--name", help="Simulated drive name (default: the target's).")
 def show(name: str | None) -> None:
-    """Print the simulated drive's state: clock, changed PNUs and objects, components."""
+    """Print the simulated drive's state: clock, changed PNUs and objects, components.
+
+    \b
+    Examples:
+      akdctl sim show
+      akdctl -T sim://bench2 sim show --json
+    """
     from akdctl.catalog.pnus import lookup
 
     drive = _sim_drive(name)
@@ -163,7 +182,9 @@ def _build_serve() -> click.Command:
         callback=_serve_callback,
         params=params,
         help="Serve the simulated drive on the network (PROFINET, EtherCAT, CANopen, EtherNet/IP faces).\n\n"
-        "Each face prints one 'listening: ...' line on stdout when ready.",
+        "Each face prints one 'listening: ...' line on stdout when ready.\n\n"
+        "\b\nExamples:\n  akdctl sim serve --profinet 127.0.0.1:34964\n"
+        "  akdctl sim serve --ethercat-udp 127.0.0.1:0 --ecat-stations 1001=default --duration 60",
         short_help="Serve the simulated drive on the network.",
     )
 

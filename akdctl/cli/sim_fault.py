@@ -27,7 +27,13 @@ def _component(model: Any) -> Any:
 @click.option("--persist", is_flag=True, help="Keep the cause: the fault returns after each acknowledge until 'sim clear'.")
 @click.option("--name", help="Simulated drive name (default: the target's).")
 def fault(codes: tuple[str, ...], after_reads: int | None, persist: bool, name: str | None) -> None:
-    """Inject faults or warnings, e.g. F501 F502 or n503 (several join one fault situation)."""
+    """Inject faults or warnings, e.g. F501 F502 or n503 (several join one fault situation).
+
+    \b
+    Examples:
+      akdctl sim fault F501
+      akdctl sim fault n503 --persist
+    """
     from akdctl.catalog.faults import by_code
     from akdctl.cli.sim import _sim_drive
 
@@ -56,7 +62,12 @@ def fault(codes: tuple[str, ...], after_reads: int | None, persist: bool, name: 
 @click.command("clear")
 @click.option("--name", help="Simulated drive name (default: the target's).")
 def clear(name: str | None) -> None:
-    """Remove the causes of injected faults and warnings (faults still need acknowledging)."""
+    """Remove the causes of injected faults and warnings (faults still need acknowledging).
+
+    \b
+    Examples:
+      akdctl sim clear
+    """
     from akdctl.cli.sim import _sim_drive
 
     drive = _sim_drive(name)

@@ -23,7 +23,14 @@ from akdctl.errors import UsageError
               help="Wall seconds without a request before the drive stops a moving axis (0 = off; default 1).")
 @click.option("--name", help="Simulated drive name (default: the target's).")
 def speed(factor: float | None, realtime: bool, watchdog: float | None, name: str | None) -> None:
-    """Set how fast virtual time runs (FACTOR × wall time; 1 = real time); without arguments, show it."""
+    """Set how fast virtual time runs (FACTOR × wall time; 1 = real time); without arguments, show it.
+
+    \b
+    Examples:
+      akdctl sim speed
+      akdctl sim speed 10
+      akdctl sim speed --realtime
+    """
     from akdctl.cli.sim import _sim_drive
     from akdctl.sim.drive import MAX_TIME_SCALE
 

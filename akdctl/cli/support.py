@@ -18,7 +18,13 @@ from akdctl.errors import CommError, UsageError
 
 @click.group()
 def support() -> None:
-    """Write a support bundle from a drive, or show one without a drive."""
+    """Write a support bundle from a drive, or show one without a drive.
+
+    \b
+    Examples:
+      akdctl support bundle -o bundle.zip
+      akdctl support show bundle.zip
+    """
 
 
 @support.command("bundle")
@@ -32,6 +38,11 @@ def bundle(output: str, all_objects: bool) -> None:
     A section the drive refuses is recorded in the file; the file is written
     atomically, never half. When the drive does not answer (or stops answering), the
     remaining sections are not read, the file is still written, and the exit code is 3.
+
+    \b
+    Examples:
+      akdctl support bundle -o bundle.zip
+      akdctl -T pn://192.168.0.10 support bundle -o axis1.zip --all-objects
     """
     from akdctl.drive import bundle as bundle_mod
 
@@ -166,6 +177,11 @@ def show(file: str, trace_all: bool) -> None:
 
     Only a regular file is read (a FIFO or a device is refused at once), at most 32 MiB, and a zip's
     members at most 64 MiB each unpacked (128 MiB together).
+
+    \b
+    Examples:
+      akdctl support show bundle.zip
+      akdctl support show bundle.zip --trace-all
     """
     from akdctl.cli.fault import dump_doc
     from akdctl.cli.output import emit_json, render

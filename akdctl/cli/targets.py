@@ -10,7 +10,13 @@ from akdctl.cli.output import Doc
 
 @click.command()
 def targets() -> None:
-    """List the transports, their target syntax and whether their dependencies are present."""
+    """List the transports, their target syntax and whether their dependencies are present.
+
+    \b
+    Examples:
+      akdctl targets
+      akdctl targets --json
+    """
     from akdctl.transport.registry import BUILTIN, module_available
 
     app = get_app()

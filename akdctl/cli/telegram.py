@@ -17,6 +17,11 @@ def telegram() -> None:
 
     Telegrams: 1 (velocity), 7 (motion task), 9 (MDI positioning), 350 (velocity +
     current), 351 (velocity + current + position), 0 (free mapping via PNU 915/916).
+
+    \b
+    Examples:
+      akdctl telegram show
+      akdctl -y telegram set 9
     """
 
 
@@ -35,7 +40,13 @@ def _state_doc(title: str, source: str, data: dict[str, Any]) -> Doc:
 
 @telegram.command("show")
 def show() -> None:
-    """The selected telegram and its IO data word by word in both directions."""
+    """The selected telegram and its IO data word by word in both directions.
+
+    \b
+    Examples:
+      akdctl telegram show
+      akdctl -T pn://192.168.0.10 telegram show --json
+    """
     from akdctl.drive.telegram import read_state
 
     app = get_app()
@@ -48,7 +59,13 @@ def show() -> None:
 @click.argument("number", type=int, metavar="1|7|9|350|351|0")
 @click.option("--force", is_flag=True, help="Send a telegram number akdctl does not know; the drive answers.")
 def set_(number: int, force: bool) -> None:
-    """Select a telegram (PNU 922), then read back its layout."""
+    """Select a telegram (PNU 922), then read back its layout.
+
+    \b
+    Examples:
+      akdctl -y telegram set 9
+      akdctl -y telegram set 1
+    """
     from akdctl.catalog.telegrams import FREE_TELEGRAM, TELEGRAMS
     from akdctl.drive.telegram import select_telegram
 
@@ -79,10 +96,14 @@ def map_(setpoint: str | None, actual: str | None, force: bool) -> None:
     """Free mapping for telegram 0 through PNU 915/916, checked against the signal list PNU 923 first.
 
     \b
-    Example: telegram set 0 && telegram map --setpoint 1,5 --actual 2,6,52
     Signals (number = PNU): 1 STW1, 5 NSOLL_A, 32 SATZANW, 34 MDI_TARPOS, 35 MDI_VELOCITY,
     36 MDI_ACC, 37 MDI_DEC, 38 MDI_MOD (set points); 2 ZSW1, 6 NIST_A, 33 AKTSATZ,
     52 ITIST_GLATT (actual values).
+
+    \b
+    Examples:
+      akdctl -y telegram set 0
+      akdctl -y telegram map --setpoint 1,5 --actual 2,6,52
     """
     from akdctl.drive.telegram import map_free, parse_signals, read_state, validate_free_map
 

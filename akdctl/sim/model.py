@@ -260,6 +260,17 @@ class DriveModel:
             self.set_stored_object(index, subindex, data)
         self.writes += 1
 
+    # SDO information service (CoE service 8): the dictionary is the catalogue's (sim/object_info.py)
+    def object_indices(self) -> list[int]:
+        from akdctl.sim.object_info import object_indices
+
+        return object_indices()
+
+    def object_info(self, index: int) -> Any:
+        from akdctl.sim.object_info import object_info
+
+        return object_info(index)
+
     def object_value(self, index: int, subindex: int) -> int:
         """An integer object's current value (signed per its type), for components and tests."""
         entry = self.object_entry(index, subindex)
