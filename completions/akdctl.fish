@@ -103,7 +103,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from fault' -a dump -d 'Read the f
 complete -c akdctl -n '__fish_seen_subcommand_from fault' -a explain -d 'Explain a fault or warning: F501, n503, 501 or an emergency code su...'
 complete -c akdctl -n '__fish_seen_subcommand_from fault' -a list -d 'The AKD fault/warning catalogue, optionally filtered by kind and by...'
 complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from dump' -l format -d 'table (terminal), markdown (paste into a ticket) or json (same as --js'
-complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from list' -l kind -d 'Only faults (F) or warnings (n).'
+complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from list' -l kind -d 'Only faults (F), warnings (n), or \'none\' (EMCY 0x0000: error reset, no'
 complete -c akdctl -n '__fish_seen_subcommand_from support' -a bundle -d 'Collect identity, fault dump, status, parameters, mapping and the s...'
 complete -c akdctl -n '__fish_seen_subcommand_from support' -a show -d 'Render a support bundle (no drive needed).'
 complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcommand_from bundle' -l output -d 'Bundle file to write (JSON; a name ending in .zip writes a zip with th'

@@ -326,11 +326,12 @@ def test_fault_table_integrity() -> None:
     assert len(codes) == len(set(codes))
     for f in table:
         assert 0 <= f.emcy <= 0xFFFF
-        assert f.kind in ("fault", "warning")
+        assert f.kind in ("fault", "warning", "none")
         if f.code:
             assert f.code[0] in "Fn" and int(f.code[1:]) == f.number
+            assert f.kind == {"F": "fault", "n": "warning"}[f.code[0]], f  # the AKD's prefix says it (F139)
         if f.remedy:
-            assert "remedy:" in f.source  # every remedy names where it came from
+            assert "remedy" in f.source  # every remedy names where it came from
     f404 = faults.by_code("F404")
     assert f404.reaction == "dynamic braking" and f404.remedy
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 
-__all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text"]
+__all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text", "where_to_look"]
 
 
 @dataclass(frozen=True)
@@ -25,7 +25,8 @@ class Fault:
     """One AKD fault or warning.
 
     code: 'F501' / 'n503' ('' for the generic EMCY entries without an AKD number);
-    number: 501 (None when code is ''); kind: 'fault' or 'warning'; emcy: CiA 301
+    number: 501 (None when code is ''); kind: 'fault' or 'warning' as the AKD's prefix says
+    (F / n), 'none' for the EMCY code 0x0000 (error reset: no error); emcy: CiA 301
     emergency error code; reaction/remedy: '' when no public source gives them.
     """
 
@@ -139,3 +140,11 @@ def emcy_text(code: int) -> str:
     if not found:
         return f"emergency 0x{code:04X}"
     return "; ".join(f.describe() for f in found)
+
+
+def where_to_look(fault: Fault) -> str:
+    """Where a technician finds the remedy our table does not give (no public source we cite states it)."""
+    name = fault.code or f"emergency 0x{fault.emcy:04X}"
+    return (f"no public source we cite gives a remedy for {name}; look it up in Kollmorgen's AKD Fault Card or the "
+            "'Fault and Warning Messages' table of the AKD User Guide (kdn.kollmorgen.com), or read DRV.FAULTS / "
+            "DRV.WARNINGS in WorkBench, which print the drive's own text")

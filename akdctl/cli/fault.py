@@ -207,13 +207,17 @@ def clear_history() -> None:
 
 
 def _fault_json(f: Any) -> dict[str, Any]:
+    from akdctl.catalog.faults import where_to_look
+
     return {"code": f.code or None, "number": f.number, "kind": f.kind, "emcy": f"0x{f.emcy:04X}", "name": f.name,
-            "reaction": f.reaction or None, "remedy": f.remedy or None, "source": f.source}
+            "reaction": f.reaction or None, "remedy": f.remedy or None, "source": f.source,
+            **({} if f.remedy else {"where_to_look": where_to_look(f)})}
 
 
 @fault.command("list")
 @click.argument("text", required=False)
-@click.option("--kind", type=click.Choice(["fault", "warning"]), help="Only faults (F) or warnings (n).")
+@click.option("--kind", type=click.Choice(["fault", "warning", "none"]),
+              help="Only faults (F), warnings (n), or 'none' (EMCY 0x0000: error reset, no error).")
 def list_(text: str | None, kind: str | None) -> None:
     """The AKD fault/warning catalogue, optionally filtered by kind and by TEXT (code, name or EMCY code).
 
@@ -288,7 +292,7 @@ def explain(code: str) -> None:
                 doc.kv(f"{label} number", f"{item['number']} (PNU 947 / 0x2001 / 0x2012 value)")
             doc.kv(f"{label} emergency code", item["emcy"])
             doc.kv(f"{label} drive reaction", item["reaction"] or "not given by a public source")
-            doc.kv(f"{label} remedy", item["remedy"] or "not given by a public source; see the AKD fault card")
+            doc.kv(f"{label} remedy", item["remedy"] or item["where_to_look"])
             if item["same_emcy_or_number"]:
                 doc.kv(f"{label} related", ", ".join(item["same_emcy_or_number"]))
             doc.kv(f"{label} source", item["source"])

@@ -16,7 +16,7 @@ from akdctl.errors import CheckFailed, ParameterRefused
 def pnu() -> None:
     """Read, write, describe and list PROFIdrive parameters (PNUs).
 
-    Addresses: 930, 964[0..4], 947[3], or a signal name such as STW1.
+    Addresses: 930, 964:0..4 (or quoted '964[0..4]'), 947:3, or a signal name such as STW1.
 
     \b
     Examples:

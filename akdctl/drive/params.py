@@ -1,7 +1,9 @@
 """PNU access with meaning: parse what the user typed, read/write in batches, sign and scale.
 
 ``964[0..4]`` is PNU 964 elements 0 to 4; ``947[3]`` one element; ``964`` a
-whole array; names work too (``STW1``). Assignments are ``PNU[SUB]=V[,V…]``
+whole array; names work too (``STW1``). ``964:0..4`` and ``947:3`` mean the same
+as the bracket forms: zsh (and bash with ``failglob``) treat unquoted brackets as
+a glob, so the colon form needs no quoting. Assignments are ``PNU[SUB]=V[,V…]``
 with decimal or 0x-hex values, checked against the catalogue before anything
 is sent. Reading and writing typed values is :mod:`akdctl.drive.values`
 (one :class:`ParameterChannel` call each, so the channel can batch them).
@@ -21,6 +23,15 @@ __all__ = ["description_json", "parse_assignment", "parse_pnu_spec"]
 _SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
 
 
+_COLON = re.compile(r"^\s*(?P<pnu>[^:\[\]\s]+)\s*:\s*(?P<sub>[^:\[\]]*?)\s*$")
+
+
+def _brackets(text: str) -> str:
+    """``964:0..4`` → ``964[0..4]`` (the one place the colon form is understood); other text unchanged."""
+    match = _COLON.match(text)
+    return f"{match.group('pnu')}[{match.group('sub')}]" if match else text
+
+
 def _int(text: str, what: str) -> int:
     try:
         return int(text, 0)
@@ -29,10 +40,13 @@ def _int(text: str, what: str) -> int:
 
 
 def parse_pnu_spec(text: str) -> PnuSpec:
-    """Parse ``930``, ``964[0..4]``, ``947[3]``, ``STW1``; checks against the catalogue when known."""
+    """Parse ``930``, ``964[0..4]`` (or ``964:0..4``), ``947[3]`` (``947:3``), ``STW1``; checks against the
+    catalogue when known."""
+    shown, text = text, _brackets(text)
     match = _SPEC.match(text)
     if not match:
-        raise UsageError(f"cannot parse PNU address {text!r}: expected PNU, PNU[SUB] or PNU[FROM..TO], e.g. 964[0..4]")
+        raise UsageError(f"cannot parse PNU address {shown!r}: expected PNU, PNU[SUB], PNU[FROM..TO] or PNU:FROM..TO, "
+                         "e.g. 964:0..4 (brackets need quotes in zsh: '964[0..4]')")
     name = match.group("pnu")
     if name[0].isalpha() and not name.lower().startswith("0x"):
         info = by_name(name)
@@ -47,24 +61,24 @@ def parse_pnu_spec(text: str) -> PnuSpec:
     a, b = match.group("a"), match.group("b")
     if a is None and b is None:
         if "[" in text:
-            raise UsageError(f"cannot parse PNU address {text!r}: empty subindex")
+            raise UsageError(f"cannot parse PNU address {shown!r}: empty subindex")
         sub, count = 0, (info.length if info is not None and info.is_array else 1)
     else:
         sub = _int(a, f"subindex of PNU {pnu}") if a is not None else 0
         last = _int(b, f"subindex of PNU {pnu}") if b is not None else sub
         if last < sub:
-            raise UsageError(f"PNU address {text!r}: range end {last} is before its start {sub}")
+            raise UsageError(f"PNU address {shown!r}: range end {last} is before its start {sub}")
         count = last - sub + 1
     if not 0 <= sub <= 0xFFFE:
-        raise UsageError(f"PNU address {text!r}: subindex {sub} is outside 0..65534")
+        raise UsageError(f"PNU address {shown!r}: subindex {sub} is outside 0..65534")
     if not 1 <= count <= 234:
-        raise UsageError(f"PNU address {text!r}: {count} elements; one request carries 1..234 elements")
+        raise UsageError(f"PNU address {shown!r}: {count} elements; one request carries 1..234 elements")
     if info is not None:
         if not info.is_array and (sub != 0 or count != 1):
             raise UsageError(f"PNU {pnu} ({info.name}) is not an array; no subindex allowed")
         if info.is_array and sub + count > info.length:
             raise UsageError(
-                f"PNU {pnu} ({info.name}) has elements 0..{info.length - 1}; {text!r} asks beyond them"
+                f"PNU {pnu} ({info.name}) has elements 0..{info.length - 1}; {shown!r} asks beyond them"
             )
     return PnuSpec(pnu, sub, count, info)
 
@@ -74,6 +88,7 @@ def parse_assignment(text: str) -> tuple[PnuSpec, list[int]]:
     left, sep, right = text.partition("=")
     if not sep or not right.strip():
         raise UsageError(f"cannot parse {text!r}: expected PNU=VALUE, e.g. 930=2")
+    left = _brackets(left)
     spec = parse_pnu_spec(left)
     info = spec.info
     if info is None:
