@@ -18,7 +18,6 @@ Written once so every EtherCAT transport gets the same SDO behaviour:
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable
 from typing import TypeVar
@@ -26,13 +25,13 @@ from typing import TypeVar
 from akdctl.channels.base import ObjectChannel, sdo_aborted, sdo_what
 from akdctl.catalog.texts import mailbox_error_text
 from akdctl.errors import CommError, MalformedReply, NoAnswer, UsageError
+from akdctl.io.log import log
 from akdctl.links import MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
 from akdctl.protocol.errors import CodecError
 
-log = logging.getLogger("akdctl")
 
 T = TypeVar("T")
 
