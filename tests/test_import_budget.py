@@ -36,9 +36,10 @@ def hello():
 cli()
 '''
 
-#: Never on these paths: no config file exists, nothing is logged, data files are plain files, no rich when piped,
-#: no bus library.
-NEVER = {"tomllib", "logging", "importlib.resources", "zipfile", "rich", "canopen", "can", "pysoem", "akdctl.recipe"}
+#: Never on these paths: no config file exists, nothing is logged, data files are plain files, the fault table is not
+#: read, no rich when piped, no bus library.
+NEVER = {"tomllib", "logging", "importlib.resources", "zipfile", "csv", "rich", "canopen", "can", "pysoem",
+         "akdctl.recipe"}
 #: The object side (CoE codecs, the SDO client and server) is not a PNU command's business, and the reverse.
 OBJECT_SIDE = {"akdctl.protocol.coe", "akdctl.protocol.coe_info", "akdctl.protocol.mailbox", "akdctl.channels.coe_sdo",
                "akdctl.sim.sdo_server"}

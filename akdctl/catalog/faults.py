@@ -11,7 +11,6 @@ Loading is lazy (functools.cache); lookups never raise on unknown input.
 """
 from __future__ import annotations
 
-import csv
 import re
 from dataclasses import dataclass
 from functools import cache
@@ -49,6 +48,8 @@ class Fault:
 @cache
 def faults() -> list[Fault]:
     """Every entry of the table, in the table's order (grouped by EMCY code)."""
+    import csv  # here: the simulator imports this module at every start, the table is read only when asked for
+
     from akdctl.catalog import data_text
 
     text = data_text("faults.csv")
