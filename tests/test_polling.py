@@ -63,6 +63,23 @@ def test_a_change_of_the_status_word_polls_fast_again(clock: FakeClock) -> None:
     assert clock.pauses[21] == POLL_FIRST_S * polling.POLL_GROWTH
 
 
+def test_a_flickering_status_word_cannot_keep_the_polling_fast(clock: FakeClock) -> None:
+    poll = Poll()
+    for k in range(400):
+        poll.read(lambda: 0)
+        poll.observe(k % 2)
+        poll.pause()
+    elapsed = sum(clock.pauses)
+    assert len(clock.pauses) / elapsed <= 16 / polling.POLL_BURST_S
+    window, start = 0, 0
+    for end in range(len(clock.pauses)):  # no 0.25 s window holds more than 16 reads
+        window += clock.pauses[end]
+        while window > polling.POLL_BURST_S:
+            window -= clock.pauses[start]
+            start += 1
+        assert end - start + 1 <= 16
+
+
 def test_a_slow_link_is_never_polled_more_often_than_its_reads_take(clock: FakeClock) -> None:
     poll = Poll()
 
