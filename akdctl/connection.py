@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from akdctl.channels.cip import CipAttributes
     from akdctl.config import Profile
     from akdctl.drive.axis import Axis
-    from akdctl.links import MailboxLink, NativeSdoClient
+    from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
@@ -85,6 +85,7 @@ class Connection:
         self._given = transport
         self._transport: "Transport | None" = None
         self._parameters: "ParameterChannel | None" = None
+        self._record_link: "RecordLink | None" = None  # the traced link, until parameters() builds its channel
         self._objects: "ObjectChannel | None" = None
         self._cip: "CipAttributes | None" = None
 
@@ -135,10 +136,8 @@ class Connection:
         from akdctl.transport.trace import TracedRecordLink, traced_mailbox_link
 
         tracer = self.options.tracer
-        if transport.record_link is not None:
-            from akdctl.channels.bmp import BmpParameterChannel
-
-            self._parameters = BmpParameterChannel(TracedRecordLink(transport.record_link, tracer))
+        if transport.record_link is not None:  # its channel is built on first use: sdo commands never import it
+            self._record_link = TracedRecordLink(transport.record_link, tracer)
         if transport.mailbox_link is not None:
             from akdctl.channels.base import LazyObjectChannel
 
@@ -174,7 +173,7 @@ class Connection:
     def has_parameters(self) -> bool:
         """Whether the target offers PROFIdrive parameters (opens the transport)."""
         self.transport()
-        return self._parameters is not None
+        return self._parameters is not None or self._record_link is not None
 
     @property
     def has_objects(self) -> bool:
@@ -196,6 +195,10 @@ class Connection:
     def parameters(self) -> "ParameterChannel":
         """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""
         self.transport()
+        if self._parameters is None and self._record_link is not None:
+            from akdctl.channels.bmp import BmpParameterChannel
+
+            self._parameters = BmpParameterChannel(self._record_link)
         return self._offered(self._parameters, "no PROFIdrive parameter channel (PNUs); use 'sdo' commands "
                                                "or a sim/pn:// target")
 
@@ -221,6 +224,7 @@ class Connection:
         transport, self._transport = self._transport, None
         channels = [c for c in (self._objects, self._parameters) if c is not None]
         self._parameters = self._objects = self._cip = None
+        self._record_link = None
         for channel in channels:
             with contextlib.suppress(Exception):
                 channel.close()

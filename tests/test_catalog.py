@@ -212,7 +212,7 @@ def test_search_and_params() -> None:
 def test_import_is_cheap() -> None:
     code = (
         "import sys, akdctl.catalog.objects as o, akdctl.catalog.faults as f, akdctl.catalog.texts\n"
-        "print('rich' in sys.modules, 'click' in sys.modules, o._load.cache_info().currsize, "
+        "print('rich' in sys.modules, 'click' in sys.modules, o._lines.cache_info().currsize, "
         "f.faults.cache_info().currsize)"
     )
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)

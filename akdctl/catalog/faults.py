@@ -11,11 +11,9 @@ Loading is lazy (functools.cache); lookups never raise on unknown input.
 """
 from __future__ import annotations
 
-import csv
 import re
 from dataclasses import dataclass
 from functools import cache
-from importlib import resources
 
 __all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text", "where_to_look"]
 
@@ -51,7 +49,11 @@ class Fault:
 @cache
 def faults() -> list[Fault]:
     """Every entry of the table, in the table's order (grouped by EMCY code)."""
-    text = resources.files("akdctl.catalog").joinpath("data/faults.csv").read_text(encoding="utf-8")
+    import csv  # here: the simulator imports this module at every start, the table is read only when asked for
+
+    from akdctl.catalog import data_text
+
+    text = data_text("faults.csv")
     lines = [line for line in text.splitlines() if line and not line.startswith("#")]
     result: list[Fault] = []
     for row in csv.DictReader(lines):

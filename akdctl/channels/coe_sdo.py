@@ -32,7 +32,6 @@ Written once so every EtherCAT transport gets the same SDO behaviour:
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable
 from typing import TypeVar
@@ -41,13 +40,13 @@ from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.channels.reply_filter import ReplyFilter
 from akdctl.errors import CommError, MalformedReply, NoAnswer
+from akdctl.io.log import log
 from akdctl.links import Budget, Deadline, MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
 from akdctl.protocol.errors import CodecError
 
-log = logging.getLogger("akdctl")
 
 T = TypeVar("T")
 

@@ -11,14 +11,16 @@ The rule (:class:`Poll`):
   longer, up to the steady pause ``POLL_S`` (50 ms): what ends quickly is seen quickly, what takes long is polled
   at 20 reads/s as before;
 * a change of the status word starts the fast phase again - a drive in a transition (standstill, target reached,
-  homing attained) is near the end of it;
+  homing attained) is near the end of it - but at most once per ``POLL_BURST_S`` (0.25 s), so a word that
+  flickers cannot keep the polling fast;
 * a pause is never shorter than the last status read took, so a slow link spends at most half its time polling;
 * a drive whose time runs faster than the wall clock (``time_scale`` > 1: only the simulator under ``sim speed``)
   has every pause shortened by that factor, down to ``POLL_MIN_S`` (0.5 ms), and no pause tied to the read's
   length: there is no bus to spare, and at 1000× a wall millisecond is a virtual second of motion.
 
 On a real drive (time scale 1) that is at most 15 reads in the first ~0.2 s after a command or a change of the
-status word (~70 reads/s on average there), then at most 20 reads/s.
+status word (~70 reads/s on average there), then at most 20 reads/s; whatever the word does, at most 16 reads in any
+0.25 s (64 reads/s), and never more than one read per read time.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ POLL_FIRST_S = 0.002
 POLL_S = 0.05
 POLL_GROWTH = 1.25
 POLL_MIN_S = 0.0005
+POLL_BURST_S = 0.25
 
 
 class Poll:
@@ -48,6 +51,7 @@ class Poll:
         self.deadline = deadline
         self._word: object = None
         self._read_s = 0.0
+        self._burst = monotonic()
 
     def read(self, read_status: Callable[[], T]) -> T:
         """``read_status()``, timed (on a real drive the pause after it is at least as long as the read took)."""
@@ -59,8 +63,9 @@ class Poll:
 
     def observe(self, word: object) -> None:
         """The status just read: a change from the previous one starts the fast phase again."""
-        if self._word is not None and word != self._word:
+        if self._word is not None and word != self._word and monotonic() - self._burst >= POLL_BURST_S:
             self.next = self.first
+            self._burst = monotonic()
         self._word = word
 
     def pause(self) -> None:

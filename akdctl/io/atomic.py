@@ -27,7 +27,6 @@ from __future__ import annotations
 import contextlib
 import os
 import stat
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
@@ -68,6 +67,8 @@ def atomic_open(path: Path, mode: str = "w", *, prefix: str | None = None,
     On an exception the temporary file is removed and ``path`` is untouched.
     ``mode`` is ``"w"`` (text, ``encoding`` defaults to UTF-8) or ``"wb"``.
     """
+    import tempfile  # here: a command that writes nothing never pays for importing it (and shutil, random)
+
     path = Path(path)
     directory = path.parent
     fd, tmp = tempfile.mkstemp(prefix=prefix if prefix is not None else f".{path.name}.", suffix=".tmp",

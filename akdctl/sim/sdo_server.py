@@ -27,18 +27,17 @@ an abort code, and undecodable bytes become mailbox error replies.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
+from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeError, CoeService
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
 
-log = logging.getLogger("akdctl")
 
 MAX_TRANSFER = 1 << 20  # larger announced downloads abort with "out of memory"
 
