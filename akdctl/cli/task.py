@@ -35,7 +35,7 @@ def task() -> None:
     parameter channel (SATZANW, STW1 bit 6), homed and in telegram 7 or 9.
 
     \b
-    Example:
+    Examples:
       akdctl task set 5 --position 2.5 --velocity 300 --accel 2000 --yes
       akdctl task start 5 --yes
     """
@@ -49,7 +49,7 @@ def list_(count: int, show_all: bool) -> None:
     """The stored tasks 0..COUNT-1 (each loaded with MT.LOAD to be read).
 
     \b
-    Example:
+    Examples:
       akdctl task list --count 8
     """
     from akdctl.drive import tasks
@@ -70,7 +70,7 @@ def show(number: int) -> None:
     """One stored task's parameters.
 
     \b
-    Example:
+    Examples:
       akdctl task show 4
     """
     from akdctl.drive import tasks
@@ -95,7 +95,7 @@ def set_(number: int, position: float, velocity: float, accel: float, decel: flo
     """Store a task (MT.P/MT.V/MT.ACC/MT.DEC/MT.CNTL, then MT.SET); nothing moves.
 
     \b
-    Example:
+    Examples:
       akdctl task set 5 --position 2.5 --velocity 300 --accel 2000 --yes
     """
     from akdctl.drive import tasks
@@ -121,7 +121,7 @@ def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: 
     """Start stored task NUMBER and wait for target reached (the consent and stop path of 'move').
 
     \b
-    Example:
+    Examples:
       akdctl task start 4 --yes
     """
     from akdctl.cli.motion import _plan_and_run
