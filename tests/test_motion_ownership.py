@@ -117,7 +117,8 @@ def test_five_parallel_relative_moves_add_up_to_the_successes(target: str) -> No
             continue
         assert r.code == 4, (r.code, r.err)
         owner = re.search(r"in use by pid (\d+) \(akdctl .*move --relative 1", r.err)
-        assert owner or "the axis is moving" in r.err, r.err
+        # The owner's record can be empty for an instant while it takes or lets go of the lock: still a refusal.
+        assert owner or "the axis is moving" in r.err or "just starting or ending" in r.err, r.err
         if owner:
             assert int(owner.group(1)) in pids
 

@@ -79,6 +79,6 @@ def _command_line() -> str:
 
 def _owner_text(owner: dict[str, Any]) -> str:
     if "pid" not in owner:
-        return "another akdctl command that is just starting"
+        return "another akdctl command that is just starting or ending"
     since = f", since {time.strftime('%H:%M:%S', time.localtime(owner['since']))}" if "since" in owner else ""
     return f"pid {owner['pid']} ({owner.get('command', 'akdctl')}{since})"

@@ -57,7 +57,7 @@ class OwnerLock:
         except OSError as exc:
             os.close(fd)
             if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                raise OwnerBusy(self.path, read_owner(self.path)) from None
+                raise OwnerBusy(self.path, _owner_soon(self.path)) from None
             raise
         record = json.dumps({"pid": os.getpid(), "command": command[:300], "since": time.time()})
         os.ftruncate(fd, 0)
@@ -81,6 +81,17 @@ class OwnerLock:
 
     def __del__(self) -> None:  # a holder dropped without release (a test's half-built context)
         self.release()
+
+
+def _owner_soon(path: Path, patience: float = 0.2) -> dict[str, Any]:
+    """The holder's record, waiting a moment for a holder that has the lock but has not written it yet
+    (or has emptied it while it lets go); {} if it stays empty."""
+    deadline = time.monotonic() + patience
+    while True:
+        owner = read_owner(path)
+        if owner or time.monotonic() >= deadline:
+            return owner
+        time.sleep(0.01)
 
 
 def read_owner(path: Path) -> dict[str, Any]:
