@@ -50,13 +50,14 @@ T = TypeVar("T")
 
 
 def open_tracer(*, enabled: bool = False, pcap: str | None = None) -> "Tracer":
-    """The session's one tracer: ``--trace`` prints, ``--pcap FILE`` captures, records feed the bundle.
+    """The session's one tracer: ``--trace`` prints, ``--pcap FILE`` captures; it keeps records only when
+    asked (``tracer.record = True``: the support bundle), so a command without either traces nothing.
 
     Close it (``tracer.close()``) after the transport so the capture file is complete.
     """
     from akdctl.transport.trace import Tracer
 
-    tracer = Tracer(enabled=enabled)
+    tracer = Tracer(enabled=enabled, record=False)
     if pcap:
         from akdctl.transport.pcap import PcapWriter
 

@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -66,6 +64,43 @@ class Deadline:
         return f"{self.total:g} s ({self.attempts} attempts of {self.total / self.attempts:.2g} s)"
 
 
+class _Request:
+    """``with budget.request() as deadline``: one request's deadline, and the Budget's count afterwards.
+
+    A class rather than a generator context manager: it runs once per request on every hot path.
+    """
+
+    __slots__ = ("budget", "attempts", "deadline", "outer")
+
+    def __init__(self, budget: "Budget", attempts: int | None) -> None:
+        self.budget = budget
+        self.attempts = attempts
+        self.outer = False
+
+    def __enter__(self) -> Deadline:
+        budget = self.budget
+        current = budget._current
+        if current is not None:
+            return current  # nested: the outer request's deadline
+        self.outer = True
+        left = budget.timeout - budget.silent
+        probe = left < budget.timeout * PROBE
+        deadline = Deadline(budget.timeout * PROBE if probe else left,
+                            budget.attempts if self.attempts is None else self.attempts, probe)
+        budget._current = self.deadline = deadline
+        return deadline
+
+    def __exit__(self, kind: object, exc: BaseException | None, tb: object) -> None:
+        if not self.outer:
+            return
+        budget = self.budget
+        budget._current = None
+        if exc is not None and unanswered(exc):
+            budget.silent = min(budget.timeout, budget.silent + self.deadline.total)  # all its time went in vain
+        else:
+            budget.silent = 0.0
+
+
 #: The share of ``timeout`` a request waits once the command has waited all of it for a silent drive.
 PROBE = 0.1
 
@@ -98,29 +133,9 @@ class Budget:
     def attempts(self) -> int:
         return self.retries + 1
 
-    @contextmanager
-    def request(self, attempts: int | None = None) -> Iterator[Deadline]:
-        """The deadline of one request (``attempts`` defaults to ``retries + 1``; a write passes 1)."""
-        if self._current is not None:
-            yield self._current
-            return
-        left = self.timeout - self.silent
-        probe = left < self.timeout * PROBE
-        deadline = Deadline(self.timeout * PROBE if probe else left, self.attempts if attempts is None else attempts,
-                            probe)
-        self._current = deadline
-        try:
-            yield deadline
-        except BaseException as exc:
-            if unanswered(exc):
-                self.silent = min(self.timeout, self.silent + deadline.total)  # all its time went in vain
-            else:
-                self.silent = 0.0
-            raise
-        else:
-            self.silent = 0.0
-        finally:
-            self._current = None
+    def request(self, attempts: int | None = None) -> "_Request":
+        """The deadline of one request, as a context manager (``attempts`` defaults to ``retries + 1``)."""
+        return _Request(self, attempts)
 
     def left(self) -> float:
         """What a request started now would get (the rest of ``timeout``, or the probe share)."""

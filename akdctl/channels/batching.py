@@ -26,7 +26,7 @@ A parameter too long for one block is cut into element ranges first
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from akdctl.protocol.bmp import (
     ADDRESS_SIZE,
@@ -92,9 +92,9 @@ def element_bytes(address: ParameterAddress, element_size: ElementSize) -> int:
     return element_size(address) if callable(element_size) else element_size
 
 
-@dataclass(frozen=True)
-class Cost:
-    """What one parameter adds to a request block and to the response block that answers it."""
+class Cost(NamedTuple):
+    """What one parameter adds to a request block and to the response block that answers it
+    (a named tuple: one is made per parameter of every request)."""
 
     request: int
     response: int
@@ -125,22 +125,28 @@ def pack(costs: Sequence[Cost], *, keep_order: bool = False) -> list[Batch]:
 
 
 def _first_fit(order: Sequence[int] | range, costs: Sequence[Cost], *, only_last: bool) -> list[Batch]:
-    """Each position into the first open batch with room under the three limits; one pass over ``order``."""
+    """Each position into the first open batch with room under the three limits; one pass over ``order``.
+
+    ``only_last`` (filling in order) looks at the open batch only: linear. Otherwise each parameter is
+    tried against every open batch, at most (parameters / 39 + 1) of them.
+    """
     batches: list[Batch] = []
-    used: list[list[int]] = []  # per batch: [request bytes, response bytes]
+    req_used: list[int] = []
+    resp_used: list[int] = []
     for i in order:
-        cost = costs[i]
-        candidates = range(max(0, len(batches) - 1), len(batches)) if only_last else range(len(batches))
-        for b in candidates:
-            if (len(batches[b]) < MAX_PARAMETERS and used[b][0] + cost.request <= MAX_BLOCK
-                    and used[b][1] + cost.response <= MAX_BLOCK):
+        request, response = costs[i]
+        n = len(batches)
+        for b in (range(n - 1, n) if only_last and n else range(n)):
+            if (len(batches[b]) < MAX_PARAMETERS and req_used[b] + request <= MAX_BLOCK
+                    and resp_used[b] + response <= MAX_BLOCK):
                 batches[b].append(i)
-                used[b][0] += cost.request
-                used[b][1] += cost.response
+                req_used[b] += request
+                resp_used[b] += response
                 break
         else:
             batches.append([i])
-            used.append([HEADER_SIZE + cost.request, HEADER_SIZE + cost.response])
+            req_used.append(HEADER_SIZE + request)
+            resp_used.append(HEADER_SIZE + response)
     return batches
 
 
@@ -164,6 +170,15 @@ def plan_batches(
         if HEADER_SIZE + cost.request > MAX_BLOCK or HEADER_SIZE + cost.response > MAX_BLOCK:
             raise BmpError(f"parameter {i + 1} ({address}) alone does not fit a {MAX_BLOCK}-byte block")
     return pack(costs, keep_order=values is not None)
+
+
+def plan_reads(response_sizes: Sequence[int]) -> list[Batch]:
+    """:func:`plan_batches` for reads whose worst-case response blocks the caller already sized
+    (:func:`response_block_size`), so each parameter's size is worked out once per request."""
+    for i, size in enumerate(response_sizes):
+        if HEADER_SIZE + size > MAX_BLOCK:
+            raise BmpError(f"parameter {i + 1} alone does not fit a {MAX_BLOCK}-byte block")
+    return pack([Cost(ADDRESS_SIZE, size) for size in response_sizes])
 
 
 def split_requests(

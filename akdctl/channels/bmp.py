@@ -32,6 +32,7 @@ from akdctl.channels.batching import (
     max_elements_per_block,
     merge_values,
     plan_batches,
+    plan_reads,
     response_block_size,
 )
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
@@ -70,10 +71,18 @@ def catalogue_element_size(address: ParameterAddress) -> int:
     """Bytes per element the drive answers with: the catalogue's type for known PNUs (the AKD
     sends U16 PNUs as words, SPEC-NOTES 5), else the 4-byte bound. A drive that answers wider
     than this is caught by the "response too long" retry in :meth:`BmpParameterChannel.read`."""
-    from akdctl.catalog.pnus import lookup
+    if address.attribute != ATTR_VALUE:
+        return DEFAULT_ELEMENT_SIZE
+    size = _ELEMENT_SIZES.get(address.pnu)
+    if size is None:
+        from akdctl.catalog.pnus import lookup
 
-    info = lookup(address.pnu)
-    return info.bits // 8 if info is not None and address.attribute == ATTR_VALUE else DEFAULT_ELEMENT_SIZE
+        info = lookup(address.pnu)
+        size = _ELEMENT_SIZES[address.pnu] = info.bits // 8 if info is not None else DEFAULT_ELEMENT_SIZE
+    return size
+
+
+_ELEMENT_SIZES: dict[int, int] = {}  # PNU -> bytes per element, looked up in the catalogue once
 
 
 class BmpParameterChannel(ParameterChannel):
@@ -111,6 +120,8 @@ class BmpParameterChannel(ParameterChannel):
         """One result (value or failure) per address, in order, in as few round trips as the limits allow."""
         wanted = [self._checked_address(a) for a in addresses]
         results = self._read(wanted, self.element_size)
+        if not any(type(r) is ParameterFailure for r in results):
+            return results
         # A per-parameter "response too long" means the 4-byte estimate was short: retry those in smaller ranges.
         retry = [i for i, (a, r) in enumerate(zip(wanted, results))
                  if _too_long(r) and a.attribute == ATTR_VALUE and a.count > 1
@@ -166,6 +177,9 @@ class BmpParameterChannel(ParameterChannel):
     # -- reading -------------------------------------------------------------------------------------------------
 
     def _read(self, addresses: list[ParameterAddress], element_size: ElementSize) -> list[ParameterResult]:
+        sizes = [response_block_size(a, element_size) for a in addresses]  # once per parameter
+        if all(HEADER_SIZE + size <= MAX_BLOCK for size in sizes):
+            return self._read_batches(addresses, element_size, sizes)  # the usual case: no parameter is cut
         pieces: list[ParameterAddress] = []
         owners: list[int] = []
         for i, address in enumerate(addresses):
@@ -178,10 +192,24 @@ class BmpParameterChannel(ParameterChannel):
             grouped[owner].append(result)
         return [parts[0] if len(parts) == 1 else self._merge(parts, addresses[i]) for i, parts in enumerate(grouped)]
 
-    def _read_batches(self, addresses: list[ParameterAddress], element_size: ElementSize) -> list[ParameterResult]:
-        """One result per address, in order, from the requests :func:`plan_batches` groups them into."""
+    def _read_batches(self, addresses: list[ParameterAddress], element_size: ElementSize,
+                      sizes: list[int] | None = None) -> list[ParameterResult]:
+        """One result per address, in order, from the requests :func:`plan_reads` groups them into."""
+        if sizes is None:
+            sizes = [response_block_size(a, element_size) for a in addresses]
+        try:
+            batches = plan_reads(sizes)
+        except BmpError as exc:
+            raise UsageError(f"cannot build a parameter request: {exc}") from None
+        if len(batches) == 1:
+            got = self._exchange(REQ_READ, addresses)
+            if len(addresses) > 1 and all(_too_long(r) for r in got):
+                half = len(addresses) // 2
+                return (self._read_batches(addresses[:half], element_size)
+                        + self._read_batches(addresses[half:], element_size))
+            return got
         results: list[ParameterResult] = [None] * len(addresses)
-        for batch in self._plan(addresses, None, element_size):
+        for batch in batches:
             asked = [addresses[i] for i in batch]
             got = self._exchange(REQ_READ, asked)
             if len(asked) > 1 and all(_too_long(r) for r in got):
@@ -249,18 +277,18 @@ class BmpParameterChannel(ParameterChannel):
             raw = encode_request(request, addresses_checked=True)
         except BmpError as exc:
             raise UsageError(f"cannot build a parameter request: {exc}") from None
-        what = f"{'read' if request_id == REQ_READ else 'change'} {len(addresses)} parameter(s), ref {request.reference}"
         self.requests += 1
         reply = self.link.exchange(raw)
         try:
             reply = bytes(reply)
         except TypeError:
-            raise MalformedReply(f"parameter {what}: the link returned {type(reply).__name__}, not bytes") from None
+            raise MalformedReply(f"parameter {_what(request)}: the link returned {type(reply).__name__}, "
+                                 "not bytes") from None
         try:
             response = decode_response(reply, request)
         except BmpError as exc:
             raise MalformedReply(
-                f"malformed PROFIdrive parameter response ({what}): {exc}",
+                f"malformed PROFIdrive parameter response ({_what(request)}): {exc}",
                 details={"request": raw.hex(" "), "response": reply.hex(" ")},
             ) from None
         return list(response.results)
@@ -273,6 +301,12 @@ class BmpParameterChannel(ParameterChannel):
             return check_address(address)
         except BmpError as exc:
             raise UsageError(f"{address}: {exc}") from None
+
+
+def _what(request: ParameterRequest) -> str:
+    """"read 3 parameter(s), ref 7": a request named in a message (built only when one is needed)."""
+    verb = "read" if request.request_id == REQ_READ else "change"
+    return f"{verb} {len(request.addresses)} parameter(s), ref {request.reference}"
 
 
 def _too_long(result: ParameterResult) -> bool:

@@ -50,6 +50,16 @@ from akdctl.protocol.errors import CodecError
 
 T = TypeVar("T")
 
+_SDO_REQUEST = int(CoeService.SDO_REQUEST)
+_SDO_RESPONSE = int(CoeService.SDO_RESPONSE)
+_EMERGENCY = int(CoeService.EMERGENCY)
+
+
+def _coe_sdo(request: coe.SdoMessage) -> bytes:
+    """CoE data (header + SDO) of a client SDO request."""
+    return coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(request))
+
+
 class _Silence(Exception):
     """Internal: no matching reply within the attempt's wait (the request may be repeated)."""
 
@@ -82,6 +92,7 @@ class CoeObjectChannel(ObjectChannel):
         self._stale = False  # an earlier request went unanswered: its reply may still come in
         self._proven = False  # the last answer taken carried the request's own counter (an echoing link)
         self._doubtful: set[tuple[int, int]] = set()  # objects with a write that went unanswered
+        self._want: tuple[type, int, int, str, int | None] = (coe.SdoUploadResponse, 0, 0, "upload", None)
         self._emergencies: list[Emergency] = []
 
     @property
@@ -95,8 +106,19 @@ class CoeObjectChannel(ObjectChannel):
         return out
 
     def upload(self, index: int, subindex: int) -> bytes:
-        return self._repeat(lambda d, left: self._upload_once(index, subindex, d, left),
-                            f"SDO upload of {_where(index, subindex)}")
+        with self.budget.request() as deadline:
+            attempts = deadline.attempts
+            for attempt in range(attempts):
+                try:
+                    return self._upload_once(index, subindex, deadline, attempts - attempt)
+                except _Silence:
+                    if deadline.expired():
+                        break
+                    if attempt + 1 < attempts:
+                        log.info("SDO upload of %s: no answer, repeating (%d/%d)", _where(index, subindex),
+                                 attempt + 2, attempts)
+            raise NoAnswer(f"no answer to SDO upload of {_where(index, subindex)} within {deadline.describe()}",
+                           details={"timeout": deadline.total, "attempts": deadline.attempts})
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
         data = bytes(data)
@@ -155,7 +177,8 @@ class CoeObjectChannel(ObjectChannel):
                            details={"timeout": deadline.total, "attempts": deadline.attempts})
 
     def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int) -> bytes:
-        first = self._sdo(coe.SdoUploadInitiate(index, subindex), index, subindex, "upload", deadline, left)
+        first = self._sdo(coe.upload_request(index, subindex), coe.SdoUploadResponse, index, subindex, "upload",
+                          deadline, left)
         if not isinstance(first, coe.SdoUploadResponse):
             raise MalformedReply(f"unexpected reply {first!r} to the SDO upload of {_where(index, subindex)}")
         if first.expedited or first.size is None:
@@ -169,7 +192,8 @@ class CoeObjectChannel(ObjectChannel):
         toggle = 0
         last = True
         while len(data) < size:
-            seg = self._sdo(coe.SdoUploadSegment(toggle), index, subindex, "upload", deadline, left, toggle)
+            seg = self._sdo(_coe_sdo(coe.SdoUploadSegment(toggle)), coe.SdoUploadSegmentResponse, index, subindex,
+                            "upload", deadline, left, toggle)
             assert isinstance(seg, coe.SdoUploadSegmentResponse)
             data += seg.data
             toggle ^= 1
@@ -195,14 +219,14 @@ class CoeObjectChannel(ObjectChannel):
             request = coe.SdoDownloadInitiate(index, subindex, data[:room], len(data), False)
             rest = data[room:]
         # Each answer may take a share of the request's time: the rest is for reading the object back.
-        self._sdo(request, index, subindex, "download", deadline, deadline.attempts)
+        self._sdo(_coe_sdo(request), coe.SdoDownloadResponse, index, subindex, "download", deadline, deadline.attempts)
         proven = self._proven
         toggle = 0
         room = self._segment_room
         while rest:
             chunk, rest = rest[:room], rest[room:]
-            self._sdo(coe.SdoDownloadSegment(toggle, chunk, not rest), index, subindex, "download", deadline,
-                      deadline.attempts, toggle)
+            self._sdo(_coe_sdo(coe.SdoDownloadSegment(toggle, chunk, not rest)), coe.SdoDownloadSegmentResponse,
+                      index, subindex, "download", deadline, deadline.attempts, toggle)
             proven = proven and self._proven
             toggle ^= 1
         return proven
@@ -226,56 +250,48 @@ class CoeObjectChannel(ObjectChannel):
     def _abort(self, index: int, subindex: int, code: int) -> None:
         """Tell the server to drop its transfer state (CiA 301: the client aborts what it gives up)."""
         try:
-            self._send(coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(coe.SdoAbort(index, subindex, code))))
+            self._send(_coe_sdo(coe.SdoAbort(index, subindex, code)))
         except CommError as exc:
             log.debug("could not send the SDO abort: %s", exc)
 
-    def _sdo(self, request: coe.SdoMessage, index: int, subindex: int, verb: str, deadline: Deadline,
+    def _sdo(self, request: bytes, wanted: type, index: int, subindex: int, verb: str, deadline: Deadline,
              left: int, toggle: int | None = None) -> coe.SdoMessage:
-        """Send one SDO request; return the matching server message (aborts raise)."""
+        """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
+        self._want = (wanted, index, subindex, verb, toggle)
+        return self._exchange(request, self._accept_sdo, deadline.share(left), deadline)
+
+    def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
+        """The server message if this reply answers the SDO request in ``self._want``, else None."""
+        if service != _SDO_RESPONSE and service != _SDO_REQUEST:
+            return None
+        try:
+            msg = coe.decode_sdo(payload, from_server=True)
+        except CodecError as exc:
+            log.debug("ignoring an undecodable SDO reply: %s", exc)
+            return None
+        wanted, index, subindex, verb, toggle = self._want
         segment = toggle is not None
-        if isinstance(request, coe.SdoUploadSegment):
-            wanted: type = coe.SdoUploadSegmentResponse
-        elif isinstance(request, coe.SdoDownloadSegment):
-            wanted = coe.SdoDownloadSegmentResponse
-        elif isinstance(request, coe.SdoUploadInitiate):
-            wanted = coe.SdoUploadResponse
-        else:
-            wanted = coe.SdoDownloadResponse
-
-        def accept(service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
-            if service not in (CoeService.SDO_RESPONSE, CoeService.SDO_REQUEST):
-                return None
-            try:
-                msg = coe.decode_sdo(payload, from_server=True)
-            except CodecError as exc:
-                log.debug("ignoring an undecodable SDO reply: %s", exc)
-                return None
-            if isinstance(msg, coe.SdoAbort):
-                if (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment or mine:
-                    raise sdo_aborted(msg.code, sdo_what(verb, index, subindex),
-                                      details={"index": index, "subindex": subindex})
-                return None
-            if not isinstance(msg, wanted):
-                return None
-            if segment:
-                if msg.toggle != toggle:  # type: ignore[attr-defined]
-                    if mine:
-                        raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[attr-defined]
-                                             f"of {_where(index, subindex)}")
-                    return None  # a duplicate of the previous segment's answer
-            elif (msg.index, msg.subindex) != (index, subindex):  # type: ignore[attr-defined]
-                return None
-            if service == CoeService.SDO_REQUEST:
-                log.warning(
-                    "SDO reply for %s carries CoE service 2 (request) instead of 3 (response); "
-                    "accepted as the AKD manual prints it",
-                    _where(index, subindex),
-                )
-            return msg
-
-        return self._exchange(coe.encode_coe(CoeService.SDO_REQUEST, coe.encode_sdo(request)), accept,
-                              deadline.share(left), deadline)
+        if type(msg) is not wanted:
+            if isinstance(msg, coe.SdoAbort) and (
+                    (msg.index, msg.subindex) in ((index, subindex), (0, 0)) or segment or mine):
+                raise sdo_aborted(msg.code, sdo_what(verb, index, subindex),
+                                  details={"index": index, "subindex": subindex})
+            return None
+        if segment:
+            if msg.toggle != toggle:  # type: ignore[attr-defined]
+                if mine:
+                    raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[attr-defined]
+                                         f"of {_where(index, subindex)}")
+                return None  # a duplicate of the previous segment's answer
+        elif msg.index != index or msg.subindex != subindex:  # type: ignore[attr-defined]
+            return None
+        if service == _SDO_REQUEST:
+            log.warning(
+                "SDO reply for %s carries CoE service 2 (request) instead of 3 (response); "
+                "accepted as the AKD manual prints it",
+                _where(index, subindex),
+            )
+        return msg
 
     # --- SDO information --------------------------------------------------------------------
 
@@ -316,11 +332,10 @@ class CoeObjectChannel(ObjectChannel):
     # --- mailbox exchange -------------------------------------------------------------------
 
     def _send(self, coe_data: bytes) -> int:
-        self._counter = mbx.next_counter(self._counter)
-        frame = mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.COE, coe_data, address=self.station, counter=self._counter))
-        self.link.send(frame)
+        counter = self._counter = self._counter + 1 if self._counter < 7 else 1  # 1..7 (mailbox.next_counter)
+        self.link.send(mbx.pack(mbx.MailboxType.COE, coe_data, self.station, counter))
         self.requests += 1
-        return self._counter
+        return counter
 
     def _drain(self) -> None:
         """Clear replies left over from an unanswered request (keep their emergencies)."""
@@ -336,35 +351,32 @@ class CoeObjectChannel(ObjectChannel):
         Returns (counter, CoE service, payload) of a CoE reply worth matching, else None.
         """
         try:
-            frame = mbx.decode_mailbox(raw)
+            mtype, counter, _address, data = mbx.split(raw)
         except CodecError as exc:
             log.debug("ignoring an undecodable mailbox: %s", exc)
             return None
-        if frame.type == mbx.MailboxType.ERROR:
-            if not check_errors or not self.filter.admit(raw, frame.counter):
+        if mtype == mbx.MailboxType.ERROR:
+            if not check_errors or not self.filter.admit(raw, counter):
                 return None
             try:
-                reply = mbx.decode_error_reply(frame.data)
+                reply = mbx.decode_error_reply(data)
             except CodecError as exc:
                 raise MalformedReply(f"the drive sent a mailbox error reply that does not decode: {exc}") from None
             raise CommError(
                 f"the drive refused the mailbox request: {mailbox_error_text(reply.code)} (mailbox error {reply.code})", code=reply.code
             )
-        if frame.type != mbx.MailboxType.COE:
-            log.debug("ignoring a mailbox of type %d", frame.type)
+        if mtype != mbx.MailboxType.COE or len(data) < coe.COE_HEADER_SIZE:
+            log.debug("ignoring a mailbox of type %d", mtype)
             return None
-        try:
-            service, _number, payload = coe.decode_coe(frame.data)
-        except CodecError as exc:
-            log.debug("ignoring a CoE mailbox that does not decode: %s", exc)
-            return None
-        if service == CoeService.EMERGENCY:
+        service = data[1] >> 4  # CoE header: number bits 0-8, service bits 12-15
+        payload = data[coe.COE_HEADER_SIZE:]
+        if service == _EMERGENCY:
             try:
                 self._emergencies.append(decode_emcy(payload[: 8]))
             except CodecError as exc:
                 log.warning("ignoring an emergency that does not decode: %s", exc)
             return None
-        return frame.counter, service, payload
+        return counter, service, payload
 
     def _exchange(
         self,

@@ -159,6 +159,7 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
 
     errors: dict[str, str] = {}
     target = conn.target
+    conn.options.tracer.record = True  # the bundle carries the session's trace (the tracer keeps none by default)
     bundle: dict[str, Any] = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,

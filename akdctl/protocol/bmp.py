@@ -167,6 +167,13 @@ _KNOWN_FORMATS = frozenset(int(f) for f in Format)
 
 def format_size(fmt: int) -> int:
     """Bytes per value of ``fmt`` on the wire (per character for strings; 0 for Zero, 2 for Error)."""
+    size = _SIZES.get(fmt)
+    if size is not None:
+        return size
+    return _format_size(fmt)
+
+
+def _format_size(fmt: int) -> int:
     if fmt in _STRUCT:
         return struct.calcsize(">" + _STRUCT[fmt])
     if fmt in _RAW_SIZE:
@@ -178,6 +185,9 @@ def format_size(fmt: int) -> int:
     if fmt == Format.ZERO:
         return 0
     raise BmpError(f"unknown format 0x{fmt:02X}")
+
+
+_SIZES: dict[int, int] = {int(f): _format_size(f) for f in Format}
 
 
 def format_name(fmt: int) -> str:
@@ -328,13 +338,17 @@ def check_address(address: object) -> ParameterAddress:
     """``address`` itself when it is a ParameterAddress within the wire limits, else BmpError."""
     if not isinstance(address, ParameterAddress):
         raise BmpError(f"not a parameter address: {address!r}")
-    if address.attribute not in ATTRIBUTES:
-        raise BmpError(f"{address}: attribute 0x{address.attribute:02X} is not value/description/text" if isinstance(
-            address.attribute, int) else f"attribute {address.attribute!r} is not an integer")
+    pnu, subindex, count, attribute = address.pnu, address.subindex, address.count, address.attribute
+    if (type(pnu) is int and type(subindex) is int and type(count) is int and attribute in ATTRIBUTES
+            and 1 <= pnu <= 0xFFFF and 0 <= subindex <= MAX_SUBINDEX and 1 <= count <= MAX_ELEMENTS):
+        return address  # the usual case, in one test (this runs once per parameter on every request)
+    if attribute not in ATTRIBUTES:
+        raise BmpError(f"{address}: attribute 0x{attribute:02X} is not value/description/text" if isinstance(
+            attribute, int) else f"attribute {attribute!r} is not an integer")
     for name, value, low, high in (
-        ("PNU", address.pnu, 1, 0xFFFF),
-        ("subindex", address.subindex, 0, MAX_SUBINDEX),
-        ("number of elements", address.count, 1, MAX_ELEMENTS),
+        ("PNU", pnu, 1, 0xFFFF),
+        ("subindex", subindex, 0, MAX_SUBINDEX),
+        ("number of elements", count, 1, MAX_ELEMENTS),
     ):
         if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
             raise BmpError(f"{name} must be {low}..{high}, not {value!r}")
@@ -422,38 +436,50 @@ def _encode_failure(failure: ParameterFailure) -> bytes:
     return struct.pack(">BBHH", Format.ERROR, 2, failure.error, failure.additional)
 
 
+_ZERO_FORMATS = (0x00, int(Format.ZERO))
+_ERROR = int(Format.ERROR)
+_NUMERIC: dict[tuple[int, int], struct.Struct] = {}  # (format, count) -> Struct: built once per shape
+
+
 def decode_value_block(data: bytes, offset: int) -> tuple[ParameterResult, int]:
     """Decode the block at ``offset``; returns the result and the offset after it (pad included).
 
     A missing pad byte is tolerated only at the very end of ``data``.
     Format 0x40 (and the seed's 0x00) with no values decodes to ``None``.
     """
-    if offset + 2 > len(data):
+    size_all = len(data)
+    if offset + 2 > size_all:
         raise BmpError(f"value block at byte {offset} is cut short (need format and number of values)")
     fmt, count = data[offset], data[offset + 1]
     start = offset + 2
-    if fmt in (0x00, Format.ZERO):
+    if fmt in _ZERO_FORMATS:
         if count:
             raise BmpError(f"format 0x{fmt:02X} at byte {offset} announces {count} values; it carries none")
         return None, start
-    if fmt not in _KNOWN_FORMATS:
+    per = _SIZES.get(fmt)
+    if per is None:
         raise BmpError(f"unknown format 0x{fmt:02X} at byte {offset}")
     if count == 0:
         raise BmpError(f"{format_name(fmt)} block at byte {offset} has no values")
-    if fmt == Format.ERROR and count not in (1, 2):
+    if fmt == _ERROR and count not in (1, 2):
         raise BmpError(f"error block at byte {offset} has {count} values; it must have 1 or 2")
     if count > MAX_ELEMENTS:
         raise BmpError(f"block at byte {offset} announces {count} values (at most {MAX_ELEMENTS})")
-    size = format_size(fmt) * count
+    size = per * count
     end = start + size
-    if end > len(data):
+    if end > size_all:
         raise BmpError(f"{format_name(fmt)} block at byte {offset} announces {count} values "
-                       f"({size} bytes) but only {len(data) - start} follow")
-    raw = data[start:end]
-    after = start + _pad(size)
-    if after > len(data):  # the last block's pad byte may be missing
-        after = len(data)
-    return _decode_values(fmt, count, raw), after
+                       f"({size} bytes) but only {size_all - start} follow")
+    after = start + size + (size & 1)
+    if after > size_all:  # the last block's pad byte may be missing
+        after = size_all
+    code = _STRUCT.get(fmt)
+    if code is not None and fmt != _ERROR:
+        shape = _NUMERIC.get((fmt, count))
+        if shape is None:
+            shape = _NUMERIC[(fmt, count)] = struct.Struct(f">{count}{code}")
+        return ParameterValue(fmt, shape.unpack_from(data, start)), after
+    return _decode_values(fmt, count, data[start:end]), after
 
 
 def _decode_values(fmt: int, count: int, raw: bytes) -> ParameterResult:

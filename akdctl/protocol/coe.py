@@ -62,6 +62,19 @@ def encode_coe(service: int, payload: bytes, number: int = 0) -> bytes:
     return struct.pack("<H", number | service << 12) + bytes(payload)
 
 
+_UPLOAD_REQUEST = struct.Struct("<HBHB4x")
+_SDO_REQUEST_HEADER = CoeService.SDO_REQUEST << 12
+
+
+def upload_request(index: int, subindex: int) -> bytes:
+    """CoE data of an SDO upload initiate (CoE header + 8-byte SDO), the client's most frequent request,
+    packed in one step (``encode_coe(SDO_REQUEST, encode_sdo(SdoUploadInitiate(index, subindex)))``)."""
+    try:
+        return _UPLOAD_REQUEST.pack(_SDO_REQUEST_HEADER, 0x40, index, subindex)
+    except struct.error:
+        raise CoeError(f"SDO index {index!r} / subindex {subindex!r} out of range") from None
+
+
 def decode_coe(data: bytes) -> tuple[CoeService, int, bytes]:
     """Split a CoE mailbox's data into (service, number, payload); unknown services raise."""
     data = bytes(data)

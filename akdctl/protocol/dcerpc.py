@@ -138,32 +138,121 @@ def encode_packet(header: RpcHeader, body: bytes = b"") -> bytes:
     return head + bytes(body)
 
 
-def decode_packet(data: bytes) -> RpcPacket:
-    """Parse one datagram; the body is cut to the announced length."""
-    data = bytes(data)
-    if len(data) < HEADER_SIZE:
-        raise DceRpcError(f"datagram of {len(data)} bytes is shorter than the 80-byte DCE/RPC header")
-    version, ptype, flags1, flags2, drep, serial_hi = struct.unpack_from(">BBBB3sB", data, 0)
+_REQUEST_HEAD = struct.Struct(">BBBB3sB")
+_FIELDS_BE = struct.Struct(">IIIHHHHH")
+_FIELDS_LE = struct.Struct("<IIIHHHHH")
+
+
+class RpcView:
+    """A received datagram as a client needs it: header fields and body, the UUIDs left as wire bytes.
+
+    Why not :class:`RpcHeader`: decoding three ``uuid.UUID`` objects and an 18-field frozen dataclass per
+    datagram costs more than the rest of a client's call; a client compares the activity bytes with its
+    own (:meth:`RequestTemplate.is_ours`). :func:`decode_packet` builds the full header from a view.
+    """
+
+    __slots__ = ("data", "ptype", "flags1", "flags2", "drep", "serial_hi", "little", "sequence", "opnum",
+                 "fragment", "fields", "body")
+
+    @property
+    def header(self) -> "RpcView":  # the shape Reassembler reads (packet.header, packet.body)
+        return self
+
+    @property
+    def activity(self) -> bytes:
+        return self.data[40:56]
+
+    @property
+    def little_endian(self) -> bool:
+        return self.little
+
+    @property
+    def is_fragment(self) -> bool:
+        return bool(self.flags1 & FLAG_FRAG)
+
+    @property
+    def is_last_fragment(self) -> bool:
+        return not self.is_fragment or bool(self.flags1 & FLAG_LASTFRAG)
+
+    @property
+    def type_name(self) -> str:
+        return PACKET_TYPE_NAMES.get(self.ptype, f"type {self.ptype}")
+
+
+def view_packet(data: bytes) -> RpcView:
+    """Parse one datagram's header (UUIDs stay bytes); the body is cut to the announced length."""
+    size = len(data)
+    if size < HEADER_SIZE:
+        raise DceRpcError(f"datagram of {size} bytes is shorter than the 80-byte DCE/RPC header")
+    version, ptype, flags1, flags2, drep, serial_hi = _REQUEST_HEAD.unpack_from(data, 0)
     if version != RPC_VERSION:
         raise DceRpcError(f"DCE/RPC version {version}, expected 4 (connectionless)")
-    if (drep[0] >> 4) not in (0, 1):
+    order = drep[0] >> 4
+    if order not in (0, 1):
         raise DceRpcError(f"unsupported integer representation in drep {drep.hex()}")
-    little = (drep[0] >> 4) == 1
-    order = "<" if little else ">"
-    obj = uuid_from_wire(data[8:24], little)
-    iface = uuid_from_wire(data[24:40], little)
-    act = uuid_from_wire(data[40:56], little)
-    boot, if_vers, seq, opnum, ihint, ahint, length, frag = struct.unpack_from(order + "IIIHHHHH", data, 56)
-    auth, serial_lo = data[78], data[79]
-    if HEADER_SIZE + length > len(data):
-        raise DceRpcError(f"body length {length} exceeds the {len(data) - HEADER_SIZE} bytes received")
+    fields = (_FIELDS_LE if order else _FIELDS_BE).unpack_from(data, 56)
+    length = fields[6]
+    if HEADER_SIZE + length > size:
+        raise DceRpcError(f"body length {length} exceeds the {size - HEADER_SIZE} bytes received")
+    view = RpcView()
+    view.data = data
+    view.ptype, view.flags1, view.flags2, view.drep, view.serial_hi = ptype, flags1, flags2, drep, serial_hi
+    view.little = order == 1
+    view.fields = fields
+    view.sequence, view.opnum, view.fragment = fields[2], fields[3], fields[7]
+    view.body = bytes(data[HEADER_SIZE:HEADER_SIZE + length])
+    return view
+
+
+def decode_packet(data: bytes) -> RpcPacket:
+    """Parse one datagram into a full :class:`RpcHeader` (UUIDs decoded); the body is cut to the announced length."""
+    data = bytes(data)
+    view = view_packet(data)
+    little = view.little
+    boot, if_vers, seq, opnum, ihint, ahint, length, frag = view.fields
     header = RpcHeader(
-        ptype=ptype, object_uuid=obj, interface_uuid=iface, activity_uuid=act, sequence=seq,
-        opnum=opnum, flags1=flags1, flags2=flags2, drep=drep, server_boot=boot,
+        ptype=view.ptype, object_uuid=uuid_from_wire(data[8:24], little),
+        interface_uuid=uuid_from_wire(data[24:40], little), activity_uuid=uuid_from_wire(data[40:56], little),
+        sequence=seq, opnum=opnum, flags1=view.flags1, flags2=view.flags2, drep=view.drep, server_boot=boot,
         interface_version=if_vers, interface_hint=ihint, activity_hint=ahint, fragment=frag,
-        body_length=length, auth_protocol=auth, serial=(serial_hi << 8) | serial_lo, version=version,
+        body_length=length, auth_protocol=data[78], serial=(view.serial_hi << 8) | data[79], version=RPC_VERSION,
     )
-    return RpcPacket(header, data[HEADER_SIZE:HEADER_SIZE + length])
+    return RpcPacket(header, view.body)
+
+
+class RequestTemplate:
+    """The request header of one client activity, encoded once: per call only the sequence number,
+    the operation and the body length change (written into a copy of the template)."""
+
+    __slots__ = ("_head", "_activity_be", "_activity_le")
+
+    def __init__(self, object_uuid: uuid.UUID, interface_uuid: uuid.UUID, activity_uuid: uuid.UUID,
+                 flags1: int = FLAG_IDEMPOTENT) -> None:
+        header = RpcHeader(ptype=PT_REQUEST, object_uuid=object_uuid, interface_uuid=interface_uuid,
+                           activity_uuid=activity_uuid, sequence=0, opnum=0, flags1=flags1)
+        self._head = bytearray(encode_packet(header))
+        self._activity_be = activity_uuid.bytes
+        self._activity_le = activity_uuid.bytes_le
+
+    def packet(self, sequence: int, opnum: int, body: bytes) -> bytes:
+        """Header + body of one request (big-endian data representation, as akdctl always sends)."""
+        if len(body) > 0xFFFF:
+            raise DceRpcError(f"body of {len(body)} bytes does not fit one datagram; fragment it")
+        head = self._head
+        try:
+            _SEQ_OP.pack_into(head, 64, sequence, opnum)
+        except struct.error as exc:
+            raise DceRpcError(f"header field out of range: {exc}") from None
+        _LENGTH.pack_into(head, 74, len(body))
+        return bytes(head) + body
+
+    def is_ours(self, view: RpcView) -> bool:
+        """Whether a reply belongs to this activity (compared in the byte order the reply announces)."""
+        return view.data[40:56] == (self._activity_le if view.little else self._activity_be)
+
+
+_SEQ_OP = struct.Struct(">IH")
+_LENGTH = struct.Struct(">H")
 
 
 def fragment_body(header: RpcHeader, body: bytes, max_body: int) -> list[bytes]:
@@ -201,7 +290,7 @@ class Reassembler:
         self.max_body = max_body  # the most one reassembled body may hold (a hostile peer's fragments end there)
         self.first: RpcHeader | None = None
 
-    def add(self, packet: RpcPacket) -> bytes | None:
+    def add(self, packet: "RpcPacket | RpcView") -> bytes | None:
         """Feed one packet; returns the whole body once complete, else ``None``."""
         head = packet.header
         if not head.is_fragment:

@@ -83,28 +83,48 @@ def encode_mailbox(mbx: Mailbox) -> bytes:
     return struct.pack("<HHBB", len(data), address, channel | priority << 6, mtype | counter << 4) + data
 
 
-def decode_mailbox(buf: bytes) -> Mailbox:
-    """Parse a mailbox; trailing bytes (the rest of an SM buffer) are ignored."""
-    buf = bytes(buf)
-    if len(buf) < HEADER_SIZE:
-        raise MailboxError(f"mailbox of {len(buf)} bytes is shorter than its 6-byte header")
-    length, address, chan_prio, type_counter = struct.unpack_from("<HHBB", buf)
+_HEADER = struct.Struct("<HHBB")
+
+
+def pack(mtype: int, data: bytes, address: int, counter: int) -> bytes:
+    """The bytes of a mailbox of channel 0, priority 0: the hot path of every client request.
+
+    No dataclass and no range checks: the caller passes a type from :class:`MailboxType`, an address it
+    checked once and a counter from :func:`next_counter` (:func:`encode_mailbox` checks everything).
+    """
+    return _HEADER.pack(len(data), address, 0, mtype | counter << 4) + data
+
+
+def split(buf: bytes) -> tuple[int, int, int, bytes]:
+    """(type, counter, address, data) of a mailbox without building a :class:`Mailbox`; the same length
+    rules as :func:`decode_mailbox` (trailing bytes ignored, SPEC-NOTES 15's clipped length)."""
+    size = len(buf)
+    if size < HEADER_SIZE:
+        raise MailboxError(f"mailbox of {size} bytes is shorter than its 6-byte header")
+    length, address, _chan_prio, type_counter = _HEADER.unpack_from(buf)
     end = HEADER_SIZE + length
-    if end > len(buf):
+    if end > size:
         # SPEC-NOTES 15: the manual's example counts the length from byte 2.
-        if length >= 4 and 2 + length <= len(buf):
+        if length >= 4 and 2 + length <= size:
             end = 2 + length
         else:
             raise MailboxError(
-                f"mailbox header announces {length} data bytes but only {len(buf) - HEADER_SIZE} follow"
+                f"mailbox header announces {length} data bytes but only {size - HEADER_SIZE} follow"
             )
+    return type_counter & 0x0F, (type_counter >> 4) & 0x07, address, bytes(buf[HEADER_SIZE:end])
+
+
+def decode_mailbox(buf: bytes) -> Mailbox:
+    """Parse a mailbox; trailing bytes (the rest of an SM buffer) are ignored."""
+    mtype, counter, address, data = split(buf)
+    chan_prio = buf[4]
     return Mailbox(
-        type=type_counter & 0x0F,
-        data=buf[HEADER_SIZE:end],
+        type=mtype,
+        data=data,
         address=address,
         channel=chan_prio & 0x3F,
         priority=chan_prio >> 6,
-        counter=(type_counter >> 4) & 0x07,
+        counter=counter,
     )
 
 
@@ -160,30 +180,40 @@ def decode_error_reply(data: bytes) -> MailboxErrorReply:
 # --- ETG.8200 mailbox gateway ------------------------------------------------------------------
 
 
-def encode_gateway(mbx: Mailbox) -> bytes:
-    """Wrap a mailbox in the 2-byte EtherCAT header (length | type 5 << 12) a gateway expects."""
-    frame = encode_mailbox(mbx)
-    if len(frame) > _MAX_GATEWAY_LENGTH:
-        raise MailboxError(f"gateway frame of {len(frame)} bytes exceeds the 11-bit EtherCAT length")
-    return struct.pack("<H", len(frame) | GATEWAY_FRAME_TYPE << 12) + frame
+_GATEWAY_HEADER = struct.Struct("<H")
 
 
-def decode_gateway(buf: bytes) -> Mailbox:
-    """Unwrap a gateway datagram; the EtherCAT header must say type 5 and fit the datagram."""
-    buf = bytes(buf)
-    if len(buf) < GATEWAY_HEADER_SIZE + HEADER_SIZE:
-        raise MailboxError(f"gateway datagram of {len(buf)} bytes is too short for a mailbox")
-    (header,) = struct.unpack_from("<H", buf)
+def wrap_gateway(mailbox: bytes) -> bytes:
+    """An encoded mailbox behind the 2-byte EtherCAT header (length | type 5 << 12) a gateway expects."""
+    if len(mailbox) > _MAX_GATEWAY_LENGTH:
+        raise MailboxError(f"gateway frame of {len(mailbox)} bytes exceeds the 11-bit EtherCAT length")
+    return _GATEWAY_HEADER.pack(len(mailbox) | GATEWAY_FRAME_TYPE << 12) + mailbox
+
+
+def unwrap_gateway(buf: bytes) -> bytes:
+    """The mailbox bytes inside a gateway datagram, checked: type 5, a length that fits the datagram
+    and agrees with the mailbox's own length (one rule for the client's and the gateway's side)."""
+    size = len(buf)
+    if size < GATEWAY_HEADER_SIZE + HEADER_SIZE:
+        raise MailboxError(f"gateway datagram of {size} bytes is too short for a mailbox")
+    header = buf[0] | buf[1] << 8
     ftype = header >> 12
     length = header & _MAX_GATEWAY_LENGTH
     if ftype != GATEWAY_FRAME_TYPE:
         raise MailboxError(f"EtherCAT frame type {ftype} is not a mailbox (5)")
-    if length < HEADER_SIZE or GATEWAY_HEADER_SIZE + length > len(buf):
-        raise MailboxError(f"EtherCAT header length {length} does not fit a datagram of {len(buf)} bytes")
-    frame = buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length]
-    mbx = decode_mailbox(frame)
-    if HEADER_SIZE + len(mbx.data) != length:
-        raise MailboxError(
-            f"EtherCAT header length {length} disagrees with mailbox length {len(mbx.data)} + 6"
-        )
-    return mbx
+    if length < HEADER_SIZE or GATEWAY_HEADER_SIZE + length > size:
+        raise MailboxError(f"EtherCAT header length {length} does not fit a datagram of {size} bytes")
+    inner = buf[2] | buf[3] << 8
+    if HEADER_SIZE + inner != length:
+        raise MailboxError(f"EtherCAT header length {length} disagrees with mailbox length {inner} + 6")
+    return bytes(buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length])
+
+
+def encode_gateway(mbx: Mailbox) -> bytes:
+    """Wrap a mailbox in the 2-byte EtherCAT header (length | type 5 << 12) a gateway expects."""
+    return wrap_gateway(encode_mailbox(mbx))
+
+
+def decode_gateway(buf: bytes) -> Mailbox:
+    """Unwrap a gateway datagram; the EtherCAT header must say type 5 and fit the datagram."""
+    return decode_mailbox(unwrap_gateway(buf))

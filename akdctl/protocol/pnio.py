@@ -138,6 +138,8 @@ class PnioStatus:
     def decode_bytes(cls, data: bytes) -> "PnioStatus":
         if len(data) != 4:
             raise PnioError(f"PNIOStatus needs 4 bytes, got {len(data)}")
+        if data == b"\0\0\0\0" and cls is PnioStatus:
+            return OK  # the usual answer: one shared object
         return cls(*data)
 
     @property
@@ -183,10 +185,15 @@ def _order(little: bool) -> str:
     return "<" if little else ">"
 
 
+_NDR_REQ = {False: struct.Struct(">IIIII"), True: struct.Struct("<IIIII")}
+_NDR_RES = {False: struct.Struct(">IIII"), True: struct.Struct("<IIII")}
+
+
 def encode_request_args(blocks: bytes, args_maximum: int = 1024, little: bool = False) -> bytes:
     """NDR request: ArgsMaximum, ArgsLength, MaximumCount, Offset, ActualCount, blocks."""
     n = len(blocks)
-    return struct.pack(_order(little) + "IIIII", max(args_maximum, n), n, max(args_maximum, n), 0, n) + blocks
+    top = args_maximum if args_maximum > n else n
+    return _NDR_REQ[little].pack(top, n, top, 0, n) + blocks
 
 
 def decode_request_args(body: bytes, little: bool = False) -> tuple[int, bytes]:
@@ -213,7 +220,7 @@ def decode_response_args(body: bytes, little: bool = False) -> tuple[PnioStatus,
     if len(body) < 20:
         raise PnioError(f"response body of {len(body)} bytes is shorter than the 20-byte NDR header")
     status = PnioStatus.decode_bytes(body[:4])
-    length, maximum, offset, actual = struct.unpack_from(_order(little) + "IIII", body, 4)
+    length, maximum, offset, actual = _NDR_RES[bool(little)].unpack_from(body, 4)
     if offset != 0 or actual > maximum or length > len(body) - 20:
         raise PnioError(f"inconsistent NDR header (length {length}, max {maximum}, offset {offset}, "
                         f"actual {actual}, {len(body) - 20} bytes present)")
@@ -383,6 +390,73 @@ def _rw_parse(content: bytes) -> tuple[int, uuid.UUID, RecordAddress, int]:
     return seq, uuid.UUID(bytes=ar), RecordAddress(api, slot, subslot, index), length
 
 
+# ---------------------------------------------------------------- a client's record access, without objects
+#
+# Why beside the block classes: a PNU read is a write record and a read record, each encoded and decoded
+# once per request; the dataclasses (a UUID, a RecordAddress, a RawBlock list per block) cost more than the
+# rest of the call. These functions use the same layouts (_RW_HEAD); the classes below call them to encode.
+
+_WRITE_REQ_HEAD = block_header(BT_WRITE_REQ, 58)
+_READ_REQ_HEAD = block_header(BT_READ_REQ, 58)
+_PAD24 = bytes(24)
+_PAD8 = bytes(8)
+
+
+def write_request(seq: int, ar: bytes, address: RecordAddress, data: bytes) -> bytes:
+    """IODWriteReqHeader + record data (``ar``: the AR UUID's 16 bytes)."""
+    try:
+        head = _RW_HEAD.pack(seq, ar, address.api, address.slot, address.subslot, b"\0\0", address.index, len(data))
+    except struct.error as exc:
+        raise PnioError(f"record header field out of range: {exc}") from None
+    return _WRITE_REQ_HEAD + head + _PAD24 + data
+
+
+def read_request(seq: int, ar: bytes, address: RecordAddress, length: int, target_ar: bytes = bytes(16)) -> bytes:
+    """IODReadReqHeader (``target_ar``: the nil UUID unless a ReadImplicit names one)."""
+    try:
+        head = _RW_HEAD.pack(seq, ar, address.api, address.slot, address.subslot, b"\0\0", address.index, length)
+    except struct.error as exc:
+        raise PnioError(f"record header field out of range: {exc}") from None
+    return _READ_REQ_HEAD + head + target_ar + _PAD8
+
+
+def _first_block(data: bytes, btype: int) -> tuple[bytes, int]:
+    """(content, end) of the block of type ``btype``: the first one if it is (the usual case), else searched."""
+    if len(data) >= 6 and BLOCK_HEADER.unpack_from(data, 0)[0] == btype:
+        length = BLOCK_HEADER.unpack_from(data, 0)[1]
+        if length < 2 or 4 + length > len(data):
+            raise PnioError(f"block 0x{btype:04X} announces {length} bytes, {len(data) - 4} present")
+        return bytes(data[6:4 + length]), 4 + length
+    block = _one_block(data, btype)
+    return block.content, -1
+
+
+def write_response(data: bytes) -> tuple[int, int, "PnioStatus"]:
+    """(sequence number, record index, PNIOStatus) of an IODWriteResHeader."""
+    content, _end = _first_block(data, BT_WRITE_RES)
+    if len(content) < 58:
+        raise PnioError(f"block 0x{BT_WRITE_RES:04X} has {len(content)} bytes, needs 58")
+    seq, _ar, _api, _slot, _subslot, _pad, index, _length = _RW_HEAD.unpack_from(content, 0)
+    return seq, index, PnioStatus.decode_bytes(content[38:42])
+
+
+def read_response(data: bytes) -> tuple[int, int, bytes]:
+    """(sequence number, record index, record data) of an IODReadResHeader and the data after it."""
+    content, end = _first_block(data, BT_READ_RES)
+    if end < 0:  # found by the general split, which keeps the record data in the content
+        block = _one_block(data, BT_READ_RES)
+        _expect(block, BT_READ_RES, 58)
+        seq, _ar, _api, _slot, _subslot, _pad, index, length = _RW_HEAD.unpack_from(block.content, 0)
+        return seq, index, block.content[58:58 + length]
+    if end != 64:
+        raise PnioError(f"block 0x{BT_READ_RES:04X} must be 60 bytes long, not {end - 4}")
+    seq, _ar, _api, _slot, _subslot, _pad, index, length = _RW_HEAD.unpack_from(content, 0)
+    record = data[end:end + length]
+    if len(record) != length:
+        raise PnioError(f"read response announces {length} record bytes, {len(record)} present")
+    return seq, index, bytes(record)
+
+
 @dataclass(frozen=True)
 class IODWriteReq:
     seq_number: int
@@ -391,8 +465,7 @@ class IODWriteReq:
     data: bytes
 
     def encode(self) -> bytes:
-        body = _rw_head(self.seq_number, self.ar_uuid, self.address, len(self.data)) + bytes(24)
-        return block_header(BT_WRITE_REQ, len(body)) + body + bytes(self.data)
+        return write_request(self.seq_number, self.ar_uuid.bytes, self.address, bytes(self.data))
 
     @classmethod
     def decode(cls, data: bytes) -> "IODWriteReq":
@@ -438,8 +511,8 @@ class IODReadReq:
     target_ar_uuid: uuid.UUID = NIL_UUID
 
     def encode(self) -> bytes:
-        body = _rw_head(self.seq_number, self.ar_uuid, self.address, self.max_length) + self.target_ar_uuid.bytes + bytes(8)
-        return block_header(BT_READ_REQ, len(body)) + body
+        return read_request(self.seq_number, self.ar_uuid.bytes, self.address, self.max_length,
+                            self.target_ar_uuid.bytes)
 
     @classmethod
     def decode(cls, data: bytes) -> "IODReadReq":

@@ -17,10 +17,8 @@ then segmented, never refused).
 from __future__ import annotations
 
 import contextlib
-import select
 import socket
 import time
-from dataclasses import replace
 
 from akdctl.errors import CommError, UsageError
 from akdctl.links import MailboxLink
@@ -46,6 +44,7 @@ class GatewayMailboxLink(MailboxLink):
         self.mailbox_address = station
         self.tracer = tracer
         self.mailbox_size = mailbox_size
+        self._address = station.to_bytes(2, "little")
         self.sent = 0
         self.received = 0
         try:
@@ -68,12 +67,18 @@ class GatewayMailboxLink(MailboxLink):
         return {"proto": "udp", "src": src, "dst": dst}
 
     def send(self, mailbox: bytes) -> None:
-        from akdctl.protocol.mailbox import decode_mailbox, encode_gateway
+        from akdctl.protocol.mailbox import MailboxError, wrap_gateway
 
         sock = self._socket()
-        datagram = encode_gateway(replace(decode_mailbox(mailbox), address=self.station))
-        self.tracer.frame("tx", "ecat-gw", datagram, note=f"gateway -> station {self.station}",
-                          meta=self._meta("tx"))
+        if mailbox[2:4] != self._address:  # the mailbox names the gateway's station (the channel writes it)
+            mailbox = mailbox[:2] + self._address + mailbox[4:]
+        try:
+            datagram = wrap_gateway(mailbox)
+        except MailboxError as exc:
+            raise CommError(f"cannot send to EtherCAT gateway {self.host}:{self.port}: {exc}") from None
+        if self.tracer.active:
+            self.tracer.frame("tx", "ecat-gw", datagram, note=f"gateway -> station {self.station}",
+                              meta=self._meta("tx"))
         try:
             sock.send(datagram)
         except ConnectionRefusedError:
@@ -83,36 +88,43 @@ class GatewayMailboxLink(MailboxLink):
         self.sent += 1
 
     def receive(self, timeout: float) -> bytes | None:
-        from akdctl.protocol.errors import CodecError
-        from akdctl.protocol.mailbox import decode_gateway, encode_mailbox
+        from akdctl.protocol.mailbox import MailboxError, unwrap_gateway
 
         sock = self._socket()
         deadline = time.monotonic() + max(0.0, timeout)
+        tracer = self.tracer
         while True:
             remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if remaining < 0:
                 return None
-            ready, _, _ = select.select([sock], [], [], remaining)
-            if not ready:
-                return None
+            sock.settimeout(remaining)  # recv then waits in poll(2): no select() lists per datagram
             try:
                 data = sock.recv(4096)
+            except socket.timeout:
+                return None
+            except BlockingIOError:
+                return None  # timeout 0: nothing there
             except ConnectionRefusedError:
                 raise self._refused() from None
             except OSError as exc:
                 raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
             try:
-                mbx = decode_gateway(data)
-            except CodecError as exc:
-                self.tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
+                mailbox = unwrap_gateway(data)
+            except MailboxError as exc:
+                if tracer.active:
+                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
                 continue
-            if mbx.address not in (self.station, 0):
-                self.tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {mbx.address}",
-                                  meta=self._meta("rx"))
+            address = mailbox[2:4]
+            if address != self._address and address != b"\x00\x00":
+                if tracer.active:
+                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {int.from_bytes(address, 'little')}",
+                                 meta=self._meta("rx"))
                 continue
-            self.tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {mbx.address}", meta=self._meta("rx"))
+            if tracer.active:
+                tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {int.from_bytes(address, 'little')}",
+                             meta=self._meta("rx"))
             self.received += 1
-            return encode_mailbox(mbx)
+            return mailbox
 
     def _refused(self) -> CommError:
         """ICMP port unreachable came back (ECONNREFUSED on the connected socket): no gateway listens there,

@@ -56,8 +56,10 @@ class RpcClient:
         self.object_uuid = object_uuid
         self.label = label
         self.activity = uuid.uuid4()
+        self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
+        self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
         self.retransmissions = 0
         try:
             infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
@@ -88,20 +90,20 @@ class RpcClient:
             with self.options.budget.request() as own:
                 return self.call(opnum, blocks, own)
         self.sequence = (self.sequence + 1) & 0xFFFFFFFF
-        header = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=self.object_uuid,
-                                  interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=self.activity,
-                                  sequence=self.sequence, opnum=opnum, flags1=dcerpc.FLAG_IDEMPOTENT)
-        datagram = dcerpc.encode_packet(header, pnio.encode_request_args(blocks))
+        datagram = self.template.packet(self.sequence, opnum, pnio.encode_request_args(blocks))
         name = pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
+        tracing = self.options.tracer.active
         # The same datagram again after each attempt's share of the deadline: the device recognises the
         # repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
-        reassembler = dcerpc.Reassembler(max_body=MAX_BODY)
+        reassembler: list[dcerpc.Reassembler] = []  # made for the first fragment (responses rarely are)
         attempts = deadline.attempts
         for sent in range(attempts):
             if sent and deadline.expired():
                 break
             resend_at = time.monotonic() + deadline.share(attempts - sent)
-            self._send(datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""), name)
+            if tracing:
+                self._trace("tx", datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""))
+            self._send(datagram, name)
             if sent:
                 self.retransmissions += 1
             while True:
@@ -110,7 +112,7 @@ class RpcClient:
                     break
                 self.sock.settimeout(wait)
                 try:
-                    data = self.sock.recv(65535)
+                    data = self._buffer[:self.sock.recv_into(self._buffer)]
                 except socket.timeout:
                     break
                 except ConnectionRefusedError:
@@ -122,8 +124,7 @@ class RpcClient:
                     return result
         raise NoAnswer(f"{self.label}: no answer to PNIO {name} within {deadline.describe()}")
 
-    def _send(self, datagram: bytes, note: str, name: str) -> None:
-        self._trace("tx", datagram, note)
+    def _send(self, datagram: bytes, name: str) -> None:
         try:
             self.sock.send(datagram)
         except ConnectionRefusedError:
@@ -140,35 +141,45 @@ class RpcClient:
                          f"in answer to the PNIO {name}): no PROFINET device there, or the wrong port")
 
     def _accept(self, data: bytes, name: str,
-                reassembler: dcerpc.Reassembler) -> tuple[pnio.PnioStatus, bytes] | None:
+                reassembler: list[dcerpc.Reassembler]) -> tuple[pnio.PnioStatus, bytes] | None:
+        tracing = self.options.tracer.active
         try:
-            packet = dcerpc.decode_packet(data)
+            packet = dcerpc.view_packet(data)
         except CodecError as exc:
-            self._trace("rx", data, f"ignored: {exc}")
+            if tracing:
+                self._trace("rx", data, f"ignored: {exc}")
             return None
-        head = packet.header
-        if head.activity_uuid != self.activity or head.sequence != self.sequence:
+        if packet.sequence != self.sequence or not self.template.is_ours(packet):
             self.stale += 1
-            self._trace("rx", data, f"ignored stale/duplicate {head.type_name} seq {head.sequence}")
+            if tracing:
+                self._trace("rx", data, f"ignored stale/duplicate {packet.type_name} seq {packet.sequence}")
             return None
-        self._trace("rx", data, f"{name} {head.type_name} seq {head.sequence}"
-                    + (f" fragment {head.fragment}" if head.is_fragment else ""))
-        if head.ptype in (dcerpc.PT_WORKING, dcerpc.PT_NOCALL, dcerpc.PT_FACK, dcerpc.PT_PING):
+        if tracing:
+            self._trace("rx", data, f"{name} {packet.type_name} seq {packet.sequence}"
+                        + (f" fragment {packet.fragment}" if packet.is_fragment else ""))
+        ptype = packet.ptype
+        if ptype in (dcerpc.PT_WORKING, dcerpc.PT_NOCALL, dcerpc.PT_FACK, dcerpc.PT_PING):
             return None
-        if head.ptype in (dcerpc.PT_REJECT, dcerpc.PT_FAULT):
-            code = int.from_bytes(packet.body[:4], "little" if head.little_endian else "big") if len(packet.body) >= 4 else 0
+        if ptype in (dcerpc.PT_REJECT, dcerpc.PT_FAULT):
+            body = packet.body
+            code = int.from_bytes(body[:4], "little" if packet.little else "big") if len(body) >= 4 else 0
             text = NCA_TEXTS.get(code, f"status 0x{code:08X}")
-            raise MalformedReply(f"{self.label}: the device {head.type_name}s the PNIO {name} call: {text}", code=code)
-        if head.ptype != dcerpc.PT_RESPONSE:
+            raise MalformedReply(f"{self.label}: the device {packet.type_name}s the PNIO {name} call: {text}", code=code)
+        if ptype != dcerpc.PT_RESPONSE:
             return None
+        if packet.is_fragment:
+            if not reassembler:
+                reassembler.append(dcerpc.Reassembler(max_body=MAX_BODY))
+            try:
+                body = reassembler[0].add(packet)
+            except CodecError as exc:
+                raise MalformedReply(f"{self.label}: bad fragment in the {name} response: {exc}") from None
+            if body is None:
+                return None
+        else:
+            body = packet.body
         try:
-            body = reassembler.add(packet)
-        except CodecError as exc:
-            raise MalformedReply(f"{self.label}: bad fragment in the {name} response: {exc}") from None
-        if body is None:
-            return None
-        try:
-            return pnio.decode_response_args(body, head.little_endian)
+            return pnio.decode_response_args(body, packet.little)
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed {name} response: {exc}") from None
 
@@ -353,12 +364,12 @@ class ProfinetTransport(Transport):
     def write_record(self, data: bytes, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
         """Write ``data`` to the parameter record; returns (status, b'') and raises on refusals other than busy."""
         ar = self._need_ar()
-        req = pnio.IODWriteReq(self._next_rw_seq(), ar, self.address, data)
-        status, blocks = self._need_rpc().call(pnio.OP_WRITE, req.encode(), deadline)
+        request = pnio.write_request(self._next_rw_seq(), ar.bytes, self.address, data)
+        status, blocks = self._need_rpc().call(pnio.OP_WRITE, request, deadline)
         self._last_activity = time.monotonic()
         if status.ok and blocks:
             try:
-                status = pnio.IODWriteRes.decode(blocks).status
+                status = pnio.write_response(blocks)[2]
             except CodecError as exc:
                 raise MalformedReply(f"{self.label}: malformed Write response: {exc}") from None
         if not status.ok and not status.busy:
@@ -377,9 +388,9 @@ class ProfinetTransport(Transport):
     def _read(self, address: pnio.RecordAddress, length: int, implicit: bool = False,
               deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
         ar = pnio.NIL_UUID if implicit else self._need_ar()
-        req = pnio.IODReadReq(self._next_rw_seq(), ar, address, length)
-        status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ, req.encode(),
-                                             deadline)
+        seq = self._next_rw_seq()
+        status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ,
+                                             pnio.read_request(seq, ar.bytes, address, length), deadline)
         if not implicit:
             self._last_activity = time.monotonic()
         if not status.ok:
@@ -388,13 +399,13 @@ class ProfinetTransport(Transport):
             raise RecordError(f"{self.label}: read record {address.describe()} refused: {status.describe()}",
                               code=status.value)
         try:
-            res = pnio.IODReadRes.decode(blocks)
+            got_seq, got_index, data = pnio.read_response(blocks)
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed Read response: {exc}") from None
-        if res.address.index != address.index or res.seq_number != req.seq_number:
-            raise MalformedReply(f"{self.label}: Read response for index 0x{res.address.index:X} seq "
-                                 f"{res.seq_number}, asked index 0x{address.index:X} seq {req.seq_number}")
-        return status, res.data
+        if got_index != address.index or got_seq != seq:
+            raise MalformedReply(f"{self.label}: Read response for index 0x{got_index:X} seq "
+                                 f"{got_seq}, asked index 0x{address.index:X} seq {seq}")
+        return status, data
 
     def read_im0(self) -> dict[str, object]:
         """I&M0 of the device in JSON-friendly form (for ``akdctl info``)."""

@@ -59,23 +59,44 @@ class TraceRecord:
 class Tracer:
     """Collects frames; prints them when enabled; forwards them to sinks.
 
-    Keeping records costs little (sessions are short) and lets the support
-    bundle include the session's trace even without ``--trace``.
+    ``record`` keeps the records (up to ``keep``) for whoever reads ``records``
+    afterwards -- the support bundle switches it on for its session. Tracing
+    costs nothing when nobody looks: :attr:`active` is False without ``--trace``,
+    a sink or ``record``, and every caller checks it before it builds a note or
+    a record for a frame.
     """
 
-    def __init__(self, enabled: bool = False, stream: TextIO | None = None, keep: int = 10000) -> None:
+    def __init__(self, enabled: bool = False, stream: TextIO | None = None, keep: int = 10000,
+                 record: bool = True) -> None:
         self.enabled = enabled
         self.stream = stream
         self.keep = keep
         self.records: list[TraceRecord] = []
+        self._record = record
         self._sinks: list[Callable[[TraceRecord], None]] = []
         self._closers: list[Callable[[], None]] = []
+        self.active = False
+        self._update()
+
+    def _update(self) -> None:
+        self.active = bool(self.enabled or self._sinks or (self._record and self.keep > 0))
+
+    @property
+    def record(self) -> bool:
+        """Whether frames are kept in ``records`` (the support bundle reads them)."""
+        return self._record
+
+    @record.setter
+    def record(self, value: bool) -> None:
+        self._record = value
+        self._update()
 
     def add_sink(self, sink: Callable[[TraceRecord], None], close: Callable[[], None] | None = None) -> None:
         """Forward every record to ``sink``; ``close`` (if given) runs at :meth:`close`."""
         self._sinks.append(sink)
         if close is not None:
             self._closers.append(close)
+        self._update()
 
     def close(self) -> None:
         """Close the sinks (a pcap file is complete after this); safe to call twice."""
@@ -92,8 +113,10 @@ class Tracer:
         note: str = "",
         meta: dict[str, object] | None = None,
     ) -> None:
+        if not self.active:
+            return
         record = TraceRecord(time.time(), direction, layer, bytes(data), note, dict(meta or {}))
-        if len(self.records) < self.keep:
+        if self._record and len(self.records) < self.keep:
             self.records.append(record)
         if self.enabled:
             stream = self.stream or sys.stderr
@@ -120,10 +143,13 @@ class TracedRecordLink(RecordLink):
         self.trace_meta = getattr(link, "trace_meta", None)  # a capture sink's hint (the sim: no wire)
 
     def exchange(self, request: bytes) -> bytes:
-        self.tracer.frame("tx", "bmp", request, note=self.trace_note, meta=self.trace_meta)
+        tracer = self.tracer
+        if not tracer.active:
+            return self.link.exchange(request)
+        tracer.frame("tx", "bmp", request, note=self.trace_note, meta=self.trace_meta)
         response = self.link.exchange(request)
         if isinstance(response, (bytes, bytearray, memoryview)):
-            self.tracer.frame("rx", "bmp", bytes(response), note=self.trace_note, meta=self.trace_meta)
+            tracer.frame("rx", "bmp", bytes(response), note=self.trace_note, meta=self.trace_meta)
         return response
 
 
@@ -142,12 +168,13 @@ class TracedMailboxLink(MailboxLink):
         return self.link.mailbox_size  # the raw master learns it from the sync managers
 
     def send(self, mailbox: bytes) -> None:
-        self.tracer.frame("tx", "mailbox", mailbox, note=self.trace_note, meta=self.trace_meta)
+        if self.tracer.active:
+            self.tracer.frame("tx", "mailbox", mailbox, note=self.trace_note, meta=self.trace_meta)
         self.link.send(mailbox)
 
     def receive(self, timeout: float) -> bytes | None:
         reply = self.link.receive(timeout)
-        if reply is not None:
+        if reply is not None and self.tracer.active:
             self.tracer.frame("rx", "mailbox", reply, note=self.trace_note, meta=self.trace_meta)
         return reply
 
