@@ -49,15 +49,16 @@ if TYPE_CHECKING:
 T = TypeVar("T")
 
 
-def open_tracer(*, enabled: bool = False, pcap: str | None = None) -> "Tracer":
+def open_tracer(*, enabled: bool = False, pcap: str | None = None, record: bool = False) -> "Tracer":
     """The session's one tracer: ``--trace`` prints, ``--pcap FILE`` captures; it keeps records only when
-    asked (``tracer.record = True``: the support bundle), so a command without either traces nothing.
+    asked (``record``: ``-v`` counts the requests; ``tracer.record = True``: the support bundle), so a command
+    without any of them traces nothing.
 
     Close it (``tracer.close()``) after the transport so the capture file is complete.
     """
     from akdctl.transport.trace import Tracer
 
-    tracer = Tracer(enabled=enabled, record=False)
+    tracer = Tracer(enabled=enabled, record=record)
     if pcap:
         from akdctl.transport.pcap import PcapWriter
 

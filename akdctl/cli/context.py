@@ -79,7 +79,7 @@ class AppContext:
             timeout = self.timeout
             if timeout is None and self.profile is not None and self.profile.timeout is not None:
                 timeout = self.profile.timeout
-            tracer = open_tracer(enabled=self.trace, pcap=self.pcap)
+            tracer = open_tracer(enabled=self.trace, pcap=self.pcap, record=bool(self.verbose))
             self._cleanups.append(tracer.close)
             self._options = LinkOptions(timeout=timeout if timeout is not None else 2.0,
                                         retries=self.retries if self.retries is not None else 2, tracer=tracer,
