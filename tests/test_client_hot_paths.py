@@ -119,3 +119,22 @@ def test_dcerpc_view_matches_the_full_decode_and_the_template_the_encoder() -> N
         assert dcerpc.decode_packet(reply).header.activity_uuid == act
     other = dcerpc.RequestTemplate(obj, pnio.DEVICE_INTERFACE, uuid.uuid4())
     assert not other.is_ours(dcerpc.view_packet(reply))
+
+
+def test_gateway_receive_with_no_time_left_still_takes_what_is_there() -> None:
+    """The channel drains leftovers with receive(0) after an unanswered request: that must read them."""
+    server = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    server.bind(("127.0.0.1", 0))
+    link = GatewayMailboxLink("127.0.0.1", server.getsockname()[1], 1001, Tracer(record=False))
+    try:
+        mailbox = mbx.pack(mbx.MailboxType.COE, bytes(10), 1001, 1)
+        server.sendto(mbx.wrap_gateway(mailbox), link.sock.getsockname())  # type: ignore[union-attr]
+        from tests.harness import wait_until
+
+        got: list[bytes | None] = []
+        wait_until(lambda: got.append(link.receive(0)) or got[-1] is not None, "the queued reply")
+        assert got[-1] == mailbox
+        assert link.receive(0) is None
+    finally:
+        link.close()
+        server.close()

@@ -200,3 +200,44 @@ def test_face_stop_leaves_the_model_in_preop(drive: SimDrive) -> None:
         w.close()
     w.face.stop()
     assert _model_al_state(drive) == "PREOP"
+
+
+def test_sync_managers_that_disagree_with_the_sii_are_configured_again(wire: Wire) -> None:
+    """Issue 17.5: fuzzed ESC writes left a 1-byte SM0; the master trusted the registers until `ecat state INIT`.
+    Now every open checks SM0/SM1 against the SII's mailbox words and re-establishes the mailbox from them."""
+    first = transport(wire)
+    conn = Connection.over(first)
+    assert conn.objects().upload(0x1018, 1) == b"\x6a\0\0\0"
+    assert first.master is not None and first.slave is not None
+    first.master.fpwr(first.slave.station, ec.REG_SM0 + 2, b"\x01\x00")  # SM0 length 1, as the fuzzer left it
+    sm0 = ec.SyncManager.decode(first.master.fprd(first.slave.station, ec.REG_SM0, 8))
+    assert sm0.length == 1
+    first.open_mailbox()  # what the next command's open does (a new process would also count the slaves)
+    assert first.link is not None and first.link.sm0.length == first.link.mailbox_size > 1
+    assert Connection.over(first).objects().upload(0x1018, 1) == b"\x6a\0\0\0"
+    first.close()
+
+
+def test_an_upload_reads_only_the_reply_and_polls_small_frames(wire: Wire) -> None:
+    """Issue 15 deliver-3: per upload one SM0 write, small status+header polls, one read of the reply's
+    length plus the buffer's last byte; never the whole 512-byte SM1 on a poll."""
+    tracer = Tracer()
+    t = transport(wire, tracer)
+    conn = Connection.over(t)
+    objects = conn.objects()
+    objects.upload(0x1018, 1)
+    start = len(tracer.records)
+    for _ in range(20):
+        assert objects.upload(0x1018, 1) == b"\x6a\0\0\0"
+    frames = [r for r in tracer.records[start:] if r.layer == "ecat" and r.direction == "tx"]
+    assert t.link is not None
+    sm1 = t.link.sm1
+    reads = []
+    for record in frames:
+        _dst, _src, datagrams = ec.decode_frame(record.data)
+        for d in datagrams:
+            if d.cmd == ec.Cmd.FPRD and d.ado == sm1.start:
+                reads.append(len(d.data))
+    assert reads and max(reads) < 64  # header peeks (6) and exact reply reads (16), no full buffer
+    assert len(frames) / 20 <= 5  # no more than pysoem's ~5.4 frames per upload on the same slave
+    t.close()

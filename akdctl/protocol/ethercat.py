@@ -223,11 +223,8 @@ class Datagram:
         if not 0 <= self.wkc <= 0xFFFF or not 0 <= self.irq <= 0xFFFF:
             raise CodecError("datagram WKC/IRQ out of range")
         length = len(self.data) | (0x4000 if self.circulating else 0) | (0x8000 if more else 0)
-        return (
-            struct.pack("<BBHHHH", self.cmd, self.index, self.adp, self.ado, length, self.irq)
-            + bytes(self.data)
-            + struct.pack("<H", self.wkc)
-        )
+        return _DG_HEAD.pack(self.cmd, self.index, self.adp, self.ado, length, self.irq) + bytes(self.data) \
+            + _U16.pack(self.wkc)
 
 
 def logical_datagram(cmd: int, address: int, data: bytes, index: int = 0) -> Datagram:
@@ -235,6 +232,10 @@ def logical_datagram(cmd: int, address: int, data: bytes, index: int = 0) -> Dat
     if not 0 <= address <= 0xFFFFFFFF:
         raise CodecError(f"logical address 0x{address:X} out of range")
     return Datagram(cmd, address & 0xFFFF, address >> 16, data, index)
+
+
+_DG_HEAD = struct.Struct("<BBHHHH")
+_U16 = struct.Struct("<H")
 
 
 def encode_datagrams(datagrams: list[Datagram]) -> bytes:
@@ -262,12 +263,12 @@ def decode_datagrams(payload: bytes) -> list[Datagram]:
     while True:
         if pos + 12 > end:
             raise CodecError("truncated datagram header")
-        cmd, idx, adp, ado, dlen, irq = struct.unpack_from("<BBHHHH", payload, pos)
+        cmd, idx, adp, ado, dlen, irq = _DG_HEAD.unpack_from(payload, pos)
         size = dlen & 0x7FF
         if pos + 10 + size + 2 > end:
             raise CodecError(f"datagram {len(out)} announces {size} data bytes beyond the frame")
         data = bytes(payload[pos + 10 : pos + 10 + size])
-        (wkc,) = struct.unpack_from("<H", payload, pos + 10 + size)
+        (wkc,) = _U16.unpack_from(payload, pos + 10 + size)
         out.append(Datagram(cmd, adp, ado, data, idx, wkc, irq, bool(dlen & 0x4000)))
         pos += 12 + size
         if not dlen & 0x8000:

@@ -326,6 +326,19 @@ def decode_pdos(data: bytes) -> list[SiiPdo]:
     return pdos
 
 
+#: Byte offset of the standard mailbox words (0x18-0x1B: receive offset/size, send offset/size) in the SII.
+MAILBOX_LAYOUT_OFFSET = 0x30
+_MAILBOX_LAYOUT = struct.Struct("<4H")
+
+
+def decode_mailbox_layout(data: bytes, offset: int = 0) -> tuple[int, int, int, int]:
+    """(receive offset, receive size, send offset, send size): the standard mailbox the SII declares,
+    from the 8 bytes at SII byte :data:`MAILBOX_LAYOUT_OFFSET` (``data`` holds them at ``offset``)."""
+    if len(data) < offset + 8:
+        raise CodecError(f"mailbox layout needs 8 SII bytes, got {len(data) - offset}")
+    return _MAILBOX_LAYOUT.unpack_from(data, offset)  # type: ignore[return-value]
+
+
 def parse_sii(data: bytes) -> SiiImage:
     """Decode an SII EEPROM image (at least the 128-byte fixed area)."""
     data = bytes(data)
@@ -334,7 +347,7 @@ def parse_sii(data: bytes) -> SiiImage:
     w = struct.unpack_from("<8H", data, 0)
     vendor, product, revision, serial = struct.unpack_from("<4I", data, 0x10)
     boot = struct.unpack_from("<4H", data, 0x28)
-    std = struct.unpack_from("<4H", data, 0x30)
+    std = decode_mailbox_layout(data, MAILBOX_LAYOUT_OFFSET)
     (protocols,) = struct.unpack_from("<H", data, 0x38)
     size, version = struct.unpack_from("<HH", data, 0x7C)
     categories: list[tuple[int, bytes]] = []

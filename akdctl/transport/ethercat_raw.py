@@ -18,7 +18,6 @@ is already in PRE-OP or higher with its mailbox configured is used as it is.
 from __future__ import annotations
 
 import contextlib
-import select
 import socket
 import struct
 import time
@@ -28,7 +27,8 @@ from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
 from akdctl.io import raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
-from akdctl.protocol.sii import CAT_END, SiiImage, parse_sii
+from akdctl.protocol.mailbox import HEADER_SIZE as MAILBOX_HEADER
+from akdctl.protocol.sii import CAT_END, MAILBOX_LAYOUT_OFFSET, SiiImage, decode_mailbox_layout, parse_sii
 from akdctl.links import MailboxLink
 from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
@@ -47,7 +47,7 @@ class FrameLost(NoAnswer):
 
 def open_raw_socket(ifname: str) -> socket.socket:
     """The master's EtherCAT socket on ``ifname`` (errors name the ``ecat://`` target)."""
-    return raw_socket.open_raw_socket(ifname, ec.ETHERTYPE_ECAT, f"ecat://{ifname}")
+    return raw_socket.open_raw_socket(ifname, ec.ETHERTYPE_ECAT, f"ecat://{ifname}", ignore_outgoing=True)
 
 
 @dataclass
@@ -76,6 +76,7 @@ class EcatMaster:
         self.frame_timeout = min(timeout, 0.2)
         self.sock: socket.socket | None = sock if sock is not None else open_raw_socket(ifname)
         self._index = 0
+        self._buffer = bytearray(2048)  # one receive buffer for every frame
         self.frames = 0
 
     def close(self) -> None:
@@ -100,8 +101,9 @@ class EcatMaster:
             for d in datagrams:
                 d.index = self._index
             frame = ec.encode_frame(datagrams, src=MASTER_MAC)
-            note = " ".join(f"{d.cmd_name} 0x{d.adp:04X}:0x{d.ado:04X}/{len(d.data)}" for d in datagrams)
-            self._trace("tx", frame, note)
+            if self.tracer.active:
+                self._trace("tx", frame, " ".join(f"{d.cmd_name} 0x{d.adp:04X}:0x{d.ado:04X}/{len(d.data)}"
+                                                  for d in datagrams))
             try:
                 sock.send(frame)
             except OSError as exc:
@@ -114,26 +116,31 @@ class EcatMaster:
                         f"({attempts} attempt{'s' if attempts > 1 else ''}): no slave connected, or the link is down")
 
     def _wait(self, index: int, count: int) -> list[ec.Datagram] | None:
-        assert self.sock is not None
+        sock = self.sock
+        assert sock is not None
         deadline = time.monotonic() + self.frame_timeout
+        buffer = self._buffer
         while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return None
-            ready, _, _ = select.select([self.sock], [], [], remaining)
-            if not ready:
-                return None
+            sock.settimeout(remaining)
             try:
-                frame = self.sock.recv(2048)
+                frame = buffer[:sock.recv_into(buffer)]
+            except (socket.timeout, BlockingIOError):
+                return None
             except OSError as exc:
                 raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if frame[6:12] == MASTER_MAC:
+                continue  # our own frame, seen on the way out
             try:
-                _dst, src, got = ec.decode_frame(frame)
+                _dst, _src, got = ec.decode_frame(frame)
             except CodecError:
                 continue
-            if src == MASTER_MAC or not got or got[0].index != index or len(got) != count:
-                continue  # our own frame seen unprocessed, or a late answer to an earlier attempt
-            self._trace("rx", frame, f"wkc {','.join(str(d.wkc) for d in got)}")
+            if not got or got[0].index != index or len(got) != count:
+                continue  # a late answer to an earlier attempt
+            if self.tracer.active:
+                self._trace("rx", bytes(frame), f"wkc {','.join(str(d.wkc) for d in got)}")
             return got
 
     # ------------------------------------------------------------------ register helpers
@@ -219,6 +226,16 @@ class EcatMaster:
         except CodecError as exc:
             raise CommError(f"slave 0x{station:04X}: SII EEPROM content does not decode: {exc}") from None
 
+    def mailbox_layout(self, station: int) -> tuple[int, int, int, int]:
+        """The standard mailbox the slave's SII declares (receive offset/size, send offset/size):
+        one 8-byte EEPROM read, so a master can check the sync managers against it at every open."""
+        with contextlib.suppress(CommError):
+            self.fpwr(station, ec.REG_EEP_CONFIG, b"\x00")  # EEPROM access by ECAT (the master)
+        try:
+            return decode_mailbox_layout(self.read_sii_bytes(station, MAILBOX_LAYOUT_OFFSET, 8))
+        except CodecError as exc:
+            raise CommError(f"slave 0x{station:04X}: SII mailbox words do not decode: {exc}") from None
+
     def configure_mailbox(self, station: int, sii: SiiImage) -> None:
         if not sii.std_rx_size or not sii.std_tx_size:
             raise UsageError(f"slave 0x{station:04X} has no mailbox (SII declares none): no CoE access")
@@ -257,12 +274,25 @@ class EcatMaster:
 
 
 class RawMailboxLink(MailboxLink):
-    """The mailbox of one slave: write SM0, poll SM1, repeat request for lost replies."""
+    """The mailbox of one slave: write SM0, poll SM1's status, fetch exactly the reply.
+
+    Per request: one frame writes SM0 (the whole buffer, as SOEM and IgH do: the ESC takes the
+    mailbox when its last byte is written); each poll is one small frame reading SM1's status byte
+    and the 6-byte mailbox header (refused, WKC 0, while SM1 is empty); once the status says full,
+    one frame reads the reply's own length plus the buffer's last byte, which hands the buffer back
+    to the slave. Polls follow each other at once, then with growing pauses (20 µs doubling to
+    1 ms) while the slave takes its time: no fixed sleep on the happy path. A lost frame is
+    recovered with the sync manager's repeat request; replies left from an unanswered request are
+    drained by the channel, only after a timeout.
+    """
 
     def __init__(self, master: EcatMaster, station: int, sm0: ec.SyncManager, sm1: ec.SyncManager) -> None:
         self.master, self.station, self.sm0, self.sm1 = master, station, sm0, sm1
         self.mailbox_size = min(sm0.length, sm1.length)
         self.repeats = 0
+        self.polls = 0
+        self._status_reg = self._sm_reg(1, 5)
+        self._last_byte = sm1.start + sm1.length - 1
 
     def _sm_reg(self, n: int, offset: int) -> int:
         return ec.REG_SM0 + ec.SM_STRIDE * n + offset
@@ -272,6 +302,7 @@ class RawMailboxLink(MailboxLink):
             raise CommError(f"mailbox of {len(mailbox)} bytes exceeds the slave's {self.sm0.length}-byte SM0")
         data = bytes(mailbox).ljust(self.sm0.length, b"\0")
         deadline = time.monotonic() + self.master.timeout
+        pause = _Pause()
         while True:
             # no frame repeat here: a repeated write would hit the (then full) mailbox and look refused
             wkc = self.master.write(ec.Cmd.FPWR, self.station, self.sm0.start, data, retries=0)
@@ -279,25 +310,44 @@ class RawMailboxLink(MailboxLink):
                 return
             if time.monotonic() > deadline:
                 raise NoAnswer(f"slave 0x{self.station:04X} does not empty its receive mailbox (SM0 stays full)")
-            time.sleep(0.001)
+            pause.wait(deadline)
 
     def receive(self, timeout: float) -> bytes | None:
-        """Poll SM1: one frame reads the SM1 status and the whole SM1 buffer; the ESC counts the buffer read
-        (WKC 1) only when a reply is there, so a reply costs no extra status round trip."""
         deadline = time.monotonic() + max(0.0, timeout)
+        pause = _Pause()
+        station, master = self.station, self.master
         while True:
-            status = ec.Datagram(ec.Cmd.FPRD, self.station, self._sm_reg(1, 5), bytes(2))
-            data = ec.Datagram(ec.Cmd.FPRD, self.station, self.sm1.start, bytes(self.sm1.length))
+            status = ec.Datagram(ec.Cmd.FPRD, station, self._status_reg, b"\0")
+            head = ec.Datagram(ec.Cmd.FPRD, station, self.sm1.start, bytes(MAILBOX_HEADER))
+            self.polls += 1
             try:
-                got_status, got_data = self.master.txrx([status, data], retries=0)
+                got_status, got_head = master.txrx([status, head], retries=0)
             except FrameLost:
                 self._recover(deadline)
                 continue
-            if got_data.wkc == 1:
-                return _trim(got_data.data)
+            if got_status.data[0] & ec.SM_STATUS_MAILBOX_FULL and got_head.wkc == 1:
+                length = MAILBOX_HEADER + (got_head.data[0] | got_head.data[1] << 8)
+                reply = self._fetch(min(length, self.sm1.length), deadline)
+                if reply is not None:
+                    return reply
+                continue
             if time.monotonic() >= deadline:
                 return None
-            time.sleep(min(0.0002, max(0.0, deadline - time.monotonic())))
+            pause.wait(deadline)
+
+    def _fetch(self, size: int, deadline: float) -> bytes | None:
+        """Read ``size`` bytes of the reply and the buffer's last byte (which hands the buffer back)."""
+        datagrams = [ec.Datagram(ec.Cmd.FPRD, self.station, self.sm1.start, bytes(size))]
+        if self.sm1.start + size <= self._last_byte:
+            datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, self._last_byte, b"\0"))
+        try:
+            got = self.master.txrx(datagrams, retries=0)
+        except FrameLost:
+            self._recover(deadline)  # the repeat request puts the reply back if the slave saw the read
+            return None
+        if any(d.wkc != 1 for d in got):
+            return None  # not read after all (the slave took it back): poll again
+        return _trim(got[0].data)
 
     def _recover(self, deadline: float) -> None:
         """A polling frame was lost: if it took the reply with it (SM1 now empty after having been read),
@@ -316,12 +366,37 @@ class RawMailboxLink(MailboxLink):
         self.repeats += 1
         want = (activate ^ ec.SM_ACTIVATE_REPEAT) & 0xFF
         self.master.fpwr(self.station, self._sm_reg(1, 6), bytes([want]))
+        pause = _Pause()
         while time.monotonic() < deadline + self.master.timeout:
             pdi = self.master.fprd(self.station, self._sm_reg(1, 7), 1)[0]
             if (pdi & ec.SM_PDI_REPEAT_ACK) == (want & ec.SM_ACTIVATE_REPEAT):
                 return
-            time.sleep(0.001)
+            pause.wait(deadline + self.master.timeout)
         raise NoAnswer(f"slave 0x{self.station:04X} did not acknowledge the mailbox repeat request")
+
+
+class _Pause:
+    """Waits between polls: none for the first two, then 20 µs doubling to 1 ms, never past the deadline.
+
+    Why not a fixed sleep: a slave answers a mailbox in microseconds (the simulator) to milliseconds (a
+    drive's mailbox cycle); a fixed 200 µs sleep is too long for the one and too many polls for the other.
+    """
+
+    __slots__ = ("count", "seconds")
+    FREE = 2
+    FIRST = 20e-6
+    LONGEST = 1e-3
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.seconds = self.FIRST
+
+    def wait(self, deadline: float) -> None:
+        self.count += 1
+        if self.count <= self.FREE:
+            return
+        time.sleep(max(0.0, min(self.seconds, deadline - time.monotonic())))
+        self.seconds = min(self.LONGEST, self.seconds * 2)
 
 
 def _trim(buffer: bytes) -> bytes:
@@ -375,6 +450,13 @@ class EthercatRawTransport(Transport):
         return master
 
     def open_mailbox(self) -> None:
+        """Use the slave's mailbox as it is when it is running and its sync managers agree with the SII;
+        otherwise (re)configure it from the SII: INIT, SM0/SM1, PRE-OP.
+
+        Why check the SII every time: a slave whose SM registers were changed behind our back (fuzzed
+        ESC writes left a 1-byte SM0) would otherwise be trusted until someone ran ``ecat state INIT``.
+        The check costs one 8-byte EEPROM read.
+        """
         master, slave = self.master, self.slave
         assert master is not None and slave is not None
         state = slave.al_status & 0x0F
@@ -382,6 +464,8 @@ class EthercatRawTransport(Transport):
         sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         ready = (state in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
                  and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled)
+        if ready and (sm0.start, sm0.length, sm1.start, sm1.length) != master.mailbox_layout(slave.station):
+            ready = False  # the sync managers disagree with the SII: re-establish the mailbox from it
         if not ready:
             sii, _raw = master.read_sii(slave.station, full=False)
             slave.sii = sii

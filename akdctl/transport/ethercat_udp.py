@@ -94,10 +94,8 @@ class GatewayMailboxLink(MailboxLink):
         deadline = time.monotonic() + max(0.0, timeout)
         tracer = self.tracer
         while True:
-            remaining = deadline - time.monotonic()
-            if remaining < 0:
-                return None
-            sock.settimeout(remaining)  # recv then waits in poll(2): no select() lists per datagram
+            # at least one try, even with no time left (timeout 0: take what is already there)
+            sock.settimeout(max(0.0, deadline - time.monotonic()))  # recv waits in poll(2): no select() lists
             try:
                 data = sock.recv(4096)
             except socket.timeout:
