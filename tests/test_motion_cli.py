@@ -59,7 +59,9 @@ def test_enable_home_move_jog_stop_disable(fast: None, target: str) -> None:
     assert enabled["enabled"] and enabled["state"] in ("S4", "operation enabled")
     homed = ok(*t, "--yes", "home", "--mode", "4" if "profidrive" in target else "3")["status"]
     assert homed["position_counts"] == 0 and homed["standstill"]
-    moved = ok(*t, "--yes", "move", "2.5")["status"]
+    doc = ok(*t, "--yes", "move", "2.5")
+    assert doc["target"] == target and doc["position_target"] == 2.5  # the drive keeps its key; the move its own
+    moved = doc["status"]
     assert moved["position_counts"] == int(2.5 * 65536) and moved["target_reached"]
     moved = ok(*t, "--yes", "move", "-90", "--relative", "--units", "deg")["status"]
     assert moved["position_counts"] == int(2.25 * 65536)

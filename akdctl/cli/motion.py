@@ -261,4 +261,4 @@ def move(target: float, relative: bool, velocity: float | None, accel: float | N
     request = MotionRequest("move", target=target, relative=relative, velocity=velocity, accel=accel, decel=decel,
                             unit=unit)
     title = "move started (not waiting)" if no_wait else "target reached"
-    _plan_and_run(get_app(), request, title, {"target": target, "units": unit}, wait=not no_wait)
+    _plan_and_run(get_app(), request, title, {"position_target": target, "units": unit}, wait=not no_wait)
