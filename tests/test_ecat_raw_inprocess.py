@@ -241,3 +241,19 @@ def test_an_upload_reads_only_the_reply_and_polls_small_frames(wire: Wire) -> No
     assert reads and max(reads) < 64  # header peeks (6) and exact reply reads (16), no full buffer
     assert len(frames) / 20 <= 5  # no more than pysoem's ~5.4 frames per upload on the same slave
     t.close()
+
+
+def test_a_reply_longer_than_the_poll_read_is_fetched_again_whole(wire: Wire) -> None:
+    t = transport(wire)
+    conn = Connection.over(t)
+    objects = conn.objects()
+    text = bytes(65 + i % 26 for i in range(200))
+    objects.download(0x2032, 0, text)  # DRV.CUSTOMIDENTIFIER: a normal transfer's reply is 216 bytes
+    assert objects.upload(0x2032, 0) == text
+    assert t.link is not None and t.link.rereads >= 1
+    rereads = t.link.rereads
+    for _ in range(3):
+        assert objects.upload(0x2032, 0) == text  # the poll now reads that much: no repeat needed
+        assert objects.upload(0x1018, 1) == b"\x6a\0\0\0"
+    assert t.link.rereads <= rereads + 3
+    t.close()

@@ -333,8 +333,8 @@ class CoeObjectChannel(ObjectChannel):
 
     def _send(self, coe_data: bytes) -> int:
         counter = self._counter = self._counter + 1 if self._counter < 7 else 1  # 1..7 (mailbox.next_counter)
-        self.link.send(mbx.pack(mbx.MailboxType.COE, coe_data, self.station, counter))
         self.requests += 1
+        self.link.send(mbx.pack(mbx.MailboxType.COE, coe_data, self.station, counter))
         return counter
 
     def _drain(self) -> None:
@@ -394,7 +394,13 @@ class CoeObjectChannel(ObjectChannel):
         if self._stale:
             self._drain()
             self._stale = False
-        counter = self._send(coe_data)
+        try:
+            counter = self._send(coe_data)
+        except NoAnswer as exc:
+            # The link could not confirm the request went out (a raw frame lost on its way back): the
+            # slave may have it, so listen for its answer as if it had; silence is judged as silence.
+            log.info("sending the request was not confirmed (%s); listening for an answer anyway", exc)
+            counter = self._counter
         self.filter.sent(counter)
         end = min(deadline.at, time.monotonic() + wait)
         while True:

@@ -115,6 +115,47 @@ class EcatMaster:
         raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s "
                         f"({attempts} attempt{'s' if attempts > 1 else ''}): no slave connected, or the link is down")
 
+    def txrx_template(self, template: ec.FrameTemplate, data: bytes | None = None) -> list[tuple[bytes, int]]:
+        """:meth:`txrx` for a frame encoded once (mailbox polls): one try, (data, WKC) per datagram.
+        FrameLost when it does not come back."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        index = self._index = (self._index + 1) & 0xFF
+        frame = template.stamp(index, data)
+        if self.tracer.active:
+            self._trace("tx", frame, "mailbox poll/fetch")
+        try:
+            sock.send(frame)
+        except OSError as exc:
+            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+        self.frames += 1
+        deadline = time.monotonic() + self.frame_timeout
+        buffer = self._buffer
+        while True:
+            sock.settimeout(max(0.0, deadline - time.monotonic()))
+            try:
+                reply = buffer[:sock.recv_into(buffer)]
+            except (socket.timeout, BlockingIOError):
+                raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
+                                "no slave connected, or the link is down") from None
+            except OSError as exc:
+                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if reply[6:12] == MASTER_MAC:
+                continue  # our own frame, seen on the way out
+            got = template.read(reply, index)
+            if got is None:  # not at the template's offsets: decode it the general way
+                try:
+                    _dst, _src, datagrams = ec.decode_frame(reply)
+                except CodecError:
+                    continue
+                if len(datagrams) != len(template._slots) or datagrams[0].index != index:
+                    continue
+                got = [(d.data, d.wkc) for d in datagrams]
+            if self.tracer.active:
+                self._trace("rx", bytes(reply), f"wkc {','.join(str(w) for _d, w in got)}")
+            return got
+
     def _wait(self, index: int, count: int) -> list[ec.Datagram] | None:
         sock = self.sock
         assert sock is not None
@@ -274,28 +315,47 @@ class EcatMaster:
 
 
 class RawMailboxLink(MailboxLink):
-    """The mailbox of one slave: write SM0, poll SM1's status, fetch exactly the reply.
+    """The mailbox of one slave: write SM0, poll SM1, read about the reply's length.
 
     Per request: one frame writes SM0 (the whole buffer, as SOEM and IgH do: the ESC takes the
-    mailbox when its last byte is written); each poll is one small frame reading SM1's status byte
-    and the 6-byte mailbox header (refused, WKC 0, while SM1 is empty); once the status says full,
-    one frame reads the reply's own length plus the buffer's last byte, which hands the buffer back
-    to the slave. Polls follow each other at once, then with growing pauses (20 µs doubling to
-    1 ms) while the slave takes its time: no fixed sleep on the happy path. A lost frame is
-    recovered with the sync manager's repeat request; replies left from an unanswered request are
-    drained by the channel, only after a timeout.
+    mailbox when its last byte is written). Each poll is one frame of three datagrams: SM1's status
+    byte, the first ``K`` bytes of SM1 and SM1's last byte. While SM1 is empty the ESC refuses the two
+    reads (WKC 0, nothing happens); once it is full the frame brings the reply and hands the buffer
+    back to the slave (reading the last byte does), so a reply costs one frame, not a status poll
+    plus a read. ``K`` is the length of the last reply (at least :data:`FIRST_READ`); a reply longer
+    than ``K`` is asked for again with the sync manager's repeat request and read whole -- the same
+    mechanism that recovers a reply lost on the wire. Polls follow each other at once, then with
+    growing pauses (20 µs doubling to 1 ms): no fixed sleep on the happy path. Replies left from an
+    unanswered request are drained by the channel, only after a timeout.
     """
+
+    #: Bytes of SM1 the first poll reads: a CoE SDO reply with up to 4 data bytes (6 + 10) and room.
+    FIRST_READ = 32
 
     def __init__(self, master: EcatMaster, station: int, sm0: ec.SyncManager, sm1: ec.SyncManager) -> None:
         self.master, self.station, self.sm0, self.sm1 = master, station, sm0, sm1
         self.mailbox_size = min(sm0.length, sm1.length)
         self.repeats = 0
         self.polls = 0
+        self.rereads = 0  # replies longer than the poll read, fetched again with the repeat request
         self._status_reg = self._sm_reg(1, 5)
-        self._last_byte = sm1.start + sm1.length - 1
+        self._write = ec.FrameTemplate([ec.Datagram(ec.Cmd.FPWR, station, sm0.start, bytes(sm0.length))], MASTER_MAC)
+        self._polls: dict[int, ec.FrameTemplate] = {}
+        self._read = min(self.FIRST_READ, sm1.length)
 
     def _sm_reg(self, n: int, offset: int) -> int:
         return ec.REG_SM0 + ec.SM_STRIDE * n + offset
+
+    def _poll_frame(self, size: int) -> ec.FrameTemplate:
+        template = self._polls.get(size)
+        if template is None:
+            fprd, station, sm1 = ec.Cmd.FPRD, self.station, self.sm1
+            datagrams = [ec.Datagram(fprd, station, self._status_reg, b"\0"),
+                         ec.Datagram(fprd, station, sm1.start, bytes(size))]
+            if size < sm1.length:
+                datagrams.append(ec.Datagram(fprd, station, sm1.start + sm1.length - 1, b"\0"))
+            template = self._polls[size] = ec.FrameTemplate(datagrams, MASTER_MAC)
+        return template
 
     def send(self, mailbox: bytes) -> None:
         if len(mailbox) > self.sm0.length:
@@ -304,8 +364,11 @@ class RawMailboxLink(MailboxLink):
         deadline = time.monotonic() + self.master.timeout
         pause = _Pause()
         while True:
-            # no frame repeat here: a repeated write would hit the (then full) mailbox and look refused
-            wkc = self.master.write(ec.Cmd.FPWR, self.station, self.sm0.start, data, retries=0)
+            # A lost frame is not repeated: the slave may have taken the request (and, with a fast
+            # application, emptied SM0 again), so a repeat could apply it twice. FrameLost goes up: the
+            # channel listens for the reply anyway and judges the outcome. WKC 0 means refused (SM0 still
+            # full with an earlier request): nothing was written, so writing again is safe.
+            ((_data, wkc),) = self.master.txrx_template(self._write, data)
             if wkc == 1:
                 return
             if time.monotonic() > deadline:
@@ -315,39 +378,29 @@ class RawMailboxLink(MailboxLink):
     def receive(self, timeout: float) -> bytes | None:
         deadline = time.monotonic() + max(0.0, timeout)
         pause = _Pause()
-        station, master = self.station, self.master
+        master = self.master
         while True:
-            status = ec.Datagram(ec.Cmd.FPRD, station, self._status_reg, b"\0")
-            head = ec.Datagram(ec.Cmd.FPRD, station, self.sm1.start, bytes(MAILBOX_HEADER))
+            size = self._read
             self.polls += 1
             try:
-                got_status, got_head = master.txrx([status, head], retries=0)
+                got = master.txrx_template(self._poll_frame(size))
             except FrameLost:
                 self._recover(deadline)
                 continue
-            if got_status.data[0] & ec.SM_STATUS_MAILBOX_FULL and got_head.wkc == 1:
-                length = MAILBOX_HEADER + (got_head.data[0] | got_head.data[1] << 8)
-                reply = self._fetch(min(length, self.sm1.length), deadline)
-                if reply is not None:
-                    return reply
+            (status, _w), (data, data_wkc) = got[0], got[1]
+            if status[0] & ec.SM_STATUS_MAILBOX_FULL and data_wkc == 1 and all(w == 1 for _d, w in got[2:]):
+                length = min(MAILBOX_HEADER + (data[0] | data[1] << 8), self.sm1.length)
+                if length <= size:
+                    self._read = max(min(self.FIRST_READ, self.sm1.length), length)
+                    return _trim(data)
+                # Longer than this poll read, and the buffer is the slave's again: have it put back, read it whole.
+                self.rereads += 1
+                self._read = length
+                self._repeat(self.master.fprd(self.station, self._status_reg, 2)[1], deadline)  # 0x080E: activate
                 continue
             if time.monotonic() >= deadline:
                 return None
             pause.wait(deadline)
-
-    def _fetch(self, size: int, deadline: float) -> bytes | None:
-        """Read ``size`` bytes of the reply and the buffer's last byte (which hands the buffer back)."""
-        datagrams = [ec.Datagram(ec.Cmd.FPRD, self.station, self.sm1.start, bytes(size))]
-        if self.sm1.start + size <= self._last_byte:
-            datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, self._last_byte, b"\0"))
-        try:
-            got = self.master.txrx(datagrams, retries=0)
-        except FrameLost:
-            self._recover(deadline)  # the repeat request puts the reply back if the slave saw the read
-            return None
-        if any(d.wkc != 1 for d in got):
-            return None  # not read after all (the slave took it back): poll again
-        return _trim(got[0].data)
 
     def _recover(self, deadline: float) -> None:
         """A polling frame was lost: if it took the reply with it (SM1 now empty after having been read),
