@@ -18,6 +18,7 @@ config dir (``$XDG_CONFIG_HOME/akdctl`` or ``~/.config/akdctl``)::
     [profiles.line3-axis1.limits]
     max_velocity = 600         # rpm
     max_acceleration = 5000    # rpm/s
+    max_jog_duration = 10      # s, a timed jog (jog --for) is refused beyond it (the tool's own maximum is 60 s)
     travel = [-100.0, 100.0]   # rev, absolute moves outside are refused
     [profiles.line3-axis1.units]
     name = "mm"
@@ -61,7 +62,7 @@ class Config(NamedTuple):
 
 TOP_KEYS = ("default_profile", "profiles")
 PROFILE_KEYS = ("target", "timeout", "drive", "limits", "units")
-LIMIT_KEYS = ("max_velocity", "max_acceleration", "travel")
+LIMIT_KEYS = ("max_velocity", "max_acceleration", "max_jog_duration", "travel")
 UNIT_KEYS = ("name", "per_rev")
 DRIVE_PROFILES = ("profidrive", "cia402")
 
@@ -155,7 +156,7 @@ def _profile(where: _Where, name: str, body: dict[str, Any]) -> Profile:
                                             f"got {drive!r}")
     limits = dict(typed("limits", dict, "a table") or {})
     where.unknown(prefix + "limits.", limits, LIMIT_KEYS)
-    for key in ("max_velocity", "max_acceleration"):
+    for key in ("max_velocity", "max_acceleration", "max_jog_duration"):
         if key in limits:
             limits[key] = where.number(f"{prefix}limits.{key}", limits[key], positive=True)
     if "travel" in limits:

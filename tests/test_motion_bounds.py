@@ -65,3 +65,19 @@ def test_the_help_names_the_jog_maximum(tmp_path: Path) -> None:
 
     result = CliRunner().invoke(cli, ["jog", "--help"])
     assert f"at most {MAX_JOG_S:g} s" in " ".join(result.output.split())
+
+
+@pytest.mark.slow
+def test_the_profile_bounds_a_timed_jog_below_the_tool_maximum(tmp_path: Path) -> None:
+    """17.14 "bound durations by the profile": ``max_jog_duration`` in the profile's limits, exit 4 like every
+    profile limit, nothing written."""
+    (tmp_path / "akdctl").mkdir()
+    (tmp_path / "akdctl" / "config.toml").write_text(
+        '[profiles.bench]\ntarget = "sim"\n[profiles.bench.limits]\nmax_jog_duration = 5\n', encoding="utf-8")
+    env = {"XDG_CONFIG_HOME": str(tmp_path)}
+    before = _drive()
+    code, _, err = run_akdctl("--profile", "bench", "--yes", "jog", "10", "--for", "6s", env=env)
+    assert code == 4 and "max_jog_duration 5 s" in err, err
+    assert _drive() == before
+    code, _, err = run_akdctl("--profile", "bench", "--yes", "jog", "10", "--for", "50ms", env=env)
+    assert code == 0, err

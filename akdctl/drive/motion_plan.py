@@ -317,6 +317,10 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
             if not 0 < seconds <= MAX_JOG_S:
                 raise UsageError(f"jog --for must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
                                  f"jog; use --distance for a move the drive ends itself), got {seconds:g} s")
+            profile_bound = _limit(limits, "max_jog_duration")
+            if profile_bound is not None and seconds > profile_bound:  # a profile limit, like velocity: exit 4
+                raise SafetyRefusal(f"refusing: jog --for {seconds:g} s exceeds the profile's max_jog_duration "
+                                    f"{profile_bound:g} s; nothing was sent")
             plan.duration_s = seconds
         else:
             finite(r.distance, "jog distance")
