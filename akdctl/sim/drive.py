@@ -15,13 +15,14 @@ Why it is cheap (a network face answers thousands of requests a second):
 * The lock file also carries a *token*, rewritten by every save. A process
   keeps the model of its last transaction in memory and reloads the state file
   only when the token is not the one it saw: another process saved meanwhile.
-* Whether to save is decided by a *mark* of the model: the accepted-write
-  count, a count of changes to stored values, the time scale and the
-  components' (small, bounded) states. The stored PNU and object values, which
-  can be large, are never serialised to decide; the virtual clock is not part
-  of the mark, because a process that loads an older file advances it by the
-  same wall time. Read-only requests on a drive at rest therefore never write
-  the file, and a save costs what the state costs, once per change.
+* Whether to save is decided by a *mark*: the model's revision (one integer
+  every change of persisted state bumps - stored values, accepted writes, each
+  component's state; the rule is ``sim/component.Tracked``) and the time
+  scale. Nothing is serialised to decide, so a request costs the same whatever
+  the state holds; the virtual clock is not part of the mark, because a
+  process that loads an older file advances it by the same wall time.
+  Read-only requests on a drive at rest therefore never write the file, and a
+  save costs what the state costs, once per change.
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ import contextlib
 import errno
 import fcntl
 import json
-import marshal
 import math
 import os
 import re
@@ -68,40 +68,19 @@ def state_dir() -> Path:
     return Path(base) / "akdctl"
 
 
-class _StoreModel(DriveModel):
-    """The drive model as the store sees it: it counts changes of stored values.
-
-    Why: components and callers change stored PNUs and objects through
-    ``set_stored_pnu``/``set_stored_object``; counting them lets the mark notice
-    a change without serialising values that may be large.
-    """
-
-    stored_changes = 0
-
-    def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
-        super().set_stored_pnu(pnu, values, subindex)
-        self.stored_changes += 1
-
-    def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
-        super().set_stored_object(index, subindex, data)
-        self.stored_changes += 1
-
-
-def _mark(model: _StoreModel, meta: dict[str, Any]) -> bytes:
-    """What must reach the file when it changes, in a form cheap to build and compare (see the module doc)."""
-    components = [comp.to_state() for comp in model.components]
-    # marshal version 2: no back-references, so equal states give equal bytes whatever their objects' refcounts
-    return marshal.dumps((model.writes, model.stored_changes, meta.get("time_scale"), components), 2)
+def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
+    """What must reach the file when it changes, in O(1) (see the module doc)."""
+    return model.revision, meta.get("time_scale")
 
 
 @dataclass
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    model: _StoreModel
+    model: DriveModel
     meta: dict[str, Any]
     token: bytes
-    mark: bytes  # the mark of what the state file holds
+    mark: tuple[int, Any]  # the mark of what the state file holds
 
 
 class SimDrive:
@@ -222,7 +201,7 @@ class SimDrive:
         self._clean_temporaries()
         text = self._read_text()
         if text is None:
-            model, meta = _StoreModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
+            model, meta = DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
         try:
             state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
@@ -235,7 +214,8 @@ class SimDrive:
             meta["time_scale"] = _finite_float(meta.get("time_scale", DEFAULT_TIME_SCALE))
             if not 0 < meta["time_scale"] <= MAX_TIME_SCALE:
                 raise ValueError(f"sim.time_scale {meta['time_scale']} is outside (0, {MAX_TIME_SCALE:g}]")
-            model = _StoreModel.from_state(state)
+            model = DriveModel.from_state(state)
+            model.to_state()  # renders every derived value once: a field of the wrong type fails here, as corrupt
             return _Held(model, meta, token, _mark(model, meta))
         except RecursionError:
             raise self._corrupt("nested too deeply") from None

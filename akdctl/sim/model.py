@@ -75,6 +75,9 @@ class DriveModel:
         self.pnu_values: dict[int, list[int]] = {}
         self.object_values: dict[tuple[int, int], bytes] = {}
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
+        # Bumped by every change of persisted state: the stored values here, every component's (component.Tracked);
+        # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
+        self.revision = 0
         self._pnu_bindings: dict[int, _PnuBinding] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
         # The components, imported and named here (a missing one fails at import, not silently), as typed
@@ -119,17 +122,19 @@ class DriveModel:
         return info
 
     def stored_pnu(self, pnu: int) -> list[int]:
-        """The stored element values of a PNU (defaults until first written)."""
+        """The stored element values of a PNU (defaults until first written; a read stores nothing)."""
         values = self.pnu_values.get(pnu)
         if values is None:
-            values = self.pnu_info(pnu).default_values()
-            self.pnu_values[pnu] = values
+            return self.pnu_info(pnu).default_values()
         return values
 
     def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
         """Store element values without access checks (components use this)."""
-        stored = self.stored_pnu(pnu)
+        stored = self.pnu_values.get(pnu)
+        if stored is None:
+            stored = self.pnu_values[pnu] = self.pnu_info(pnu).default_values()
         stored[subindex : subindex + len(values)] = values
+        self.revision += 1
 
     def _check_range(self, info: pnu_catalog.PnuInfo, subindex: int, count: int) -> None:
         if count < 1:
@@ -207,6 +212,7 @@ class DriveModel:
         else:
             self.set_stored_pnu(pnu, values, subindex)
         self.writes += 1
+        self.revision += 1
 
     def signed_pnu(self, pnu: int) -> list[int]:
         """Current element values of a PNU as signed/unsigned per its type (for components and tests)."""
@@ -236,6 +242,7 @@ class DriveModel:
 
     def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
         self.object_values[(index, subindex)] = bytes(data)
+        self.revision += 1
 
     def object_read(self, index: int, subindex: int) -> bytes:
         binding = self._object_bindings.get(index)
@@ -259,6 +266,7 @@ class DriveModel:
         else:
             self.set_stored_object(index, subindex, data)
         self.writes += 1
+        self.revision += 1
 
     # SDO information service (CoE service 8): the dictionary is the catalogue's (sim/object_info.py)
     def object_indices(self) -> list[int]:
@@ -286,6 +294,7 @@ class DriveModel:
         """FileAccess: keep ``data`` as file ``name`` (docs/fidelity.md F10)."""
         self.foe.write(name, data)
         self.writes += 1
+        self.revision += 1
 
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:

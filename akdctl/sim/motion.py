@@ -68,6 +68,7 @@ class MotionComponent(Component):
     name = "motion"
     FIELDS = ("state", "stopping_to", "mode", "watchdog_s", "since_access", "watchdog_tripped", "quick_stop_option",
               "enabling_words")
+    PERSISTED = ("last_writer",)
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
