@@ -93,7 +93,7 @@ class SimDrive:
         self.lock_path = self.directory / f"sim-{name}.lock"
         self.meta: dict[str, Any] = {}
         self._sdo_server: Any = None
-        self._sdo_model_ref: list[DriveModel | None] = [None]
+        self._pnu_server: Any = None
         self._lock_fd = -1
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
@@ -124,35 +124,48 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot open the simulator's lock file", self.lock_path, exc) from None
 
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[int]:
-        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file."""
+    def _acquire(self) -> int:
+        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file; returns
+        the lock file's descriptor. :meth:`_release` lets go of both."""
         if not self._mutex.acquire(timeout=LOCK_TIMEOUT):
             raise CommError(self._locked_text())
         try:
-            deadline = time.monotonic() + LOCK_TIMEOUT
+            deadline = None
             while True:
                 if self._lock_fd < 0:
                     self._lock_fd = self._open_lock()
                 try:
                     fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError as exc:
-                    if exc.errno not in (errno.EAGAIN, errno.EACCES) or time.monotonic() > deadline:
+                    now = time.monotonic()
+                    deadline = deadline or now + LOCK_TIMEOUT
+                    if exc.errno not in (errno.EAGAIN, errno.EACCES) or now > deadline:
                         raise CommError(self._locked_text()) from None
                     time.sleep(0.005)
                     continue
                 if os.fstat(self._lock_fd).st_nlink:
-                    break
+                    return self._lock_fd
                 # The lock file was removed (a user cleaning the state directory): others lock the new one.
                 os.close(self._lock_fd)
                 self._lock_fd = -1
                 self._held = None
-            try:
-                yield self._lock_fd
-            finally:
-                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+        except BaseException:
+            self._mutex.release()
+            raise
+
+    def _release(self, lock_fd: int) -> None:
+        try:
+            fcntl.flock(lock_fd, fcntl.LOCK_UN)
         finally:
             self._mutex.release()
+
+    @contextlib.contextmanager
+    def _locked(self) -> Iterator[int]:
+        lock_fd = self._acquire()
+        try:
+            yield lock_fd
+        finally:
+            self._release(lock_fd)
 
     # ------------------------------------------------------------------ storage
     def _os_error(self, what: str, path: Path, exc: OSError) -> SimStateError:
@@ -241,6 +254,37 @@ class SimDrive:
             raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
         return token
 
+    def _begin(self, lock_fd: int, advance: bool) -> _Held:
+        """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
+        token = os.pread(lock_fd, TOKEN_BYTES, 0)
+        held, self._held = self._held, None  # dropped unless _commit puts it back (a failed body reloads)
+        fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
+        if fresh:
+            held = self._load(token)
+        assert held is not None
+        model, meta = held.model, held.meta
+        now = time.time()
+        model.time_scale = meta["time_scale"]  # wall-time watchdogs need it
+        if advance:
+            try:
+                model.advance(max(0.0, now - meta["wall"]) * model.time_scale)
+            except Exception as exc:  # noqa: BLE001 - a loaded state the model cannot run is a corrupt one
+                if not fresh:
+                    raise
+                raise self._corrupt(f"the drive model cannot run it: {exc}") from None
+        meta["wall"] = now
+        self.meta = meta
+        return held
+
+    def _commit(self, held: _Held, lock_fd: int) -> None:
+        """Under the lock, after a body that did not raise: save if the mark moved, keep the model."""
+        mark = _mark(held.model, held.meta)
+        if mark != held.mark:
+            held.token = self._new_token(lock_fd)
+            self._save(held.model, held.meta)
+            held.mark = mark
+        self._held = held
+
     @contextlib.contextmanager
     def transaction(self, advance: bool = True) -> Iterator[DriveModel]:
         """Lock, bring the model up to date, advance the virtual clock, yield the model, save if changed, unlock.
@@ -248,31 +292,13 @@ class SimDrive:
         If the body raises, nothing is saved and the held model is dropped (a
         refused access changes nothing; the next transaction reloads the file).
         """
-        with self._locked() as lock_fd:
-            token = os.pread(lock_fd, TOKEN_BYTES, 0)
-            held, self._held = self._held, None
-            fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
-            if fresh:
-                held = self._load(token)
-            model, meta = held.model, held.meta
-            now = time.time()
-            model.time_scale = meta["time_scale"]  # wall-time watchdogs need it
-            if advance:
-                try:
-                    model.advance(max(0.0, now - meta["wall"]) * model.time_scale)
-                except Exception as exc:  # noqa: BLE001 - a loaded state the model cannot run is a corrupt one
-                    if not fresh:
-                        raise
-                    raise self._corrupt(f"the drive model cannot run it: {exc}") from None
-            meta["wall"] = now
-            self.meta = meta
-            yield model
-            mark = _mark(model, meta)
-            if mark != held.mark:
-                held.token = self._new_token(lock_fd)
-                self._save(model, meta)
-                held.mark = mark
-            self._held = held
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, advance)
+            yield held.model
+            self._commit(held, lock_fd)
+        finally:
+            self._release(lock_fd)
 
     def reset(self) -> None:
         """Restore factory state (works on a corrupt state file too)."""
@@ -294,32 +320,56 @@ class SimDrive:
         return state
 
     # ------------------------------------------------------------------ wire faces
+    # The faces' hot paths: one transaction each, spelled out rather than through the transaction() generator
+    # (same steps, same rules; a request costs the microseconds the simulator is measured by).
+
     def handle_bmp(self, request: bytes) -> bytes:
         """Answer one PROFIdrive base-mode request as the drive's parameter manager."""
-        from akdctl.sim.pnu_server import PnuServer
+        server = self._pnu_server
+        if server is None:
+            from akdctl.sim.pnu_server import PnuServer
 
-        with self.transaction() as model:
-            return PnuServer(model).handle(request)
+            server = self._pnu_server = PnuServer(_OUTSIDE)
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, True)
+            server.access = held.model
+            try:
+                response = server.handle(request)
+            finally:
+                server.access = _OUTSIDE
+            self._commit(held, lock_fd)
+            return response
+        finally:
+            self._release(lock_fd)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
         """Answer one EtherCAT mailbox (CoE) with the mailboxes the drive sends back.
 
         The SDO server keeps segmented-transfer state between mailboxes, so it
-        lives as long as this object; it reaches the current model through a
-        proxy that points at the model of the running transaction.
+        lives as long as this object; it reaches the model of the running
+        transaction only (outside one, its access object refuses every call).
         """
-        from akdctl.sim.sdo_server import SdoServer
+        server = self._sdo_server
+        if server is None:
+            from akdctl.sim.sdo_server import SdoServer
 
-        with self.transaction() as model:
-            if self._sdo_server is None:
-                self._sdo_server = SdoServer(_ModelProxy(self._sdo_model_ref))
-            self._sdo_model_ref[0] = model
+            server = self._sdo_server = SdoServer(_OUTSIDE)
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, True)
+            model = held.model
+            server.access = model
             try:
-                for emcy in _take_emergencies(model):
-                    self._sdo_server.queue_emergency(emcy)
-                return self._sdo_server.handle(mailbox)
+                for emcy in model.faults.take_emergencies():
+                    server.queue_emergency(emcy)
+                replies = server.handle(mailbox)
             finally:
-                self._sdo_model_ref[0] = None
+                server.access = _OUTSIDE
+            self._commit(held, lock_fd)
+            return replies
+        finally:
+            self._release(lock_fd)
 
     def object_read(self, index: int, subindex: int) -> bytes:
         with self.transaction() as model:
@@ -353,14 +403,11 @@ def _take_emergencies(model: DriveModel) -> list[Any]:
     return list(model.faults.take_emergencies())
 
 
-class _ModelProxy:
-    """Forwards attribute access to the model of the current transaction."""
-
-    def __init__(self, ref: list[DriveModel | None]) -> None:
-        self._ref = ref
+class _Outside:
+    """The servers' access object between transactions: any use is a bug (the model may be stale)."""
 
     def __getattr__(self, name: str) -> Any:
-        model = self._ref[0]
-        if model is None:
-            raise RuntimeError("simulated drive accessed outside a transaction")
-        return getattr(model, name)
+        raise RuntimeError("simulated drive accessed outside a transaction")
+
+
+_OUTSIDE = _Outside()

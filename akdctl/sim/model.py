@@ -79,6 +79,7 @@ class DriveModel:
         # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
         self.revision = 0
         self._pnu_bindings: dict[int, _PnuBinding] = {}
+        self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}  # pnu_read_raw's lookups, per PNU
         self._object_bindings: dict[int, _ObjectBinding] = {}
         # The components, imported and named here (a missing one fails at import, not silently), as typed
         # handles for each other and for the faces; ``components`` is their tick order (motion integrates
@@ -88,12 +89,15 @@ class DriveModel:
         self.pdo = PdoComponent(self)
         self.foe = FoeFiles(self)
         self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
+        # the components that move with time (the others keep Component.tick, which does nothing), in tick order
+        self._tickers = [c.tick for c in self.components if type(c).tick is not Component.tick]
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:
         """Let a component compute a PNU on read (``read(sub, count)``) and/or act on write
         (``write(sub, values)``); stored values are used for the side left ``None``."""
         self._pnu_bindings[pnu] = _PnuBinding(read, write)
+        self._pnu_shapes.pop(pnu, None)
 
     def bind_object(self, index: int, read: ObjectReader | None = None, write: ObjectWriter | None = None) -> None:
         """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
@@ -111,8 +115,8 @@ class DriveModel:
         if dt <= 0:
             return
         self.clock += dt
-        for comp in self.components:
-            comp.tick(dt)
+        for tick in self._tickers:
+            tick(dt)
 
     # ------------------------------------------------------------------ PNUs
     def pnu_info(self, pnu: int) -> pnu_catalog.PnuInfo:
@@ -181,15 +185,25 @@ class DriveModel:
 
     def pnu_read_raw(self, pnu: int, subindex: int, count: int) -> tuple[int, list[int]]:
         """Read ``count`` elements from ``subindex``: returns (BMP format, unsigned element values)."""
-        info = self.pnu_info(pnu)
-        self._check_range(info, subindex, count)
-        binding = self._pnu_bindings.get(pnu)
-        if binding and binding.read:
-            values = list(binding.read(subindex, count))
+        shape = self._pnu_shapes.get(pnu)
+        if shape is None:
+            shape = self._pnu_shape(pnu)
+        info, wire_format, mask, read, array = shape
+        if subindex or count != 1 or array:  # a plain variable's one element needs no range check
+            self._check_range(info, subindex, count)
+        if read is not None:
+            values = read(subindex, count)
         else:
-            values = list(self.stored_pnu(pnu)[subindex : subindex + count])
-        mask = (1 << info.bits) - 1
-        return info.wire_format, [v & mask for v in values]
+            values = self.stored_pnu(pnu)[subindex : subindex + count]
+        return wire_format, [v & mask for v in values]
+
+    def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:
+        """What every read of a PNU needs, looked up once: its entry, wire format, value mask and reader."""
+        info = self.pnu_info(pnu)
+        binding = self._pnu_bindings.get(pnu)
+        shape = (info, info.wire_format, (1 << info.bits) - 1, binding.read if binding else None, info.is_array)
+        self._pnu_shapes[pnu] = shape
+        return shape
 
     def pnu_write_raw(self, pnu: int, subindex: int, fmt: int, raw_values: list[int]) -> None:
         """Change elements from ``subindex`` with unsigned wire values in format ``fmt``."""
