@@ -458,3 +458,63 @@ def test_gateway_replies_carry_the_station_and_emergencies_come_first(tmp_path: 
     assert coe.decode_coe(emergency.data)[0] == coe.CoeService.EMERGENCY
     assert answer.counter == 3 and coe.decode_coe(answer.data)[0] == coe.CoeService.SDO_RESPONSE
     assert handler.handle(request[:-1]) == [] and handler.handle(request[:4] + b"\x00\x00" + request[6:]) == []
+
+
+def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Plain Write/Read record requests take the face's short way (``_plain_record_call``); with it switched off
+    every request goes the general way. Seeded valid and mutated requests get the same frames both ways."""
+    import random
+    import uuid
+
+    from akdctl.protocol import dcerpc, pnio
+
+    rng = random.Random(5)
+    ar, address = uuid.uuid4(), pnio.RecordAddress()
+
+    def call(opnum: int, blocks: bytes, sequence: int, little: bool) -> bytes:
+        head = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=pnio.object_uuid(0x100, 1),
+                                interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=uuid.UUID(int=sequence % 3),
+                                sequence=sequence, opnum=opnum, drep=dcerpc.DREP_LITTLE if little else dcerpc.DREP_BIG)
+        return dcerpc.encode_packet(head, pnio.encode_request_args(blocks, little=little))
+
+    connect = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar, 1, b"\x02\0\0\0\0\x01", pnio.object_uuid(0, 0, 0),
+                              pnio.DEVICE_ACCESS_PROPERTIES, 100, b"test").encode()
+    requests = [call(pnio.OP_CONNECT, connect, 1, False)]
+    for sequence in range(2, 400):
+        little = rng.random() < 0.3
+        if rng.random() < 0.5:
+            pnu = rng.choice([930, 964, 947, 1, 2, 12345])
+            bmp = bytes([rng.randint(1, 255), 1, 0, 1, 0x10, 1]) + pnu.to_bytes(2, "big") + b"\0\0"
+            request = call(pnio.OP_WRITE, pnio.IODWriteReq(sequence, ar, address, bmp).encode(), sequence, little)
+        else:
+            request = call(pnio.OP_READ, pnio.IODReadReq(sequence, ar, address, rng.choice([240, 4, 0])).encode(),
+                           sequence, little)
+        kind = rng.random()
+        if kind < 0.2:  # a byte of the DCE/RPC header, NDR arguments or record header changed
+            where = rng.randrange(min(len(request), 170))
+            request = request[:where] + bytes([rng.randrange(256)]) + request[where + 1:]
+        elif kind < 0.3:
+            request = request[:rng.randrange(len(request))]
+        elif kind < 0.35:
+            request += b"\0" * rng.randint(1, 4)
+        requests.append(request)
+        if rng.random() < 0.1:
+            requests.append(request)  # a retransmission: the cached reply
+
+    def frames(short_way: bool) -> list[bytes]:
+        if not short_way:
+            monkeypatch.setattr(face_profinet, "_plain_record_call", lambda data: None)
+        face = face_profinet.ProfinetFace(SimDrive("default", tmp_path / str(short_way)), "127.0.0.1", 0)
+        face.boot_time = 1234
+        sent: list[bytes] = []
+        face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+        for request in requests:
+            sent.append(b"--")
+            face._datagram(request, ("127.0.0.1", 1))
+        monkeypatch.undo()
+        return sent
+
+    short, general = frames(True), frames(False)
+    assert short == general
+    assert sum(1 for f in short if f[:2] == b"\x04\x02") > 300  # mostly answered responses, not only refusals

@@ -352,6 +352,10 @@ class ProfinetFace(Face):
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
+        plain = _plain_record_call(data) if not self.fragment else None
+        if plain is not None:
+            self._record_call(data, peer, *plain)
+            return
         try:
             view = dcerpc.view_packet(data)  # the header's fields, its UUIDs left as wire bytes
         except CodecError:
@@ -399,6 +403,31 @@ class ProfinetFace(Face):
             self._cache.popitem(last=False)
         for frame in frames:
             self._send(frame, peer)
+
+    def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
+                     req: _Record) -> None:
+        """A plain Write or Read record request (:func:`_plain_record_call`): what the general path does for
+        it, without building a header view or calling the argument decoders."""
+        key = (data[40:56], sequence)
+        cached = self._cache.get(key)
+        if cached is not None:
+            self.stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return
+        try:
+            status, blocks = self._write(req) if opnum == OP_WRITE else self._read(req, implicit=False)
+        except CodecError:
+            status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+        except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
+            request_failed("profinet", exc)
+            status, blocks = _failure_status(opnum, exc), b""
+        body = pnio.encode_response_args(status, blocks, little=little)
+        frame = _reply_bytes(data, little, dcerpc.PT_RESPONSE, self.boot_time, body)
+        self._cache[key] = [frame]
+        if len(self._cache) > REPLY_CACHE:
+            self._cache.popitem(last=False)
+        self._send(frame, peer)
 
     def _reply_header(self, head: dcerpc.RpcHeader, ptype: int) -> dcerpc.RpcHeader:
         """The reply's header as an object (the fragmenting path); :func:`_reply_head` writes the same bytes."""
@@ -479,12 +508,12 @@ class ProfinetFace(Face):
         ar = self._ar_for(req.ar)
         if ar is None:
             return _write_res(req, pnio.rw_error(True, 0xB6))                  # no such AR: access denied
-        error = self._address_error(req, write=True)
+        error = self._address_error(req, True)
         if error is not None:
             return _write_res(req, error)
         if not 0 < len(req.data) <= MAX_RECORD:
             return _write_res(req, pnio.rw_error(True, 0xB1))
-        now = time.monotonic()
+        now = ar.last_activity  # _ar_for stamped it just now
         if ar.pending is not None and ar.pending[0] > now:
             self.stats.busy_answers += 1
             return _write_res(req, pnio.rw_error(True, 0xB5))                  # still working on the last request
@@ -560,6 +589,42 @@ _HEAD_TAIL = {False: struct.Struct(">I"), True: struct.Struct("<I")}  # server b
 _LENGTH_FRAGMENT = {False: struct.Struct(">HH"), True: struct.Struct("<HH")}  # body length, fragment: byte 74
 
 
+def _reply_bytes(data: bytes, little: bool, ptype: int, boot: int, body: bytes) -> bytes:
+    """:func:`_reply_head` from the request's bytes, with the body after it."""
+    head = bytearray(data[:dcerpc.HEADER_SIZE])
+    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
+    _HEAD_TAIL[little].pack_into(head, 56, boot)
+    _LENGTH_FRAGMENT[little].pack_into(head, 74, len(body), 0)
+    return bytes(head) + body
+
+
+# DCE/RPC CL header (drep order) + the NDR request arguments: the fields a plain record call is checked by
+_CALL = {order: struct.Struct(order + "B B B 1x B 19x 16s 16s 4x 4x I H 4x H 2x 2x I I I I I")
+         for order in (">", "<")}
+
+
+def _plain_record_call(data: bytes) -> tuple[bool, int, int, _Record] | None:
+    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and write has - a
+    DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one IODWriteReq
+    or IODReadReq header (a write's record data after it) - else None, and the general path takes it (with
+    every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders: this only recognises
+    requests they accept, and answers them as they would be answered)."""
+    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
+            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
+        return None
+    little = data[4] >> 4 == 1
+    (_v, _t, _f, _drep, interface, _act, sequence, opnum, length, _args_max, args_length, maximum, offset,
+     actual) = _CALL["<" if little else ">"].unpack_from(data)
+    if interface != _DEVICE_INTERFACE[little] or (opnum != OP_WRITE and opnum != OP_READ):
+        return None
+    body_end = dcerpc.HEADER_SIZE + length
+    if body_end > len(data) or offset or actual > maximum or args_length > length - 20 or actual > length - 20:
+        return None
+    blocks = data[100:100 + args_length]
+    req = _record_request_plain(blocks, BT_WRITE_REQ if opnum == OP_WRITE else BT_READ_REQ)
+    return None if req is None else (little, sequence, opnum, req)
+
+
 def _reply_head(view: dcerpc.RpcView, ptype: int, boot: int, body_length: int) -> bytes:
     """The 80-byte header of a reply to ``view``: the request's header with the reply's type, flags (NOFACK on a
     response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
@@ -593,12 +658,14 @@ _WRITE_RES = pnio.block_header(pnio.BT_WRITE_RES, 58)
 _READ_RES = pnio.block_header(pnio.BT_READ_RES, 58)
 _NO_ADDITIONAL = bytes(4)  # AdditionalValue1, AdditionalValue2
 _PAD2, _PAD16, _PAD20 = bytes(2), bytes(16), bytes(20)
+_OK_BYTES = OK.encode()
 _new_record = functools.partial(tuple.__new__, _Record)  # a _Record from a tuple, without the Python-level __new__
 
 
 def _write_res(req: _Record, status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
     """IODWriteResHeader: the request's record header, AdditionalValue1/2 = 0, the status, 16 reserved bytes."""
-    return status, _WRITE_RES + _RECORD.pack(*req[:7], len(req.data)) + _NO_ADDITIONAL + status.encode() + _PAD16
+    code = _OK_BYTES if status is OK else status.encode()
+    return status, _WRITE_RES + _RECORD.pack(*req[:7], len(req.data)) + _NO_ADDITIONAL + code + _PAD16
 
 
 def _read_res(req: _Record, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
@@ -609,15 +676,10 @@ def _read_res(req: _Record, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
 def _record_request(blocks: bytes, block_type: int) -> _Record:
     """The request's record header: one unpack when it is the one block it should be, else the general decoder
     (which refuses what does not parse with the same PnioError)."""
-    size = len(blocks)
-    if size >= 64:
-        btype, blen, vhi, vlo, seq, ar, api, slot, subslot, _pad, index, length = _RECORD_HEAD.unpack_from(blocks)
-        if btype == block_type and blen == _RECORD_HEAD_LENGTH:
-            if block_type == BT_READ_REQ and size == 64:
-                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, b""))
-            if block_type == BT_WRITE_REQ and size == 64 + length:
-                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
-    if block_type == pnio.BT_WRITE_REQ:
+    plain = _record_request_plain(blocks, block_type)
+    if plain is not None:
+        return plain
+    if block_type == BT_WRITE_REQ:
         write = pnio.IODWriteReq.decode(blocks)
         a = write.address
         return _Record(write.seq_number, write.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
@@ -626,3 +688,16 @@ def _record_request(blocks: bytes, block_type: int) -> _Record:
     a = read.address
     return _Record(read.seq_number, read.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
                    read.max_length)
+
+
+def _record_request_plain(blocks: bytes, block_type: int) -> _Record | None:
+    """The record header when ``blocks`` is exactly that one header block (and a write's data), else None."""
+    size = len(blocks)
+    if size >= 64:
+        btype, blen, vhi, vlo, seq, ar, api, slot, subslot, _pad, index, length = _RECORD_HEAD.unpack_from(blocks)
+        if btype == block_type and blen == _RECORD_HEAD_LENGTH:
+            if block_type == BT_READ_REQ and size == 64:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, b""))
+            if block_type == BT_WRITE_REQ and size == 64 + length:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
+    return None
