@@ -89,19 +89,20 @@ def test_serve_prints_ready_line_on_stdout_and_face_warnings_on_stderr(monkeypat
 # ------------------------------------------------------------------ 17.1: a failing drive never ends a face
 class _FailingDrive:
     """Makes the next ``count`` drive transactions raise ``exc``, as a state file locked by another process or a
-    full disk does, then lets them through again."""
+    full disk does, then lets them through again (``SimDrive._begin``: the step every transaction takes, the
+    faces' hot paths included)."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
         self.left, self.exc = 0, OSError(28, "No space left on device")
-        original = SimDrive.transaction
+        original = SimDrive._begin
 
-        def transaction(drive: SimDrive, *args: object, **kwargs: object):  # type: ignore[no-untyped-def]
+        def begin(drive: SimDrive, *args: object, **kwargs: object):  # type: ignore[no-untyped-def]
             if self.left > 0:
                 self.left -= 1
                 raise self.exc
             return original(drive, *args, **kwargs)
 
-        monkeypatch.setattr(SimDrive, "transaction", transaction)
+        monkeypatch.setattr(SimDrive, "_begin", begin)
 
     def fail(self, exc: BaseException | None = None, count: int = 1) -> None:
         self.exc, self.left = exc or self.exc, count
@@ -364,3 +365,156 @@ def test_serve_with_a_can_face_stops_on_a_signal(spec: str, signame: str) -> Non
         assert "Traceback" not in server.stderr
         if spec.startswith("virtual"):
             assert "virtual bus exists only inside this process" in server.stderr
+
+
+# ------------------------------------------------------------------ 15: the faces' replies, packed without objects
+@pytest.mark.parametrize("little", [False, True])
+def test_profinet_replies_are_the_bytes_the_codecs_write(tmp_path: Path, little: bool) -> None:
+    """The PROFINET face answers from a header view and packs its replies by patching the request's header;
+    each reply must be exactly what ``encode_packet(replace(header, ...))``, ``encode_response_args`` and
+    ``IODWriteRes``/``IODReadRes.encode()`` write, in either data representation."""
+    import uuid
+    from dataclasses import replace
+
+    from akdctl.protocol import dcerpc, pnio
+
+    face = face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0)
+    sent: list[bytes] = []
+    face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+    ar, activity, address = uuid.uuid4(), uuid.uuid4(), pnio.RecordAddress()
+    seq = iter(range(1, 100))
+
+    def call(opnum: int, blocks: bytes, interface: uuid.UUID = pnio.DEVICE_INTERFACE,
+             ptype: int = dcerpc.PT_REQUEST) -> tuple[dcerpc.RpcHeader, bytes]:
+        head = dcerpc.RpcHeader(ptype=ptype, object_uuid=pnio.object_uuid(0x100, 1), interface_uuid=interface,
+                                activity_uuid=activity, sequence=next(seq), opnum=opnum,
+                                flags1=dcerpc.FLAG_IDEMPOTENT, flags2=0x01, serial=0x0203, interface_hint=7,
+                                activity_hint=9, drep=dcerpc.DREP_LITTLE if little else dcerpc.DREP_BIG)
+        return head, dcerpc.encode_packet(head, pnio.encode_request_args(blocks, little=little))
+
+    def answer(head: dcerpc.RpcHeader, data: bytes) -> dcerpc.RpcPacket:
+        sent.clear()
+        face._datagram(data, ("127.0.0.1", 1))
+        (frame,) = sent
+        reply = dcerpc.decode_packet(frame)
+        assert dcerpc.encode_packet(reply.header, reply.body) == frame
+        assert reply.header == replace(
+            head, ptype=reply.header.ptype, flags1=dcerpc.FLAG_NOFACK if reply.header.ptype == dcerpc.PT_RESPONSE
+            else 0, flags2=0, server_boot=face.boot_time, fragment=0, body_length=len(reply.body))
+        return reply
+
+    def records(reply: dcerpc.RpcPacket) -> tuple[pnio.PnioStatus, bytes]:
+        assert reply.header.ptype == dcerpc.PT_RESPONSE
+        status, blocks = pnio.decode_response_args(reply.body, little)
+        assert pnio.encode_response_args(status, blocks, little=little) == reply.body
+        return status, blocks
+
+    connect = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar, 1, b"\x02\0\0\0\0\x01", pnio.object_uuid(0, 0, 0),
+                              pnio.DEVICE_ACCESS_PROPERTIES, 100, b"test").encode()
+    assert records(answer(*call(pnio.OP_CONNECT, connect)))[0].ok
+    read_930 = bytes.fromhex("01 01 00 01 10 01 03 A2 00 00")
+    for write in (pnio.IODWriteReq(5, ar, address, read_930),
+                  pnio.IODWriteReq(6, ar, pnio.RecordAddress(slot=3), read_930),    # wrong slot: 0xB2
+                  pnio.IODWriteReq(7, uuid.uuid4(), address, read_930)):            # no such AR: 0xB6
+        status, blocks = records(answer(*call(pnio.OP_WRITE, write.encode())))
+        res = pnio.IODWriteRes.decode(blocks)
+        assert res.encode() == blocks and status == res.status
+        assert (res.seq_number, res.ar_uuid, res.address, res.record_length) == \
+            (write.seq_number, write.ar_uuid, write.address, len(write.data))
+    for read, data in ((pnio.IODReadReq(8, ar, address, 240), True),
+                       (pnio.IODReadReq(9, ar, address, 240), False),              # nothing pending: 0xA0
+                       (pnio.IODReadReq(10, pnio.NIL_UUID, pnio.RecordAddress(index=pnio.INDEX_IM0), 64), True)):
+        opnum = pnio.OP_READ_IMPLICIT if read.address.index == pnio.INDEX_IM0 else pnio.OP_READ
+        status, blocks = records(answer(*call(opnum, read.encode())))
+        assert status.ok == data
+        if data:
+            res = pnio.IODReadRes.decode(blocks)
+            assert res.encode() == blocks and (res.seq_number, res.ar_uuid, res.address) == \
+                (read.seq_number, read.ar_uuid, read.address)
+    assert pnio.IM0.decode(pnio.IODReadRes.decode(blocks).data).vendor_id == face.vendor_id
+    head, data = call(pnio.OP_READ, pnio.IODReadReq(11, ar, address, 240).encode(),
+                      interface=pnio.CONTROLLER_INTERFACE)
+    assert answer(head, data).header.ptype == dcerpc.PT_REJECT
+    head, data = call(pnio.OP_READ, b"", ptype=dcerpc.PT_PING)
+    assert answer(head, data).header.ptype == dcerpc.PT_NOCALL
+
+
+def test_gateway_replies_carry_the_station_and_emergencies_come_first(tmp_path: Path) -> None:
+    """The gateway hands the mailbox over as it came and writes the station into every reply (the drive's
+    emergencies carry address 0), each behind the 2-byte header: what decode/replace/encode_gateway wrote."""
+    from akdctl.protocol import coe, mailbox as mbx
+
+    drive = SimDrive("default", tmp_path)
+    handler = face_ethercat_udp.GatewayHandler({1001: drive})
+    with drive.transaction() as model:
+        model.faults.raise_fault("F501")
+    request = mbx.wrap_gateway(mbx.pack(mbx.MailboxType.COE, coe.upload_request(0x6041, 0), 1001, 3))
+    replies = handler.handle(request)
+    assert len(replies) == 2
+    for reply in replies:
+        mailbox = mbx.decode_gateway(reply)
+        assert mailbox.address == 1001 and mbx.encode_gateway(mailbox) == reply
+    emergency, answer = (mbx.decode_gateway(r) for r in replies)
+    assert coe.decode_coe(emergency.data)[0] == coe.CoeService.EMERGENCY
+    assert answer.counter == 3 and coe.decode_coe(answer.data)[0] == coe.CoeService.SDO_RESPONSE
+    assert handler.handle(request[:-1]) == [] and handler.handle(request[:4] + b"\x00\x00" + request[6:]) == []
+
+
+def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Plain Write/Read record requests take the face's short way (``_plain_record_call``); with it switched off
+    every request goes the general way. Seeded valid and mutated requests get the same frames both ways."""
+    import random
+    import uuid
+
+    from akdctl.protocol import dcerpc, pnio
+
+    rng = random.Random(5)
+    ar, address = uuid.uuid4(), pnio.RecordAddress()
+
+    def call(opnum: int, blocks: bytes, sequence: int, little: bool) -> bytes:
+        head = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=pnio.object_uuid(0x100, 1),
+                                interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=uuid.UUID(int=sequence % 3),
+                                sequence=sequence, opnum=opnum, drep=dcerpc.DREP_LITTLE if little else dcerpc.DREP_BIG)
+        return dcerpc.encode_packet(head, pnio.encode_request_args(blocks, little=little))
+
+    connect = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar, 1, b"\x02\0\0\0\0\x01", pnio.object_uuid(0, 0, 0),
+                              pnio.DEVICE_ACCESS_PROPERTIES, 100, b"test").encode()
+    requests = [call(pnio.OP_CONNECT, connect, 1, False)]
+    for sequence in range(2, 400):
+        little = rng.random() < 0.3
+        if rng.random() < 0.5:
+            pnu = rng.choice([930, 964, 947, 1, 2, 12345])
+            bmp = bytes([rng.randint(1, 255), 1, 0, 1, 0x10, 1]) + pnu.to_bytes(2, "big") + b"\0\0"
+            request = call(pnio.OP_WRITE, pnio.IODWriteReq(sequence, ar, address, bmp).encode(), sequence, little)
+        else:
+            request = call(pnio.OP_READ, pnio.IODReadReq(sequence, ar, address, rng.choice([240, 4, 0])).encode(),
+                           sequence, little)
+        kind = rng.random()
+        if kind < 0.2:  # a byte of the DCE/RPC header, NDR arguments or record header changed
+            where = rng.randrange(min(len(request), 170))
+            request = request[:where] + bytes([rng.randrange(256)]) + request[where + 1:]
+        elif kind < 0.3:
+            request = request[:rng.randrange(len(request))]
+        elif kind < 0.35:
+            request += b"\0" * rng.randint(1, 4)
+        requests.append(request)
+        if rng.random() < 0.1:
+            requests.append(request)  # a retransmission: the cached reply
+
+    def frames(short_way: bool) -> list[bytes]:
+        if not short_way:
+            monkeypatch.setattr(face_profinet, "_plain_record_call", lambda data: None)
+        face = face_profinet.ProfinetFace(SimDrive("default", tmp_path / str(short_way)), "127.0.0.1", 0)
+        face.boot_time = 1234
+        sent: list[bytes] = []
+        face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+        for request in requests:
+            sent.append(b"--")
+            face._datagram(request, ("127.0.0.1", 1))
+        monkeypatch.undo()
+        return sent
+
+    short, general = frames(True), frames(False)
+    assert short == general
+    assert sum(1 for f in short if f[:2] == b"\x04\x02") > 300  # mostly answered responses, not only refusals

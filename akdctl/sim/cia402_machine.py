@@ -62,6 +62,7 @@ class Cia402Machine(FieldState):
     FIELDS = ("controlword", "quick_stop_code")
 
     def __init__(self, drive: "MotionComponent") -> None:
+        super().__init__(drive)
         self.drive = drive
         self.controlword = 0
         self.quick_stop_code = 2

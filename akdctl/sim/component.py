@@ -41,17 +41,68 @@ ABORT_DEVICE_STATE = 0x08000022
 
 
 
-class Component:
+_MISSING = object()
+
+
+class Tracked:
+    """Persisted state that counts its changes: the one rule behind "save only when something changed".
+
+    The rule (docs/internals.md, "When the state file is written"): **whatever changes what ``to_state()``
+    returns bumps a revision.** Two ways, both here:
+
+    * an assignment to a name in ``FIELDS`` or ``PERSISTED`` bumps it by itself (``__setattr__`` compares with the old value, so
+      a tick that writes the same 0.0 again at rest changes nothing);
+    * a change *inside* a container (a list appended, a dict item set) cannot be seen that way: the method that
+      makes it calls :meth:`changed`.
+
+    ``changed`` bumps this object's ``revision`` and the drive model's (``DriveModel.revision``), so the store
+    decides whether to save by comparing one integer - the cost does not grow with the state.
+    ``tests/test_sim_revision.py`` runs every kind of request and fails when ``to_state()`` changed while the
+    revision did not.
+    """
+
+    FIELDS: tuple[str, ...] = ()  # persisted attributes (FieldState saves exactly these)
+    PERSISTED: tuple[str, ...] = ()  # further persisted attributes a component's own to_state() saves
+    _TRACKED: frozenset[str] = frozenset()
+    revision = 0  # this object's changes (the class default until the first one)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._TRACKED = frozenset(cls.FIELDS) | frozenset(cls.PERSISTED)
+
+    def _model_of(self) -> "DriveModel | None":
+        raise NotImplementedError
+
+    def changed(self) -> None:
+        """Persisted state changed in a way an assignment to a field does not show (a container's content)."""
+        self.__dict__["revision"] = self.revision + 1
+        model = self._model_of()
+        if model is not None:
+            model.revision += 1
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in self._TRACKED:
+            old = self.__dict__.get(name, _MISSING)
+            if old is not value and (old is _MISSING or old != value or type(old) is not type(value)):
+                self.changed()
+        object.__setattr__(self, name, value)
+
+
+class Component(Tracked):
     """Base for a model component: owns some PNUs/objects and some state.
 
     Subclasses set ``name`` (the key of their state), register bindings in
     ``__init__`` and may override :meth:`tick`, :meth:`to_state`, :meth:`load_state`.
+    Their persisted state follows :class:`Tracked`'s rule: fields in ``FIELDS``, :meth:`changed` for the rest.
     """
 
     name = "component"
 
     def __init__(self, model: "DriveModel") -> None:
         self.model = model
+
+    def _model_of(self) -> "DriveModel | None":
+        return self.__dict__.get("model")
 
     def tick(self, dt: float) -> None:
         """Advance by ``dt`` seconds of virtual time."""
@@ -63,15 +114,27 @@ class Component:
         """Restore what :meth:`to_state` returned (may be missing keys after an upgrade)."""
 
 
-class FieldState:
+class FieldState(Tracked):
     """State kept as named attributes and persisted as a flat dict of them (``FIELDS``).
 
     Why: the motion component's parts (power stage, word machines, axis) each own
     some of the fields of one persisted ``motion`` state; each lists its names
-    once and shares this one way to save and restore them.
+    once and shares this one way to save and restore them. A part belongs to a component (``owner``, given
+    by :meth:`__init__`): its changes count as the component's.
     """
 
-    FIELDS: tuple[str, ...] = ()
+    def __init__(self, owner: "Tracked | None") -> None:
+        self.__dict__["owner"] = owner
+
+    def _model_of(self) -> "DriveModel | None":
+        owner = self.__dict__.get("owner")
+        return owner._model_of() if owner is not None else None
+
+    def changed(self) -> None:
+        Tracked.changed(self)
+        owner = self.__dict__.get("owner")
+        if owner is not None:
+            owner.__dict__["revision"] = owner.revision + 1
 
     def to_state(self) -> dict[str, Any]:
         return {name: getattr(self, name) for name in self.FIELDS}

@@ -15,13 +15,14 @@ Why it is cheap (a network face answers thousands of requests a second):
 * The lock file also carries a *token*, rewritten by every save. A process
   keeps the model of its last transaction in memory and reloads the state file
   only when the token is not the one it saw: another process saved meanwhile.
-* Whether to save is decided by a *mark* of the model: the accepted-write
-  count, a count of changes to stored values, the time scale and the
-  components' (small, bounded) states. The stored PNU and object values, which
-  can be large, are never serialised to decide; the virtual clock is not part
-  of the mark, because a process that loads an older file advances it by the
-  same wall time. Read-only requests on a drive at rest therefore never write
-  the file, and a save costs what the state costs, once per change.
+* Whether to save is decided by a *mark*: the model's revision (one integer
+  every change of persisted state bumps - stored values, accepted writes, each
+  component's state; the rule is ``sim/component.Tracked``) and the time
+  scale. Nothing is serialised to decide, so a request costs the same whatever
+  the state holds; the virtual clock is not part of the mark, because a
+  process that loads an older file advances it by the same wall time.
+  Read-only requests on a drive at rest therefore never write the file, and a
+  save costs what the state costs, once per change.
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ import contextlib
 import errno
 import fcntl
 import json
-import marshal
 import math
 import os
 import re
@@ -68,40 +68,19 @@ def state_dir() -> Path:
     return Path(base) / "akdctl"
 
 
-class _StoreModel(DriveModel):
-    """The drive model as the store sees it: it counts changes of stored values.
-
-    Why: components and callers change stored PNUs and objects through
-    ``set_stored_pnu``/``set_stored_object``; counting them lets the mark notice
-    a change without serialising values that may be large.
-    """
-
-    stored_changes = 0
-
-    def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
-        super().set_stored_pnu(pnu, values, subindex)
-        self.stored_changes += 1
-
-    def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
-        super().set_stored_object(index, subindex, data)
-        self.stored_changes += 1
-
-
-def _mark(model: _StoreModel, meta: dict[str, Any]) -> bytes:
-    """What must reach the file when it changes, in a form cheap to build and compare (see the module doc)."""
-    components = [comp.to_state() for comp in model.components]
-    # marshal version 2: no back-references, so equal states give equal bytes whatever their objects' refcounts
-    return marshal.dumps((model.writes, model.stored_changes, meta.get("time_scale"), components), 2)
+def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
+    """What must reach the file when it changes, in O(1) (see the module doc)."""
+    return model.revision, meta.get("time_scale")
 
 
 @dataclass
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    model: _StoreModel
+    model: DriveModel
     meta: dict[str, Any]
     token: bytes
-    mark: bytes  # the mark of what the state file holds
+    mark: tuple[int, Any]  # the mark of what the state file holds
 
 
 class SimDrive:
@@ -114,7 +93,7 @@ class SimDrive:
         self.lock_path = self.directory / f"sim-{name}.lock"
         self.meta: dict[str, Any] = {}
         self._sdo_server: Any = None
-        self._sdo_model_ref: list[DriveModel | None] = [None]
+        self._pnu_server: Any = None
         self._lock_fd = -1
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
@@ -145,35 +124,48 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot open the simulator's lock file", self.lock_path, exc) from None
 
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[int]:
-        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file."""
+    def _acquire(self) -> int:
+        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file; returns
+        the lock file's descriptor. :meth:`_release` lets go of both."""
         if not self._mutex.acquire(timeout=LOCK_TIMEOUT):
             raise CommError(self._locked_text())
         try:
-            deadline = time.monotonic() + LOCK_TIMEOUT
+            deadline = None
             while True:
                 if self._lock_fd < 0:
                     self._lock_fd = self._open_lock()
                 try:
                     fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError as exc:
-                    if exc.errno not in (errno.EAGAIN, errno.EACCES) or time.monotonic() > deadline:
+                    now = time.monotonic()
+                    deadline = deadline or now + LOCK_TIMEOUT
+                    if exc.errno not in (errno.EAGAIN, errno.EACCES) or now > deadline:
                         raise CommError(self._locked_text()) from None
                     time.sleep(0.005)
                     continue
                 if os.fstat(self._lock_fd).st_nlink:
-                    break
+                    return self._lock_fd
                 # The lock file was removed (a user cleaning the state directory): others lock the new one.
                 os.close(self._lock_fd)
                 self._lock_fd = -1
                 self._held = None
-            try:
-                yield self._lock_fd
-            finally:
-                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+        except BaseException:
+            self._mutex.release()
+            raise
+
+    def _release(self, lock_fd: int) -> None:
+        try:
+            fcntl.flock(lock_fd, fcntl.LOCK_UN)
         finally:
             self._mutex.release()
+
+    @contextlib.contextmanager
+    def _locked(self) -> Iterator[int]:
+        lock_fd = self._acquire()
+        try:
+            yield lock_fd
+        finally:
+            self._release(lock_fd)
 
     # ------------------------------------------------------------------ storage
     def _os_error(self, what: str, path: Path, exc: OSError) -> SimStateError:
@@ -222,7 +214,7 @@ class SimDrive:
         self._clean_temporaries()
         text = self._read_text()
         if text is None:
-            model, meta = _StoreModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
+            model, meta = DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
         try:
             state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
@@ -235,7 +227,8 @@ class SimDrive:
             meta["time_scale"] = _finite_float(meta.get("time_scale", DEFAULT_TIME_SCALE))
             if not 0 < meta["time_scale"] <= MAX_TIME_SCALE:
                 raise ValueError(f"sim.time_scale {meta['time_scale']} is outside (0, {MAX_TIME_SCALE:g}]")
-            model = _StoreModel.from_state(state)
+            model = DriveModel.from_state(state)
+            model.to_state()  # renders every derived value once: a field of the wrong type fails here, as corrupt
             return _Held(model, meta, token, _mark(model, meta))
         except RecursionError:
             raise self._corrupt("nested too deeply") from None
@@ -261,6 +254,37 @@ class SimDrive:
             raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
         return token
 
+    def _begin(self, lock_fd: int, advance: bool) -> _Held:
+        """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
+        token = os.pread(lock_fd, TOKEN_BYTES, 0)
+        held, self._held = self._held, None  # dropped unless _commit puts it back (a failed body reloads)
+        fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
+        if fresh:
+            held = self._load(token)
+        assert held is not None
+        model, meta = held.model, held.meta
+        now = time.time()
+        model.time_scale = meta["time_scale"]  # wall-time watchdogs need it
+        if advance:
+            try:
+                model.advance(max(0.0, now - meta["wall"]) * model.time_scale)
+            except Exception as exc:  # noqa: BLE001 - a loaded state the model cannot run is a corrupt one
+                if not fresh:
+                    raise
+                raise self._corrupt(f"the drive model cannot run it: {exc}") from None
+        meta["wall"] = now
+        self.meta = meta
+        return held
+
+    def _commit(self, held: _Held, lock_fd: int) -> None:
+        """Under the lock, after a body that did not raise: save if the mark moved, keep the model."""
+        mark = _mark(held.model, held.meta)
+        if mark != held.mark:
+            held.token = self._new_token(lock_fd)
+            self._save(held.model, held.meta)
+            held.mark = mark
+        self._held = held
+
     @contextlib.contextmanager
     def transaction(self, advance: bool = True) -> Iterator[DriveModel]:
         """Lock, bring the model up to date, advance the virtual clock, yield the model, save if changed, unlock.
@@ -268,31 +292,13 @@ class SimDrive:
         If the body raises, nothing is saved and the held model is dropped (a
         refused access changes nothing; the next transaction reloads the file).
         """
-        with self._locked() as lock_fd:
-            token = os.pread(lock_fd, TOKEN_BYTES, 0)
-            held, self._held = self._held, None
-            fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
-            if fresh:
-                held = self._load(token)
-            model, meta = held.model, held.meta
-            now = time.time()
-            model.time_scale = meta["time_scale"]  # wall-time watchdogs need it
-            if advance:
-                try:
-                    model.advance(max(0.0, now - meta["wall"]) * model.time_scale)
-                except Exception as exc:  # noqa: BLE001 - a loaded state the model cannot run is a corrupt one
-                    if not fresh:
-                        raise
-                    raise self._corrupt(f"the drive model cannot run it: {exc}") from None
-            meta["wall"] = now
-            self.meta = meta
-            yield model
-            mark = _mark(model, meta)
-            if mark != held.mark:
-                held.token = self._new_token(lock_fd)
-                self._save(model, meta)
-                held.mark = mark
-            self._held = held
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, advance)
+            yield held.model
+            self._commit(held, lock_fd)
+        finally:
+            self._release(lock_fd)
 
     def reset(self) -> None:
         """Restore factory state (works on a corrupt state file too)."""
@@ -314,32 +320,56 @@ class SimDrive:
         return state
 
     # ------------------------------------------------------------------ wire faces
+    # The faces' hot paths: one transaction each, spelled out rather than through the transaction() generator
+    # (same steps, same rules; a request costs the microseconds the simulator is measured by).
+
     def handle_bmp(self, request: bytes) -> bytes:
         """Answer one PROFIdrive base-mode request as the drive's parameter manager."""
-        from akdctl.sim.pnu_server import PnuServer
+        server = self._pnu_server
+        if server is None:
+            from akdctl.sim.pnu_server import PnuServer
 
-        with self.transaction() as model:
-            return PnuServer(model).handle(request)
+            server = self._pnu_server = PnuServer(_OUTSIDE)
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, True)
+            server.access = held.model
+            try:
+                response = server.handle(request)
+            finally:
+                server.access = _OUTSIDE
+            self._commit(held, lock_fd)
+            return response
+        finally:
+            self._release(lock_fd)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
         """Answer one EtherCAT mailbox (CoE) with the mailboxes the drive sends back.
 
         The SDO server keeps segmented-transfer state between mailboxes, so it
-        lives as long as this object; it reaches the current model through a
-        proxy that points at the model of the running transaction.
+        lives as long as this object; it reaches the model of the running
+        transaction only (outside one, its access object refuses every call).
         """
-        from akdctl.sim.sdo_server import SdoServer
+        server = self._sdo_server
+        if server is None:
+            from akdctl.sim.sdo_server import SdoServer
 
-        with self.transaction() as model:
-            if self._sdo_server is None:
-                self._sdo_server = SdoServer(_ModelProxy(self._sdo_model_ref))
-            self._sdo_model_ref[0] = model
+            server = self._sdo_server = SdoServer(_OUTSIDE)
+        lock_fd = self._acquire()
+        try:
+            held = self._begin(lock_fd, True)
+            model = held.model
+            server.access = model
             try:
-                for emcy in _take_emergencies(model):
-                    self._sdo_server.queue_emergency(emcy)
-                return self._sdo_server.handle(mailbox)
+                for emcy in model.faults.take_emergencies():
+                    server.queue_emergency(emcy)
+                replies = server.handle(mailbox)
             finally:
-                self._sdo_model_ref[0] = None
+                server.access = _OUTSIDE
+            self._commit(held, lock_fd)
+            return replies
+        finally:
+            self._release(lock_fd)
 
     def object_read(self, index: int, subindex: int) -> bytes:
         with self.transaction() as model:
@@ -373,14 +403,11 @@ def _take_emergencies(model: DriveModel) -> list[Any]:
     return list(model.faults.take_emergencies())
 
 
-class _ModelProxy:
-    """Forwards attribute access to the model of the current transaction."""
-
-    def __init__(self, ref: list[DriveModel | None]) -> None:
-        self._ref = ref
+class _Outside:
+    """The servers' access object between transactions: any use is a bug (the model may be stale)."""
 
     def __getattr__(self, name: str) -> Any:
-        model = self._ref[0]
-        if model is None:
-            raise RuntimeError("simulated drive accessed outside a transaction")
-        return getattr(model, name)
+        raise RuntimeError("simulated drive accessed outside a transaction")
+
+
+_OUTSIDE = _Outside()

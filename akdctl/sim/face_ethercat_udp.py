@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import socket
 import threading
-from dataclasses import replace
 
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
@@ -74,20 +73,23 @@ class GatewayHandler:
         self.injector = injector or Injector()
 
     def handle(self, datagram: bytes) -> list[bytes]:
+        """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
+        mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
+        drive's own emergencies carry address 0)."""
         from akdctl.protocol.errors import CodecError
-        from akdctl.protocol.mailbox import GATEWAY_HEADER_SIZE, HEADER_SIZE, decode_gateway, decode_mailbox, encode_gateway
+        from akdctl.protocol.mailbox import HEADER_SIZE, unwrap_gateway, wrap_gateway
 
         try:
-            request = decode_gateway(datagram)
+            raw = unwrap_gateway(datagram)
         except CodecError:
             return []  # a gateway drops what it cannot parse
-        drive = self.stations.get(request.address)
+        station = raw[2:4]
+        drive = self.stations.get(station[0] | station[1] << 8)
         if drive is None:
             return []
-        fault = self.injector.decide()
+        fault = self.injector.decide() if self.injector.every else None
         if fault == "drop":
             return []
-        raw = bytes(datagram[GATEWAY_HEADER_SIZE:GATEWAY_HEADER_SIZE + HEADER_SIZE + len(request.data)])
         if fault == "mbxerr":
             replies = [mailbox_error_reply(raw)]
         elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
@@ -102,8 +104,10 @@ class GatewayHandler:
                 replies = failure_reply(raw)
         out = []
         for reply in replies:
+            if len(reply) < HEADER_SIZE:
+                continue
             try:
-                out.append(encode_gateway(replace(decode_mailbox(reply), address=request.address)))
+                out.append(wrap_gateway(reply[:2] + station + reply[4:] if reply[2:4] != station else reply))
             except CodecError:
                 continue
         return out

@@ -14,21 +14,33 @@ never applied twice.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import itertools
 import os
 import select
 import socket
+import struct
 import sys
 import threading
 import time
 import uuid
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 from akdctl.errors import CommError, UsageError
 from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol.pnio import (
+    BT_READ_REQ,
+    BT_WRITE_REQ,
+    INDEX_PROFIDRIVE,
+    INDEX_PROFIDRIVE_ALT,
+    OK,
+    OP_READ,
+    OP_READ_IMPLICIT,
+    OP_WRITE,
+)
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import RecordRefused
 from akdctl.sim.face import Face, FaceOption, request_failed
@@ -199,12 +211,11 @@ class ProfinetFace(Face):
         self.stats = FaceStats()
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self.boot_time = int(time.time()) & 0xFFFFFFFF
-        self._ars: dict[uuid.UUID, _AR] = {}
-        self._cache: OrderedDict[tuple[uuid.UUID, int], list[bytes]] = OrderedDict()
+        self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
+        self._cache: OrderedDict[tuple[bytes, int], list[bytes]] = OrderedDict()  # (activity bytes, sequence)
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._tie = itertools.count()
         self._tx_count = 0
-        self._rx_count = 0
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -258,24 +269,37 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- loop
     def _run(self) -> None:
-        assert self._sock is not None
+        sock = self._sock
+        assert sock is not None
+        poller = select.poll()  # registered once: a select() per datagram rebuilds its lists and fd sets
+        sock_fd = sock.fileno()
+        poller.register(sock_fd, select.POLLIN)
+        poller.register(self._wake_r, select.POLLIN)
+        buffer = bytearray(65535)  # one receive buffer: recvfrom(65535) allocates 64 KiB per datagram
+        view = memoryview(buffer)
+        next_expiry = 0.0
         while not self._stop.is_set():
-            now = time.monotonic()
             wait = 0.2
             if self._scheduled:
-                wait = max(0.0, min(wait, self._scheduled[0][0] - now))
-            ready, _, _ = select.select([self._sock, self._wake_r], [], [], wait)
+                wait = max(0.0, min(wait, self._scheduled[0][0] - time.monotonic()))
+            ready = poller.poll(wait * 1000.0)
             if self._stop.is_set():
                 break
-            self._send_due()
-            self._expire_ars()
-            if self._sock in ready:
+            if self._scheduled:
+                self._send_due()
+            now = time.monotonic()
+            if now >= next_expiry:  # an AR is dropped within 50 ms of its timeout
+                self._expire_ars()
+                next_expiry = now + 0.05
+            for fd, _event in ready:
+                if fd != sock_fd:
+                    continue
                 try:
-                    data, peer = self._sock.recvfrom(65535)
+                    size, peer = sock.recvfrom_into(buffer)
                 except OSError:
                     continue
                 try:
-                    self._datagram(data, peer[:2])
+                    self._datagram(bytes(view[:size]), peer[:2])
                 except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
                     request_failed("profinet", exc)
 
@@ -305,6 +329,9 @@ class ProfinetFace(Face):
         """Send one datagram through the fault injector."""
         self._tx_count += 1
         n, inj = self._tx_count, self.injection
+        if not (inj.drop or inj.delay or inj.dup):
+            self._raw_send(data, peer)
+            return
         if inj.drop and n % inj.drop == 0:
             self.stats.dropped += 1
             return
@@ -319,70 +346,105 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- requests
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
-        self.stats.received += 1
-        self._rx_count += 1
-        if self.injection.rxdrop and self._rx_count % self.injection.rxdrop == 0:
-            self.stats.dropped += 1
+        stats = self.stats
+        stats.received += 1
+        rxdrop = self.injection.rxdrop
+        if rxdrop and stats.received % rxdrop == 0:
+            stats.dropped += 1
+            return
+        plain = _plain_record_call(data) if not self.fragment else None
+        if plain is not None:
+            self._record_call(data, peer, *plain)
             return
         try:
-            packet = dcerpc.decode_packet(data)
+            view = dcerpc.view_packet(data)  # the header's fields, its UUIDs left as wire bytes
         except CodecError:
             return      # not DCE/RPC: a real device ignores it too
-        head = packet.header
-        key = (head.activity_uuid, head.sequence)
-        if head.ptype == dcerpc.PT_PING:
+        key = (data[40:56], view.sequence)  # the activity UUID's bytes and the sequence number
+        if view.ptype == dcerpc.PT_PING:
             cached = self._cache.get(key)
             if cached:
                 for frame in cached:
                     self._send(frame, peer)
             else:
-                self._send(dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_NOCALL)), peer)
+                self._send(_reply_head(view, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
             return
-        if head.ptype != dcerpc.PT_REQUEST:
+        if view.ptype != dcerpc.PT_REQUEST:
             return      # acks, facks, stray responses
+        cached = self._cache.get(key)
+        if cached is not None:
+            stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return
+        if view.is_fragment:
+            reject = _nca(0x1C010003, view.little)
+            self._send(_reply_head(view, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject, peer)
+            return      # our requests are small; fragmented requests are not needed by any client we serve
+        if data[24:40] != _DEVICE_INTERFACE[view.little]:
+            reject = _nca(0x1C010003, view.little)
+            frames = [_reply_head(view, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject]
+        else:
+            try:
+                status, blocks = self._call(view, peer)
+            except CodecError:
+                status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+            except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
+                request_failed("profinet", exc)
+                status, blocks = _failure_status(view.opnum, exc), b""
+            body = pnio.encode_response_args(status, blocks, little=view.little)
+            if self.fragment:
+                reply = self._reply_header(dcerpc.decode_packet(data).header, dcerpc.PT_RESPONSE)
+                frames = dcerpc.fragment_body(reply, body, self.fragment)
+            else:
+                frames = [_reply_head(view, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body]
+        self._cache[key] = frames
+        if len(self._cache) > REPLY_CACHE:
+            self._cache.popitem(last=False)
+        for frame in frames:
+            self._send(frame, peer)
+
+    def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
+                     req: _Record) -> None:
+        """A plain Write or Read record request (:func:`_plain_record_call`): what the general path does for
+        it, without building a header view or calling the argument decoders."""
+        key = (data[40:56], sequence)
         cached = self._cache.get(key)
         if cached is not None:
             self.stats.replayed += 1
             for frame in cached:
                 self._send(frame, peer)
             return
-        if head.is_fragment:
-            self._send(dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_REJECT), _nca(0x1C010003, head)), peer)
-            return      # our requests are small; fragmented requests are not needed by any client we serve
-        if head.interface_uuid != pnio.DEVICE_INTERFACE:
-            frames = [dcerpc.encode_packet(self._reply_header(head, dcerpc.PT_REJECT), _nca(0x1C010003, head))]
-        else:
-            try:
-                status, blocks = self._call(head, packet.body, peer)
-            except CodecError:
-                status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
-            except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
-                request_failed("profinet", exc)
-                status, blocks = _failure_status(head.opnum, exc), b""
-            body = pnio.encode_response_args(status, blocks, little=head.little_endian)
-            reply = self._reply_header(head, dcerpc.PT_RESPONSE)
-            frames = (dcerpc.fragment_body(reply, body, self.fragment) if self.fragment
-                      else [dcerpc.encode_packet(reply, body)])
-        self._cache[key] = frames
-        while len(self._cache) > REPLY_CACHE:
+        try:
+            status, blocks = self._write(req) if opnum == OP_WRITE else self._read(req, implicit=False)
+        except CodecError:
+            status, blocks = pnio.PnioStatus(0x81, 0x81, 0x3F, 0x00), b""   # argument length invalid
+        except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
+            request_failed("profinet", exc)
+            status, blocks = _failure_status(opnum, exc), b""
+        body = pnio.encode_response_args(status, blocks, little=little)
+        frame = _reply_bytes(data, little, dcerpc.PT_RESPONSE, self.boot_time, body)
+        self._cache[key] = [frame]
+        if len(self._cache) > REPLY_CACHE:
             self._cache.popitem(last=False)
-        for frame in frames:
-            self._send(frame, peer)
+        self._send(frame, peer)
 
     def _reply_header(self, head: dcerpc.RpcHeader, ptype: int) -> dcerpc.RpcHeader:
+        """The reply's header as an object (the fragmenting path); :func:`_reply_head` writes the same bytes."""
         return replace(head, ptype=ptype, flags1=dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0,
                        flags2=0, server_boot=self.boot_time, fragment=0, body_length=0)
 
-    def _call(self, head: dcerpc.RpcHeader, body: bytes, peer: tuple[str, int]) -> tuple[pnio.PnioStatus, bytes]:
-        _args_max, blocks = pnio.decode_request_args(body, head.little_endian)
-        if head.opnum == pnio.OP_CONNECT:
+    def _call(self, view: dcerpc.RpcView, peer: tuple[str, int]) -> tuple[pnio.PnioStatus, bytes]:
+        _args_max, blocks = pnio.decode_request_args(view.body, view.little)
+        opnum = view.opnum
+        if opnum == OP_WRITE:
+            return self._write(_record_request(blocks, BT_WRITE_REQ))
+        if opnum == OP_READ or opnum == OP_READ_IMPLICIT:
+            return self._read(_record_request(blocks, BT_READ_REQ), implicit=opnum == OP_READ_IMPLICIT)
+        if opnum == pnio.OP_CONNECT:
             return self._connect(blocks, peer)
-        if head.opnum == pnio.OP_RELEASE:
+        if opnum == pnio.OP_RELEASE:
             return self._release(blocks)
-        if head.opnum == pnio.OP_WRITE:
-            return self._write(pnio.IODWriteReq.decode(blocks))
-        if head.opnum in (pnio.OP_READ, pnio.OP_READ_IMPLICIT):
-            return self._read(pnio.IODReadReq.decode(blocks), implicit=head.opnum == pnio.OP_READ_IMPLICIT)
         return pnio.PnioStatus(0x81, 0x81, 0x3C, 0x00), b""       # unknown opnum
 
     def _connect(self, blocks: bytes, peer: tuple[str, int]) -> tuple[pnio.PnioStatus, bytes]:
@@ -397,12 +459,12 @@ class ProfinetFace(Face):
             return pnio.PnioStatus(*pnio.AR_PROPERTIES_REFUSED), b""
         if not 1 <= req.timeout_factor <= 1000:
             return pnio.PnioStatus(0xDB, 0x81, 0x01, 0x0A), b""
-        if req.ar_uuid not in self._ars and len(self._ars) >= self.max_ars:
+        if req.ar_uuid.bytes not in self._ars and len(self._ars) >= self.max_ars:
             self._report_full(peer)
             return pnio.PnioStatus(*pnio.OUT_OF_AR_RESOURCES), b""
         timeout = self.ar_timeout if self.ar_timeout is not None else req.timeout_factor * 0.1
         station = req.station_name.decode("ascii", "replace")
-        self._ars[req.ar_uuid] = _AR(req.ar_uuid, req.session_key, timeout, peer, time.monotonic(), station)
+        self._ars[req.ar_uuid.bytes] = _AR(req.ar_uuid, req.session_key, timeout, peer, time.monotonic(), station)
         res = pnio.ARBlockRes(req.ar_type, req.ar_uuid, req.session_key, self.mac)
         return pnio.OK, res.encode()
 
@@ -421,87 +483,77 @@ class ProfinetFace(Face):
 
     def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
         rel = pnio.ReleaseBlock.decode(blocks)
-        ar = self._ars.get(rel.ar_uuid)
+        ar = self._ars.get(rel.ar_uuid.bytes)
         if ar is None or ar.session_key != rel.session_key:
             return pnio.PnioStatus(0xDC, 0x81, 0x3D, 0x00), b""        # CM state conflict: no such AR
-        del self._ars[rel.ar_uuid]
+        del self._ars[rel.ar_uuid.bytes]
         return pnio.OK, replace(rel, command=pnio.CONTROL_DONE, response=True).encode()
 
-    def _address_error(self, addr: pnio.RecordAddress, write: bool) -> pnio.PnioStatus | None:
-        if addr.index in (pnio.INDEX_IM0, pnio.INDEX_KEEPALIVE) and not write:
-            return None
-        if addr.api != self.api:
+    def _address_error(self, req: _Record, write: bool) -> pnio.PnioStatus | None:
+        if req.api != self.api:
             return pnio.rw_error(write, 0xB4)
-        if addr.slot != self.slot or addr.subslot != self.subslot:
+        if req.slot != self.slot or req.subslot != self.subslot:
             return pnio.rw_error(write, 0xB2)
-        if addr.index not in (pnio.INDEX_PROFIDRIVE, pnio.INDEX_PROFIDRIVE_ALT):
+        if req.index != INDEX_PROFIDRIVE and req.index != INDEX_PROFIDRIVE_ALT:
             return pnio.rw_error(write, 0xB0)
         return None
 
-    def _ar_for(self, ar_uuid: uuid.UUID) -> _AR | None:
+    def _ar_for(self, ar_uuid: bytes) -> _AR | None:
         ar = self._ars.get(ar_uuid)
         if ar is not None:
             ar.last_activity = time.monotonic()
         return ar
 
-    def _write(self, req: pnio.IODWriteReq) -> tuple[pnio.PnioStatus, bytes]:
-        def answer(status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
-            res = pnio.IODWriteRes(req.seq_number, req.ar_uuid, req.address, len(req.data), status)
-            return status, res.encode()
-
-        ar = self._ar_for(req.ar_uuid)
+    def _write(self, req: _Record) -> tuple[pnio.PnioStatus, bytes]:
+        ar = self._ar_for(req.ar)
         if ar is None:
-            return answer(pnio.rw_error(True, 0xB6))                  # no such AR: access denied
-        error = self._address_error(req.address, write=True)
+            return _write_res(req, pnio.rw_error(True, 0xB6))                  # no such AR: access denied
+        error = self._address_error(req, True)
         if error is not None:
-            return answer(error)
+            return _write_res(req, error)
         if not 0 < len(req.data) <= MAX_RECORD:
-            return answer(pnio.rw_error(True, 0xB1))
-        now = time.monotonic()
+            return _write_res(req, pnio.rw_error(True, 0xB1))
+        now = ar.last_activity  # _ar_for stamped it just now
         if ar.pending is not None and ar.pending[0] > now:
             self.stats.busy_answers += 1
-            return answer(pnio.rw_error(True, 0xB5))                  # still working on the last request
+            return _write_res(req, pnio.rw_error(True, 0xB5))                  # still working on the last request
         self.stats.bmp_requests += 1
         try:
             response = self.drive.handle_bmp(req.data)
         except RecordRefused as exc:  # a request no base-mode response can answer (docs/fidelity.md F1)
-            return answer(pnio.rw_error(True, exc.code1))
+            return _write_res(req, pnio.rw_error(True, exc.code1))
         except Exception as exc:  # noqa: BLE001 - the parameter manager failed: a record error, not silence
             request_failed("profinet", exc)
-            return answer(_failure_status(pnio.OP_WRITE, exc))
+            return _write_res(req, _failure_status(OP_WRITE, exc))
         ar.pending = (now + self.delay, response)
-        return answer(pnio.OK)
+        return _write_res(req, OK)
 
-    def _read(self, req: pnio.IODReadReq, implicit: bool) -> tuple[pnio.PnioStatus, bytes]:
-        def answer(data: bytes = b"", status: pnio.PnioStatus = pnio.OK) -> tuple[pnio.PnioStatus, bytes]:
-            res = pnio.IODReadRes(req.seq_number, req.ar_uuid, req.address, data)
-            return status, res.encode() if status.ok else b""
-
-        if req.address.index == pnio.INDEX_IM0:
-            if req.address.slot not in (0, self.slot):
-                return answer(status=pnio.rw_error(False, 0xB2))
-            if not implicit and self._ar_for(req.ar_uuid) is None:
-                return answer(status=pnio.rw_error(False, 0xB6))
-            return answer(self.im0().encode()[: max(0, req.max_length)])
+    def _read(self, req: _Record, implicit: bool) -> tuple[pnio.PnioStatus, bytes]:
+        if req.index == pnio.INDEX_IM0:
+            if req.slot not in (0, self.slot):
+                return pnio.rw_error(False, 0xB2), b""
+            if not implicit and self._ar_for(req.ar) is None:
+                return pnio.rw_error(False, 0xB6), b""
+            return _read_res(req, self.im0().encode()[: max(0, req.length)])
         if implicit:
             # the parameter channel lives in the AR: Read Implicit cannot reach it
-            return answer(status=pnio.rw_error(False, 0xB6))
-        ar = self._ar_for(req.ar_uuid)
+            return pnio.rw_error(False, 0xB6), b""
+        ar = self._ar_for(req.ar)
         if ar is None:
-            return answer(status=pnio.rw_error(False, 0xB6))
-        if req.address.index == pnio.INDEX_KEEPALIVE:
-            return answer(b"")
-        error = self._address_error(req.address, write=False)
+            return pnio.rw_error(False, 0xB6), b""
+        if req.index == pnio.INDEX_KEEPALIVE:
+            return _read_res(req, b"")
+        error = self._address_error(req, write=False)
         if error is not None:
-            return answer(status=error)
+            return error, b""
         if ar.pending is None:
-            return answer(status=pnio.rw_error(False, 0xA0))          # nothing was asked: read error
+            return pnio.rw_error(False, 0xA0), b""          # nothing was asked: read error
         ready_at, response = ar.pending
         if ready_at > time.monotonic():
             self.stats.busy_answers += 1
-            return answer(status=pnio.rw_error(False, 0xB5))          # busy: come back later
+            return pnio.rw_error(False, 0xB5), b""          # busy: come back later
         ar.pending = None
-        return answer(response[: max(0, req.max_length)])
+        return _read_res(req, response[: max(0, req.length)])
 
     def im0(self) -> pnio.IM0:
         return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
@@ -518,6 +570,134 @@ def _failure_status(opnum: int, exc: Exception) -> pnio.PnioStatus:
     return pnio.PnioStatus(0x81, 0x81, 0x40, 0x06)
 
 
-def _nca(status: int, head: dcerpc.RpcHeader) -> bytes:
+def _nca(status: int, little: bool) -> bytes:
     """A reject body: one NCA status code in the sender's byte order."""
-    return status.to_bytes(4, "little" if head.little_endian else "big")
+    return status.to_bytes(4, "little" if little else "big")
+
+
+# ---------------------------------------------------------------- the request path's bytes
+#
+# Why here and not objects from protocol/: a PNU read is two RPCs, and decoding each into an RpcHeader (three
+# UUIDs), an IODWriteReq/IODReadReq (a UUID, a RecordAddress, a RawBlock list) and encoding the reply from
+# objects cost several times what the drive's answer does. The face reads the header through dcerpc.view_packet,
+# the record header with one struct, and writes its replies by patching the request's own header - the same
+# bytes encode_packet(replace(header, ...)) and IODWriteRes/IODReadRes.encode() produce (tests/test_sim_faces.py
+# compares them). Anything unusual takes the general decoders, so malformed requests meet the same checks.
+
+_DEVICE_INTERFACE = {False: pnio.DEVICE_INTERFACE.bytes, True: pnio.DEVICE_INTERFACE.bytes_le}
+_HEAD_TAIL = {False: struct.Struct(">I"), True: struct.Struct("<I")}  # server boot time at byte 56
+_LENGTH_FRAGMENT = {False: struct.Struct(">HH"), True: struct.Struct("<HH")}  # body length, fragment: byte 74
+
+
+def _reply_bytes(data: bytes, little: bool, ptype: int, boot: int, body: bytes) -> bytes:
+    """:func:`_reply_head` from the request's bytes, with the body after it."""
+    head = bytearray(data[:dcerpc.HEADER_SIZE])
+    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
+    _HEAD_TAIL[little].pack_into(head, 56, boot)
+    _LENGTH_FRAGMENT[little].pack_into(head, 74, len(body), 0)
+    return bytes(head) + body
+
+
+# DCE/RPC CL header (drep order) + the NDR request arguments: the fields a plain record call is checked by
+_CALL = {order: struct.Struct(order + "B B B 1x B 19x 16s 16s 4x 4x I H 4x H 2x 2x I I I I I")
+         for order in (">", "<")}
+
+
+def _plain_record_call(data: bytes) -> tuple[bool, int, int, _Record] | None:
+    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and write has - a
+    DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one IODWriteReq
+    or IODReadReq header (a write's record data after it) - else None, and the general path takes it (with
+    every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders: this only recognises
+    requests they accept, and answers them as they would be answered)."""
+    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
+            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
+        return None
+    little = data[4] >> 4 == 1
+    (_v, _t, _f, _drep, interface, _act, sequence, opnum, length, _args_max, args_length, maximum, offset,
+     actual) = _CALL["<" if little else ">"].unpack_from(data)
+    if interface != _DEVICE_INTERFACE[little] or (opnum != OP_WRITE and opnum != OP_READ):
+        return None
+    body_end = dcerpc.HEADER_SIZE + length
+    if body_end > len(data) or offset or actual > maximum or args_length > length - 20 or actual > length - 20:
+        return None
+    blocks = data[100:100 + args_length]
+    req = _record_request_plain(blocks, BT_WRITE_REQ if opnum == OP_WRITE else BT_READ_REQ)
+    return None if req is None else (little, sequence, opnum, req)
+
+
+def _reply_head(view: dcerpc.RpcView, ptype: int, boot: int, body_length: int) -> bytes:
+    """The 80-byte header of a reply to ``view``: the request's header with the reply's type, flags (NOFACK on a
+    response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
+    data representation stay as the request sent them."""
+    head = bytearray(view.data[:dcerpc.HEADER_SIZE])
+    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
+    _HEAD_TAIL[view.little].pack_into(head, 56, boot)
+    _LENGTH_FRAGMENT[view.little].pack_into(head, 74, body_length, 0)
+    return bytes(head)
+
+
+class _Record(NamedTuple):
+    """A record read/write request as the face needs it (``ar``: the AR UUID's 16 bytes)."""
+
+    seq: int
+    ar: bytes
+    api: int
+    slot: int
+    subslot: int
+    pad: bytes
+    index: int
+    length: int  # write: the record data's length; read: the most the client takes
+    data: bytes = b""
+
+
+# BlockHeader (type, length, version) + the record header (seq, AR UUID, API, slot, subslot, padding, index, length)
+_RECORD_HEAD = struct.Struct(">HHBBH16sIHH2sHI")
+_RECORD_HEAD_LENGTH = 60  # BlockLength of IODWriteReqHeader and IODReadReqHeader (58 bytes after the version)
+_RECORD = struct.Struct(">H16sIHH2sHI")  # the record header alone (34 bytes)
+_WRITE_RES = pnio.block_header(pnio.BT_WRITE_RES, 58)
+_READ_RES = pnio.block_header(pnio.BT_READ_RES, 58)
+_NO_ADDITIONAL = bytes(4)  # AdditionalValue1, AdditionalValue2
+_PAD2, _PAD16, _PAD20 = bytes(2), bytes(16), bytes(20)
+_OK_BYTES = OK.encode()
+_new_record = functools.partial(tuple.__new__, _Record)  # a _Record from a tuple, without the Python-level __new__
+
+
+def _write_res(req: _Record, status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
+    """IODWriteResHeader: the request's record header, AdditionalValue1/2 = 0, the status, 16 reserved bytes."""
+    code = _OK_BYTES if status is OK else status.encode()
+    return status, _WRITE_RES + _RECORD.pack(*req[:7], len(req.data)) + _NO_ADDITIONAL + code + _PAD16
+
+
+def _read_res(req: _Record, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
+    """IODReadResHeader: the request's record header with the data's length, 24 bytes 0; then the data."""
+    return OK, _READ_RES + _RECORD.pack(*req[:7], len(data)) + _NO_ADDITIONAL + _PAD20 + data
+
+
+def _record_request(blocks: bytes, block_type: int) -> _Record:
+    """The request's record header: one unpack when it is the one block it should be, else the general decoder
+    (which refuses what does not parse with the same PnioError)."""
+    plain = _record_request_plain(blocks, block_type)
+    if plain is not None:
+        return plain
+    if block_type == BT_WRITE_REQ:
+        write = pnio.IODWriteReq.decode(blocks)
+        a = write.address
+        return _Record(write.seq_number, write.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
+                       len(write.data), write.data)
+    read = pnio.IODReadReq.decode(blocks)
+    a = read.address
+    return _Record(read.seq_number, read.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
+                   read.max_length)
+
+
+def _record_request_plain(blocks: bytes, block_type: int) -> _Record | None:
+    """The record header when ``blocks`` is exactly that one header block (and a write's data), else None."""
+    size = len(blocks)
+    if size >= 64:
+        btype, blen, vhi, vlo, seq, ar, api, slot, subslot, _pad, index, length = _RECORD_HEAD.unpack_from(blocks)
+        if btype == block_type and blen == _RECORD_HEAD_LENGTH:
+            if block_type == BT_READ_REQ and size == 64:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, b""))
+            if block_type == BT_WRITE_REQ and size == 64 + length:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
+    return None

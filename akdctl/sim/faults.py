@@ -104,6 +104,7 @@ class FaultComponent(Component):
     """Fault situations, warnings, histories and emergencies of the simulated AKD."""
 
     name = "faults"
+    PERSISTED = ("situations", "counter", "warnings", "persistent", "history", "error_field", "emergencies", "armed")
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
@@ -146,6 +147,7 @@ class FaultComponent(Component):
         if fault.is_warning:
             if fault.number not in self.warnings:
                 self.warnings.append(fault.number)
+                self.changed()
                 self._emergency(fault)
             self._keep_cause(fault.code)  # a warning lasts until its cause is cleared
             return
@@ -156,6 +158,7 @@ class FaultComponent(Component):
             active.append(fault.number)
             self.history.insert(0, (fault.number, int(self.model.clock)))
             del self.history[HISTORY_LENGTH:]
+            self.changed()
             self._emergency(fault)
         if persist:
             self._keep_cause(fault.code)
@@ -178,6 +181,8 @@ class FaultComponent(Component):
         return True
 
     def take_emergencies(self) -> list[Emergency]:
+        if not self.emergencies:  # the usual case: nothing queued, nothing changes
+            return []
         out, self.emergencies = self.emergencies, []
         return out
 
@@ -188,6 +193,7 @@ class FaultComponent(Component):
         if after_reads < 1:
             raise ValueError("after_reads must be at least 1")
         self.armed.append({"code": fault.code, "reads": int(after_reads), "persist": bool(persist)})
+        self.changed()
 
     def clear_causes(self) -> list[str]:
         """Remove every persisting cause and every warning (faults stay until acknowledged)."""
@@ -205,10 +211,12 @@ class FaultComponent(Component):
         fault = _lookup(code)
         if fault.number in self.warnings:
             self.warnings.remove(fault.number)
+            self.changed()
             if not self.warnings and not self.fault_present:
                 self._queue(Emergency(0x0000, self._register()))
         if fault.code in self.persistent:
             self.persistent.remove(fault.code)
+            self.changed()
 
     def clear_error_field(self) -> None:
         """0x1003:0 = 0 (CiA 301): forget the pre-defined error field."""
@@ -218,6 +226,7 @@ class FaultComponent(Component):
     def _keep_cause(self, code: str) -> None:
         if code not in self.persistent:
             self.persistent.append(code)
+            self.changed()
 
     def _register(self) -> int:
         reg = 0
@@ -231,18 +240,21 @@ class FaultComponent(Component):
         entry = fault.emcy | ((fault.number & 0xFFFF) << 16)
         self.error_field.insert(0, entry)
         del self.error_field[ERROR_FIELD_LENGTH:]
+        self.changed()
         register = self._register()  # warnings set no 0x1001 bits: only faults are errors
         self._queue(Emergency(fault.emcy, register, struct.pack("<H", fault.number & 0xFFFF) + bytes(3)))
 
     def _queue(self, emcy: Emergency) -> None:
         self.emergencies.append(emcy)
         del self.emergencies[: max(0, len(self.emergencies) - EMCY_QUEUE_LIMIT)]
+        self.changed()
 
     def _counted_read(self) -> None:
         """After answering a fault read: fire armed faults whose count ran out."""
         if not self.armed:
             return
         due = []
+        self.changed()  # every armed count goes down
         for item in self.armed:
             item["reads"] -= 1
             if item["reads"] <= 0:

@@ -49,6 +49,7 @@ class FoeFiles(Component):
     """The files written to the simulated drive by FoE."""
 
     name = "foe"
+    PERSISTED = ("files",)
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
@@ -66,6 +67,7 @@ class FoeFiles(Component):
         if used + len(data) > MAX_STORED:
             raise FoeRefused(foe.ERR_DISK_FULL, f"the simulated drive keeps at most {MAX_STORED} bytes of files")
         self.files[name] = bytes(data)
+        self.changed()
 
     def to_state(self) -> dict[str, Any]:
         return {"files": {name: base64.b64encode(data).decode("ascii") for name, data in sorted(self.files.items())}}

@@ -26,7 +26,7 @@ import math
 from typing import Any, Protocol
 
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.component import FieldState
+from akdctl.sim.component import FieldState, Tracked
 
 EPS = 1e-9  # rev, rev/s: below this the axis is at its target / at standstill
 POSITION_WINDOW_REV = 1.0 / CIA_COUNTS_PER_REV  # "target reached": within one count of the task's target
@@ -91,6 +91,7 @@ class Kinematics(FieldState):
               "task_ack", "homed", "homing", "homing_error", "homing_done", "internal_limit")
 
     def __init__(self, host: KinematicsHost) -> None:
+        super().__init__(host if isinstance(host, Tracked) else None)  # the motion component owns the axis
         self.host = host
         self.pos = 0.0  # physical position, rev
         self.vel = 0.0  # rev/s
@@ -454,11 +455,13 @@ class Kinematics(FieldState):
         if homing["phase"] == "search" and homing["then_index"]:
             homing["phase"] = "index"
             homing["edge"] = self._next_index(edge, homing["dir"])
+            self.changed()
             assert self.gen is not None
             self.gen = dict(self.gen, v=homing["dir"] * homing["slow"])
             return
         self._set_reference(edge)
         homing["phase"] = "return"
+        self.changed()
         acc = self.host.homing_profile()[2]
         self.gen = {"kind": "position", "target": edge, "v": homing["slow"] * 4, "acc": acc, "dec": acc}
 

@@ -75,7 +75,11 @@ class DriveModel:
         self.pnu_values: dict[int, list[int]] = {}
         self.object_values: dict[tuple[int, int], bytes] = {}
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
+        # Bumped by every change of persisted state: the stored values here, every component's (component.Tracked);
+        # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
+        self.revision = 0
         self._pnu_bindings: dict[int, _PnuBinding] = {}
+        self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}  # pnu_read_raw's lookups, per PNU
         self._object_bindings: dict[int, _ObjectBinding] = {}
         # The components, imported and named here (a missing one fails at import, not silently), as typed
         # handles for each other and for the faces; ``components`` is their tick order (motion integrates
@@ -85,12 +89,15 @@ class DriveModel:
         self.pdo = PdoComponent(self)
         self.foe = FoeFiles(self)
         self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
+        # the components that move with time (the others keep Component.tick, which does nothing), in tick order
+        self._tickers = [c.tick for c in self.components if type(c).tick is not Component.tick]
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:
         """Let a component compute a PNU on read (``read(sub, count)``) and/or act on write
         (``write(sub, values)``); stored values are used for the side left ``None``."""
         self._pnu_bindings[pnu] = _PnuBinding(read, write)
+        self._pnu_shapes.pop(pnu, None)
 
     def bind_object(self, index: int, read: ObjectReader | None = None, write: ObjectWriter | None = None) -> None:
         """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
@@ -108,8 +115,8 @@ class DriveModel:
         if dt <= 0:
             return
         self.clock += dt
-        for comp in self.components:
-            comp.tick(dt)
+        for tick in self._tickers:
+            tick(dt)
 
     # ------------------------------------------------------------------ PNUs
     def pnu_info(self, pnu: int) -> pnu_catalog.PnuInfo:
@@ -119,17 +126,19 @@ class DriveModel:
         return info
 
     def stored_pnu(self, pnu: int) -> list[int]:
-        """The stored element values of a PNU (defaults until first written)."""
+        """The stored element values of a PNU (defaults until first written; a read stores nothing)."""
         values = self.pnu_values.get(pnu)
         if values is None:
-            values = self.pnu_info(pnu).default_values()
-            self.pnu_values[pnu] = values
+            return self.pnu_info(pnu).default_values()
         return values
 
     def set_stored_pnu(self, pnu: int, values: list[int], subindex: int = 0) -> None:
         """Store element values without access checks (components use this)."""
-        stored = self.stored_pnu(pnu)
+        stored = self.pnu_values.get(pnu)
+        if stored is None:
+            stored = self.pnu_values[pnu] = self.pnu_info(pnu).default_values()
         stored[subindex : subindex + len(values)] = values
+        self.revision += 1
 
     def _check_range(self, info: pnu_catalog.PnuInfo, subindex: int, count: int) -> None:
         if count < 1:
@@ -176,15 +185,25 @@ class DriveModel:
 
     def pnu_read_raw(self, pnu: int, subindex: int, count: int) -> tuple[int, list[int]]:
         """Read ``count`` elements from ``subindex``: returns (BMP format, unsigned element values)."""
-        info = self.pnu_info(pnu)
-        self._check_range(info, subindex, count)
-        binding = self._pnu_bindings.get(pnu)
-        if binding and binding.read:
-            values = list(binding.read(subindex, count))
+        shape = self._pnu_shapes.get(pnu)
+        if shape is None:
+            shape = self._pnu_shape(pnu)
+        info, wire_format, mask, read, array = shape
+        if subindex or count != 1 or array:  # a plain variable's one element needs no range check
+            self._check_range(info, subindex, count)
+        if read is not None:
+            values = read(subindex, count)
         else:
-            values = list(self.stored_pnu(pnu)[subindex : subindex + count])
-        mask = (1 << info.bits) - 1
-        return info.wire_format, [v & mask for v in values]
+            values = self.stored_pnu(pnu)[subindex : subindex + count]
+        return wire_format, [v & mask for v in values]
+
+    def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:
+        """What every read of a PNU needs, looked up once: its entry, wire format, value mask and reader."""
+        info = self.pnu_info(pnu)
+        binding = self._pnu_bindings.get(pnu)
+        shape = (info, info.wire_format, (1 << info.bits) - 1, binding.read if binding else None, info.is_array)
+        self._pnu_shapes[pnu] = shape
+        return shape
 
     def pnu_write_raw(self, pnu: int, subindex: int, fmt: int, raw_values: list[int]) -> None:
         """Change elements from ``subindex`` with unsigned wire values in format ``fmt``."""
@@ -207,6 +226,7 @@ class DriveModel:
         else:
             self.set_stored_pnu(pnu, values, subindex)
         self.writes += 1
+        self.revision += 1
 
     def signed_pnu(self, pnu: int) -> list[int]:
         """Current element values of a PNU as signed/unsigned per its type (for components and tests)."""
@@ -236,6 +256,7 @@ class DriveModel:
 
     def set_stored_object(self, index: int, subindex: int, data: bytes) -> None:
         self.object_values[(index, subindex)] = bytes(data)
+        self.revision += 1
 
     def object_read(self, index: int, subindex: int) -> bytes:
         binding = self._object_bindings.get(index)
@@ -259,6 +280,7 @@ class DriveModel:
         else:
             self.set_stored_object(index, subindex, data)
         self.writes += 1
+        self.revision += 1
 
     # SDO information service (CoE service 8): the dictionary is the catalogue's (sim/object_info.py)
     def object_indices(self) -> list[int]:
@@ -286,6 +308,7 @@ class DriveModel:
         """FileAccess: keep ``data`` as file ``name`` (docs/fidelity.md F10)."""
         self.foe.write(name, data)
         self.writes += 1
+        self.revision += 1
 
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:

@@ -68,6 +68,7 @@ class MotionComponent(Component):
     name = "motion"
     FIELDS = ("state", "stopping_to", "mode", "watchdog_s", "since_access", "watchdog_tripped", "quick_stop_option",
               "enabling_words")
+    PERSISTED = ("last_writer",)
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
@@ -142,7 +143,8 @@ class MotionComponent(Component):
 
     def feed(self, writer: str | None = None) -> None:
         """An access to the axis: feed the watchdog; a control word write also says whose ramps apply."""
-        self.since_access = 0.0
+        if self.since_access:
+            self.since_access = 0.0
         if writer is not None:
             self.last_writer = writer
 
@@ -234,12 +236,15 @@ class MotionComponent(Component):
             codes = [c for c in faults.active() if not c.lower().startswith("n")]
             self.on_fault(codes[0] if codes else "F0")
         axis = self.axis
-        threshold = self.watchdog_s * float(self.model.time_scale or 1.0)
         if axis.at_rest():
             # The watchdog only guards motion; a resting axis keeps a constant state, so an idle
             # drive's state file need not be rewritten on every read (SimDrive saves on change).
-            self.since_access = 0.0
+            if self.since_access:
+                self.since_access = 0.0
+            if not (axis.vel or axis.acc_now):
+                return  # nothing moves, nothing to integrate
         elif self.watchdog_s > 0 and axis.activity not in STOPPING:
+            threshold = self.watchdog_s * float(self.model.time_scale or 1.0)
             remaining = threshold - self.since_access
             if dt > remaining:
                 before = max(0.0, remaining)

@@ -81,6 +81,7 @@ class PdoComponent(Component):
     """Owns 0x1C12/0x1C13, 0x1600-0x1603, 0x1A00-0x1A03, the fixed PDOs, PNU 915/916/922/923 and the AL state."""
 
     name = "pdo"
+    PERSISTED = ("al_state", "assign", "mapping", "telegram", "free_words")
 
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
@@ -167,15 +168,18 @@ class PdoComponent(Component):
             index = int(key, 16)
             if index in self.assign and len(values) == 5:
                 self.assign[index] = [int(v) for v in values]
+                self.changed()
         for key, values in dict(state.get("mapping", {})).items():
             index = int(key, 16)
             if index in self.mapping and len(values) == 9:
                 self.mapping[index] = [int(v) for v in values]
+                self.changed()
         if "telegram" in state:
             self.telegram = int(state["telegram"])
         for key, values in dict(state.get("free_words", {})).items():
             if int(key) in self.free_words and len(values) == tc.PZD_MAX_WORDS:
                 self.free_words[int(key)] = [int(v) for v in values]
+                self.changed()
 
     # ------------------------------------------------------------------ object plumbing
     def _write_cycle_time(self, sub: int, data: bytes) -> None:
@@ -238,12 +242,14 @@ class PdoComponent(Component):
         if sub == 0:
             self._check_assignment(rx, values, value)
             values[0] = value
+            self.changed()
             return
         if values[0] != 0:
             raise SdoAccessError(ABORT_SUBINDEX_0_NOT_ZERO)
         if value != 0 and not (oc.is_rx_pdo(value) if rx else oc.is_tx_pdo(value)):
             raise SdoAccessError(ABORT_VALUE_RANGE, f"0x{value:04X} is not a {'Rx' if rx else 'Tx'}PDO of the AKD")
         values[sub] = value
+        self.changed()
 
     def _check_assignment(self, rx: bool, values: list[int], count: int) -> None:
         if count > oc.MAX_ASSIGNED_PDOS:
@@ -269,12 +275,14 @@ class PdoComponent(Component):
         if sub == 0:
             self._check_mapping(index, rx, values, value)
             values[0] = value
+            self.changed()
             return
         if values[0] != 0:
             raise SdoAccessError(ABORT_SUBINDEX_0_NOT_ZERO)
         if value != 0:
             self._check_entry(rx, oc.PdoEntry.from_mapping_value(value))
         values[sub] = value
+        self.changed()
 
     @staticmethod
     def _check_entry(rx: bool, entry: oc.PdoEntry) -> None:
@@ -336,3 +344,4 @@ class PdoComponent(Component):
         except tc.TelegramDataError as exc:
             raise PnuAccessError(PE_VALUE_IMPERMISSIBLE, exc.index) from None
         self.free_words[pnu] = words
+        self.changed()

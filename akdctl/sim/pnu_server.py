@@ -59,7 +59,8 @@ A structurally broken change request writes nothing.
 
 from __future__ import annotations
 
-from collections.abc import Collection
+import struct
+from collections.abc import Callable, Collection
 from typing import Protocol
 
 from akdctl.sim.errors import PnuAccessError, RecordRefused  # noqa: F401  (re-exported: servers raise and catch them)
@@ -160,6 +161,28 @@ def convert_value(value: ParameterValue, data_type: int) -> ParameterValue:
                                                 f"of type 0x{data_type:02X}")
 
 
+_ADDRESS = struct.Struct(">BBHH")  # attribute, number of elements, PNU, subindex (bmp.decode_address's layout)
+_RAW_CODES = {Format.BYTE: "B", Format.WORD: "H", Format.DWORD: "I"}  # the formats pnu_read_raw answers with
+_BLOCKS: dict[tuple[int, int], struct.Struct] = {}  # (format, count) -> the value block's layout, built once
+
+
+def _block_struct(fmt: int, count: int) -> struct.Struct | None:
+    """A value block of ``count`` elements of a raw format: format, count, the values, a pad byte if odd."""
+    code = _RAW_CODES.get(fmt)
+    if code is None:
+        return None
+    pad = "x" if count * format_size(fmt) & 1 else ""
+    block = _BLOCKS[(fmt, count)] = struct.Struct(f">BB{count}{code}{pad}")
+    return block
+
+
+def _failure_block(error: int, additional: int | None = None) -> bytes:
+    """An error block (format 0x44): the error value, and the additional information when there is one."""
+    if additional is None:
+        return struct.pack(">BBH", Format.ERROR, 1, error & 0xFFFF)
+    return struct.pack(">BBHH", Format.ERROR, 2, error & 0xFFFF, additional & 0xFFFF)
+
+
 class _WholeRequest(Exception):
     """A refusal of the entire request (header or structure), answered with one error for every parameter."""
 
@@ -227,23 +250,75 @@ class PnuServer:
         offset = HEADER_SIZE + ADDRESS_SIZE * n
         if len(data) < offset:
             raise _WholeRequest(ERR_ADDRESS)
-        addresses = [decode_address(data, HEADER_SIZE + ADDRESS_SIZE * i) for i in range(n)]
-        results: list[ParameterResult]
         if request_id == REQ_READ:
             if offset != len(data):
                 raise _WholeRequest(ERR_VALUE_COUNT)
-            results = [self._read_one(a) for a in addresses]
-            negative = any(isinstance(r, ParameterFailure) for r in results)
-            response_id = RESP_READ_NAK if negative else RESP_READ_OK
-        else:
-            blocks = self._value_blocks(data, offset, n)
-            results = [self._change_one(a, b) for a, b in zip(addresses, blocks)]
-            negative = any(r is not None for r in results)
-            response_id = RESP_CHANGE_NAK if negative else RESP_CHANGE_OK
+            return self._read_all(data, n)
+        addresses = [decode_address(data, HEADER_SIZE + ADDRESS_SIZE * i) for i in range(n)]
+        blocks = self._value_blocks(data, offset, n)
+        results = [self._change_one(a, b) for a, b in zip(addresses, blocks)]
+        negative = any(r is not None for r in results)
+        response_id = RESP_CHANGE_NAK if negative else RESP_CHANGE_OK
         try:
             return encode_response(ParameterResponse(reference, response_id, axis, tuple(results)))
         except BmpError:  # every block was validated alone: only the total size can be wrong
             raise _WholeRequest(ERR_RESPONSE_TOO_LONG) from None
+
+    def _read_all(self, data: bytes, n: int) -> bytes:
+        """A read response: each parameter's value block (or error block) packed as it is read.
+
+        Why bytes and not ``encode_response``: a read is the request every poll makes, and each parameter was
+        checked alone already; packing once costs less than building, validating and encoding result objects.
+        The blocks are those ``encode_value_block`` / ``encode_response`` write (tests/test_pnu_server.py).
+        """
+        raw = getattr(self.access, "pnu_read_raw", None)  # DriveModel's: (format, unsigned values), no objects
+        blocks = []
+        negative = False
+        for i in range(n):
+            attribute, count, pnu, subindex = _ADDRESS.unpack_from(data, HEADER_SIZE + ADDRESS_SIZE * i)
+            if raw is not None and attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu \
+                    and subindex <= MAX_SUBINDEX:
+                block = self._read_raw(raw, pnu, subindex, count)
+            else:
+                block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
+            negative = negative or block[0] == Format.ERROR
+            blocks.append(block)
+        out = bytes((data[0], RESP_READ_NAK if negative else RESP_READ_OK, data[2], n)) + b"".join(blocks)
+        if len(out) > MAX_BLOCK:
+            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
+        return out
+
+    def _read_raw(self, raw: Callable[[int, int, int], tuple[int, list[int]]], pnu: int, subindex: int,
+                  count: int) -> bytes:
+        """One value read through the model's raw access, as its value block."""
+        try:
+            fmt, values = raw(pnu, subindex, count)
+        except PnuAccessError as exc:
+            return _failure_block(exc.error, exc.additional)
+        except Exception as exc:  # noqa: BLE001 - a model bug refuses this parameter only
+            self.last_exception = exc
+            return _failure_block(ERR_OPERATING_STATE)
+        block = _BLOCKS.get((fmt, count))
+        if block is None:
+            block = _block_struct(fmt, count)
+        if block is None or len(values) != count:
+            self.last_exception = ValueError(f"pnu_read_raw({pnu}) returned format {fmt} with {len(values)} values "
+                                             f"for {count} elements")
+            return _failure_block(ERR_OPERATING_STATE)
+        if block.size > MAX_BLOCK - HEADER_SIZE:
+            return _failure_block(ERR_RESPONSE_TOO_LONG)
+        try:
+            return block.pack(fmt, count, *values)
+        except struct.error as exc:
+            self.last_exception = exc
+            return _failure_block(ERR_OPERATING_STATE)
+
+    @staticmethod
+    def _block(result: ParameterResult) -> bytes:
+        if isinstance(result, ParameterFailure):
+            return _failure_block(result.error, result.additional)
+        assert isinstance(result, ParameterValue)  # _read_one answers a value or a failure
+        return b"\x40\x00" if result.format == Format.ZERO else encode_value_block(result)
 
     # -- parsing -------------------------------------------------------------------------------------------------
 

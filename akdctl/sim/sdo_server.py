@@ -27,9 +27,10 @@ an abort code, and undecodable bytes become mailbox error replies.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
@@ -90,6 +91,18 @@ class ObjectInfoAccess(Protocol):
         ...
 
 
+class _Request(NamedTuple):
+    """What a reply echoes of its request mailbox."""
+
+    address: int
+    counter: int
+
+
+_COE_HEADER = struct.Struct("<H")
+_INDEX = struct.Struct("<HB")
+_EXPEDITED = struct.Struct("<BHB4s")  # command, index, subindex, 4 data bytes (struct pads a shorter value)
+_UPLOAD_INITIATE = 0x40  # command byte of an upload initiate request without complete access
+
 # Object access bits behind the SDO information list types 2..5.
 _LIST_FILTER = {2: 0x0040, 3: 0x0080, 4: 0x0100, 5: 0x0200}
 
@@ -148,6 +161,8 @@ class SdoServer:
         except Exception:  # the simulator must never die on a request; log and refuse
             log.exception("SDO server failed on a mailbox request")
             replies = [self._error_reply(None, mbx.ERR_SYNTAX)]
+        if not self._emergencies:
+            return replies
         try:
             pending = self.take_pending()
         except CodecError:
@@ -157,43 +172,45 @@ class SdoServer:
         return pending + replies
 
     # --- mailbox level ----------------------------------------------------------------------
+    # A request is taken apart once (mailbox.split: type, counter, address, data) and every reply is packed
+    # straight into bytes (mailbox.pack): channel and priority 0, the request's address and counter.
 
-    def _error_reply(self, request: mbx.Mailbox | None, code: int) -> bytes:
+    def _error_reply(self, request: _Request | None, code: int) -> bytes:
         data = mbx.encode_error_reply(mbx.MailboxErrorReply(code))
-        address = request.address if request else 0
-        counter = request.counter if request else 0
-        return mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.ERROR, data, address=address, counter=counter))
+        address, counter = (request.address, request.counter) if request else (0, 0)
+        return mbx.pack(mbx.MailboxType.ERROR, data, address, counter)
 
-    def _reply(self, request: mbx.Mailbox, service: CoeService, payload: bytes) -> bytes:
-        data = coe.encode_coe(service, payload)
-        return mbx.encode_mailbox(
-            mbx.Mailbox(mbx.MailboxType.COE, data, address=request.address, counter=request.counter)
-        )
+    def _reply(self, request: _Request, service: int, payload: bytes) -> bytes:
+        return mbx.pack(mbx.MailboxType.COE, _COE_HEADER.pack(service << 12) + payload, request.address,
+                        request.counter)
 
     def _handle(self, raw: bytes) -> list[bytes]:
         if len(raw) < mbx.HEADER_SIZE:
             return [self._error_reply(None, mbx.ERR_SIZE_TOO_SHORT)]
         try:
-            request = mbx.decode_mailbox(raw)
+            mtype, counter, address, data = mbx.split(raw)
         except CodecError:
             return [self._error_reply(None, mbx.ERR_INVALID_SIZE)]
-        if mbx.HEADER_SIZE + len(request.data) > self.mailbox_size:
+        request = _Request(address, counter)
+        if mbx.HEADER_SIZE + len(data) > self.mailbox_size:
             return [self._error_reply(request, mbx.ERR_INVALID_SIZE)]
-        if request.type == mbx.MailboxType.FOE and hasattr(self.access, "foe_read"):
-            return self._foe(request)
-        if request.type != mbx.MailboxType.COE:
+        if mtype == mbx.MailboxType.FOE and hasattr(self.access, "foe_read"):
+            return self._foe(request, data)
+        if mtype != mbx.MailboxType.COE:
             return [self._error_reply(request, mbx.ERR_UNSUPPORTED_PROTOCOL)]
-        if request.channel != 0:
+        if raw[4] & 0x3F:  # the channel
             return [self._error_reply(request, mbx.ERR_INVALID_CHANNEL)]
-        if len(request.data) < coe.COE_HEADER_SIZE:
+        if len(data) < coe.COE_HEADER_SIZE:
             return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
         try:
-            service, _number, payload = coe.decode_coe(request.data)
+            service, _number, payload = coe.decode_coe(data)
         except CoeError:
             return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
         if service == CoeService.SDO_REQUEST:
             if len(payload) < coe.SDO_SIZE:
                 return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
+            if payload[0] == _UPLOAD_INITIATE:  # the most frequent request: answered without message objects
+                return [self._upload_fast(request, payload)]
             answer = self._sdo(payload)
             # ETG.1000.6: "Abort SDO Transfer" travels as CoE service 2 (SDO request), not 3; SOEM/pysoem
             # report an abort sent as a response as a malformed frame (found by the EtherCAT interop tests).
@@ -203,15 +220,29 @@ class SdoServer:
             return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
         return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
 
+    def _upload_fast(self, request: _Request, payload: bytes) -> bytes:
+        """An upload initiate without complete access (:meth:`_upload_initiate`'s rules), the expedited answer
+        packed directly in the layout ``coe.encode_sdo(SdoUploadResponse(..., expedited=True))`` writes."""
+        index, subindex = _INDEX.unpack_from(payload, 1)
+        self._download = None
+        self._upload = None
+        value = self._read(index, subindex)
+        if isinstance(value, bytes) and 1 <= len(value) <= 4:
+            return self._reply(request, CoeService.SDO_RESPONSE,
+                               _EXPEDITED.pack(0x43 | (4 - len(value)) << 2, index, subindex, value))
+        if isinstance(value, coe.SdoAbort):
+            return self._reply(request, CoeService.SDO_REQUEST, coe.encode_sdo(value))
+        return self._reply(request, CoeService.SDO_RESPONSE, coe.encode_sdo(self._upload_normal(index, subindex, value)))
+
     # --- FoE --------------------------------------------------------------------------------
 
-    def _foe(self, request: mbx.Mailbox) -> list[bytes]:
+    def _foe(self, request: _Request, data: bytes) -> list[bytes]:
         """File access (mailbox type 4): the AKD's firmware path (docs/fidelity.md F10, :mod:`akdctl.sim.foe`)."""
         from akdctl.protocol import foe
         from akdctl.sim.foe import FoeServer
 
         try:
-            frame = foe.decode_foe(request.data)
+            frame = foe.decode_foe(data)
         except CodecError:
             return [self._error_reply(request, mbx.ERR_SIZE_TOO_SHORT)]
         if self._foe_server is None:
@@ -220,8 +251,7 @@ class SdoServer:
         reply = self._foe_server.handle(self.access, frame, max_data)  # type: ignore[arg-type]
         if reply is None:
             return []
-        return [mbx.encode_mailbox(mbx.Mailbox(mbx.MailboxType.FOE, foe.encode_foe(reply), address=request.address,
-                                               counter=request.counter))]
+        return [mbx.pack(mbx.MailboxType.FOE, foe.encode_foe(reply), request.address, request.counter)]
 
     # --- SDO --------------------------------------------------------------------------------
 
@@ -279,10 +309,14 @@ class SdoServer:
             return value
         if 1 <= len(value) <= 4:
             return coe.SdoUploadResponse(msg.index, msg.subindex, value, len(value), True)
+        return self._upload_normal(msg.index, msg.subindex, value)
+
+    def _upload_normal(self, index: int, subindex: int, value: bytes) -> coe.SdoUploadResponse:
+        """A value that is not expedited: size and as much data as the mailbox holds; the rest in segments."""
         room = self.mailbox_size - mbx.HEADER_SIZE - coe.NORMAL_OVERHEAD
         if len(value) > room:
-            self._upload = _Upload(msg.index, msg.subindex, value[room:])
-        return coe.SdoUploadResponse(msg.index, msg.subindex, value[:room], len(value), False)
+            self._upload = _Upload(index, subindex, value[room:])
+        return coe.SdoUploadResponse(index, subindex, value[:room], len(value), False)
 
     def _upload_segment(self, msg: coe.SdoUploadSegment) -> coe.SdoMessage:
         state = self._upload

@@ -47,6 +47,7 @@ class Stw1Machine(FieldState):
     FIELDS = ("stw1", "plc_control_allowed", "aktsatz", "frozen_vel")
 
     def __init__(self, drive: "MotionComponent") -> None:
+        super().__init__(drive)
         self.drive = drive
         self.stw1 = 0
         self.plc_control_allowed = True  # False simulates a drive that does not honour STW1 bit 10

@@ -56,6 +56,7 @@ class TaskTable(FieldState):
     FIELDS = ("tasks", "mt_num")
 
     def __init__(self, drive: "MotionComponent") -> None:
+        super().__init__(drive)
         self.drive = drive
         self.tasks: dict[str, dict[str, Any]] = {k: dict(v) for k, v in DEFAULT_TASKS.items()}
         self.mt_num = 0
@@ -98,6 +99,7 @@ class TaskTable(FieldState):
     def _set(self, sub: int, data: bytes) -> None:
         """MT.SET: the working parameters become task MT.NUM."""
         m = self.drive.model
+        self.changed()
         self.tasks[str(self.mt_num)] = {
             "position": m.object_value(MT_P, 0) / CIA_COUNTS_PER_REV,
             "rpm": units.cia_rpm(m.object_value(MT_V, 0)),
