@@ -23,8 +23,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 
 class Deadline:
@@ -206,8 +205,7 @@ class MessageLink(ABC):
     def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
 
 
-@dataclass(frozen=True)
-class CanopenSdoClient:
+class CanopenSdoClient(NamedTuple):
     """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives."""
 
     node: Any
@@ -215,8 +213,7 @@ class CanopenSdoClient:
     block: bool = False
 
 
-@dataclass(frozen=True)
-class SoemSdoClient:
+class SoemSdoClient(NamedTuple):
     """A pysoem slave whose ``sdo_read``/``sdo_write`` the SOEM adapter channel drives."""
 
     slave: Any

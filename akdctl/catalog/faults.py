@@ -12,14 +12,13 @@ Loading is lazy (functools.cache); lookups never raise on unknown input.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from functools import cache
+from typing import NamedTuple
 
 __all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text", "where_to_look"]
 
 
-@dataclass(frozen=True)
-class Fault:
+class Fault(NamedTuple):
     """One AKD fault or warning.
 
     code: 'F501' / 'n503' ('' for the generic EMCY entries without an AKD number);
@@ -83,7 +82,7 @@ def _by_emcy() -> dict[int, list[Fault]]:
     return grouped
 
 
-_CODE = re.compile(r"^\s*([FfNn])\s*0*(\d{1,4})\s*$")
+_CODE = r"^\s*([FfNn])\s*0*(\d{1,4})\s*$"  # compiled on first use (re caches it): not at every start
 
 
 def by_number(number: int, *, warning: bool = False) -> Fault | None:
@@ -105,7 +104,7 @@ def by_code(code: str | int) -> Fault | None:
         return by_number(code)
     if not isinstance(code, str):
         return None
-    m = _CODE.match(code)
+    m = re.match(_CODE, code)
     if m:
         return _by_code().get(f"{m.group(1).upper()}{int(m.group(2))}")
     stripped = code.strip()

@@ -14,14 +14,13 @@ named). Where a bit's words depend on the operating mode and the mode is not kno
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from functools import cache
+from typing import NamedTuple
 
 Names = Mapping[int, str] | Callable[[int], "str | None"]
 
 
-@dataclass(frozen=True)
-class Meaning:
+class Meaning(NamedTuple):
     names: Names
     bits: bool = False  # a bit field: every set bit is named; else an enumeration
     width: int = 16

@@ -12,16 +12,15 @@ a real drive reports its own).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import cache
+from typing import NamedTuple
 
 # PROFIdrive standard data type codes (identifier bits 0-7) for descriptions.
 DATATYPE_CODES = {"S16": 0x03, "S32": 0x04, "U16": 0x06, "U32": 0x07, "OS": 0x0A}
 TYPE_BITS = {"S16": 16, "U16": 16, "S32": 32, "U32": 32, "OS": 8}
 
 
-@dataclass(frozen=True)
-class PnuInfo:
+class PnuInfo(NamedTuple):
     """One PROFIdrive parameter as the AKD documents it."""
 
     pnu: int
@@ -168,11 +167,9 @@ def pnu_table() -> dict[int, PnuInfo]:
     table = {info.pnu: info for info in _TABLE}
     listed = sorted(p for p in table if not 980 <= p <= 989)
     # 980 holds the whole list plus its 0 terminator; 981..989 hold one 0 each.
-    from dataclasses import replace
-
-    table[980] = replace(table[980], elements=len(listed) + 1, default=tuple(listed) + (0,))
+    table[980] = table[980]._replace(elements=len(listed) + 1, default=tuple(listed) + (0,))
     for n in range(981, 990):
-        table[n] = replace(table[n], elements=1, default=(0,))
+        table[n] = table[n]._replace(elements=1, default=(0,))
     return table
 
 

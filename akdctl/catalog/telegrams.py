@@ -14,7 +14,7 @@ number. Ten elements = ten words, exactly telegram 9's set-point length.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 __all__ = [
     "Signal", "SIGNALS", "TELEGRAMS", "TelegramLayout", "FREE_TELEGRAM", "PZD_MAX_WORDS", "SIGNAL_LIST_LENGTH",
@@ -39,8 +39,7 @@ class TelegramDataError(ValueError):
         self.index = index
 
 
-@dataclass(frozen=True)
-class Signal:
+class Signal(NamedTuple):
     """One PROFIdrive signal: number, name, IO words, direction and the PNU that also reads it.
 
     direction: "setpoint" (controller -> drive) or "actual" (drive -> controller).
@@ -89,8 +88,7 @@ SIGNALS: dict[int, Signal] = {s.number: s for s in (
 )}
 
 
-@dataclass(frozen=True)
-class TelegramLayout:
+class TelegramLayout(NamedTuple):
     """A standard/manufacturer telegram: set-point and actual-value signals in IO order."""
 
     number: int
@@ -195,8 +193,7 @@ def words_to_signals(words: list[int] | tuple[int, ...]) -> list[int]:
     return signals
 
 
-@dataclass(frozen=True)
-class WordSlot:
+class WordSlot(NamedTuple):
     """One IO data word: its number (1-based), the signal and which part of it (for double words)."""
 
     word: int
@@ -228,8 +225,7 @@ def word_layout(signals: list[int] | tuple[int, ...]) -> list[WordSlot]:
 # the requirement protects is that the submode's set-point signals travel in the selected telegram, so telegram 0
 # carrying them counts too (5.6: every signal can be mapped into telegram 0). Each submode names the telegram
 # akdctl selects when the current one lacks its signals.
-@dataclass(frozen=True)
-class Submode:
+class Submode(NamedTuple):
     name: str
     signals: tuple[int, ...]  # set-point signals the submode reads
     telegram: int             # the standard telegram that carries them

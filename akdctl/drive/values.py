@@ -26,8 +26,7 @@ sent; decoding a reply that does not fit its type is a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.catalog.texts import profidrive_error_phrase
@@ -74,8 +73,7 @@ def resolve_type(address: Any, type_name: str | None) -> tuple[str, Any]:
     return entry.short_type, entry
 
 
-@dataclass(frozen=True)
-class _Address:
+class _Address(NamedTuple):
     index: int
     subindex: int
 
@@ -243,8 +241,7 @@ def encode_object(entry: Any, value: Any) -> bytes:
 
 
 # ====================================================================== PNUs (PROFIdrive parameters)
-@dataclass(frozen=True)
-class PnuSpec:
+class PnuSpec(NamedTuple):
     """An address the user asked for: PNU, first element, number of elements."""
 
     pnu: int
@@ -261,17 +258,36 @@ class PnuSpec:
         return f"{self.pnu}[{self.subindex}..{self.subindex + self.count - 1}]"
 
 
-@dataclass
 class PnuReading:
-    """One requested address and what came back: values (signed per type) or a failure."""
+    """One requested address and what came back: values (signed per type) or a failure.
 
-    spec: PnuSpec
-    values: list[int] | None = None
-    raw: list[Any] | None = None
-    format: int | None = None
-    error: int | None = None
-    error_text: str = ""
-    additional: int | None = None
+    A plain class with slots (mutable, compared by value like the dataclass it was, unhashable): created on every
+    ``pnu`` command's cold path, where a dataclass costs more to define than the command spends reading."""
+
+    __slots__ = ("spec", "values", "raw", "format", "error", "error_text", "additional")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, spec: PnuSpec, values: list[int] | None = None, raw: list[Any] | None = None,
+                 format: int | None = None, error: int | None = None, error_text: str = "",  # noqa: A002
+                 additional: int | None = None) -> None:
+        self.spec = spec
+        self.values = values
+        self.raw = raw
+        self.format = format
+        self.error = error
+        self.error_text = error_text
+        self.additional = additional
+
+    def _key(self) -> tuple[Any, ...]:
+        return tuple(getattr(self, name) for name in self.__slots__)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._key() == other._key()  # type: ignore[attr-defined]
+
+    def __repr__(self) -> str:
+        return f"PnuReading({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     @property
     def ok(self) -> bool:

@@ -29,8 +29,8 @@ Every malformed input raises :class:`BmpError` (a
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
 from enum import IntEnum
+from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
 
@@ -219,8 +219,7 @@ def _pad(n: int) -> int:
 Scalar = int | float | bytes | str
 
 
-@dataclass(frozen=True)
-class ParameterAddress:
+class ParameterAddress(NamedTuple):
     """One parameter in a request: ``count`` elements from ``subindex`` on, of one attribute."""
 
     pnu: int
@@ -235,8 +234,12 @@ class ParameterAddress:
         return f"PNU {self.pnu}{span}{attr}"
 
 
-@dataclass(frozen=True)
-class ParameterValue:
+class _ParameterValue(NamedTuple):
+    format: int
+    values: tuple[Scalar, ...]
+
+
+class ParameterValue(_ParameterValue):
     """The values of one parameter, in one wire format.
 
     Numeric formats hold one python number per element. The string formats
@@ -246,12 +249,10 @@ class ParameterValue:
     unsigned: use :func:`to_signed` when the parameter is signed.
     """
 
-    format: int
-    values: tuple[Scalar, ...]
+    __slots__ = ()
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.values, tuple):
-            object.__setattr__(self, "values", tuple(self.values))
+    def __new__(cls, format: int, values: tuple[Scalar, ...]) -> "ParameterValue":  # noqa: A002
+        return tuple.__new__(cls, (format, values if type(values) is tuple else tuple(values)))
 
     @property
     def count(self) -> int:
@@ -275,8 +276,7 @@ class ParameterValue:
         return cls(fmt, tuple(values))
 
 
-@dataclass(frozen=True)
-class ParameterFailure:
+class ParameterFailure(NamedTuple):
     """A negative per-parameter result: PROFIdrive error value and optional additional info.
 
     Codes only: the words are :func:`akdctl.catalog.texts.profidrive_error_text` and
@@ -290,35 +290,41 @@ class ParameterFailure:
 ParameterResult = ParameterValue | ParameterFailure | None
 
 
-@dataclass(frozen=True)
-class ParameterRequest:
-    """A read (``REQ_READ``) or change (``REQ_CHANGE``) request; ``values`` only for changes, one per address."""
-
+class _ParameterRequest(NamedTuple):
     reference: int
     request_id: int
     axis: int
     addresses: tuple[ParameterAddress, ...]
     values: tuple[ParameterValue, ...] = ()
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.addresses, tuple):
-            object.__setattr__(self, "addresses", tuple(self.addresses))
-        if not isinstance(self.values, tuple):
-            object.__setattr__(self, "values", tuple(self.values))
+
+class ParameterRequest(_ParameterRequest):
+    """A read (``REQ_READ``) or change (``REQ_CHANGE``) request; ``values`` only for changes, one per address."""
+
+    __slots__ = ()
+
+    def __new__(cls, reference: int, request_id: int, axis: int, addresses: tuple[ParameterAddress, ...],
+                values: tuple[ParameterValue, ...] = ()) -> "ParameterRequest":
+        return tuple.__new__(cls, (reference, request_id, axis,
+                                   addresses if type(addresses) is tuple else tuple(addresses),
+                                   values if type(values) is tuple else tuple(values)))
 
 
-@dataclass(frozen=True)
-class ParameterResponse:
-    """A response: one result per parameter (``None`` = accepted change, no values)."""
-
+class _ParameterResponse(NamedTuple):
     reference: int
     response_id: int
     axis: int
     results: tuple[ParameterResult, ...]
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.results, tuple):
-            object.__setattr__(self, "results", tuple(self.results))
+
+class ParameterResponse(_ParameterResponse):
+    """A response: one result per parameter (``None`` = accepted change, no values)."""
+
+    __slots__ = ()
+
+    def __new__(cls, reference: int, response_id: int, axis: int,
+                results: tuple[ParameterResult, ...]) -> "ParameterResponse":
+        return tuple.__new__(cls, (reference, response_id, axis, results if type(results) is tuple else tuple(results)))
 
     @property
     def negative(self) -> bool:
@@ -742,8 +748,7 @@ DESCRIPTION_OFFSETS: dict[int, tuple[int, int]] = {
 }
 
 
-@dataclass(frozen=True)
-class ParameterDescription:
+class ParameterDescription(NamedTuple):
     """The 46-byte PROFIdrive parameter description.
 
     ``identifier`` is the V2 identifier: data type in bits 0..7 plus the ``ID_*``

@@ -11,7 +11,7 @@ Layout: u16 error code (LE), u8 error register (0x1001), 5 manufacturer bytes.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
 
@@ -22,8 +22,7 @@ class EmcyError(CodecError):
     """An emergency frame that does not decode or cannot be encoded."""
 
 
-@dataclass(frozen=True)
-class Emergency:
+class Emergency(NamedTuple):
     """One emergency: CiA 301 error code, error register bits, manufacturer data."""
 
     error_code: int

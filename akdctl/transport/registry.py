@@ -12,8 +12,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from akdctl.errors import UsageError
 from akdctl.transport.target import Target, split_target
@@ -73,8 +72,7 @@ def _is_int(text: str) -> bool:
     return True
 
 
-@dataclass(frozen=True)
-class TransportSpec:
+class TransportSpec(NamedTuple):
     """What the registry knows about a scheme without importing its transport."""
 
     scheme: str
@@ -86,7 +84,7 @@ class TransportSpec:
     requires: tuple[str, ...] = ()
     check: Callable[[Target], None] | None = None
     extra: str = ""
-    notes: tuple[str, ...] = field(default_factory=tuple)
+    notes: tuple[str, ...] = ()
     #: The query keys the transport reads (``drive`` is every target's); None: any key is passed on (can://).
     query: tuple[str, ...] | None = ()
 

@@ -8,23 +8,30 @@ Parsing is pure and cheap: it never imports a transport.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from typing import NamedTuple
 from urllib.parse import parse_qsl, urlsplit
 
 from akdctl.errors import UsageError
 
 
-@dataclass(frozen=True)
-class Target:
-    """A parsed target. ``source`` says where it came from (shown with ``-v``)."""
-
+class _Target(NamedTuple):
     raw: str
     scheme: str
-    host: str = ""
-    port: int | None = None
-    path: str = ""
-    query: dict[str, str] = field(default_factory=dict)
-    source: str = "default"
+    host: str
+    port: int | None
+    path: str
+    query: dict[str, str]
+    source: str
+
+
+class Target(_Target):
+    """A parsed target. ``source`` says where it came from (shown with ``-v``)."""
+
+    __slots__ = ()
+
+    def __new__(cls, raw: str, scheme: str, host: str = "", port: int | None = None, path: str = "",
+                query: dict[str, str] | None = None, source: str = "default") -> "Target":
+        return tuple.__new__(cls, (raw, scheme, host, port, path, {} if query is None else query, source))
 
     @property
     def display(self) -> str:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Literal, TextIO
 
 from akdctl.links import MailboxLink, RecordLink
@@ -28,7 +27,6 @@ from akdctl.links import MailboxLink, RecordLink
 Direction = Literal["tx", "rx"]
 
 
-@dataclass(frozen=True)
 class TraceRecord:
     """One frame as it crossed the link.
 
@@ -37,14 +35,29 @@ class TraceRecord:
     datagram, ``"ecat"`` EtherCAT frame, ``"can"`` CAN frame). ``meta`` carries
     addresses for capture sinks, e.g. ``{"proto": "udp", "src": (ip, port),
     "dst": (ip, port)}`` or ``{"proto": "ethernet", "ethertype": 0x88A4}``.
+    A plain class with slots, compared by value: this module is imported at every start, where a dataclass
+    costs more to define than a command without tracing spends on it.
     """
 
-    time: float
-    direction: Direction
-    layer: str
-    data: bytes
-    note: str = ""
-    meta: dict[str, object] = field(default_factory=dict)
+    __slots__ = ("time", "direction", "layer", "data", "note", "meta")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, time: float, direction: Direction, layer: str, data: bytes, note: str = "",
+                 meta: dict[str, object] | None = None) -> None:
+        self.time = time
+        self.direction = direction
+        self.layer = layer
+        self.data = data
+        self.note = note
+        self.meta: dict[str, object] = {} if meta is None else meta
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return all(getattr(self, name) == getattr(other, name) for name in self.__slots__)
+
+    def __repr__(self) -> str:
+        return f"TraceRecord({', '.join(f'{name}={getattr(self, name)!r}' for name in self.__slots__)})"
 
     def to_json(self) -> dict[str, object]:
         return {
