@@ -23,8 +23,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from akdctl.drive.polling import Poll
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
@@ -43,34 +42,57 @@ from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 
 
-@dataclass
 class AxisStatus:
-    """What the drive reports, decoded. ``word`` is ZSW1 or the statusword."""
+    """What the drive reports, decoded. ``word`` is ZSW1 or the statusword; ``warnings``: the active warnings (number,
+    code, text) when the drive names them (0x2000), empty when it only sets the bit.
 
-    profile: str
-    state: str
-    state_text: str
-    word: int
-    control: int
-    mode: int | None
-    mode_text: str
-    enabled: bool
-    fault: bool
-    warning: bool
-    faults: list[dict[str, Any]] = field(default_factory=list)
-    #: active warnings (number, code, text) when the drive names them (0x2000); empty when it only sets the bit
-    warnings: list[dict[str, Any]] = field(default_factory=list)
-    homed: bool | None = None
-    target_reached: bool = False
-    standstill: bool = True
-    task_ack: bool = False
-    homing_error: bool = False
-    control_honoured: bool | None = None
-    position_rev: float | None = None
-    counts_per_rev: int = 65536
-    velocity_rpm: float | None = None
-    current_pct: float | None = None
-    bits: list[sw.Bit] = field(default_factory=list)
+    A plain class with slots, compared by value (unhashable) like the dataclass it was, JSON through
+    :meth:`to_json`: ``status`` builds one, and defining this module's records as dataclasses cost that command more
+    than reading the drive does."""
+
+    __slots__ = ("profile", "state", "state_text", "word", "control", "mode", "mode_text", "enabled", "fault", "warning",
+                 "faults", "warnings", "homed", "target_reached", "standstill", "task_ack", "homing_error",
+                 "control_honoured", "position_rev", "counts_per_rev", "velocity_rpm", "current_pct", "bits")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, profile: str, state: str, state_text: str, word: int, control: int, mode: int | None,
+                 mode_text: str, enabled: bool, fault: bool, warning: bool,
+                 faults: list[dict[str, Any]] | None = None, warnings: list[dict[str, Any]] | None = None,
+                 homed: bool | None = None, target_reached: bool = False, standstill: bool = True,
+                 task_ack: bool = False, homing_error: bool = False, control_honoured: bool | None = None,
+                 position_rev: float | None = None, counts_per_rev: int = 65536, velocity_rpm: float | None = None,
+                 current_pct: float | None = None, bits: list[sw.Bit] | None = None) -> None:
+        self.profile = profile
+        self.state = state
+        self.state_text = state_text
+        self.word = word
+        self.control = control
+        self.mode = mode
+        self.mode_text = mode_text
+        self.enabled = enabled
+        self.fault = fault
+        self.warning = warning
+        self.faults = [] if faults is None else faults
+        self.warnings = [] if warnings is None else warnings
+        self.homed = homed
+        self.target_reached = target_reached
+        self.standstill = standstill
+        self.task_ack = task_ack
+        self.homing_error = homing_error
+        self.control_honoured = control_honoured
+        self.position_rev = position_rev
+        self.counts_per_rev = counts_per_rev
+        self.velocity_rpm = velocity_rpm
+        self.current_pct = current_pct
+        self.bits = [] if bits is None else bits
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return all(getattr(self, n) == getattr(other, n) for n in self.__slots__)
+
+    def __repr__(self) -> str:
+        return f"AxisStatus({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     @property
     def position_counts(self) -> int | None:
@@ -115,8 +137,7 @@ class AxisStatus:
         }
 
 
-@dataclass(frozen=True)
-class Scale:
+class Scale(NamedTuple):
     """How the drive represents one quantity: ``raw`` integers ``raw_min..raw_max``, each ``step`` ``unit``.
 
     The planner (:mod:`akdctl.drive.motion_plan`) quantises every request on these
@@ -131,8 +152,7 @@ class Scale:
     raw_max: int
 
 
-@dataclass(frozen=True)
-class MotionScales:
+class MotionScales(NamedTuple):
     """The scales of the set points one motion kind writes (velocity, accelerations)."""
 
     velocity: Scale
@@ -140,8 +160,7 @@ class MotionScales:
     decel: Scale
 
 
-@dataclass(frozen=True)
-class MoveSpec:
+class MoveSpec(NamedTuple):
     """A planned point-to-point move in raw drive units (position counts, the profile's velocity/ramp raw values)."""
 
     target_raw: int
@@ -151,8 +170,7 @@ class MoveSpec:
     dec_raw: int
 
 
-@dataclass(frozen=True)
-class JogSpec:
+class JogSpec(NamedTuple):
     """A planned timed jog in raw drive units (signed velocity raw, ramp raws)."""
 
     velocity_raw: int

@@ -34,8 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
 
@@ -51,8 +50,7 @@ UNITS = ("counts", "rev", "deg", "user")
 KINDS = ("enable", "home", "move", "jog", "task")
 
 
-@dataclass(frozen=True)
-class MotionRequest:
+class MotionRequest(NamedTuple):
     """What a command line or a recipe step asks for, in the user's words and units.
 
     ``kind``: enable, home, move (``target``, ``relative``) or jog (``velocity`` signed,
@@ -75,47 +73,96 @@ class MotionRequest:
     task: int | None = None  # kind "task": the stored motion task to start (program mode)
 
 
-@dataclass(frozen=True)
 class Quantity:
-    """One value as requested and as the drive will execute it (``raw`` is what is written)."""
+    """One value as requested and as the drive will execute it (``raw`` is what is written).
 
-    what: str
-    requested: float
-    executed: float
-    raw: int
-    unit: str
-    field_name: str
+    This module's records are a named tuple (:class:`MotionRequest`) and plain classes with slots (compared by
+    value, JSON through ``to_json``), not dataclasses: ``status`` imports this module for its option defaults, and
+    defining dataclasses cost that command more than it spends reading the drive."""
+
+    __slots__ = ("what", "requested", "executed", "raw", "unit", "field_name")
+
+    def __init__(self, what: str, requested: float, executed: float, raw: int, unit: str, field_name: str) -> None:
+        self.what = what
+        self.requested = requested
+        self.executed = executed
+        self.raw = raw
+        self.unit = unit
+        self.field_name = field_name
+
+    def _key(self) -> tuple[Any, ...]:
+        return (self.what, self.requested, self.executed, self.raw, self.unit, self.field_name)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._key() == other._key()  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def __repr__(self) -> str:
+        return f"Quantity({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     def to_json(self) -> dict[str, Any]:
         return {"requested": self.requested, "executed": round(self.executed, 6), "raw": self.raw,
                 "unit": self.unit, "field": self.field_name}
 
 
-@dataclass
 class MotionPlan:
-    """An accepted request: the mode it needs, the raw values to write, the consent text."""
+    """An accepted request: the mode it needs, the raw values to write, the consent text.
 
-    request: MotionRequest
-    profile: str
-    mode_kind: str  # 'velocity', 'position', 'homing' or '' (enable)
-    unit: str = "rev"
-    velocity: Quantity | None = None
-    accel: Quantity | None = None
-    decel: Quantity | None = None
-    target_raw: int | None = None  # position counts written (absolute target or relative distance)
-    move_rev: float | None = None  # the same in revolutions
-    start_rev: float | None = None
-    end_rev: float | None = None
-    duration_s: float | None = None
-    deadline_s: float = 0.0
-    needs_homed: bool = False
-    homed: bool | None = None  # as read before consent (None: only visible after the mode switch)
-    mode_text: str = ""
-    notes: list[str] = field(default_factory=list)
-    limits: dict[str, Any] = field(default_factory=dict)  # the profile's, for the re-check under the owner lock
-    #: Checks that can only read by writing (a stored task is read through MT.LOAD): run after consent, before
-    #: anything is enabled or moved; they refuse like the planner (kind "task").
-    after_consent: Callable[[], None] | None = field(default=None, repr=False)
+    ``mode_kind``: 'velocity', 'position', 'homing' or '' (enable); ``target_raw``: position counts written
+    (absolute target or relative distance), ``move_rev`` the same in revolutions; ``homed`` as read before consent
+    (None: only visible after the mode switch); ``limits`` the profile's, for the re-check under the owner lock;
+    ``after_consent``: checks that can only read by writing (a stored task is read through MT.LOAD), run after
+    consent, before anything is enabled or moved; they refuse like the planner (kind "task").
+    Mutable, compared by value (unhashable), as the dataclass it was.
+    """
+
+    __slots__ = ("request", "profile", "mode_kind", "unit", "velocity", "accel", "decel", "target_raw", "move_rev",
+                 "start_rev", "end_rev", "duration_s", "deadline_s", "needs_homed", "homed", "mode_text", "notes",
+                 "limits", "after_consent")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, request: MotionRequest, profile: str, mode_kind: str, unit: str = "rev",
+                 velocity: Quantity | None = None, accel: Quantity | None = None, decel: Quantity | None = None,
+                 target_raw: int | None = None, move_rev: float | None = None, start_rev: float | None = None,
+                 end_rev: float | None = None, duration_s: float | None = None, deadline_s: float = 0.0,
+                 needs_homed: bool = False, homed: bool | None = None, mode_text: str = "",
+                 notes: list[str] | None = None, limits: dict[str, Any] | None = None,
+                 after_consent: Callable[[], None] | None = None) -> None:
+        self.request = request
+        self.profile = profile
+        self.mode_kind = mode_kind
+        self.unit = unit
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
+        self.target_raw = target_raw
+        self.move_rev = move_rev
+        self.start_rev = start_rev
+        self.end_rev = end_rev
+        self.duration_s = duration_s
+        self.deadline_s = deadline_s
+        self.needs_homed = needs_homed
+        self.homed = homed
+        self.mode_text = mode_text
+        self.notes: list[str] = [] if notes is None else notes
+        self.limits: dict[str, Any] = {} if limits is None else limits
+        self.after_consent = after_consent
+
+    def _key(self) -> tuple[Any, ...]:
+        return tuple(getattr(self, name) for name in self.__slots__)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._key() == other._key()  # type: ignore[attr-defined]
+
+    def __repr__(self) -> str:
+        shown = (n for n in self.__slots__ if n != "after_consent")
+        return f"MotionPlan({', '.join(f'{n}={getattr(self, n)!r}' for n in shown)})"
 
     @property
     def what(self) -> str:

@@ -7,7 +7,7 @@ the user names) is :mod:`akdctl.drive.values`.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from akdctl.errors import UsageError
 
@@ -16,8 +16,7 @@ __all__ = ["ObjectAddress", "parse_address"]
 _ADDRESS = re.compile(r"^\s*(?P<index>0[xX][0-9A-Fa-f]{1,4}|[0-9A-Fa-f]{1,4}[hH]|\d+)\s*(?:[:.](?P<sub>0[xX][0-9A-Fa-f]{1,2}|\d+))?\s*$")
 
 
-@dataclass(frozen=True)
-class ObjectAddress:
+class ObjectAddress(NamedTuple):
     index: int
     subindex: int
 

@@ -29,7 +29,7 @@ Every malformed input raises :class:`BmpError` (a
 from __future__ import annotations
 
 import struct
-from enum import IntEnum
+from collections.abc import Iterator
 from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
@@ -100,8 +100,19 @@ class BmpError(CodecError):
     """A base-mode parameter block that does not decode, or an object that cannot be encoded."""
 
 
-class Format(IntEnum):
-    """Format byte of a value block; the standard data types double as description data types."""
+class _Formats(type):
+    """Iterating :class:`Format` yields its values in order, as iterating the enum it was did."""
+
+    def __iter__(cls) -> Iterator[int]:
+        return iter(cls._values)  # type: ignore[attr-defined]
+
+
+class Format(metaclass=_Formats):
+    """Format byte of a value block; the standard data types double as description data types.
+
+    Plain integer constants (``Format.INT16 == 3``; ``for f in Format`` yields the values, :func:`format_name` the
+    names): an enum of 36 members costs more to create at every start than a command spends on its parameters.
+    """
 
     BOOLEAN = 0x01
     INT8 = 0x02
@@ -141,6 +152,9 @@ class Format(IntEnum):
     X2 = 123
     X4 = 124
 
+
+Format._values = tuple(value for name, value in vars(Format).items() if name.isupper())  # type: ignore[attr-defined]
+_FORMAT_NAMES = {value: name for name, value in vars(Format).items() if name.isupper()}
 
 # struct code per numeric format; the byte count follows from it.
 _STRUCT: dict[int, str] = {
@@ -192,10 +206,8 @@ _SIZES: dict[int, int] = {int(f): _format_size(f) for f in Format}
 
 def format_name(fmt: int) -> str:
     """Readable name of a format byte, also for reserved ones."""
-    try:
-        return Format(fmt).name
-    except ValueError:
-        return f"format 0x{fmt:02X}"
+    name = _FORMAT_NAMES.get(fmt)
+    return name if name is not None else f"format 0x{fmt:02X}"
 
 
 def to_signed(value: int, bits: int) -> int:

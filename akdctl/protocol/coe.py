@@ -22,8 +22,7 @@ module hands out on first use (an upload never loads it).
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
-from enum import IntEnum
+from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
 
@@ -32,8 +31,9 @@ class CoeError(CodecError):
     """A CoE header, SDO or SDO-information payload that does not decode or encode."""
 
 
-class CoeService(IntEnum):
-    """CoE header service field (bits 12-15)."""
+class CoeService:
+    """CoE header service field (bits 12-15), as plain integer constants (an enum costs more to create at every
+    start than it gives)."""
 
     EMERGENCY = 1
     SDO_REQUEST = 2
@@ -44,6 +44,9 @@ class CoeService(IntEnum):
     RXPDO_RR = 7
     SDO_INFO = 8
 
+
+#: Every service a CoE header may name.
+SERVICES = frozenset(value for name, value in vars(CoeService).items() if name.isupper())
 
 COE_HEADER_SIZE = 2
 SDO_SIZE = 8  # a CiA 301 SDO frame; CoE frames are at least this long
@@ -75,17 +78,15 @@ def upload_request(index: int, subindex: int) -> bytes:
         raise CoeError(f"SDO index {index!r} / subindex {subindex!r} out of range") from None
 
 
-def decode_coe(data: bytes) -> tuple[CoeService, int, bytes]:
+def decode_coe(data: bytes) -> tuple[int, int, bytes]:
     """Split a CoE mailbox's data into (service, number, payload); unknown services raise."""
     data = bytes(data)
     if len(data) < COE_HEADER_SIZE:
         raise CoeError(f"CoE data of {len(data)} bytes is shorter than its 2-byte header")
     (header,) = struct.unpack_from("<H", data)
-    raw = header >> 12
-    try:
-        service = CoeService(raw)
-    except ValueError:
-        raise CoeError(f"unknown CoE service {raw}") from None
+    service = header >> 12
+    if service not in SERVICES:
+        raise CoeError(f"unknown CoE service {service}")
     return service, header & 0x1FF, data[COE_HEADER_SIZE:]
 
 
@@ -106,8 +107,7 @@ ABORT_GENERAL = 0x08000000
 # --- SDO messages ----------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class SdoDownloadInitiate:
+class SdoDownloadInitiate(NamedTuple):
     """Client: start a write. Expedited carries 1..4 bytes in the frame; normal carries
     the total ``size`` then the first ``data`` bytes (the rest follows in segments)."""
 
@@ -119,16 +119,14 @@ class SdoDownloadInitiate:
     complete_access: bool = False
 
 
-@dataclass(frozen=True)
-class SdoDownloadResponse:
+class SdoDownloadResponse(NamedTuple):
     """Server: the initiate download was accepted."""
 
     index: int
     subindex: int
 
 
-@dataclass(frozen=True)
-class SdoDownloadSegment:
+class SdoDownloadSegment(NamedTuple):
     """Client: the next part of a segmented write."""
 
     toggle: int
@@ -136,15 +134,13 @@ class SdoDownloadSegment:
     last: bool
 
 
-@dataclass(frozen=True)
-class SdoDownloadSegmentResponse:
+class SdoDownloadSegmentResponse(NamedTuple):
     """Server: the segment with this toggle was accepted."""
 
     toggle: int
 
 
-@dataclass(frozen=True)
-class SdoUploadInitiate:
+class SdoUploadInitiate(NamedTuple):
     """Client: start a read."""
 
     index: int
@@ -152,8 +148,7 @@ class SdoUploadInitiate:
     complete_access: bool = False
 
 
-@dataclass(frozen=True)
-class SdoUploadResponse:
+class SdoUploadResponse(NamedTuple):
     """Server: the value (expedited, ``size`` = 1..4 or None) or its total ``size`` and
     the first ``data`` bytes (normal; segments follow when ``len(data) < size``)."""
 
@@ -164,15 +159,13 @@ class SdoUploadResponse:
     expedited: bool
 
 
-@dataclass(frozen=True)
-class SdoUploadSegment:
+class SdoUploadSegment(NamedTuple):
     """Client: request the next segment of a segmented read."""
 
     toggle: int
 
 
-@dataclass(frozen=True)
-class SdoUploadSegmentResponse:
+class SdoUploadSegmentResponse(NamedTuple):
     """Server: the next part of a segmented read."""
 
     toggle: int
@@ -180,8 +173,7 @@ class SdoUploadSegmentResponse:
     last: bool
 
 
-@dataclass(frozen=True)
-class SdoAbort:
+class SdoAbort(NamedTuple):
     """Either side: abort the transfer of ``index:subindex`` with an abort code."""
 
     index: int
@@ -200,6 +192,24 @@ SdoMessage = (
     | SdoUploadSegmentResponse
     | SdoAbort
 )
+
+
+
+def _same_kind_eq(self: tuple, other: object) -> bool:
+    return other.__class__ is self.__class__ and tuple.__eq__(self, other)  # type: ignore[arg-type]
+
+
+def _same_kind_ne(self: tuple, other: object) -> bool:
+    return not _same_kind_eq(self, other)
+
+
+# Named tuples compare as tuples, so a client's and a server's message of the same shape (SdoUploadSegment(1) and
+# SdoDownloadSegmentResponse(1)) would be equal: messages of different kinds never are, as for the dataclasses they
+# were (hashing stays the tuple's).
+for _kind in SdoMessage.__args__:  # type: ignore[attr-defined]
+    _kind.__eq__ = _same_kind_eq  # type: ignore[method-assign,assignment]
+    _kind.__ne__ = _same_kind_ne  # type: ignore[method-assign,assignment]
+del _kind
 
 SERVER_MESSAGES = (SdoDownloadResponse, SdoDownloadSegmentResponse, SdoUploadResponse, SdoUploadSegmentResponse)
 CLIENT_MESSAGES = (SdoDownloadInitiate, SdoDownloadSegment, SdoUploadInitiate, SdoUploadSegment)
