@@ -96,14 +96,32 @@ def _parse_default(text: str) -> int | None:
 
 
 @cache
-def _lines() -> tuple[list[str], dict[int, list[str]]]:
-    """(column names, the table's lines per object index in file order): text only, so finding one object's lines
-    costs one pass over the file and building its entries waits until the object is asked for."""
+def _text() -> str:
     from akdctl.catalog import data_text
 
+    return data_text("objects.tsv")
+
+
+@cache
+def _header() -> list[str]:
+    """The table's column names (its first line that is not a comment)."""
+    text, start = _text(), 0
+    while start < len(text):
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end
+        if end > start and text[start] != "#":
+            return text[start:end].split("\t")
+        start = end + 1
+    return []
+
+
+@cache
+def _lines() -> tuple[list[str], dict[int, list[str]]]:
+    """(column names, the table's lines per object index in file order): the whole table as text, for listing and
+    searching; one object's lines are found without it (:func:`_object_lines`)."""
     header: list[str] = []
     grouped: dict[int, list[str]] = {}
-    for line in data_text("objects.tsv").splitlines():
+    for line in _text().splitlines():
         if not line or line[0] == "#":
             continue
         if not header:
@@ -113,30 +131,48 @@ def _lines() -> tuple[list[str], dict[int, list[str]]]:
     return header, grouped
 
 
+def _object_lines(index: int) -> list[str] | None:
+    """One object's lines, found by searching the text for its index: ``tools/gen_objects.py`` writes the index as
+    ``0x%04X`` and sorts the rows by index and subindex, so an object's rows are one block (a test checks this
+    against :func:`_lines`). A command that needs a few objects (the simulator's PDO defaults, ``sdo read``) never
+    splits the whole table."""
+    text = _text()
+    key = f"\n0x{index:04X}\t"
+    start = text.find(key)
+    if start < 0:
+        return None
+    lines = []
+    while True:
+        end = text.find("\n", start + 1)
+        lines.append(text[start + 1:end if end >= 0 else len(text)])
+        if end < 0 or not text.startswith(key, end):
+            return lines
+        start = end
+
+
 @cache
 def _object(index: int) -> tuple[list[ObjectEntry], str] | None:
     """One object's entries in sub-index order and its own name, built on first use; None if no such object."""
-    header, grouped = _lines()
-    lines = grouped.get(index)
+    if not isinstance(index, int) or not 0 <= index <= 0xFFFF:
+        return None
+    lines = _object_lines(index)
     if lines is None:
         return None
+    header = _header()
+    width = len(header)
+    # Column positions; a column the table lacks reads as the empty cell appended after each row's cells.
+    sub, nm, typ, bits, access, pdo, default, param, obj = (
+        header.index(column) if column in header else width
+        for column in ("subindex", "name", "type", "bits", "access", "pdo", "default", "param", "object"))
     subs: list[ObjectEntry] = []
     name = ""
     for line in lines:
-        row = dict(zip(header, line.split("\t")))
-        entry = ObjectEntry(
-            index=index,
-            subindex=int(row["subindex"]),
-            name=row["name"],
-            type=row["type"],
-            bits=int(row["bits"]),
-            access=row["access"],
-            pdo=row["pdo"],
-            default=_parse_default(row.get("default", "")),
-            param=row.get("param", ""),
-        )
+        cells = line.split("\t")
+        cells += [""] * (width + 1 - len(cells))
+        entry = ObjectEntry(index, int(cells[sub]), cells[nm], cells[typ], int(cells[bits]), cells[access], cells[pdo],
+                            _parse_default(cells[default]), cells[param])
         subs.append(entry)
-        name = name or row.get("object") or entry.name
+        name = name or cells[obj] or entry.name
     subs.sort(key=lambda e: e.subindex)
     return subs, name
 
