@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar
+
+from akdctl.protocol.record import Record
 
 
 class Deadline:
@@ -205,19 +207,25 @@ class MessageLink(ABC):
     def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
 
 
-class CanopenSdoClient(NamedTuple):
+class CanopenSdoClient(Record):
     """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives."""
 
-    node: Any
-    where: str
-    block: bool = False
+    __slots__ = ("node", "where", "block")
+
+    def __init__(self, node: Any, where: str, block: bool = False) -> None:
+        self.node = node
+        self.where = where
+        self.block = block
 
 
-class SoemSdoClient(NamedTuple):
+class SoemSdoClient(Record):
     """A pysoem slave whose ``sdo_read``/``sdo_write`` the SOEM adapter channel drives."""
 
-    slave: Any
-    where: str
+    __slots__ = ("slave", "where")
+
+    def __init__(self, slave: Any, where: str) -> None:
+        self.slave = slave
+        self.where = where
 
 
 NativeSdoClient = CanopenSdoClient | SoemSdoClient

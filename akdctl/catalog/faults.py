@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import re
 from functools import cache
-from typing import NamedTuple
+
+from akdctl.protocol.record import Record
 
 __all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text", "where_to_look"]
 
 
-class Fault(NamedTuple):
+class Fault(Record):
     """One AKD fault or warning.
 
     code: 'F501' / 'n503' ('' for the generic EMCY entries without an AKD number);
@@ -27,14 +28,18 @@ class Fault(NamedTuple):
     emergency error code; reaction/remedy: '' when no public source gives them.
     """
 
-    code: str
-    number: int | None
-    kind: str
-    emcy: int
-    name: str
-    reaction: str = ""
-    remedy: str = ""
-    source: str = ""
+    __slots__ = ("code", "number", "kind", "emcy", "name", "reaction", "remedy", "source")
+
+    def __init__(self, code: str, number: int | None, kind: str, emcy: int, name: str, reaction: str = "",
+                 remedy: str = "", source: str = "") -> None:
+        self.code = code
+        self.number = number
+        self.kind = kind
+        self.emcy = emcy
+        self.name = name
+        self.reaction = reaction
+        self.remedy = remedy
+        self.source = source
 
     @property
     def is_warning(self) -> bool:

@@ -24,28 +24,26 @@ import sys
 from collections.abc import Callable
 from typing import Any, TextIO
 
+from akdctl.protocol.record import Record
 
-class Table:
+
+class Table(Record):
     """A table of a document: column names, rows of cells, an optional title."""
 
     __slots__ = ("columns", "rows", "title")
+    __hash__ = None  # type: ignore[assignment]
 
     def __init__(self, columns: list[str], rows: list[list[Any]], title: str = "") -> None:
         self.columns = columns
         self.rows = rows
         self.title = title
 
-    def __repr__(self) -> str:
-        return f"Table(columns={self.columns!r}, rows={self.rows!r}, title={self.title!r})"
 
-
-class Doc:
-    """A human-readable result. ``source`` names the target it came from.
-
-    Plain classes with slots, not dataclasses: every command that prints builds one, and defining a dataclass
-    costs more at start-up than rendering the result."""
+class Doc(Record):
+    """A human-readable result. ``source`` names the target it came from."""
 
     __slots__ = ("title", "source", "pairs", "tables", "lines")
+    __hash__ = None  # type: ignore[assignment]
 
     def __init__(self, title: str = "", source: str = "", pairs: list[tuple[str, Any]] | None = None,
                  tables: list[Table] | None = None, lines: list[str] | None = None) -> None:
@@ -54,10 +52,6 @@ class Doc:
         self.pairs: list[tuple[str, Any]] = [] if pairs is None else pairs
         self.tables: list[Table] = [] if tables is None else tables
         self.lines: list[str] = [] if lines is None else lines
-
-    def __repr__(self) -> str:
-        return (f"Doc(title={self.title!r}, source={self.source!r}, pairs={self.pairs!r}, tables={self.tables!r}, "
-                f"lines={self.lines!r})")
 
     def kv(self, key: str, value: Any) -> "Doc":
         self.pairs.append((key, value))

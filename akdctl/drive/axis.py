@@ -23,7 +23,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.polling import Poll
 from akdctl.drive.values import read_object, read_pnu_map, write_object, write_pnu_map
@@ -40,15 +40,12 @@ from akdctl.errors import (
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
+from akdctl.protocol.record import Record
 
 
-class AxisStatus:
+class AxisStatus(Record):
     """What the drive reports, decoded. ``word`` is ZSW1 or the statusword; ``warnings``: the active warnings (number,
-    code, text) when the drive names them (0x2000), empty when it only sets the bit.
-
-    A plain class with slots, compared by value (unhashable) like the dataclass it was, JSON through
-    :meth:`to_json`: ``status`` builds one, and defining this module's records as dataclasses cost that command more
-    than reading the drive does."""
+    code, text) when the drive names them (0x2000), empty when it only sets the bit. Mutable, unhashable."""
 
     __slots__ = ("profile", "state", "state_text", "word", "control", "mode", "mode_text", "enabled", "fault", "warning",
                  "faults", "warnings", "homed", "target_reached", "standstill", "task_ack", "homing_error",
@@ -85,14 +82,6 @@ class AxisStatus:
         self.velocity_rpm = velocity_rpm
         self.current_pct = current_pct
         self.bits = [] if bits is None else bits
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return all(getattr(self, n) == getattr(other, n) for n in self.__slots__)
-
-    def __repr__(self) -> str:
-        return f"AxisStatus({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     @property
     def position_counts(self) -> int | None:
@@ -137,7 +126,7 @@ class AxisStatus:
         }
 
 
-class Scale(NamedTuple):
+class Scale(Record):
     """How the drive represents one quantity: ``raw`` integers ``raw_min..raw_max``, each ``step`` ``unit``.
 
     The planner (:mod:`akdctl.drive.motion_plan`) quantises every request on these
@@ -145,37 +134,49 @@ class Scale(NamedTuple):
     integers it is handed and converts nothing itself.
     """
 
-    name: str
-    unit: str
-    step: float
-    raw_min: int
-    raw_max: int
+    __slots__ = ("name", "unit", "step", "raw_min", "raw_max")
+
+    def __init__(self, name: str, unit: str, step: float, raw_min: int, raw_max: int) -> None:
+        self.name = name
+        self.unit = unit
+        self.step = step
+        self.raw_min = raw_min
+        self.raw_max = raw_max
 
 
-class MotionScales(NamedTuple):
+class MotionScales(Record):
     """The scales of the set points one motion kind writes (velocity, accelerations)."""
 
-    velocity: Scale
-    accel: Scale
-    decel: Scale
+    __slots__ = ("velocity", "accel", "decel")
+
+    def __init__(self, velocity: Scale, accel: Scale, decel: Scale) -> None:
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
 
 
-class MoveSpec(NamedTuple):
+class MoveSpec(Record):
     """A planned point-to-point move in raw drive units (position counts, the profile's velocity/ramp raw values)."""
 
-    target_raw: int
-    relative: bool
-    velocity_raw: int
-    acc_raw: int
-    dec_raw: int
+    __slots__ = ("target_raw", "relative", "velocity_raw", "acc_raw", "dec_raw")
+
+    def __init__(self, target_raw: int, relative: bool, velocity_raw: int, acc_raw: int, dec_raw: int) -> None:
+        self.target_raw = target_raw
+        self.relative = relative
+        self.velocity_raw = velocity_raw
+        self.acc_raw = acc_raw
+        self.dec_raw = dec_raw
 
 
-class JogSpec(NamedTuple):
+class JogSpec(Record):
     """A planned timed jog in raw drive units (signed velocity raw, ramp raws)."""
 
-    velocity_raw: int
-    acc_raw: int
-    dec_raw: int
+    __slots__ = ("velocity_raw", "acc_raw", "dec_raw")
+
+    def __init__(self, velocity_raw: int, acc_raw: int, dec_raw: int) -> None:
+        self.velocity_raw = velocity_raw
+        self.acc_raw = acc_raw
+        self.dec_raw = dec_raw
 
 
 def _fault_entries(numbers: list[int], *, warning: bool = False) -> list[dict[str, Any]]:

@@ -34,9 +34,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
+from akdctl.protocol.record import Record
 
 #: A request within this fraction above a representable value is executed as that value.
 REL_TOL = 0.02
@@ -50,7 +51,7 @@ UNITS = ("counts", "rev", "deg", "user")
 KINDS = ("enable", "home", "move", "jog", "task")
 
 
-class MotionRequest(NamedTuple):
+class MotionRequest(Record):
     """What a command line or a recipe step asks for, in the user's words and units.
 
     ``kind``: enable, home, move (``target``, ``relative``) or jog (``velocity`` signed,
@@ -59,26 +60,29 @@ class MotionRequest(NamedTuple):
     ``accel`` / ``decel`` None mean the defaults.
     """
 
-    kind: str
-    target: float | None = None
-    relative: bool = False
-    velocity: float | None = None
-    accel: float | None = None
-    decel: float | None = None
-    unit: str | None = None
-    duration_s: float | None = None
-    distance: float | None = None
-    home_mode: int | None = None
-    timeout_s: float | None = None
-    task: int | None = None  # kind "task": the stored motion task to start (program mode)
+    __slots__ = ("kind", "target", "relative", "velocity", "accel", "decel", "unit", "duration_s", "distance",
+                 "home_mode", "timeout_s", "task")
+
+    def __init__(self, kind: str, target: float | None = None, relative: bool = False, velocity: float | None = None,
+                 accel: float | None = None, decel: float | None = None, unit: str | None = None,
+                 duration_s: float | None = None, distance: float | None = None, home_mode: int | None = None,
+                 timeout_s: float | None = None, task: int | None = None) -> None:
+        self.kind = kind
+        self.target = target
+        self.relative = relative
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
+        self.unit = unit
+        self.duration_s = duration_s
+        self.distance = distance
+        self.home_mode = home_mode
+        self.timeout_s = timeout_s
+        self.task = task  # kind "task": the stored motion task to start (program mode)
 
 
-class Quantity:
-    """One value as requested and as the drive will execute it (``raw`` is what is written).
-
-    This module's records are a named tuple (:class:`MotionRequest`) and plain classes with slots (compared by
-    value, JSON through ``to_json``), not dataclasses: ``status`` imports this module for its option defaults, and
-    defining dataclasses cost that command more than it spends reading the drive."""
+class Quantity(Record):
+    """One value as requested and as the drive will execute it (``raw`` is what is written)."""
 
     __slots__ = ("what", "requested", "executed", "raw", "unit", "field_name")
 
@@ -90,26 +94,13 @@ class Quantity:
         self.unit = unit
         self.field_name = field_name
 
-    def _key(self) -> tuple[Any, ...]:
-        return (self.what, self.requested, self.executed, self.raw, self.unit, self.field_name)
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return self._key() == other._key()  # type: ignore[attr-defined]
-
-    def __hash__(self) -> int:
-        return hash(self._key())
-
-    def __repr__(self) -> str:
-        return f"Quantity({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     def to_json(self) -> dict[str, Any]:
         return {"requested": self.requested, "executed": round(self.executed, 6), "raw": self.raw,
                 "unit": self.unit, "field": self.field_name}
 
 
-class MotionPlan:
+class MotionPlan(Record):
     """An accepted request: the mode it needs, the raw values to write, the consent text.
 
     ``mode_kind``: 'velocity', 'position', 'homing' or '' (enable); ``target_raw``: position counts written
@@ -117,7 +108,7 @@ class MotionPlan:
     (None: only visible after the mode switch); ``limits`` the profile's, for the re-check under the owner lock;
     ``after_consent``: checks that can only read by writing (a stored task is read through MT.LOAD), run after
     consent, before anything is enabled or moved; they refuse like the planner (kind "task").
-    Mutable, compared by value (unhashable), as the dataclass it was.
+    Mutable, compared by value, unhashable.
     """
 
     __slots__ = ("request", "profile", "mode_kind", "unit", "velocity", "accel", "decel", "target_raw", "move_rev",
@@ -151,14 +142,6 @@ class MotionPlan:
         self.notes: list[str] = [] if notes is None else notes
         self.limits: dict[str, Any] = {} if limits is None else limits
         self.after_consent = after_consent
-
-    def _key(self) -> tuple[Any, ...]:
-        return tuple(getattr(self, name) for name in self.__slots__)
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return self._key() == other._key()  # type: ignore[attr-defined]
 
     def __repr__(self) -> str:
         shown = (n for n in self.__slots__ if n != "after_consent")

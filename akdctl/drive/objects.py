@@ -7,18 +7,21 @@ the user names) is :mod:`akdctl.drive.values`.
 from __future__ import annotations
 
 import re
-from typing import NamedTuple
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 
 __all__ = ["ObjectAddress", "parse_address"]
 
 _ADDRESS = re.compile(r"^\s*(?P<index>0[xX][0-9A-Fa-f]{1,4}|[0-9A-Fa-f]{1,4}[hH]|\d+)\s*(?:[:.](?P<sub>0[xX][0-9A-Fa-f]{1,2}|\d+))?\s*$")
 
 
-class ObjectAddress(NamedTuple):
-    index: int
-    subindex: int
+class ObjectAddress(Record):
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
     @property
     def label(self) -> str:

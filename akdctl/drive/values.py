@@ -26,11 +26,12 @@ sent; decoding a reply that does not fit its type is a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.catalog.texts import profidrive_error_phrase
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
+from akdctl.protocol.record import Record
 
 #: What a snapshot or recipe holds for one object or PNU.
 Value = int | float | str | list[int]
@@ -73,9 +74,12 @@ def resolve_type(address: Any, type_name: str | None) -> tuple[str, Any]:
     return entry.short_type, entry
 
 
-class _Address(NamedTuple):
-    index: int
-    subindex: int
+class _Address(Record):
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
 
 def object_type(index: int, subindex: int) -> str:
@@ -241,13 +245,16 @@ def encode_object(entry: Any, value: Any) -> bytes:
 
 
 # ====================================================================== PNUs (PROFIdrive parameters)
-class PnuSpec(NamedTuple):
+class PnuSpec(Record):
     """An address the user asked for: PNU, first element, number of elements."""
 
-    pnu: int
-    subindex: int
-    count: int
-    info: PnuInfo | None
+    __slots__ = ("pnu", "subindex", "count", "info")
+
+    def __init__(self, pnu: int, subindex: int, count: int, info: PnuInfo | None) -> None:
+        self.pnu = pnu
+        self.subindex = subindex
+        self.count = count
+        self.info = info
 
     @property
     def label(self) -> str:
@@ -258,11 +265,8 @@ class PnuSpec(NamedTuple):
         return f"{self.pnu}[{self.subindex}..{self.subindex + self.count - 1}]"
 
 
-class PnuReading:
-    """One requested address and what came back: values (signed per type) or a failure.
-
-    A plain class with slots (mutable, compared by value like the dataclass it was, unhashable): created on every
-    ``pnu`` command's cold path, where a dataclass costs more to define than the command spends reading."""
+class PnuReading(Record):
+    """One requested address and what came back: values (signed per type) or a failure (mutable, unhashable)."""
 
     __slots__ = ("spec", "values", "raw", "format", "error", "error_text", "additional")
     __hash__ = None  # type: ignore[assignment]
@@ -278,16 +282,6 @@ class PnuReading:
         self.error_text = error_text
         self.additional = additional
 
-    def _key(self) -> tuple[Any, ...]:
-        return tuple(getattr(self, name) for name in self.__slots__)
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return self._key() == other._key()  # type: ignore[attr-defined]
-
-    def __repr__(self) -> str:
-        return f"PnuReading({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
 
     @property
     def ok(self) -> bool:

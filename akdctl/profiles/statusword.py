@@ -10,6 +10,8 @@ mode-specific bits for profile position and homing).
 
 from __future__ import annotations
 
+from akdctl.protocol.record import Record
+
 # ---------------------------------------------------------------- PROFIdrive STW1 (PNU 1)
 STW1_ON = 1 << 0
 STW1_NO_COAST_STOP = 1 << 1
@@ -161,11 +163,8 @@ PD_STATES = {
 }
 
 
-class Bit:
-    """One bit of a word: number, meaning, and whether it is set.
-
-    A plain class with slots, compared and hashed by value (the simulator imports this module at every start, where
-    a dataclass costs more to define than a command spends on its bits); JSON through :meth:`to_json`."""
+class Bit(Record):
+    """One bit of a word: number, meaning, and whether it is set (JSON through :meth:`to_json`)."""
 
     __slots__ = ("number", "name", "set")
 
@@ -174,16 +173,6 @@ class Bit:
         self.name = name
         self.set = set
 
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return (self.number, self.name, self.set) == (other.number, other.name, other.set)  # type: ignore[attr-defined]
-
-    def __hash__(self) -> int:
-        return hash((self.number, self.name, self.set))
-
-    def __repr__(self) -> str:
-        return f"Bit(number={self.number!r}, name={self.name!r}, set={self.set!r})"
 
     def to_json(self) -> dict[str, object]:
         return {"bit": self.number, "name": self.name, "set": self.set}

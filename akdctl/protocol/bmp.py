@@ -30,9 +30,9 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterator
-from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 # --- field values ---------------------------------------------------------------------------------------------
 
@@ -231,13 +231,16 @@ def _pad(n: int) -> int:
 Scalar = int | float | bytes | str
 
 
-class ParameterAddress(NamedTuple):
+class ParameterAddress(Record):
     """One parameter in a request: ``count`` elements from ``subindex`` on, of one attribute."""
 
-    pnu: int
-    subindex: int = 0
-    count: int = 1
-    attribute: int = ATTR_VALUE
+    __slots__ = ("pnu", "subindex", "count", "attribute")
+
+    def __init__(self, pnu: int, subindex: int = 0, count: int = 1, attribute: int = ATTR_VALUE) -> None:
+        self.pnu = pnu
+        self.subindex = subindex
+        self.count = count
+        self.attribute = attribute
 
     def __str__(self) -> str:
         attr = {ATTR_VALUE: "", ATTR_DESCRIPTION: " description", ATTR_TEXT: " text"}.get(
@@ -246,12 +249,7 @@ class ParameterAddress(NamedTuple):
         return f"PNU {self.pnu}{span}{attr}"
 
 
-class _ParameterValue(NamedTuple):
-    format: int
-    values: tuple[Scalar, ...]
-
-
-class ParameterValue(_ParameterValue):
+class ParameterValue(Record):
     """The values of one parameter, in one wire format.
 
     Numeric formats hold one python number per element. The string formats
@@ -261,10 +259,11 @@ class ParameterValue(_ParameterValue):
     unsigned: use :func:`to_signed` when the parameter is signed.
     """
 
-    __slots__ = ()
+    __slots__ = ("format", "values")
 
-    def __new__(cls, format: int, values: tuple[Scalar, ...]) -> "ParameterValue":  # noqa: A002
-        return tuple.__new__(cls, (format, values if type(values) is tuple else tuple(values)))
+    def __init__(self, format: int, values: tuple[Scalar, ...]) -> None:  # noqa: A002
+        self.format = format
+        self.values = values if type(values) is tuple else tuple(values)
 
     @property
     def count(self) -> int:
@@ -288,55 +287,47 @@ class ParameterValue(_ParameterValue):
         return cls(fmt, tuple(values))
 
 
-class ParameterFailure(NamedTuple):
+class ParameterFailure(Record):
     """A negative per-parameter result: PROFIdrive error value and optional additional info.
 
     Codes only: the words are :func:`akdctl.catalog.texts.profidrive_error_text` and
     :func:`~akdctl.catalog.texts.profidrive_failure_detail`.
     """
 
-    error: int
-    additional: int | None = None
+    __slots__ = ("error", "additional")
+
+    def __init__(self, error: int, additional: int | None = None) -> None:
+        self.error = error
+        self.additional = additional
 
 
 ParameterResult = ParameterValue | ParameterFailure | None
 
 
-class _ParameterRequest(NamedTuple):
-    reference: int
-    request_id: int
-    axis: int
-    addresses: tuple[ParameterAddress, ...]
-    values: tuple[ParameterValue, ...] = ()
-
-
-class ParameterRequest(_ParameterRequest):
+class ParameterRequest(Record):
     """A read (``REQ_READ``) or change (``REQ_CHANGE``) request; ``values`` only for changes, one per address."""
 
-    __slots__ = ()
+    __slots__ = ("reference", "request_id", "axis", "addresses", "values")
 
-    def __new__(cls, reference: int, request_id: int, axis: int, addresses: tuple[ParameterAddress, ...],
-                values: tuple[ParameterValue, ...] = ()) -> "ParameterRequest":
-        return tuple.__new__(cls, (reference, request_id, axis,
-                                   addresses if type(addresses) is tuple else tuple(addresses),
-                                   values if type(values) is tuple else tuple(values)))
-
-
-class _ParameterResponse(NamedTuple):
-    reference: int
-    response_id: int
-    axis: int
-    results: tuple[ParameterResult, ...]
+    def __init__(self, reference: int, request_id: int, axis: int, addresses: tuple[ParameterAddress, ...],
+                 values: tuple[ParameterValue, ...] = ()) -> None:
+        self.reference = reference
+        self.request_id = request_id
+        self.axis = axis
+        self.addresses = addresses if type(addresses) is tuple else tuple(addresses)
+        self.values = values if type(values) is tuple else tuple(values)
 
 
-class ParameterResponse(_ParameterResponse):
+class ParameterResponse(Record):
     """A response: one result per parameter (``None`` = accepted change, no values)."""
 
-    __slots__ = ()
+    __slots__ = ("reference", "response_id", "axis", "results")
 
-    def __new__(cls, reference: int, response_id: int, axis: int,
-                results: tuple[ParameterResult, ...]) -> "ParameterResponse":
-        return tuple.__new__(cls, (reference, response_id, axis, results if type(results) is tuple else tuple(results)))
+    def __init__(self, reference: int, response_id: int, axis: int, results: tuple[ParameterResult, ...]) -> None:
+        self.reference = reference
+        self.response_id = response_id
+        self.axis = axis
+        self.results = results if type(results) is tuple else tuple(results)
 
     @property
     def negative(self) -> bool:
@@ -760,7 +751,7 @@ DESCRIPTION_OFFSETS: dict[int, tuple[int, int]] = {
 }
 
 
-class ParameterDescription(NamedTuple):
+class ParameterDescription(Record):
     """The 46-byte PROFIdrive parameter description.
 
     ``identifier`` is the V2 identifier: data type in bits 0..7 plus the ``ID_*``
@@ -768,16 +759,23 @@ class ParameterDescription(NamedTuple):
     :meth:`limits` for numbers). ``name`` is at most 16 ISO 8859-1 characters.
     """
 
-    identifier: int
-    elements: int = 0
-    standardisation_factor: float = 1.0
-    variable_attribute: int = 0
-    name: str = ""
-    low_limit: bytes = b"\x00\x00\x00\x00"
-    high_limit: bytes = b"\x00\x00\x00\x00"
-    id_extension: int = 0
-    normalisation_ref: int = 0
-    normalisation_field: int = 0
+    __slots__ = ("identifier", "elements", "standardisation_factor", "variable_attribute", "name", "low_limit",
+                 "high_limit", "id_extension", "normalisation_ref", "normalisation_field")
+
+    def __init__(self, identifier: int, elements: int = 0, standardisation_factor: float = 1.0,
+                 variable_attribute: int = 0, name: str = "", low_limit: bytes = b"\x00\x00\x00\x00",
+                 high_limit: bytes = b"\x00\x00\x00\x00", id_extension: int = 0, normalisation_ref: int = 0,
+                 normalisation_field: int = 0) -> None:
+        self.identifier = identifier
+        self.elements = elements
+        self.standardisation_factor = standardisation_factor
+        self.variable_attribute = variable_attribute
+        self.name = name
+        self.low_limit = low_limit
+        self.high_limit = high_limit
+        self.id_extension = id_extension
+        self.normalisation_ref = normalisation_ref
+        self.normalisation_field = normalisation_field
 
     @property
     def data_type(self) -> int:

@@ -22,9 +22,9 @@ module hands out on first use (an upload never loads it).
 from __future__ import annotations
 
 import struct
-from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 
 class CoeError(CodecError):
@@ -107,78 +107,106 @@ ABORT_GENERAL = 0x08000000
 # --- SDO messages ----------------------------------------------------------------------------------
 
 
-class SdoDownloadInitiate(NamedTuple):
+class SdoDownloadInitiate(Record):
     """Client: start a write. Expedited carries 1..4 bytes in the frame; normal carries
     the total ``size`` then the first ``data`` bytes (the rest follows in segments)."""
 
-    index: int
-    subindex: int
-    data: bytes
-    size: int | None
-    expedited: bool
-    complete_access: bool = False
+    __slots__ = ("index", "subindex", "data", "size", "expedited", "complete_access")
+
+    def __init__(self, index: int, subindex: int, data: bytes, size: int | None, expedited: bool,
+                 complete_access: bool = False) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.data = data
+        self.size = size
+        self.expedited = expedited
+        self.complete_access = complete_access
 
 
-class SdoDownloadResponse(NamedTuple):
+class SdoDownloadResponse(Record):
     """Server: the initiate download was accepted."""
 
-    index: int
-    subindex: int
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
 
-class SdoDownloadSegment(NamedTuple):
+class SdoDownloadSegment(Record):
     """Client: the next part of a segmented write."""
 
-    toggle: int
-    data: bytes
-    last: bool
+    __slots__ = ("toggle", "data", "last")
+
+    def __init__(self, toggle: int, data: bytes, last: bool) -> None:
+        self.toggle = toggle
+        self.data = data
+        self.last = last
 
 
-class SdoDownloadSegmentResponse(NamedTuple):
+class SdoDownloadSegmentResponse(Record):
     """Server: the segment with this toggle was accepted."""
 
-    toggle: int
+    __slots__ = ("toggle",)
+
+    def __init__(self, toggle: int) -> None:
+        self.toggle = toggle
 
 
-class SdoUploadInitiate(NamedTuple):
+class SdoUploadInitiate(Record):
     """Client: start a read."""
 
-    index: int
-    subindex: int
-    complete_access: bool = False
+    __slots__ = ("index", "subindex", "complete_access")
+
+    def __init__(self, index: int, subindex: int, complete_access: bool = False) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.complete_access = complete_access
 
 
-class SdoUploadResponse(NamedTuple):
+class SdoUploadResponse(Record):
     """Server: the value (expedited, ``size`` = 1..4 or None) or its total ``size`` and
     the first ``data`` bytes (normal; segments follow when ``len(data) < size``)."""
 
-    index: int
-    subindex: int
-    data: bytes
-    size: int | None
-    expedited: bool
+    __slots__ = ("index", "subindex", "data", "size", "expedited")
+
+    def __init__(self, index: int, subindex: int, data: bytes, size: int | None, expedited: bool) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.data = data
+        self.size = size
+        self.expedited = expedited
 
 
-class SdoUploadSegment(NamedTuple):
+class SdoUploadSegment(Record):
     """Client: request the next segment of a segmented read."""
 
-    toggle: int
+    __slots__ = ("toggle",)
+
+    def __init__(self, toggle: int) -> None:
+        self.toggle = toggle
 
 
-class SdoUploadSegmentResponse(NamedTuple):
+class SdoUploadSegmentResponse(Record):
     """Server: the next part of a segmented read."""
 
-    toggle: int
-    data: bytes
-    last: bool
+    __slots__ = ("toggle", "data", "last")
+
+    def __init__(self, toggle: int, data: bytes, last: bool) -> None:
+        self.toggle = toggle
+        self.data = data
+        self.last = last
 
 
-class SdoAbort(NamedTuple):
+class SdoAbort(Record):
     """Either side: abort the transfer of ``index:subindex`` with an abort code."""
 
-    index: int
-    subindex: int
-    code: int
+    __slots__ = ("index", "subindex", "code")
+
+    def __init__(self, index: int, subindex: int, code: int) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.code = code
 
 
 SdoMessage = (
@@ -194,22 +222,6 @@ SdoMessage = (
 )
 
 
-
-def _same_kind_eq(self: tuple, other: object) -> bool:
-    return other.__class__ is self.__class__ and tuple.__eq__(self, other)  # type: ignore[arg-type]
-
-
-def _same_kind_ne(self: tuple, other: object) -> bool:
-    return not _same_kind_eq(self, other)
-
-
-# Named tuples compare as tuples, so a client's and a server's message of the same shape (SdoUploadSegment(1) and
-# SdoDownloadSegmentResponse(1)) would be equal: messages of different kinds never are, as for the dataclasses they
-# were (hashing stays the tuple's).
-for _kind in SdoMessage.__args__:  # type: ignore[attr-defined]
-    _kind.__eq__ = _same_kind_eq  # type: ignore[method-assign,assignment]
-    _kind.__ne__ = _same_kind_ne  # type: ignore[method-assign,assignment]
-del _kind
 
 SERVER_MESSAGES = (SdoDownloadResponse, SdoDownloadSegmentResponse, SdoUploadResponse, SdoUploadSegmentResponse)
 CLIENT_MESSAGES = (SdoDownloadInitiate, SdoDownloadSegment, SdoUploadInitiate, SdoUploadSegment)

@@ -16,24 +16,28 @@ from __future__ import annotations
 import math
 import re
 import struct
-from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 
 class DataTypeError(CodecError):
     """A value that does not fit its type, bytes of the wrong size, or an unknown type name."""
 
 
-class DataType(NamedTuple):
+class DataType(Record):
     """One scalar type: size in bytes (None = variable length), CANopen code, ESI names."""
 
-    name: str
-    size: int | None
-    code: int
-    kind: str  # "bool", "uint", "int", "float", "str", "bytes"
-    esi: tuple[str, ...]
-    fmt: str = ""  # struct format character for fixed-size numbers
+    __slots__ = ("name", "size", "code", "kind", "esi", "fmt")
+
+    def __init__(self, name: str, size: int | None, code: int, kind: str, esi: tuple[str, ...],
+                 fmt: str = "") -> None:
+        self.name = name
+        self.size = size
+        self.code = code
+        self.kind = kind  # "bool", "uint", "int", "float", "str", "bytes"
+        self.esi = esi
+        self.fmt = fmt  # struct format character for fixed-size numbers
 
     @property
     def bits(self) -> int | None:

@@ -19,9 +19,9 @@ file fills the last packet exactly). Packet numbers count from 1; the ack of a w
 from __future__ import annotations
 
 import struct
-from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 HEADER_SIZE = 6
 
@@ -60,12 +60,15 @@ ERR_NO_RIGHTS = 0x800A
 ERR_PROGRAM = 0x800B
 
 
-class FoeFrame(NamedTuple):
+class FoeFrame(Record):
     """One FoE frame: ``value`` is the password, packet number or error code; ``data`` the name, data or text."""
 
-    opcode: int
-    value: int = 0
-    data: bytes = b""
+    __slots__ = ("opcode", "value", "data")
+
+    def __init__(self, opcode: int, value: int = 0, data: bytes = b"") -> None:
+        self.opcode = opcode
+        self.value = value
+        self.data = data
 
     @property
     def name(self) -> str:

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import NamedTuple
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 HEADER_SIZE = 6
 GATEWAY_HEADER_SIZE = 2
@@ -151,7 +151,7 @@ ERR_NO_MORE_MEMORY = 7
 ERR_INVALID_SIZE = 8
 
 
-class MailboxErrorReply(NamedTuple):
+class MailboxErrorReply(Record):
     """A slave's refusal of a whole mailbox (ETG.1000.6 mailbox error reply, type 0).
 
     A slave sends it instead of a protocol reply when it cannot even parse the
@@ -159,7 +159,10 @@ class MailboxErrorReply(NamedTuple):
     Its wording is :func:`akdctl.catalog.texts.mailbox_error_text` (codecs return codes).
     """
 
-    code: int
+    __slots__ = ("code",)
+
+    def __init__(self, code: int) -> None:
+        self.code = code
 
 
 

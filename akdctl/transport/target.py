@@ -8,30 +8,27 @@ Parsing is pure and cheap: it never imports a transport.
 
 from __future__ import annotations
 
-from typing import NamedTuple
 from urllib.parse import parse_qsl, urlsplit
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 
 
-class _Target(NamedTuple):
-    raw: str
-    scheme: str
-    host: str
-    port: int | None
-    path: str
-    query: dict[str, str]
-    source: str
-
-
-class Target(_Target):
+class Target(Record):
     """A parsed target. ``source`` says where it came from (shown with ``-v``)."""
 
-    __slots__ = ()
+    __slots__ = ("raw", "scheme", "host", "port", "path", "query", "source")
+    __hash__ = None  # type: ignore[assignment]  # its query is a dict
 
-    def __new__(cls, raw: str, scheme: str, host: str = "", port: int | None = None, path: str = "",
-                query: dict[str, str] | None = None, source: str = "default") -> "Target":
-        return tuple.__new__(cls, (raw, scheme, host, port, path, {} if query is None else query, source))
+    def __init__(self, raw: str, scheme: str, host: str = "", port: int | None = None, path: str = "",
+                 query: dict[str, str] | None = None, source: str = "default") -> None:
+        self.raw = raw
+        self.scheme = scheme
+        self.host = host
+        self.port = port
+        self.path = path
+        self.query: dict[str, str] = {} if query is None else query
+        self.source = source
 
     @property
     def display(self) -> str:

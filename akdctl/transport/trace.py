@@ -23,11 +23,12 @@ import time
 from typing import Callable, Literal, TextIO
 
 from akdctl.links import MailboxLink, RecordLink
+from akdctl.protocol.record import Record
 
 Direction = Literal["tx", "rx"]
 
 
-class TraceRecord:
+class TraceRecord(Record):
     """One frame as it crossed the link.
 
     ``layer`` names the wire format of ``data`` (``"bmp"`` PROFIdrive parameter
@@ -35,8 +36,6 @@ class TraceRecord:
     datagram, ``"ecat"`` EtherCAT frame, ``"can"`` CAN frame). ``meta`` carries
     addresses for capture sinks, e.g. ``{"proto": "udp", "src": (ip, port),
     "dst": (ip, port)}`` or ``{"proto": "ethernet", "ethertype": 0x88A4}``.
-    A plain class with slots, compared by value: this module is imported at every start, where a dataclass
-    costs more to define than a command without tracing spends on it.
     """
 
     __slots__ = ("time", "direction", "layer", "data", "note", "meta")
@@ -50,14 +49,6 @@ class TraceRecord:
         self.data = data
         self.note = note
         self.meta: dict[str, object] = {} if meta is None else meta
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return all(getattr(self, name) == getattr(other, name) for name in self.__slots__)
-
-    def __repr__(self) -> str:
-        return f"TraceRecord({', '.join(f'{name}={getattr(self, name)!r}' for name in self.__slots__)})"
 
     def to_json(self) -> dict[str, object]:
         return {
