@@ -18,7 +18,6 @@ views); JSON output escapes control characters by itself.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from collections.abc import Callable
@@ -67,8 +66,9 @@ class Doc(Record):
 
 
 # C0 controls, DEL, C1 controls, and the Unicode bidirectional overrides/isolates (text that reorders itself).
-_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
-_CONTROL_KEEP_LINES = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+# (Patterns, compiled by re on first use and cached there: a command prints with one of them, if at all.)
+_CONTROL = "[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]"
+_CONTROL_KEEP_LINES = "[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]"
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
 
@@ -89,7 +89,7 @@ def inert(value: Any, *, lines: bool = False) -> str:
     the renderer never parses markup in what it prints.
     """
     shown = value if isinstance(value, str) else str(value)
-    return (_CONTROL_KEEP_LINES if lines else _CONTROL).sub(_visible, shown)
+    return re.sub(_CONTROL_KEEP_LINES if lines else _CONTROL, _visible, shown)
 
 
 def _cell(value: Any) -> str:
@@ -188,6 +188,8 @@ def render(doc: Doc | str, out: TextIO | None = None) -> None:
 
 def emit_json(data: Any, out: TextIO | None = None) -> None:
     out = out or sys.stdout
+    import json  # here: only --json output needs it
+
     json.dump(data, out, indent=2, sort_keys=False, default=_json_default)
     out.write("\n")
 
@@ -195,6 +197,8 @@ def emit_json(data: Any, out: TextIO | None = None) -> None:
 def emit_json_line(data: Any, out: TextIO | None = None) -> None:
     """One JSON document on one line, flushed (a stream of documents: ``status --watch --json``)."""
     out = out or sys.stdout
+    import json
+
     out.write(json.dumps(data, separators=(",", ":"), default=_json_default) + "\n")
     out.flush()
 
