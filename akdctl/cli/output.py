@@ -89,6 +89,8 @@ def inert(value: Any, *, lines: bool = False) -> str:
     the renderer never parses markup in what it prints.
     """
     shown = value if isinstance(value, str) else str(value)
+    if shown.isprintable():  # no control or format character at all (the usual cell): nothing to escape
+        return shown
     return re.sub(_CONTROL_KEEP_LINES if lines else _CONTROL, _visible, shown)
 
 
