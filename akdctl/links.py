@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from typing import Any, ClassVar
+
+from akdctl.protocol.record import Record
 
 
 class Deadline:
@@ -206,21 +207,25 @@ class MessageLink(ABC):
     def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
 
 
-@dataclass(frozen=True)
-class CanopenSdoClient:
+class CanopenSdoClient(Record):
     """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives."""
 
-    node: Any
-    where: str
-    block: bool = False
+    __slots__ = ("node", "where", "block")
+
+    def __init__(self, node: Any, where: str, block: bool = False) -> None:
+        self.node = node
+        self.where = where
+        self.block = block
 
 
-@dataclass(frozen=True)
-class SoemSdoClient:
+class SoemSdoClient(Record):
     """A pysoem slave whose ``sdo_read``/``sdo_write`` the SOEM adapter channel drives."""
 
-    slave: Any
-    where: str
+    __slots__ = ("slave", "where")
+
+    def __init__(self, slave: Any, where: str) -> None:
+        self.slave = slave
+        self.where = where
 
 
 NativeSdoClient = CanopenSdoClient | SoemSdoClient

@@ -406,7 +406,7 @@ def test_read_response_round_trip(reference: int, axis: int, results: list) -> N
     assert decode_response(raw) == response
 
 
-@given(st.integers(0, 255), st.lists(st.one_of(st.none(), st.builds(ParameterFailure, st.integers(0, 0xFFFF))),
+@given(st.integers(0, 255), st.lists(st.one_of(st.none(), st.integers(0, 0xFFFF).map(ParameterFailure)),
                                      min_size=1, max_size=MAX_PARAMETERS))
 def test_change_response_round_trip(reference: int, results: list) -> None:
     negative = any(r is not None for r in results)

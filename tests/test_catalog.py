@@ -407,3 +407,13 @@ def test_text_lookups_never_raise(code: int) -> None:
     for fn in (texts.sdo_abort_text, texts.profidrive_error_text, texts.al_status_text,
                texts.mailbox_error_text, texts.error_register_text, faults.describe_number, faults.emcy_text):
         assert isinstance(fn(code), str)
+
+
+def test_one_object_found_by_search_is_the_whole_table_split() -> None:
+    """``_object_lines`` finds an object's rows by searching the text (the generator sorts the rows, so each object is
+    one block): the same rows the full split groups, for every object, and nothing for an index the table lacks."""
+    header, grouped = objects._lines()
+    assert objects._header() == header
+    for index, lines in grouped.items():
+        assert objects._object_lines(index) == lines, hex(index)
+    assert objects._object_lines(0x0001) is None and objects.lookup(0x10000, 0) is None

@@ -12,14 +12,14 @@ Loading is lazy (functools.cache); lookups never raise on unknown input.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from functools import cache
+
+from akdctl.protocol.record import Record
 
 __all__ = ["Fault", "faults", "by_code", "by_number", "by_emcy", "describe_number", "emcy_text", "where_to_look"]
 
 
-@dataclass(frozen=True)
-class Fault:
+class Fault(Record):
     """One AKD fault or warning.
 
     code: 'F501' / 'n503' ('' for the generic EMCY entries without an AKD number);
@@ -28,14 +28,18 @@ class Fault:
     emergency error code; reaction/remedy: '' when no public source gives them.
     """
 
-    code: str
-    number: int | None
-    kind: str
-    emcy: int
-    name: str
-    reaction: str = ""
-    remedy: str = ""
-    source: str = ""
+    __slots__ = ("code", "number", "kind", "emcy", "name", "reaction", "remedy", "source")
+
+    def __init__(self, code: str, number: int | None, kind: str, emcy: int, name: str, reaction: str = "",
+                 remedy: str = "", source: str = "") -> None:
+        self.code = code
+        self.number = number
+        self.kind = kind
+        self.emcy = emcy
+        self.name = name
+        self.reaction = reaction
+        self.remedy = remedy
+        self.source = source
 
     @property
     def is_warning(self) -> bool:
@@ -83,7 +87,7 @@ def _by_emcy() -> dict[int, list[Fault]]:
     return grouped
 
 
-_CODE = re.compile(r"^\s*([FfNn])\s*0*(\d{1,4})\s*$")
+_CODE = r"^\s*([FfNn])\s*0*(\d{1,4})\s*$"  # compiled on first use (re caches it): not at every start
 
 
 def by_number(number: int, *, warning: bool = False) -> Fault | None:
@@ -105,7 +109,7 @@ def by_code(code: str | int) -> Fault | None:
         return by_number(code)
     if not isinstance(code, str):
         return None
-    m = _CODE.match(code)
+    m = re.match(_CODE, code)
     if m:
         return _by_code().get(f"{m.group(1).upper()}{int(m.group(2))}")
     stripped = code.strip()

@@ -14,18 +14,21 @@ named). Where a bit's words depend on the operating mode and the mode is not kno
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from functools import cache
+
+from akdctl.protocol.record import Record
 
 Names = Mapping[int, str] | Callable[[int], "str | None"]
 
 
-@dataclass(frozen=True)
-class Meaning:
-    names: Names
-    bits: bool = False  # a bit field: every set bit is named; else an enumeration
-    width: int = 16
-    zero: str = "no bit set"  # a bit field's words for 0
+class Meaning(Record):
+    __slots__ = ("names", "bits", "width", "zero")
+
+    def __init__(self, names: Names, bits: bool = False, width: int = 16, zero: str = "no bit set") -> None:
+        self.names = names
+        self.bits = bits  # a bit field: every set bit is named; else an enumeration
+        self.width = width
+        self.zero = zero  # a bit field's words for 0
 
     def name(self, key: int) -> str | None:
         return self.names(key) if callable(self.names) else self.names.get(key)

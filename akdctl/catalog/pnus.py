@@ -12,31 +12,37 @@ a real drive reports its own).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import cache
+
+from akdctl.protocol.record import Record
 
 # PROFIdrive standard data type codes (identifier bits 0-7) for descriptions.
 DATATYPE_CODES = {"S16": 0x03, "S32": 0x04, "U16": 0x06, "U32": 0x07, "OS": 0x0A}
 TYPE_BITS = {"S16": 16, "U16": 16, "S32": 32, "U32": 32, "OS": 8}
 
 
-@dataclass(frozen=True)
-class PnuInfo:
+class PnuInfo(Record):
     """One PROFIdrive parameter as the AKD documents it."""
 
-    pnu: int
-    name: str
-    type: str
-    access: str  # "rw" or "ro"
-    description: str
-    elements: int | None = None
-    minimum: int | None = None
-    maximum: int | None = None
-    default: int | tuple[int, ...] = 0
-    unit: str = ""
-    group: str = "profidrive"
-    akd_parameter: str = ""
-    note: str = ""
+    __slots__ = ("pnu", "name", "type", "access", "description", "elements", "minimum", "maximum", "default", "unit",
+                 "group", "akd_parameter", "note")
+
+    def __init__(self, pnu: int, name: str, type: str, access: str, description: str, elements: int | None = None,
+                 minimum: int | None = None, maximum: int | None = None, default: int | tuple[int, ...] = 0,
+                 unit: str = "", group: str = "profidrive", akd_parameter: str = "", note: str = "") -> None:
+        self.pnu = pnu
+        self.name = name
+        self.type = type
+        self.access = access  # "rw" or "ro"
+        self.description = description
+        self.elements = elements
+        self.minimum = minimum
+        self.maximum = maximum
+        self.default = default
+        self.unit = unit
+        self.group = group
+        self.akd_parameter = akd_parameter
+        self.note = note
 
     @property
     def signed(self) -> bool:
@@ -168,11 +174,9 @@ def pnu_table() -> dict[int, PnuInfo]:
     table = {info.pnu: info for info in _TABLE}
     listed = sorted(p for p in table if not 980 <= p <= 989)
     # 980 holds the whole list plus its 0 terminator; 981..989 hold one 0 each.
-    from dataclasses import replace
-
-    table[980] = replace(table[980], elements=len(listed) + 1, default=tuple(listed) + (0,))
+    table[980] = table[980].replace(elements=len(listed) + 1, default=tuple(listed) + (0,))
     for n in range(981, 990):
-        table[n] = replace(table[n], elements=1, default=(0,))
+        table[n] = table[n].replace(elements=1, default=(0,))
     return table
 
 

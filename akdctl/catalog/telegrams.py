@@ -14,7 +14,7 @@ number. Ten elements = ten words, exactly telegram 9's set-point length.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from akdctl.protocol.record import Record
 
 __all__ = [
     "Signal", "SIGNALS", "TELEGRAMS", "TelegramLayout", "FREE_TELEGRAM", "PZD_MAX_WORDS", "SIGNAL_LIST_LENGTH",
@@ -39,8 +39,7 @@ class TelegramDataError(ValueError):
         self.index = index
 
 
-@dataclass(frozen=True)
-class Signal:
+class Signal(Record):
     """One PROFIdrive signal: number, name, IO words, direction and the PNU that also reads it.
 
     direction: "setpoint" (controller -> drive) or "actual" (drive -> controller).
@@ -48,13 +47,17 @@ class Signal:
     the standard signals the AKD only offers inside standard telegrams (not in PNU 923).
     """
 
-    number: int
-    name: str
-    words: int
-    direction: str
-    signed: bool
-    pnu: int | None
-    text: str
+    __slots__ = ("number", "name", "words", "direction", "signed", "pnu", "text")
+
+    def __init__(self, number: int, name: str, words: int, direction: str, signed: bool, pnu: int | None,
+                 text: str) -> None:
+        self.number = number
+        self.name = name
+        self.words = words
+        self.direction = direction
+        self.signed = signed
+        self.pnu = pnu
+        self.text = text
 
     @property
     def free_mappable(self) -> bool:
@@ -89,15 +92,18 @@ SIGNALS: dict[int, Signal] = {s.number: s for s in (
 )}
 
 
-@dataclass(frozen=True)
-class TelegramLayout:
+class TelegramLayout(Record):
     """A standard/manufacturer telegram: set-point and actual-value signals in IO order."""
 
-    number: int
-    setpoint: tuple[int, ...]
-    actual: tuple[int, ...]
-    text: str
-    source: str
+    __slots__ = ("number", "setpoint", "actual", "text", "source")
+
+    def __init__(self, number: int, setpoint: tuple[int, ...], actual: tuple[int, ...], text: str,
+                 source: str) -> None:
+        self.number = number
+        self.setpoint = setpoint
+        self.actual = actual
+        self.text = text
+        self.source = source
 
     @property
     def setpoint_words(self) -> int:
@@ -195,13 +201,15 @@ def words_to_signals(words: list[int] | tuple[int, ...]) -> list[int]:
     return signals
 
 
-@dataclass(frozen=True)
-class WordSlot:
+class WordSlot(Record):
     """One IO data word: its number (1-based), the signal and which part of it (for double words)."""
 
-    word: int
-    signal: Signal
-    part: str  # "" for a single word, "high"/"low" for a double word (PROFINET is big-endian: high first)
+    __slots__ = ("word", "signal", "part")
+
+    def __init__(self, word: int, signal: Signal, part: str) -> None:
+        self.word = word
+        self.signal = signal
+        self.part = part  # "" for a single word, "high"/"low" for a double word (PROFINET is big-endian: high first)
 
     @property
     def label(self) -> str:
@@ -228,11 +236,13 @@ def word_layout(signals: list[int] | tuple[int, ...]) -> list[WordSlot]:
 # the requirement protects is that the submode's set-point signals travel in the selected telegram, so telegram 0
 # carrying them counts too (5.6: every signal can be mapped into telegram 0). Each submode names the telegram
 # akdctl selects when the current one lacks its signals.
-@dataclass(frozen=True)
-class Submode:
-    name: str
-    signals: tuple[int, ...]  # set-point signals the submode reads
-    telegram: int             # the standard telegram that carries them
+class Submode(Record):
+    __slots__ = ("name", "signals", "telegram")
+
+    def __init__(self, name: str, signals: tuple[int, ...], telegram: int) -> None:
+        self.name = name
+        self.signals = signals  # set-point signals the submode reads
+        self.telegram = telegram  # the standard telegram that carries them
 
 
 SUBMODES: dict[str, Submode] = {

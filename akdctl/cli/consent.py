@@ -14,7 +14,6 @@ nobody is asked for a consent that could not be used.
 
 from __future__ import annotations
 
-import shlex
 import sys
 import time
 from typing import Any
@@ -74,6 +73,8 @@ def own_axis(app: Any) -> None:
 
 
 def _command_line() -> str:
+    import shlex  # here: every command imports this module, few take the owner lock
+
     return shlex.join(["akdctl", *sys.argv[1:]])
 
 

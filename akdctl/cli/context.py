@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -28,26 +27,34 @@ if TYPE_CHECKING:
     from akdctl.transport.target import Target
 
 
-@dataclass
 class AppContext:
-    target_text: str | None = None
-    config_path: str | None = None
-    profile_name: str | None = None
-    json: bool = False
-    timeout: float | None = None
-    retries: int | None = None
-    yes: bool = False
-    verbose: int = 0
-    trace: bool = False
-    debug: bool = False
-    pcap: str | None = None
-    _target: "Target | None" = None
-    _profile: "Profile | None" = None
-    _profile_loaded: bool = False
-    _options: "LinkOptions | None" = None
-    _connection: "Connection | None" = None
-    _cleanups: list[Callable[[], None]] = field(default_factory=list)
-    _started: float = field(default_factory=time.monotonic)
+    """The root options (filled by the root callback and cli/parsing.py) and what they resolve to, built lazily.
+
+    A plain class: it is created on every start, ``--help`` included, where a dataclass costs more to define
+    than the root command spends."""
+
+    def __init__(self, target_text: str | None = None, config_path: str | None = None,
+                 profile_name: str | None = None, json: bool = False, timeout: float | None = None,
+                 retries: int | None = None, yes: bool = False, verbose: int = 0, trace: bool = False,
+                 debug: bool = False, pcap: str | None = None) -> None:
+        self.target_text = target_text
+        self.config_path = config_path
+        self.profile_name = profile_name
+        self.json = json
+        self.timeout = timeout
+        self.retries = retries
+        self.yes = yes
+        self.verbose = verbose
+        self.trace = trace
+        self.debug = debug
+        self.pcap = pcap
+        self._target: Target | None = None
+        self._profile: Profile | None = None
+        self._profile_loaded = False
+        self._options: LinkOptions | None = None
+        self._connection: Connection | None = None
+        self._cleanups: list[Callable[[], None]] = []
+        self._started = time.monotonic()
 
     # ---------------------------------------------------------------- resolution
     @property

@@ -23,11 +23,8 @@ from typing import Any
 
 import click
 
-from akdctl.cli.consent import require_consent
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc, LiveView, message
-from akdctl.cli.progress import MotionProgress
-from akdctl.cli.signals import stop_signals
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 from akdctl.errors import Interrupted, UsageError
 
@@ -77,11 +74,11 @@ def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None
     app.emit(data, human)
 
 
-_DURATION = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|m|min)?\s*$")
+_DURATION = r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|m|min)?\s*$"  # compiled on first use (status needs none)
 
 
 def _duration(text: str) -> float:
-    match = _DURATION.match(text)
+    match = re.match(_DURATION, text)
     if not match:
         raise UsageError(f"bad duration {text!r}: use e.g. 2s, 500ms, 1.5")
     value = float(match.group(1))
@@ -93,6 +90,9 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
     consent, then execute under the stop signals; prints the final state."""
+    from akdctl.cli.consent import require_consent
+    from akdctl.cli.progress import MotionProgress
+    from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
     from akdctl.drive.axis import axis_class
 
@@ -129,6 +129,8 @@ def status(watch: bool, interval: float) -> None:
     if not watch:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
         return
+    from akdctl.cli.signals import stop_signals
+
     with contextlib.suppress(Interrupted), stop_signals() as stop, LiveView(app.json) as view:
         while not stop():
             status, now = axis.read_status(), time.localtime()

@@ -18,30 +18,39 @@ views); JSON output escapes control characters by itself.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
-from dataclasses import dataclass, field
 from collections.abc import Callable
 from typing import Any, TextIO
 
-
-@dataclass
-class Table:
-    columns: list[str]
-    rows: list[list[Any]]
-    title: str = ""
+from akdctl.protocol.record import Record
 
 
-@dataclass
-class Doc:
+class Table(Record):
+    """A table of a document: column names, rows of cells, an optional title."""
+
+    __slots__ = ("columns", "rows", "title")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, columns: list[str], rows: list[list[Any]], title: str = "") -> None:
+        self.columns = columns
+        self.rows = rows
+        self.title = title
+
+
+class Doc(Record):
     """A human-readable result. ``source`` names the target it came from."""
 
-    title: str = ""
-    source: str = ""
-    pairs: list[tuple[str, Any]] = field(default_factory=list)
-    tables: list[Table] = field(default_factory=list)
-    lines: list[str] = field(default_factory=list)
+    __slots__ = ("title", "source", "pairs", "tables", "lines")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, title: str = "", source: str = "", pairs: list[tuple[str, Any]] | None = None,
+                 tables: list[Table] | None = None, lines: list[str] | None = None) -> None:
+        self.title = title
+        self.source = source
+        self.pairs: list[tuple[str, Any]] = [] if pairs is None else pairs
+        self.tables: list[Table] = [] if tables is None else tables
+        self.lines: list[str] = [] if lines is None else lines
 
     def kv(self, key: str, value: Any) -> "Doc":
         self.pairs.append((key, value))
@@ -57,8 +66,9 @@ class Doc:
 
 
 # C0 controls, DEL, C1 controls, and the Unicode bidirectional overrides/isolates (text that reorders itself).
-_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
-_CONTROL_KEEP_LINES = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+# (Patterns, compiled by re on first use and cached there: a command prints with one of them, if at all.)
+_CONTROL = "[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]"
+_CONTROL_KEEP_LINES = "[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]"
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
 
@@ -79,7 +89,9 @@ def inert(value: Any, *, lines: bool = False) -> str:
     the renderer never parses markup in what it prints.
     """
     shown = value if isinstance(value, str) else str(value)
-    return (_CONTROL_KEEP_LINES if lines else _CONTROL).sub(_visible, shown)
+    if shown.isprintable():  # no control or format character at all (the usual cell): nothing to escape
+        return shown
+    return re.sub(_CONTROL_KEEP_LINES if lines else _CONTROL, _visible, shown)
 
 
 def _cell(value: Any) -> str:
@@ -178,6 +190,8 @@ def render(doc: Doc | str, out: TextIO | None = None) -> None:
 
 def emit_json(data: Any, out: TextIO | None = None) -> None:
     out = out or sys.stdout
+    import json  # here: only --json output needs it
+
     json.dump(data, out, indent=2, sort_keys=False, default=_json_default)
     out.write("\n")
 
@@ -185,6 +199,8 @@ def emit_json(data: Any, out: TextIO | None = None) -> None:
 def emit_json_line(data: Any, out: TextIO | None = None) -> None:
     """One JSON document on one line, flushed (a stream of documents: ``status --watch --json``)."""
     out = out or sys.stdout
+    import json
+
     out.write(json.dumps(data, separators=(",", ":"), default=_json_default) + "\n")
     out.flush()
 

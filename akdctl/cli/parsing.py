@@ -33,12 +33,15 @@ APP_FIELDS = {
     "timeout": "timeout", "retries": "retries", "yes": "yes", "verbose": "verbose", "trace": "trace", "pcap": "pcap", "debug": "debug",
 }
 
-_NEGATIVE = re.compile(r"^-(?:\d[\d_]*(?:\.\d*)?(?:[eE][-+]?\d+)?|\.\d+|0[xX][0-9A-Fa-f_]+|inf|nan)$")
+_NEGATIVE = r"^-(?:\d[\d_]*(?:\.\d*)?(?:[eE][-+]?\d+)?|\.\d+|0[xX][0-9A-Fa-f_]+|inf|nan)$"
 
 
 def is_negative_number(token: str) -> bool:
     """``-1``, ``-2.5``, ``-.5``, ``-1e3``, ``-0x10``: a value, not an option."""
-    return bool(_NEGATIVE.match(token))
+    second = token[1:2]
+    if token[:1] != "-" or not (second.isdecimal() or second in (".", "i", "n")):
+        return False  # an option (``--help``, ``-v``): decided without compiling the pattern at every start
+    return bool(re.match(_NEGATIVE, token))
 
 
 class _NumberAwareParser(_Parser):  # type: ignore[misc,valid-type]

@@ -6,7 +6,6 @@ from typing import Any
 
 import click
 
-from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, ParameterRefused
@@ -114,6 +113,7 @@ def set_(assignments: tuple[str, ...], verify: bool) -> None:
       akdctl -y pnu set 930=2 --verify
       akdctl -y pnu set 1004=-500 1005=500
     """
+    from akdctl.cli.consent import gate_write
     from akdctl.drive import gate
     from akdctl.drive.params import parse_assignment
     from akdctl.drive.values import pnu_display, read_pnus, write_pnus

@@ -9,7 +9,6 @@ from typing import Any
 
 import click
 
-from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.errors import CheckFailed, SdoAborted, UsageError
@@ -91,6 +90,7 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
       echo 01ff | akdctl sdo write 0x2013:1 os -
     """
     from akdctl.catalog.objects import object_name
+    from akdctl.cli.consent import gate_write
     from akdctl.drive import gate
     from akdctl.drive.objects import parse_address
     from akdctl.drive.values import decode, encode, resolve_type

@@ -23,7 +23,6 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.polling import Poll
@@ -41,36 +40,48 @@ from akdctl.errors import (
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
+from akdctl.protocol.record import Record
 
 
-@dataclass
-class AxisStatus:
-    """What the drive reports, decoded. ``word`` is ZSW1 or the statusword."""
+class AxisStatus(Record):
+    """What the drive reports, decoded. ``word`` is ZSW1 or the statusword; ``warnings``: the active warnings (number,
+    code, text) when the drive names them (0x2000), empty when it only sets the bit. Mutable, unhashable."""
 
-    profile: str
-    state: str
-    state_text: str
-    word: int
-    control: int
-    mode: int | None
-    mode_text: str
-    enabled: bool
-    fault: bool
-    warning: bool
-    faults: list[dict[str, Any]] = field(default_factory=list)
-    #: active warnings (number, code, text) when the drive names them (0x2000); empty when it only sets the bit
-    warnings: list[dict[str, Any]] = field(default_factory=list)
-    homed: bool | None = None
-    target_reached: bool = False
-    standstill: bool = True
-    task_ack: bool = False
-    homing_error: bool = False
-    control_honoured: bool | None = None
-    position_rev: float | None = None
-    counts_per_rev: int = 65536
-    velocity_rpm: float | None = None
-    current_pct: float | None = None
-    bits: list[sw.Bit] = field(default_factory=list)
+    __slots__ = ("profile", "state", "state_text", "word", "control", "mode", "mode_text", "enabled", "fault", "warning",
+                 "faults", "warnings", "homed", "target_reached", "standstill", "task_ack", "homing_error",
+                 "control_honoured", "position_rev", "counts_per_rev", "velocity_rpm", "current_pct", "bits")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, profile: str, state: str, state_text: str, word: int, control: int, mode: int | None,
+                 mode_text: str, enabled: bool, fault: bool, warning: bool,
+                 faults: list[dict[str, Any]] | None = None, warnings: list[dict[str, Any]] | None = None,
+                 homed: bool | None = None, target_reached: bool = False, standstill: bool = True,
+                 task_ack: bool = False, homing_error: bool = False, control_honoured: bool | None = None,
+                 position_rev: float | None = None, counts_per_rev: int = 65536, velocity_rpm: float | None = None,
+                 current_pct: float | None = None, bits: list[sw.Bit] | None = None) -> None:
+        self.profile = profile
+        self.state = state
+        self.state_text = state_text
+        self.word = word
+        self.control = control
+        self.mode = mode
+        self.mode_text = mode_text
+        self.enabled = enabled
+        self.fault = fault
+        self.warning = warning
+        self.faults = [] if faults is None else faults
+        self.warnings = [] if warnings is None else warnings
+        self.homed = homed
+        self.target_reached = target_reached
+        self.standstill = standstill
+        self.task_ack = task_ack
+        self.homing_error = homing_error
+        self.control_honoured = control_honoured
+        self.position_rev = position_rev
+        self.counts_per_rev = counts_per_rev
+        self.velocity_rpm = velocity_rpm
+        self.current_pct = current_pct
+        self.bits = [] if bits is None else bits
 
     @property
     def position_counts(self) -> int | None:
@@ -115,8 +126,7 @@ class AxisStatus:
         }
 
 
-@dataclass(frozen=True)
-class Scale:
+class Scale(Record):
     """How the drive represents one quantity: ``raw`` integers ``raw_min..raw_max``, each ``step`` ``unit``.
 
     The planner (:mod:`akdctl.drive.motion_plan`) quantises every request on these
@@ -124,40 +134,49 @@ class Scale:
     integers it is handed and converts nothing itself.
     """
 
-    name: str
-    unit: str
-    step: float
-    raw_min: int
-    raw_max: int
+    __slots__ = ("name", "unit", "step", "raw_min", "raw_max")
+
+    def __init__(self, name: str, unit: str, step: float, raw_min: int, raw_max: int) -> None:
+        self.name = name
+        self.unit = unit
+        self.step = step
+        self.raw_min = raw_min
+        self.raw_max = raw_max
 
 
-@dataclass(frozen=True)
-class MotionScales:
+class MotionScales(Record):
     """The scales of the set points one motion kind writes (velocity, accelerations)."""
 
-    velocity: Scale
-    accel: Scale
-    decel: Scale
+    __slots__ = ("velocity", "accel", "decel")
+
+    def __init__(self, velocity: Scale, accel: Scale, decel: Scale) -> None:
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
 
 
-@dataclass(frozen=True)
-class MoveSpec:
+class MoveSpec(Record):
     """A planned point-to-point move in raw drive units (position counts, the profile's velocity/ramp raw values)."""
 
-    target_raw: int
-    relative: bool
-    velocity_raw: int
-    acc_raw: int
-    dec_raw: int
+    __slots__ = ("target_raw", "relative", "velocity_raw", "acc_raw", "dec_raw")
+
+    def __init__(self, target_raw: int, relative: bool, velocity_raw: int, acc_raw: int, dec_raw: int) -> None:
+        self.target_raw = target_raw
+        self.relative = relative
+        self.velocity_raw = velocity_raw
+        self.acc_raw = acc_raw
+        self.dec_raw = dec_raw
 
 
-@dataclass(frozen=True)
-class JogSpec:
+class JogSpec(Record):
     """A planned timed jog in raw drive units (signed velocity raw, ramp raws)."""
 
-    velocity_raw: int
-    acc_raw: int
-    dec_raw: int
+    __slots__ = ("velocity_raw", "acc_raw", "dec_raw")
+
+    def __init__(self, velocity_raw: int, acc_raw: int, dec_raw: int) -> None:
+        self.velocity_raw = velocity_raw
+        self.acc_raw = acc_raw
+        self.dec_raw = dec_raw
 
 
 def _fault_entries(numbers: list[int], *, warning: bool = False) -> list[dict[str, Any]]:

@@ -34,10 +34,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
+from akdctl.protocol.record import Record
 
 #: A request within this fraction above a representable value is executed as that value.
 REL_TOL = 0.02
@@ -51,8 +51,7 @@ UNITS = ("counts", "rev", "deg", "user")
 KINDS = ("enable", "home", "move", "jog", "task")
 
 
-@dataclass(frozen=True)
-class MotionRequest:
+class MotionRequest(Record):
     """What a command line or a recipe step asks for, in the user's words and units.
 
     ``kind``: enable, home, move (``target``, ``relative``) or jog (``velocity`` signed,
@@ -61,61 +60,92 @@ class MotionRequest:
     ``accel`` / ``decel`` None mean the defaults.
     """
 
-    kind: str
-    target: float | None = None
-    relative: bool = False
-    velocity: float | None = None
-    accel: float | None = None
-    decel: float | None = None
-    unit: str | None = None
-    duration_s: float | None = None
-    distance: float | None = None
-    home_mode: int | None = None
-    timeout_s: float | None = None
-    task: int | None = None  # kind "task": the stored motion task to start (program mode)
+    __slots__ = ("kind", "target", "relative", "velocity", "accel", "decel", "unit", "duration_s", "distance",
+                 "home_mode", "timeout_s", "task")
+
+    def __init__(self, kind: str, target: float | None = None, relative: bool = False, velocity: float | None = None,
+                 accel: float | None = None, decel: float | None = None, unit: str | None = None,
+                 duration_s: float | None = None, distance: float | None = None, home_mode: int | None = None,
+                 timeout_s: float | None = None, task: int | None = None) -> None:
+        self.kind = kind
+        self.target = target
+        self.relative = relative
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
+        self.unit = unit
+        self.duration_s = duration_s
+        self.distance = distance
+        self.home_mode = home_mode
+        self.timeout_s = timeout_s
+        self.task = task  # kind "task": the stored motion task to start (program mode)
 
 
-@dataclass(frozen=True)
-class Quantity:
+class Quantity(Record):
     """One value as requested and as the drive will execute it (``raw`` is what is written)."""
 
-    what: str
-    requested: float
-    executed: float
-    raw: int
-    unit: str
-    field_name: str
+    __slots__ = ("what", "requested", "executed", "raw", "unit", "field_name")
+
+    def __init__(self, what: str, requested: float, executed: float, raw: int, unit: str, field_name: str) -> None:
+        self.what = what
+        self.requested = requested
+        self.executed = executed
+        self.raw = raw
+        self.unit = unit
+        self.field_name = field_name
+
 
     def to_json(self) -> dict[str, Any]:
         return {"requested": self.requested, "executed": round(self.executed, 6), "raw": self.raw,
                 "unit": self.unit, "field": self.field_name}
 
 
-@dataclass
-class MotionPlan:
-    """An accepted request: the mode it needs, the raw values to write, the consent text."""
+class MotionPlan(Record):
+    """An accepted request: the mode it needs, the raw values to write, the consent text.
 
-    request: MotionRequest
-    profile: str
-    mode_kind: str  # 'velocity', 'position', 'homing' or '' (enable)
-    unit: str = "rev"
-    velocity: Quantity | None = None
-    accel: Quantity | None = None
-    decel: Quantity | None = None
-    target_raw: int | None = None  # position counts written (absolute target or relative distance)
-    move_rev: float | None = None  # the same in revolutions
-    start_rev: float | None = None
-    end_rev: float | None = None
-    duration_s: float | None = None
-    deadline_s: float = 0.0
-    needs_homed: bool = False
-    homed: bool | None = None  # as read before consent (None: only visible after the mode switch)
-    mode_text: str = ""
-    notes: list[str] = field(default_factory=list)
-    limits: dict[str, Any] = field(default_factory=dict)  # the profile's, for the re-check under the owner lock
-    #: Checks that can only read by writing (a stored task is read through MT.LOAD): run after consent, before
-    #: anything is enabled or moved; they refuse like the planner (kind "task").
-    after_consent: Callable[[], None] | None = field(default=None, repr=False)
+    ``mode_kind``: 'velocity', 'position', 'homing' or '' (enable); ``target_raw``: position counts written
+    (absolute target or relative distance), ``move_rev`` the same in revolutions; ``homed`` as read before consent
+    (None: only visible after the mode switch); ``limits`` the profile's, for the re-check under the owner lock;
+    ``after_consent``: checks that can only read by writing (a stored task is read through MT.LOAD), run after
+    consent, before anything is enabled or moved; they refuse like the planner (kind "task").
+    Mutable, compared by value, unhashable.
+    """
+
+    __slots__ = ("request", "profile", "mode_kind", "unit", "velocity", "accel", "decel", "target_raw", "move_rev",
+                 "start_rev", "end_rev", "duration_s", "deadline_s", "needs_homed", "homed", "mode_text", "notes",
+                 "limits", "after_consent")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, request: MotionRequest, profile: str, mode_kind: str, unit: str = "rev",
+                 velocity: Quantity | None = None, accel: Quantity | None = None, decel: Quantity | None = None,
+                 target_raw: int | None = None, move_rev: float | None = None, start_rev: float | None = None,
+                 end_rev: float | None = None, duration_s: float | None = None, deadline_s: float = 0.0,
+                 needs_homed: bool = False, homed: bool | None = None, mode_text: str = "",
+                 notes: list[str] | None = None, limits: dict[str, Any] | None = None,
+                 after_consent: Callable[[], None] | None = None) -> None:
+        self.request = request
+        self.profile = profile
+        self.mode_kind = mode_kind
+        self.unit = unit
+        self.velocity = velocity
+        self.accel = accel
+        self.decel = decel
+        self.target_raw = target_raw
+        self.move_rev = move_rev
+        self.start_rev = start_rev
+        self.end_rev = end_rev
+        self.duration_s = duration_s
+        self.deadline_s = deadline_s
+        self.needs_homed = needs_homed
+        self.homed = homed
+        self.mode_text = mode_text
+        self.notes: list[str] = [] if notes is None else notes
+        self.limits: dict[str, Any] = {} if limits is None else limits
+        self.after_consent = after_consent
+
+    def __repr__(self) -> str:
+        shown = (n for n in self.__slots__ if n != "after_consent")
+        return f"MotionPlan({', '.join(f'{n}={getattr(self, n)!r}' for n in shown)})"
 
     @property
     def what(self) -> str:

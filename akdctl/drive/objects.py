@@ -7,19 +7,32 @@ the user names) is :mod:`akdctl.drive.values`.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 
 __all__ = ["ObjectAddress", "parse_address"]
 
-_ADDRESS = re.compile(r"^\s*(?P<index>0[xX][0-9A-Fa-f]{1,4}|[0-9A-Fa-f]{1,4}[hH]|\d+)\s*(?:[:.](?P<sub>0[xX][0-9A-Fa-f]{1,2}|\d+))?\s*$")
+# Compiled on first use: ``0x6041`` alone, the usual address, is read without it.
+_ADDRESS = r"^\s*(?P<index>0[xX][0-9A-Fa-f]{1,4}|[0-9A-Fa-f]{1,4}[hH]|\d+)\s*(?:[:.](?P<sub>0[xX][0-9A-Fa-f]{1,2}|\d+))?\s*$"
+_HEX = frozenset("0123456789abcdefABCDEF")
 
 
-@dataclass(frozen=True)
-class ObjectAddress:
-    index: int
-    subindex: int
+def _address_parts(text: str) -> tuple[str, str | None] | None:
+    """(index, subindex) as written, or None: a bare ``0x`` index directly, anything else by :data:`_ADDRESS`."""
+    plain = text.strip()
+    if plain[:2] in ("0x", "0X") and 3 <= len(plain) <= 6 and _HEX.issuperset(plain[2:]):
+        return plain, None
+    match = re.match(_ADDRESS, text)
+    return (match.group("index"), match.group("sub")) if match else None
+
+
+class ObjectAddress(Record):
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
     @property
     def label(self) -> str:
@@ -31,17 +44,16 @@ def parse_address(text: str) -> ObjectAddress:
 
     A bare number is decimal, as everywhere in akdctl; hex needs ``0x`` or ``h``.
     """
-    match = _ADDRESS.match(text)
-    if not match:
+    parts = _address_parts(text)
+    if parts is None:
         raise UsageError(f"cannot parse object address {text!r}: expected INDEX[:SUB], e.g. 0x6041:0")
-    index_text = match.group("index")
+    index_text, sub_text = parts
     if index_text.lower().endswith("h"):
         index = int(index_text[:-1], 16)
     elif index_text.lower().startswith("0x"):
         index = int(index_text, 16)
     else:
         index = int(index_text, 10)
-    sub_text = match.group("sub")
     # int(text, 0) refuses leading zeros ("0x1C12:01", as the manuals write it): parse by form.
     sub = (int(sub_text, 16) if sub_text.lower().startswith("0x") else int(sub_text, 10)) if sub_text else 0
     if not 0 <= index <= 0xFFFF:
@@ -59,7 +71,7 @@ def hex_hint(text: str) -> str:
     """
     from akdctl.catalog.objects import object_name
 
-    match = _ADDRESS.match(text)
+    match = re.match(_ADDRESS, text)
     index_text = match.group("index") if match else ""
     if not index_text.isdigit():
         return ""

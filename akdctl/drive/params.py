@@ -20,16 +20,26 @@ from akdctl.errors import UsageError
 
 __all__ = ["description_json", "parse_assignment", "parse_pnu_spec"]
 
-_SPEC = re.compile(r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$")
+# Patterns, compiled on first use: ``pnu get 930`` (a bare number) needs neither.
+_SPEC = r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$"
 
 
-_COLON = re.compile(r"^\s*(?P<pnu>[^:\[\]\s]+)\s*:\s*(?P<sub>[^:\[\]]*?)\s*$")
+_COLON = r"^\s*(?P<pnu>[^:\[\]\s]+)\s*:\s*(?P<sub>[^:\[\]]*?)\s*$"
 
 
 def _brackets(text: str) -> str:
     """``964:0..4`` → ``964[0..4]`` (the one place the colon form is understood); other text unchanged."""
-    match = _COLON.match(text)
+    match = re.match(_COLON, text) if ":" in text else None
     return f"{match.group('pnu')}[{match.group('sub')}]" if match else text
+
+
+def _spec_parts(text: str) -> tuple[str, str | None, str | None] | None:
+    """(PNU, first, last) as written, or None: a bare number directly, anything else by :data:`_SPEC`."""
+    plain = text.strip()
+    if plain.isdecimal():
+        return plain, None, None
+    match = re.match(_SPEC, text)
+    return (match.group("pnu"), match.group("a"), match.group("b")) if match else None
 
 
 def _int(text: str, what: str) -> int:
@@ -43,11 +53,11 @@ def parse_pnu_spec(text: str) -> PnuSpec:
     """Parse ``930``, ``964[0..4]`` (or ``964:0..4``), ``947[3]`` (``947:3``), ``STW1``; checks against the
     catalogue when known."""
     shown, text = text, _brackets(text)
-    match = _SPEC.match(text)
-    if not match:
+    parts = _spec_parts(text)
+    if parts is None:
         raise UsageError(f"cannot parse PNU address {shown!r}: expected PNU, PNU[SUB], PNU[FROM..TO] or PNU:FROM..TO, "
                          "e.g. 964:0..4 (brackets need quotes in zsh: '964[0..4]')")
-    name = match.group("pnu")
+    name, a, b = parts
     if name[0].isalpha() and not name.lower().startswith("0x"):
         info = by_name(name)
         if info is None:
@@ -58,7 +68,6 @@ def parse_pnu_spec(text: str) -> PnuSpec:
         info = lookup(pnu)
     if not 1 <= pnu <= 0xFFFF:
         raise UsageError(f"PNU {pnu} is outside 1..65535")
-    a, b = match.group("a"), match.group("b")
     if a is None and b is None:
         if "[" in text:
             raise UsageError(f"cannot parse PNU address {shown!r}: empty subindex")

@@ -26,12 +26,12 @@ sent; decoding a reply that does not fit its type is a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.catalog.texts import profidrive_error_phrase
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
+from akdctl.protocol.record import Record
 
 #: What a snapshot or recipe holds for one object or PNU.
 Value = int | float | str | list[int]
@@ -74,10 +74,12 @@ def resolve_type(address: Any, type_name: str | None) -> tuple[str, Any]:
     return entry.short_type, entry
 
 
-@dataclass(frozen=True)
-class _Address:
-    index: int
-    subindex: int
+class _Address(Record):
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
 
 def object_type(index: int, subindex: int) -> str:
@@ -243,14 +245,16 @@ def encode_object(entry: Any, value: Any) -> bytes:
 
 
 # ====================================================================== PNUs (PROFIdrive parameters)
-@dataclass(frozen=True)
-class PnuSpec:
+class PnuSpec(Record):
     """An address the user asked for: PNU, first element, number of elements."""
 
-    pnu: int
-    subindex: int
-    count: int
-    info: PnuInfo | None
+    __slots__ = ("pnu", "subindex", "count", "info")
+
+    def __init__(self, pnu: int, subindex: int, count: int, info: PnuInfo | None) -> None:
+        self.pnu = pnu
+        self.subindex = subindex
+        self.count = count
+        self.info = info
 
     @property
     def label(self) -> str:
@@ -261,17 +265,23 @@ class PnuSpec:
         return f"{self.pnu}[{self.subindex}..{self.subindex + self.count - 1}]"
 
 
-@dataclass
-class PnuReading:
-    """One requested address and what came back: values (signed per type) or a failure."""
+class PnuReading(Record):
+    """One requested address and what came back: values (signed per type) or a failure (mutable, unhashable)."""
 
-    spec: PnuSpec
-    values: list[int] | None = None
-    raw: list[Any] | None = None
-    format: int | None = None
-    error: int | None = None
-    error_text: str = ""
-    additional: int | None = None
+    __slots__ = ("spec", "values", "raw", "format", "error", "error_text", "additional")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, spec: PnuSpec, values: list[int] | None = None, raw: list[Any] | None = None,
+                 format: int | None = None, error: int | None = None, error_text: str = "",  # noqa: A002
+                 additional: int | None = None) -> None:
+        self.spec = spec
+        self.values = values
+        self.raw = raw
+        self.format = format
+        self.error = error
+        self.error_text = error_text
+        self.additional = additional
+
 
     @property
     def ok(self) -> bool:

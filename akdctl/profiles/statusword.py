@@ -10,7 +10,7 @@ mode-specific bits for profile position and homing).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from akdctl.protocol.record import Record
 
 # ---------------------------------------------------------------- PROFIdrive STW1 (PNU 1)
 STW1_ON = 1 << 0
@@ -163,13 +163,16 @@ PD_STATES = {
 }
 
 
-@dataclass(frozen=True)
-class Bit:
-    """One bit of a word: number, meaning, and whether it is set."""
+class Bit(Record):
+    """One bit of a word: number, meaning, and whether it is set (JSON through :meth:`to_json`)."""
 
-    number: int
-    name: str
-    set: bool
+    __slots__ = ("number", "name", "set")
+
+    def __init__(self, number: int, name: str, set: bool) -> None:  # noqa: A002
+        self.number = number
+        self.name = name
+        self.set = set
+
 
     def to_json(self) -> dict[str, object]:
         return {"bit": self.number, "name": self.name, "set": self.set}

@@ -9,7 +9,10 @@ enforces and ``pdo plan`` checks before anything is written.
 
 from __future__ import annotations
 
-from fractions import Fraction
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fractions import Fraction
 
 MAX_RPM = 12000.0
 MAX_ACC_RPM_S = 50_000_000.0
@@ -84,15 +87,33 @@ def cia_per_s(rpm: float) -> int:
 
 
 #: EtherCAT cycle time (EtherCAT manual 5.9/5.10, SPEC-NOTES 20): FBUS.SAMPLEPERIOD counts 62.5 µs ticks, and the
-#: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque).
-CYCLE_TICK_S = Fraction(1, 16000)
-MIN_CYCLE_S = Fraction(1, 4000)
+#: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque). ``CYCLE_TICK_S`` (1/16000 s)
+#: and ``MIN_CYCLE_S`` (1/4000 s) are exact fractions, made on first use: ``fractions`` (with ``decimal``) costs every
+#: start that imports this module more than the few commands that check a cycle time spend.
+_CYCLE_FRACTIONS = {"CYCLE_TICK_S": (1, 16000), "MIN_CYCLE_S": (1, 4000)}
 CYCLE_TOO_SHORT = "too-short"
 CYCLE_OFF_GRID = "off-grid"
 
 
+def _cycle_fraction(name: str) -> Fraction:
+    value = globals().get(name)
+    if value is None:
+        from fractions import Fraction
+
+        value = globals()[name] = Fraction(*_CYCLE_FRACTIONS[name])
+    return value
+
+
+def __getattr__(name: str) -> Fraction:
+    if name in _CYCLE_FRACTIONS:
+        return _cycle_fraction(name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def cycle_time_s(units: int, exponent: int) -> Fraction:
     """0x60C2: sub 1 units × 10^(sub 2) seconds, exactly."""
+    from fractions import Fraction
+
     return Fraction(units) * Fraction(10) ** exponent
 
 
@@ -100,9 +121,9 @@ def cycle_time_problem(units: int, exponent: int) -> str | None:
     """Why ``units`` × 10^``exponent`` s is not an AKD cycle time (:data:`CYCLE_TOO_SHORT`,
     :data:`CYCLE_OFF_GRID`), or None; the words are ``catalog.texts.cycle_time_text``."""
     period = cycle_time_s(units, exponent)
-    if period < MIN_CYCLE_S:
+    if period < _cycle_fraction("MIN_CYCLE_S"):
         return CYCLE_TOO_SHORT
-    if (period / CYCLE_TICK_S).denominator != 1:
+    if (period / _cycle_fraction("CYCLE_TICK_S")).denominator != 1:
         return CYCLE_OFF_GRID
     return None
 

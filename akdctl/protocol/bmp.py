@@ -29,10 +29,10 @@ Every malformed input raises :class:`BmpError` (a
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
-from enum import IntEnum
+from collections.abc import Iterator
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 # --- field values ---------------------------------------------------------------------------------------------
 
@@ -100,8 +100,19 @@ class BmpError(CodecError):
     """A base-mode parameter block that does not decode, or an object that cannot be encoded."""
 
 
-class Format(IntEnum):
-    """Format byte of a value block; the standard data types double as description data types."""
+class _Formats(type):
+    """Iterating :class:`Format` yields its values in order, as iterating the enum it was did."""
+
+    def __iter__(cls) -> Iterator[int]:
+        return iter(cls._values)  # type: ignore[attr-defined]
+
+
+class Format(metaclass=_Formats):
+    """Format byte of a value block; the standard data types double as description data types.
+
+    Plain integer constants (``Format.INT16 == 3``; ``for f in Format`` yields the values, :func:`format_name` the
+    names): an enum of 36 members costs more to create at every start than a command spends on its parameters.
+    """
 
     BOOLEAN = 0x01
     INT8 = 0x02
@@ -141,6 +152,9 @@ class Format(IntEnum):
     X2 = 123
     X4 = 124
 
+
+Format._values = tuple(value for name, value in vars(Format).items() if name.isupper())  # type: ignore[attr-defined]
+_FORMAT_NAMES = {value: name for name, value in vars(Format).items() if name.isupper()}
 
 # struct code per numeric format; the byte count follows from it.
 _STRUCT: dict[int, str] = {
@@ -192,10 +206,8 @@ _SIZES: dict[int, int] = {int(f): _format_size(f) for f in Format}
 
 def format_name(fmt: int) -> str:
     """Readable name of a format byte, also for reserved ones."""
-    try:
-        return Format(fmt).name
-    except ValueError:
-        return f"format 0x{fmt:02X}"
+    name = _FORMAT_NAMES.get(fmt)
+    return name if name is not None else f"format 0x{fmt:02X}"
 
 
 def to_signed(value: int, bits: int) -> int:
@@ -219,14 +231,16 @@ def _pad(n: int) -> int:
 Scalar = int | float | bytes | str
 
 
-@dataclass(frozen=True)
-class ParameterAddress:
+class ParameterAddress(Record):
     """One parameter in a request: ``count`` elements from ``subindex`` on, of one attribute."""
 
-    pnu: int
-    subindex: int = 0
-    count: int = 1
-    attribute: int = ATTR_VALUE
+    __slots__ = ("pnu", "subindex", "count", "attribute")
+
+    def __init__(self, pnu: int, subindex: int = 0, count: int = 1, attribute: int = ATTR_VALUE) -> None:
+        self.pnu = pnu
+        self.subindex = subindex
+        self.count = count
+        self.attribute = attribute
 
     def __str__(self) -> str:
         attr = {ATTR_VALUE: "", ATTR_DESCRIPTION: " description", ATTR_TEXT: " text"}.get(
@@ -235,8 +249,7 @@ class ParameterAddress:
         return f"PNU {self.pnu}{span}{attr}"
 
 
-@dataclass(frozen=True)
-class ParameterValue:
+class ParameterValue(Record):
     """The values of one parameter, in one wire format.
 
     Numeric formats hold one python number per element. The string formats
@@ -246,12 +259,11 @@ class ParameterValue:
     unsigned: use :func:`to_signed` when the parameter is signed.
     """
 
-    format: int
-    values: tuple[Scalar, ...]
+    __slots__ = ("format", "values")
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.values, tuple):
-            object.__setattr__(self, "values", tuple(self.values))
+    def __init__(self, format: int, values: tuple[Scalar, ...]) -> None:  # noqa: A002
+        self.format = format
+        self.values = values if type(values) is tuple else tuple(values)
 
     @property
     def count(self) -> int:
@@ -275,50 +287,47 @@ class ParameterValue:
         return cls(fmt, tuple(values))
 
 
-@dataclass(frozen=True)
-class ParameterFailure:
+class ParameterFailure(Record):
     """A negative per-parameter result: PROFIdrive error value and optional additional info.
 
     Codes only: the words are :func:`akdctl.catalog.texts.profidrive_error_text` and
     :func:`~akdctl.catalog.texts.profidrive_failure_detail`.
     """
 
-    error: int
-    additional: int | None = None
+    __slots__ = ("error", "additional")
+
+    def __init__(self, error: int, additional: int | None = None) -> None:
+        self.error = error
+        self.additional = additional
 
 
 ParameterResult = ParameterValue | ParameterFailure | None
 
 
-@dataclass(frozen=True)
-class ParameterRequest:
+class ParameterRequest(Record):
     """A read (``REQ_READ``) or change (``REQ_CHANGE``) request; ``values`` only for changes, one per address."""
 
-    reference: int
-    request_id: int
-    axis: int
-    addresses: tuple[ParameterAddress, ...]
-    values: tuple[ParameterValue, ...] = ()
+    __slots__ = ("reference", "request_id", "axis", "addresses", "values")
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.addresses, tuple):
-            object.__setattr__(self, "addresses", tuple(self.addresses))
-        if not isinstance(self.values, tuple):
-            object.__setattr__(self, "values", tuple(self.values))
+    def __init__(self, reference: int, request_id: int, axis: int, addresses: tuple[ParameterAddress, ...],
+                 values: tuple[ParameterValue, ...] = ()) -> None:
+        self.reference = reference
+        self.request_id = request_id
+        self.axis = axis
+        self.addresses = addresses if type(addresses) is tuple else tuple(addresses)
+        self.values = values if type(values) is tuple else tuple(values)
 
 
-@dataclass(frozen=True)
-class ParameterResponse:
+class ParameterResponse(Record):
     """A response: one result per parameter (``None`` = accepted change, no values)."""
 
-    reference: int
-    response_id: int
-    axis: int
-    results: tuple[ParameterResult, ...]
+    __slots__ = ("reference", "response_id", "axis", "results")
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.results, tuple):
-            object.__setattr__(self, "results", tuple(self.results))
+    def __init__(self, reference: int, response_id: int, axis: int, results: tuple[ParameterResult, ...]) -> None:
+        self.reference = reference
+        self.response_id = response_id
+        self.axis = axis
+        self.results = results if type(results) is tuple else tuple(results)
 
     @property
     def negative(self) -> bool:
@@ -742,8 +751,7 @@ DESCRIPTION_OFFSETS: dict[int, tuple[int, int]] = {
 }
 
 
-@dataclass(frozen=True)
-class ParameterDescription:
+class ParameterDescription(Record):
     """The 46-byte PROFIdrive parameter description.
 
     ``identifier`` is the V2 identifier: data type in bits 0..7 plus the ``ID_*``
@@ -751,16 +759,23 @@ class ParameterDescription:
     :meth:`limits` for numbers). ``name`` is at most 16 ISO 8859-1 characters.
     """
 
-    identifier: int
-    elements: int = 0
-    standardisation_factor: float = 1.0
-    variable_attribute: int = 0
-    name: str = ""
-    low_limit: bytes = b"\x00\x00\x00\x00"
-    high_limit: bytes = b"\x00\x00\x00\x00"
-    id_extension: int = 0
-    normalisation_ref: int = 0
-    normalisation_field: int = 0
+    __slots__ = ("identifier", "elements", "standardisation_factor", "variable_attribute", "name", "low_limit",
+                 "high_limit", "id_extension", "normalisation_ref", "normalisation_field")
+
+    def __init__(self, identifier: int, elements: int = 0, standardisation_factor: float = 1.0,
+                 variable_attribute: int = 0, name: str = "", low_limit: bytes = b"\x00\x00\x00\x00",
+                 high_limit: bytes = b"\x00\x00\x00\x00", id_extension: int = 0, normalisation_ref: int = 0,
+                 normalisation_field: int = 0) -> None:
+        self.identifier = identifier
+        self.elements = elements
+        self.standardisation_factor = standardisation_factor
+        self.variable_attribute = variable_attribute
+        self.name = name
+        self.low_limit = low_limit
+        self.high_limit = high_limit
+        self.id_extension = id_extension
+        self.normalisation_ref = normalisation_ref
+        self.normalisation_field = normalisation_field
 
     @property
     def data_type(self) -> int:

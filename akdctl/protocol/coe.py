@@ -22,18 +22,18 @@ module hands out on first use (an upload never loads it).
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
-from enum import IntEnum
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 
 class CoeError(CodecError):
     """A CoE header, SDO or SDO-information payload that does not decode or encode."""
 
 
-class CoeService(IntEnum):
-    """CoE header service field (bits 12-15)."""
+class CoeService:
+    """CoE header service field (bits 12-15), as plain integer constants (an enum costs more to create at every
+    start than it gives)."""
 
     EMERGENCY = 1
     SDO_REQUEST = 2
@@ -44,6 +44,9 @@ class CoeService(IntEnum):
     RXPDO_RR = 7
     SDO_INFO = 8
 
+
+#: Every service a CoE header may name.
+SERVICES = frozenset(value for name, value in vars(CoeService).items() if name.isupper())
 
 COE_HEADER_SIZE = 2
 SDO_SIZE = 8  # a CiA 301 SDO frame; CoE frames are at least this long
@@ -75,17 +78,15 @@ def upload_request(index: int, subindex: int) -> bytes:
         raise CoeError(f"SDO index {index!r} / subindex {subindex!r} out of range") from None
 
 
-def decode_coe(data: bytes) -> tuple[CoeService, int, bytes]:
+def decode_coe(data: bytes) -> tuple[int, int, bytes]:
     """Split a CoE mailbox's data into (service, number, payload); unknown services raise."""
     data = bytes(data)
     if len(data) < COE_HEADER_SIZE:
         raise CoeError(f"CoE data of {len(data)} bytes is shorter than its 2-byte header")
     (header,) = struct.unpack_from("<H", data)
-    raw = header >> 12
-    try:
-        service = CoeService(raw)
-    except ValueError:
-        raise CoeError(f"unknown CoE service {raw}") from None
+    service = header >> 12
+    if service not in SERVICES:
+        raise CoeError(f"unknown CoE service {service}")
     return service, header & 0x1FF, data[COE_HEADER_SIZE:]
 
 
@@ -106,87 +107,106 @@ ABORT_GENERAL = 0x08000000
 # --- SDO messages ----------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class SdoDownloadInitiate:
+class SdoDownloadInitiate(Record):
     """Client: start a write. Expedited carries 1..4 bytes in the frame; normal carries
     the total ``size`` then the first ``data`` bytes (the rest follows in segments)."""
 
-    index: int
-    subindex: int
-    data: bytes
-    size: int | None
-    expedited: bool
-    complete_access: bool = False
+    __slots__ = ("index", "subindex", "data", "size", "expedited", "complete_access")
+
+    def __init__(self, index: int, subindex: int, data: bytes, size: int | None, expedited: bool,
+                 complete_access: bool = False) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.data = data
+        self.size = size
+        self.expedited = expedited
+        self.complete_access = complete_access
 
 
-@dataclass(frozen=True)
-class SdoDownloadResponse:
+class SdoDownloadResponse(Record):
     """Server: the initiate download was accepted."""
 
-    index: int
-    subindex: int
+    __slots__ = ("index", "subindex")
+
+    def __init__(self, index: int, subindex: int) -> None:
+        self.index = index
+        self.subindex = subindex
 
 
-@dataclass(frozen=True)
-class SdoDownloadSegment:
+class SdoDownloadSegment(Record):
     """Client: the next part of a segmented write."""
 
-    toggle: int
-    data: bytes
-    last: bool
+    __slots__ = ("toggle", "data", "last")
+
+    def __init__(self, toggle: int, data: bytes, last: bool) -> None:
+        self.toggle = toggle
+        self.data = data
+        self.last = last
 
 
-@dataclass(frozen=True)
-class SdoDownloadSegmentResponse:
+class SdoDownloadSegmentResponse(Record):
     """Server: the segment with this toggle was accepted."""
 
-    toggle: int
+    __slots__ = ("toggle",)
+
+    def __init__(self, toggle: int) -> None:
+        self.toggle = toggle
 
 
-@dataclass(frozen=True)
-class SdoUploadInitiate:
+class SdoUploadInitiate(Record):
     """Client: start a read."""
 
-    index: int
-    subindex: int
-    complete_access: bool = False
+    __slots__ = ("index", "subindex", "complete_access")
+
+    def __init__(self, index: int, subindex: int, complete_access: bool = False) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.complete_access = complete_access
 
 
-@dataclass(frozen=True)
-class SdoUploadResponse:
+class SdoUploadResponse(Record):
     """Server: the value (expedited, ``size`` = 1..4 or None) or its total ``size`` and
     the first ``data`` bytes (normal; segments follow when ``len(data) < size``)."""
 
-    index: int
-    subindex: int
-    data: bytes
-    size: int | None
-    expedited: bool
+    __slots__ = ("index", "subindex", "data", "size", "expedited")
+
+    def __init__(self, index: int, subindex: int, data: bytes, size: int | None, expedited: bool) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.data = data
+        self.size = size
+        self.expedited = expedited
 
 
-@dataclass(frozen=True)
-class SdoUploadSegment:
+class SdoUploadSegment(Record):
     """Client: request the next segment of a segmented read."""
 
-    toggle: int
+    __slots__ = ("toggle",)
+
+    def __init__(self, toggle: int) -> None:
+        self.toggle = toggle
 
 
-@dataclass(frozen=True)
-class SdoUploadSegmentResponse:
+class SdoUploadSegmentResponse(Record):
     """Server: the next part of a segmented read."""
 
-    toggle: int
-    data: bytes
-    last: bool
+    __slots__ = ("toggle", "data", "last")
+
+    def __init__(self, toggle: int, data: bytes, last: bool) -> None:
+        self.toggle = toggle
+        self.data = data
+        self.last = last
 
 
-@dataclass(frozen=True)
-class SdoAbort:
+class SdoAbort(Record):
     """Either side: abort the transfer of ``index:subindex`` with an abort code."""
 
-    index: int
-    subindex: int
-    code: int
+    __slots__ = ("index", "subindex", "code")
+
+    def __init__(self, index: int, subindex: int, code: int) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.code = code
 
 
 SdoMessage = (
@@ -200,6 +220,8 @@ SdoMessage = (
     | SdoUploadSegmentResponse
     | SdoAbort
 )
+
+
 
 SERVER_MESSAGES = (SdoDownloadResponse, SdoDownloadSegmentResponse, SdoUploadResponse, SdoUploadSegmentResponse)
 CLIENT_MESSAGES = (SdoDownloadInitiate, SdoDownloadSegment, SdoUploadInitiate, SdoUploadSegment)

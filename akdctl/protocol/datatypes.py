@@ -16,25 +16,28 @@ from __future__ import annotations
 import math
 import re
 import struct
-from dataclasses import dataclass
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 
 class DataTypeError(CodecError):
     """A value that does not fit its type, bytes of the wrong size, or an unknown type name."""
 
 
-@dataclass(frozen=True)
-class DataType:
+class DataType(Record):
     """One scalar type: size in bytes (None = variable length), CANopen code, ESI names."""
 
-    name: str
-    size: int | None
-    code: int
-    kind: str  # "bool", "uint", "int", "float", "str", "bytes"
-    esi: tuple[str, ...]
-    fmt: str = ""  # struct format character for fixed-size numbers
+    __slots__ = ("name", "size", "code", "kind", "esi", "fmt")
+
+    def __init__(self, name: str, size: int | None, code: int, kind: str, esi: tuple[str, ...],
+                 fmt: str = "") -> None:
+        self.name = name
+        self.size = size
+        self.code = code
+        self.kind = kind  # "bool", "uint", "int", "float", "str", "bytes"
+        self.esi = esi
+        self.fmt = fmt  # struct format character for fixed-size numbers
 
     @property
     def bits(self) -> int | None:
@@ -85,9 +88,10 @@ _BY_CODE.update({0x0030: "bool", **{0x0030 + n: "u8" for n in range(1, 8)}})
 _BY_ESI: dict[str, str] = {esi: t.name for t in TYPES.values() for esi in t.esi}
 _BY_ESI.update({f"BIT{n}": "u8" for n in range(2, 9)})
 
-_STRING_RE = re.compile(r"^STRING\s*\(\s*\d+\s*\)$")
-_BYTE_ARRAY_RE = re.compile(r"^ARRAY\s*\[\s*\d+\s*\.\.\s*\d+\s*\]\s*OF\s*(BYTE|USINT)$")
-_OCTET_RE = re.compile(r"^OCTET_STRING\s*(\(\s*\d+\s*\))?$")
+# Patterns, compiled on first use (re caches them): an SDO command never parses an ESI type name.
+_STRING_RE = r"^STRING\s*\(\s*\d+\s*\)$"
+_BYTE_ARRAY_RE = r"^ARRAY\s*\[\s*\d+\s*\.\.\s*\d+\s*\]\s*OF\s*(BYTE|USINT)$"
+_OCTET_RE = r"^OCTET_STRING\s*(\(\s*\d+\s*\))?$"
 
 
 def get_type(name: str) -> DataType:
@@ -112,9 +116,9 @@ def type_for_esi(esi_name: str) -> str:
     text = str(esi_name).strip().upper()
     if text in _BY_ESI:
         return _BY_ESI[text]
-    if _STRING_RE.match(text):
+    if re.match(_STRING_RE, text):
         return "vs"
-    if _BYTE_ARRAY_RE.match(text) or _OCTET_RE.match(text):
+    if re.match(_BYTE_ARRAY_RE, text) or re.match(_OCTET_RE, text):
         return "os"
     raise DataTypeError(f"ESI type {esi_name!r} is not a scalar type akdctl knows (structured DTxxxx types are records)")
 
@@ -189,7 +193,7 @@ def unpack(type_name: str, data: bytes, endian: str = "<") -> object:
 
 _TRUE = {"1", "true", "yes", "on"}
 _FALSE = {"0", "false", "no", "off"}
-_HEX_SEPARATORS = re.compile(r"[\s:\-_,]")
+_HEX_SEPARATORS = r"[\s:\-_,]"  # compiled on first use
 
 
 def _parse_int(text: str) -> int:
@@ -206,7 +210,7 @@ def _parse_int(text: str) -> int:
 
 def parse_octets(text: str) -> bytes:
     """Hex octets: "01 02", "0102", "01:02", "0x0102"; empty text is zero bytes."""
-    cleaned = _HEX_SEPARATORS.sub("", text.strip())
+    cleaned = re.sub(_HEX_SEPARATORS, "", text.strip())
     if cleaned[:2].lower() == "0x":
         cleaned = cleaned[2:]
     if len(cleaned) % 2:

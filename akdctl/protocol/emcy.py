@@ -11,9 +11,9 @@ Layout: u16 error code (LE), u8 error register (0x1001), 5 manufacturer bytes.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 EMCY_SIZE = 8
 
@@ -22,13 +22,15 @@ class EmcyError(CodecError):
     """An emergency frame that does not decode or cannot be encoded."""
 
 
-@dataclass(frozen=True)
-class Emergency:
+class Emergency(Record):
     """One emergency: CiA 301 error code, error register bits, manufacturer data."""
 
-    error_code: int
-    error_register: int
-    data: bytes = bytes(5)
+    __slots__ = ("error_code", "error_register", "data")
+
+    def __init__(self, error_code: int, error_register: int, data: bytes = bytes(5)) -> None:
+        self.error_code = error_code
+        self.error_register = error_register
+        self.data = data
 
     @property
     def is_reset(self) -> bool:

@@ -19,10 +19,9 @@ file fills the last packet exactly). Packet numbers count from 1; the ack of a w
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
-from enum import IntEnum
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 HEADER_SIZE = 6
 
@@ -31,13 +30,19 @@ class FoeError(CodecError):
     """A FoE frame that does not decode or cannot be encoded."""
 
 
-class FoeOpcode(IntEnum):
+class FoeOpcode:
+    """The opcodes, as plain integer constants (an enum costs more to create at every start than it gives)."""
+
     READ = 1
     WRITE = 2
     DATA = 3
     ACK = 4
     ERROR = 5
     BUSY = 6
+
+
+#: Every opcode a frame may carry.
+OPCODES = frozenset((FoeOpcode.READ, FoeOpcode.WRITE, FoeOpcode.DATA, FoeOpcode.ACK, FoeOpcode.ERROR, FoeOpcode.BUSY))
 
 
 #: FoE error codes (ETG.1000.6 table "FoE error codes"); their words are ``catalog.texts.FOE_ERROR_TEXTS``.
@@ -55,13 +60,15 @@ ERR_NO_RIGHTS = 0x800A
 ERR_PROGRAM = 0x800B
 
 
-@dataclass(frozen=True)
-class FoeFrame:
+class FoeFrame(Record):
     """One FoE frame: ``value`` is the password, packet number or error code; ``data`` the name, data or text."""
 
-    opcode: int
-    value: int = 0
-    data: bytes = b""
+    __slots__ = ("opcode", "value", "data")
+
+    def __init__(self, opcode: int, value: int = 0, data: bytes = b"") -> None:
+        self.opcode = opcode
+        self.value = value
+        self.data = data
 
     @property
     def name(self) -> str:
@@ -70,7 +77,7 @@ class FoeFrame:
 
 
 def encode_foe(frame: FoeFrame) -> bytes:
-    if frame.opcode not in FoeOpcode.__members__.values():
+    if frame.opcode not in OPCODES:
         raise FoeError(f"FoE opcode {frame.opcode!r} is not 1..6")
     if not isinstance(frame.value, int) or not 0 <= frame.value <= 0xFFFFFFFF:
         raise FoeError(f"FoE value {frame.value!r} out of range 0..0xFFFFFFFF")
@@ -82,7 +89,7 @@ def decode_foe(data: bytes) -> FoeFrame:
     if len(data) < HEADER_SIZE:
         raise FoeError(f"FoE frame of {len(data)} bytes is shorter than its {HEADER_SIZE}-byte header")
     opcode, _reserved, value = struct.unpack_from("<BBI", data, 0)
-    if opcode not in FoeOpcode.__members__.values():
+    if opcode not in OPCODES:
         raise FoeError(f"FoE opcode {opcode} is not 1..6")
     return FoeFrame(opcode, value, data[HEADER_SIZE:])
 

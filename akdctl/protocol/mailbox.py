@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from enum import IntEnum
 
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 
 HEADER_SIZE = 6
 GATEWAY_HEADER_SIZE = 2
@@ -40,8 +40,9 @@ class MailboxError(CodecError):
     """A mailbox header or gateway frame that does not decode or cannot be encoded."""
 
 
-class MailboxType(IntEnum):
-    """Mailbox protocol types (header byte 5, bits 0-3)."""
+class MailboxType:
+    """Mailbox protocol types (header byte 5, bits 0-3), as plain integer constants (an enum costs more to create at
+    every start than it gives)."""
 
     ERROR = 0
     AOE = 1
@@ -54,7 +55,10 @@ class MailboxType(IntEnum):
 
 @dataclass(frozen=True)
 class Mailbox:
-    """One mailbox frame: header fields plus the protocol data after the header."""
+    """One mailbox frame: header fields plus the protocol data after the header.
+
+    Still a dataclass (unlike the other records on the cold path): callers rewrite one with ``dataclasses.replace``.
+    """
 
     type: int
     data: bytes
@@ -147,8 +151,7 @@ ERR_NO_MORE_MEMORY = 7
 ERR_INVALID_SIZE = 8
 
 
-@dataclass(frozen=True)
-class MailboxErrorReply:
+class MailboxErrorReply(Record):
     """A slave's refusal of a whole mailbox (ETG.1000.6 mailbox error reply, type 0).
 
     A slave sends it instead of a protocol reply when it cannot even parse the
@@ -156,7 +159,10 @@ class MailboxErrorReply:
     Its wording is :func:`akdctl.catalog.texts.mailbox_error_text` (codecs return codes).
     """
 
-    code: int
+    __slots__ = ("code",)
+
+    def __init__(self, code: int) -> None:
+        self.code = code
 
 
 

@@ -13,7 +13,6 @@ gateway datagrams, CAN frames), to ``options.tracer``.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
 from akdctl.links import Budget
@@ -24,7 +23,6 @@ if TYPE_CHECKING:
     from akdctl.transport.target import Target
 
 
-@dataclass
 class LinkOptions:
     """Settings every transport honours.
 
@@ -32,17 +30,29 @@ class LinkOptions:
     often a request may be repeated after no answer where the protocol makes a repeat harmless;
     ``budget`` is the one :class:`~akdctl.links.Budget` of the command built from both, shared by
     the Connection's channels and the transport; ``tracer`` receives the transport's wire frames
-    (the Connection traces the links).
+    (the Connection traces the links). (A plain class: a dataclass costs more to define at every start.)
     """
 
-    timeout: float = 2.0
-    retries: int = 2
-    tracer: Tracer = field(default_factory=lambda: NULL_TRACER)
-    verbose: int = 0
-    budget: Budget = field(init=False, repr=False)
+    __slots__ = ("timeout", "retries", "tracer", "verbose", "budget")
 
-    def __post_init__(self) -> None:
-        self.budget = Budget(self.timeout, self.retries)
+    def __init__(self, timeout: float = 2.0, retries: int = 2, tracer: Tracer | None = None, verbose: int = 0) -> None:
+        self.timeout = timeout
+        self.retries = retries
+        self.tracer: Tracer = NULL_TRACER if tracer is None else tracer
+        self.verbose = verbose
+        self.budget = Budget(timeout, retries)
+
+    def __repr__(self) -> str:
+        return (f"LinkOptions(timeout={self.timeout!r}, retries={self.retries!r}, tracer={self.tracer!r}, "
+                f"verbose={self.verbose!r})")
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return ((self.timeout, self.retries, self.tracer, self.verbose, self.budget)
+                == (other.timeout, other.retries, other.tracer, other.verbose, other.budget))  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]
 
 
 class Transport(ABC):

@@ -12,11 +12,11 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from akdctl.errors import UsageError
 from akdctl.transport.target import Target, split_target
+from akdctl.protocol.record import Record
 
 if TYPE_CHECKING:
     from akdctl.transport.base import Transport
@@ -73,22 +73,27 @@ def _is_int(text: str) -> bool:
     return True
 
 
-@dataclass(frozen=True)
-class TransportSpec:
+class TransportSpec(Record):
     """What the registry knows about a scheme without importing its transport."""
 
-    scheme: str
-    module: str
-    cls: str
-    summary: str
-    syntax: str
-    channels: str
-    requires: tuple[str, ...] = ()
-    check: Callable[[Target], None] | None = None
-    extra: str = ""
-    notes: tuple[str, ...] = field(default_factory=tuple)
-    #: The query keys the transport reads (``drive`` is every target's); None: any key is passed on (can://).
-    query: tuple[str, ...] | None = ()
+    __slots__ = ("scheme", "module", "cls", "summary", "syntax", "channels", "requires", "check", "extra", "notes",
+                 "query")
+
+    def __init__(self, scheme: str, module: str, cls: str, summary: str, syntax: str, channels: str,
+                 requires: tuple[str, ...] = (), check: Callable[[Target], None] | None = None, extra: str = "",
+                 notes: tuple[str, ...] = (), query: tuple[str, ...] | None = ()) -> None:
+        self.scheme = scheme
+        self.module = module
+        self.cls = cls
+        self.summary = summary
+        self.syntax = syntax
+        self.channels = channels
+        self.requires = requires
+        self.check = check
+        self.extra = extra
+        self.notes = notes
+        #: The query keys the transport reads (``drive`` is every target's); None: any key is passed on (can://).
+        self.query = query
 
 
 BUILTIN: dict[str, TransportSpec] = {

@@ -8,23 +8,27 @@ Parsing is pure and cheap: it never imports a transport.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from urllib.parse import parse_qsl, urlsplit
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 
 
-@dataclass(frozen=True)
-class Target:
+class Target(Record):
     """A parsed target. ``source`` says where it came from (shown with ``-v``)."""
 
-    raw: str
-    scheme: str
-    host: str = ""
-    port: int | None = None
-    path: str = ""
-    query: dict[str, str] = field(default_factory=dict)
-    source: str = "default"
+    __slots__ = ("raw", "scheme", "host", "port", "path", "query", "source")
+    __hash__ = None  # type: ignore[assignment]  # its query is a dict
+
+    def __init__(self, raw: str, scheme: str, host: str = "", port: int | None = None, path: str = "",
+                 query: dict[str, str] | None = None, source: str = "default") -> None:
+        self.raw = raw
+        self.scheme = scheme
+        self.host = host
+        self.port = port
+        self.path = path
+        self.query: dict[str, str] = {} if query is None else query
+        self.source = source
 
     @property
     def display(self) -> str:

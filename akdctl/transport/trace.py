@@ -20,16 +20,15 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Literal, TextIO
 
 from akdctl.links import MailboxLink, RecordLink
+from akdctl.protocol.record import Record
 
 Direction = Literal["tx", "rx"]
 
 
-@dataclass(frozen=True)
-class TraceRecord:
+class TraceRecord(Record):
     """One frame as it crossed the link.
 
     ``layer`` names the wire format of ``data`` (``"bmp"`` PROFIdrive parameter
@@ -39,12 +38,17 @@ class TraceRecord:
     "dst": (ip, port)}`` or ``{"proto": "ethernet", "ethertype": 0x88A4}``.
     """
 
-    time: float
-    direction: Direction
-    layer: str
-    data: bytes
-    note: str = ""
-    meta: dict[str, object] = field(default_factory=dict)
+    __slots__ = ("time", "direction", "layer", "data", "note", "meta")
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self, time: float, direction: Direction, layer: str, data: bytes, note: str = "",
+                 meta: dict[str, object] | None = None) -> None:
+        self.time = time
+        self.direction = direction
+        self.layer = layer
+        self.data = data
+        self.note = note
+        self.meta: dict[str, object] = {} if meta is None else meta
 
     def to_json(self) -> dict[str, object]:
         return {
