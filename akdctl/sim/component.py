@@ -1,4 +1,5 @@
-"""What a simulated-drive component is, and the access-error codes components and the model raise.
+"""What a simulated-drive component is, how its persisted state says it changed, and the access-error codes
+components and the model raise.
 
 Why a module of its own: the model (``sim/model.py``) lists its components by
 import, and every component needs the base class and the codes; living here,
@@ -39,19 +40,17 @@ ABORT_VALUE_HIGH = 0x06090031
 ABORT_VALUE_LOW = 0x06090032
 ABORT_DEVICE_STATE = 0x08000022
 
-
-
 _MISSING = object()
 
 
 class Tracked:
     """Persisted state that counts its changes: the one rule behind "save only when something changed".
 
-    The rule (docs/internals.md, "When the state file is written"): **whatever changes what ``to_state()``
+    The rule (docs/internals.md, "The revision rule"): **whatever changes what ``to_state()``
     returns bumps a revision.** Two ways, both here:
 
-    * an assignment to a name in ``FIELDS`` or ``PERSISTED`` bumps it by itself (``__setattr__`` compares with the old value, so
-      a tick that writes the same 0.0 again at rest changes nothing);
+    * an assignment to a name in ``FIELDS`` or ``PERSISTED`` bumps it by itself (``__setattr__`` compares with
+      the old value, so a tick that writes the same 0.0 again at rest changes nothing);
     * a change *inside* a container (a list appended, a dict item set) cannot be seen that way: the method that
       makes it calls :meth:`changed`.
 

@@ -367,7 +367,7 @@ class ProfinetFace(Face):
                 for frame in cached:
                     self._send(frame, peer)
             else:
-                self._send(_reply_head(view, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
+                self._send(_reply_head(data, view.little, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
             return
         if view.ptype != dcerpc.PT_REQUEST:
             return      # acks, facks, stray responses
@@ -379,11 +379,11 @@ class ProfinetFace(Face):
             return
         if view.is_fragment:
             reject = _nca(0x1C010003, view.little)
-            self._send(_reply_head(view, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject, peer)
+            self._send(_reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject, peer)
             return      # our requests are small; fragmented requests are not needed by any client we serve
         if data[24:40] != _DEVICE_INTERFACE[view.little]:
             reject = _nca(0x1C010003, view.little)
-            frames = [_reply_head(view, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject]
+            frames = [_reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject]
         else:
             try:
                 status, blocks = self._call(view, peer)
@@ -397,7 +397,7 @@ class ProfinetFace(Face):
                 reply = self._reply_header(dcerpc.decode_packet(data).header, dcerpc.PT_RESPONSE)
                 frames = dcerpc.fragment_body(reply, body, self.fragment)
             else:
-                frames = [_reply_head(view, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body]
+                frames = [_reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body]
         self._cache[key] = frames
         if len(self._cache) > REPLY_CACHE:
             self._cache.popitem(last=False)
@@ -423,7 +423,7 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         body = pnio.encode_response_args(status, blocks, little=little)
-        frame = _reply_bytes(data, little, dcerpc.PT_RESPONSE, self.boot_time, body)
+        frame = _reply_head(data, little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body
         self._cache[key] = [frame]
         if len(self._cache) > REPLY_CACHE:
             self._cache.popitem(last=False)
@@ -579,23 +579,26 @@ def _nca(status: int, little: bool) -> bytes:
 #
 # Why here and not objects from protocol/: a PNU read is two RPCs, and decoding each into an RpcHeader (three
 # UUIDs), an IODWriteReq/IODReadReq (a UUID, a RecordAddress, a RawBlock list) and encoding the reply from
-# objects cost several times what the drive's answer does. The face reads the header through dcerpc.view_packet,
-# the record header with one struct, and writes its replies by patching the request's own header - the same
-# bytes encode_packet(replace(header, ...)) and IODWriteRes/IODReadRes.encode() produce (tests/test_sim_faces.py
-# compares them). Anything unusual takes the general decoders, so malformed requests meet the same checks.
+# objects cost several times what the drive's answer does. A plain Write/Read record request is recognised by one
+# unpack of its DCE/RPC header and NDR arguments and one of its record header (_plain_record_call); any other
+# datagram is read through dcerpc.view_packet and pnio's decoders. Replies patch the request's own header - the
+# same bytes encode_packet(replace(header, ...)) and IODWriteRes/IODReadRes.encode() produce. tests/test_sim_faces.py
+# compares both: the replies with the codecs' encoding, the short way's answers with the general path's.
 
 _DEVICE_INTERFACE = {False: pnio.DEVICE_INTERFACE.bytes, True: pnio.DEVICE_INTERFACE.bytes_le}
 _HEAD_TAIL = {False: struct.Struct(">I"), True: struct.Struct("<I")}  # server boot time at byte 56
 _LENGTH_FRAGMENT = {False: struct.Struct(">HH"), True: struct.Struct("<HH")}  # body length, fragment: byte 74
 
 
-def _reply_bytes(data: bytes, little: bool, ptype: int, boot: int, body: bytes) -> bytes:
-    """:func:`_reply_head` from the request's bytes, with the body after it."""
+def _reply_head(data: bytes, little: bool, ptype: int, boot: int, body_length: int) -> bytes:
+    """The 80-byte header of a reply to the request ``data``: its header with the reply's type, flags (NOFACK on a
+    response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
+    data representation stay as the request sent them (``little``: its data representation)."""
     head = bytearray(data[:dcerpc.HEADER_SIZE])
     head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
     _HEAD_TAIL[little].pack_into(head, 56, boot)
-    _LENGTH_FRAGMENT[little].pack_into(head, 74, len(body), 0)
-    return bytes(head) + body
+    _LENGTH_FRAGMENT[little].pack_into(head, 74, body_length, 0)
+    return bytes(head)
 
 
 # DCE/RPC CL header (drep order) + the NDR request arguments: the fields a plain record call is checked by
@@ -604,11 +607,11 @@ _CALL = {order: struct.Struct(order + "B B B 1x B 19x 16s 16s 4x 4x I H 4x H 2x 
 
 
 def _plain_record_call(data: bytes) -> tuple[bool, int, int, _Record] | None:
-    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and write has - a
-    DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one IODWriteReq
-    or IODReadReq header (a write's record data after it) - else None, and the general path takes it (with
-    every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders: this only recognises
-    requests they accept, and answers them as they would be answered)."""
+    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and
+    write has - a DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one
+    IODWriteReq or IODReadReq header (a write's record data after it) - else None, and the general path takes it
+    with every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders. This recognises
+    only requests those accept, and the face answers them as the general path would."""
     if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
             or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
         return None
@@ -623,17 +626,6 @@ def _plain_record_call(data: bytes) -> tuple[bool, int, int, _Record] | None:
     blocks = data[100:100 + args_length]
     req = _record_request_plain(blocks, BT_WRITE_REQ if opnum == OP_WRITE else BT_READ_REQ)
     return None if req is None else (little, sequence, opnum, req)
-
-
-def _reply_head(view: dcerpc.RpcView, ptype: int, boot: int, body_length: int) -> bytes:
-    """The 80-byte header of a reply to ``view``: the request's header with the reply's type, flags (NOFACK on a
-    response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
-    data representation stay as the request sent them."""
-    head = bytearray(view.data[:dcerpc.HEADER_SIZE])
-    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
-    _HEAD_TAIL[view.little].pack_into(head, 56, boot)
-    _LENGTH_FRAGMENT[view.little].pack_into(head, 74, body_length, 0)
-    return bytes(head)
 
 
 class _Record(NamedTuple):

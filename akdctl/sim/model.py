@@ -79,7 +79,8 @@ class DriveModel:
         # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
         self.revision = 0
         self._pnu_bindings: dict[int, _PnuBinding] = {}
-        self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}  # pnu_read_raw's lookups, per PNU
+        # pnu_read_raw's lookups, once per PNU: entry, wire format, value mask, reader, is an array
+        self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
         # The components, imported and named here (a missing one fails at import, not silently), as typed
         # handles for each other and for the faces; ``components`` is their tick order (motion integrates

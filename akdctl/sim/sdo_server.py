@@ -232,7 +232,8 @@ class SdoServer:
                                _EXPEDITED.pack(0x43 | (4 - len(value)) << 2, index, subindex, value))
         if isinstance(value, coe.SdoAbort):
             return self._reply(request, CoeService.SDO_REQUEST, coe.encode_sdo(value))
-        return self._reply(request, CoeService.SDO_RESPONSE, coe.encode_sdo(self._upload_normal(index, subindex, value)))
+        answer = self._upload_normal(index, subindex, value)
+        return self._reply(request, CoeService.SDO_RESPONSE, coe.encode_sdo(answer))
 
     # --- FoE --------------------------------------------------------------------------------
 
