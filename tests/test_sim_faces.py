@@ -462,7 +462,7 @@ def test_gateway_replies_carry_the_station_and_emergencies_come_first(tmp_path: 
 
 def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tmp_path: Path,
                                                                               monkeypatch: pytest.MonkeyPatch) -> None:
-    """Plain Write/Read record requests take the face's short way (``_plain_record_call``); with it switched off
+    """Plain Write/Read record requests take the face's short way (``protocol/pnio_record.plain_record_call``); with it switched off
     every request goes the general way. Seeded valid and mutated requests get the same frames both ways."""
     import random
     import uuid
@@ -504,7 +504,7 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
 
     def frames(short_way: bool) -> list[bytes]:
         if not short_way:
-            monkeypatch.setattr(face_profinet, "_plain_record_call", lambda data: None)
+            monkeypatch.setattr(face_profinet.pnio_record, "plain_record_call", lambda data: None)
         face = face_profinet.ProfinetFace(SimDrive("default", tmp_path / str(short_way)), "127.0.0.1", 0)
         face.boot_time = 1234
         sent: list[bytes] = []

@@ -14,23 +14,21 @@ never applied twice.
 
 from __future__ import annotations
 
-import functools
 import heapq
 import itertools
 import os
 import select
 import socket
-import struct
 import sys
 import threading
 import time
 import uuid
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Protocol
 
 from akdctl.errors import CommError, UsageError
-from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol import dcerpc, pnio, pnio_record
 from akdctl.protocol.pnio import (
     BT_READ_REQ,
     BT_WRITE_REQ,
@@ -352,7 +350,7 @@ class ProfinetFace(Face):
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
-        plain = _plain_record_call(data) if not self.fragment else None
+        plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
             self._record_call(data, peer, *plain)
             return
@@ -367,7 +365,7 @@ class ProfinetFace(Face):
                 for frame in cached:
                     self._send(frame, peer)
             else:
-                self._send(_reply_head(data, view.little, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
+                self._send(pnio_record.reply_head(data, view.little, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
             return
         if view.ptype != dcerpc.PT_REQUEST:
             return      # acks, facks, stray responses
@@ -379,11 +377,12 @@ class ProfinetFace(Face):
             return
         if view.is_fragment:
             reject = _nca(0x1C010003, view.little)
-            self._send(_reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject, peer)
+            head = pnio_record.reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject))
+            self._send(head + reject, peer)
             return      # our requests are small; fragmented requests are not needed by any client we serve
-        if data[24:40] != _DEVICE_INTERFACE[view.little]:
+        if data[24:40] != pnio_record.DEVICE_INTERFACE_WIRE[view.little]:
             reject = _nca(0x1C010003, view.little)
-            frames = [_reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject]
+            frames = [pnio_record.reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject)) + reject]
         else:
             try:
                 status, blocks = self._call(view, peer)
@@ -397,7 +396,8 @@ class ProfinetFace(Face):
                 reply = self._reply_header(dcerpc.decode_packet(data).header, dcerpc.PT_RESPONSE)
                 frames = dcerpc.fragment_body(reply, body, self.fragment)
             else:
-                frames = [_reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body]
+                head = pnio_record.reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body))
+                frames = [head + body]
         self._cache[key] = frames
         if len(self._cache) > REPLY_CACHE:
             self._cache.popitem(last=False)
@@ -405,8 +405,8 @@ class ProfinetFace(Face):
             self._send(frame, peer)
 
     def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
-                     req: _Record) -> None:
-        """A plain Write or Read record request (:func:`_plain_record_call`): what the general path does for
+                     req: pnio_record.RecordCall) -> None:
+        """A plain Write or Read record request (:func:`pnio_record.plain_record_call`): what the general path does for
         it, without building a header view or calling the argument decoders."""
         key = (data[40:56], sequence)
         cached = self._cache.get(key)
@@ -423,14 +423,15 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         body = pnio.encode_response_args(status, blocks, little=little)
-        frame = _reply_head(data, little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body
+        frame = pnio_record.reply_head(data, little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body
         self._cache[key] = [frame]
         if len(self._cache) > REPLY_CACHE:
             self._cache.popitem(last=False)
         self._send(frame, peer)
 
     def _reply_header(self, head: dcerpc.RpcHeader, ptype: int) -> dcerpc.RpcHeader:
-        """The reply's header as an object (the fragmenting path); :func:`_reply_head` writes the same bytes."""
+        """The reply's header as an object (the fragmenting path); ``pnio_record.reply_head`` writes the same
+        bytes."""
         return replace(head, ptype=ptype, flags1=dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0,
                        flags2=0, server_boot=self.boot_time, fragment=0, body_length=0)
 
@@ -438,9 +439,9 @@ class ProfinetFace(Face):
         _args_max, blocks = pnio.decode_request_args(view.body, view.little)
         opnum = view.opnum
         if opnum == OP_WRITE:
-            return self._write(_record_request(blocks, BT_WRITE_REQ))
+            return self._write(pnio_record.record_request(blocks, BT_WRITE_REQ))
         if opnum == OP_READ or opnum == OP_READ_IMPLICIT:
-            return self._read(_record_request(blocks, BT_READ_REQ), implicit=opnum == OP_READ_IMPLICIT)
+            return self._read(pnio_record.record_request(blocks, BT_READ_REQ), implicit=opnum == OP_READ_IMPLICIT)
         if opnum == pnio.OP_CONNECT:
             return self._connect(blocks, peer)
         if opnum == pnio.OP_RELEASE:
@@ -489,7 +490,7 @@ class ProfinetFace(Face):
         del self._ars[rel.ar_uuid.bytes]
         return pnio.OK, replace(rel, command=pnio.CONTROL_DONE, response=True).encode()
 
-    def _address_error(self, req: _Record, write: bool) -> pnio.PnioStatus | None:
+    def _address_error(self, req: pnio_record.RecordCall, write: bool) -> pnio.PnioStatus | None:
         if req.api != self.api:
             return pnio.rw_error(write, 0xB4)
         if req.slot != self.slot or req.subslot != self.subslot:
@@ -504,37 +505,37 @@ class ProfinetFace(Face):
             ar.last_activity = time.monotonic()
         return ar
 
-    def _write(self, req: _Record) -> tuple[pnio.PnioStatus, bytes]:
+    def _write(self, req: pnio_record.RecordCall) -> tuple[pnio.PnioStatus, bytes]:
         ar = self._ar_for(req.ar)
         if ar is None:
-            return _write_res(req, pnio.rw_error(True, 0xB6))                  # no such AR: access denied
+            return pnio_record.write_res(req, pnio.rw_error(True, 0xB6))                  # no such AR: access denied
         error = self._address_error(req, True)
         if error is not None:
-            return _write_res(req, error)
+            return pnio_record.write_res(req, error)
         if not 0 < len(req.data) <= MAX_RECORD:
-            return _write_res(req, pnio.rw_error(True, 0xB1))
+            return pnio_record.write_res(req, pnio.rw_error(True, 0xB1))
         now = ar.last_activity  # _ar_for stamped it just now
         if ar.pending is not None and ar.pending[0] > now:
             self.stats.busy_answers += 1
-            return _write_res(req, pnio.rw_error(True, 0xB5))                  # still working on the last request
+            return pnio_record.write_res(req, pnio.rw_error(True, 0xB5))  # still working on the last request
         self.stats.bmp_requests += 1
         try:
             response = self.drive.handle_bmp(req.data)
         except RecordRefused as exc:  # a request no base-mode response can answer (docs/fidelity.md F1)
-            return _write_res(req, pnio.rw_error(True, exc.code1))
+            return pnio_record.write_res(req, pnio.rw_error(True, exc.code1))
         except Exception as exc:  # noqa: BLE001 - the parameter manager failed: a record error, not silence
             request_failed("profinet", exc)
-            return _write_res(req, _failure_status(OP_WRITE, exc))
+            return pnio_record.write_res(req, _failure_status(OP_WRITE, exc))
         ar.pending = (now + self.delay, response)
-        return _write_res(req, OK)
+        return pnio_record.write_res(req, OK)
 
-    def _read(self, req: _Record, implicit: bool) -> tuple[pnio.PnioStatus, bytes]:
+    def _read(self, req: pnio_record.RecordCall, implicit: bool) -> tuple[pnio.PnioStatus, bytes]:
         if req.index == pnio.INDEX_IM0:
             if req.slot not in (0, self.slot):
                 return pnio.rw_error(False, 0xB2), b""
             if not implicit and self._ar_for(req.ar) is None:
                 return pnio.rw_error(False, 0xB6), b""
-            return _read_res(req, self.im0().encode()[: max(0, req.length)])
+            return pnio_record.read_res(req, self.im0().encode()[: max(0, req.length)])
         if implicit:
             # the parameter channel lives in the AR: Read Implicit cannot reach it
             return pnio.rw_error(False, 0xB6), b""
@@ -542,7 +543,7 @@ class ProfinetFace(Face):
         if ar is None:
             return pnio.rw_error(False, 0xB6), b""
         if req.index == pnio.INDEX_KEEPALIVE:
-            return _read_res(req, b"")
+            return pnio_record.read_res(req, b"")
         error = self._address_error(req, write=False)
         if error is not None:
             return error, b""
@@ -553,7 +554,7 @@ class ProfinetFace(Face):
             self.stats.busy_answers += 1
             return pnio.rw_error(False, 0xB5), b""          # busy: come back later
         ar.pending = None
-        return _read_res(req, response[: max(0, req.length)])
+        return pnio_record.read_res(req, response[: max(0, req.length)])
 
     def im0(self) -> pnio.IM0:
         return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
@@ -573,123 +574,3 @@ def _failure_status(opnum: int, exc: Exception) -> pnio.PnioStatus:
 def _nca(status: int, little: bool) -> bytes:
     """A reject body: one NCA status code in the sender's byte order."""
     return status.to_bytes(4, "little" if little else "big")
-
-
-# ---------------------------------------------------------------- the request path's bytes
-#
-# Why here and not objects from protocol/: a PNU read is two RPCs, and decoding each into an RpcHeader (three
-# UUIDs), an IODWriteReq/IODReadReq (a UUID, a RecordAddress, a RawBlock list) and encoding the reply from
-# objects cost several times what the drive's answer does. A plain Write/Read record request is recognised by one
-# unpack of its DCE/RPC header and NDR arguments and one of its record header (_plain_record_call); any other
-# datagram is read through dcerpc.view_packet and pnio's decoders. Replies patch the request's own header - the
-# same bytes encode_packet(replace(header, ...)) and IODWriteRes/IODReadRes.encode() produce. tests/test_sim_faces.py
-# compares both: the replies with the codecs' encoding, the short way's answers with the general path's.
-
-_DEVICE_INTERFACE = {False: pnio.DEVICE_INTERFACE.bytes, True: pnio.DEVICE_INTERFACE.bytes_le}
-_HEAD_TAIL = {False: struct.Struct(">I"), True: struct.Struct("<I")}  # server boot time at byte 56
-_LENGTH_FRAGMENT = {False: struct.Struct(">HH"), True: struct.Struct("<HH")}  # body length, fragment: byte 74
-
-
-def _reply_head(data: bytes, little: bool, ptype: int, boot: int, body_length: int) -> bytes:
-    """The 80-byte header of a reply to the request ``data``: its header with the reply's type, flags (NOFACK on a
-    response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
-    data representation stay as the request sent them (``little``: its data representation)."""
-    head = bytearray(data[:dcerpc.HEADER_SIZE])
-    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
-    _HEAD_TAIL[little].pack_into(head, 56, boot)
-    _LENGTH_FRAGMENT[little].pack_into(head, 74, body_length, 0)
-    return bytes(head)
-
-
-# DCE/RPC CL header (drep order) + the NDR request arguments: the fields a plain record call is checked by
-_CALL = {order: struct.Struct(order + "B B B 1x B 19x 16s 16s 4x 4x I H 4x H 2x 2x I I I I I")
-         for order in (">", "<")}
-
-
-def _plain_record_call(data: bytes) -> tuple[bool, int, int, _Record] | None:
-    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and
-    write has - a DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one
-    IODWriteReq or IODReadReq header (a write's record data after it) - else None, and the general path takes it
-    with every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders. This recognises
-    only requests those accept, and the face answers them as the general path would."""
-    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
-            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
-        return None
-    little = data[4] >> 4 == 1
-    (_v, _t, _f, _drep, interface, _act, sequence, opnum, length, _args_max, args_length, maximum, offset,
-     actual) = _CALL["<" if little else ">"].unpack_from(data)
-    if interface != _DEVICE_INTERFACE[little] or (opnum != OP_WRITE and opnum != OP_READ):
-        return None
-    body_end = dcerpc.HEADER_SIZE + length
-    if body_end > len(data) or offset or actual > maximum or args_length > length - 20 or actual > length - 20:
-        return None
-    blocks = data[100:100 + args_length]
-    req = _record_request_plain(blocks, BT_WRITE_REQ if opnum == OP_WRITE else BT_READ_REQ)
-    return None if req is None else (little, sequence, opnum, req)
-
-
-class _Record(NamedTuple):
-    """A record read/write request as the face needs it (``ar``: the AR UUID's 16 bytes)."""
-
-    seq: int
-    ar: bytes
-    api: int
-    slot: int
-    subslot: int
-    pad: bytes
-    index: int
-    length: int  # write: the record data's length; read: the most the client takes
-    data: bytes = b""
-
-
-# BlockHeader (type, length, version) + the record header (seq, AR UUID, API, slot, subslot, padding, index, length)
-_RECORD_HEAD = struct.Struct(">HHBBH16sIHH2sHI")
-_RECORD_HEAD_LENGTH = 60  # BlockLength of IODWriteReqHeader and IODReadReqHeader (58 bytes after the version)
-_RECORD = struct.Struct(">H16sIHH2sHI")  # the record header alone (34 bytes)
-_WRITE_RES = pnio.block_header(pnio.BT_WRITE_RES, 58)
-_READ_RES = pnio.block_header(pnio.BT_READ_RES, 58)
-_NO_ADDITIONAL = bytes(4)  # AdditionalValue1, AdditionalValue2
-_PAD2, _PAD16, _PAD20 = bytes(2), bytes(16), bytes(20)
-_OK_BYTES = OK.encode()
-_new_record = functools.partial(tuple.__new__, _Record)  # a _Record from a tuple, without the Python-level __new__
-
-
-def _write_res(req: _Record, status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
-    """IODWriteResHeader: the request's record header, AdditionalValue1/2 = 0, the status, 16 reserved bytes."""
-    code = _OK_BYTES if status is OK else status.encode()
-    return status, _WRITE_RES + _RECORD.pack(*req[:7], len(req.data)) + _NO_ADDITIONAL + code + _PAD16
-
-
-def _read_res(req: _Record, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
-    """IODReadResHeader: the request's record header with the data's length, 24 bytes 0; then the data."""
-    return OK, _READ_RES + _RECORD.pack(*req[:7], len(data)) + _NO_ADDITIONAL + _PAD20 + data
-
-
-def _record_request(blocks: bytes, block_type: int) -> _Record:
-    """The request's record header: one unpack when it is the one block it should be, else the general decoder
-    (which refuses what does not parse with the same PnioError)."""
-    plain = _record_request_plain(blocks, block_type)
-    if plain is not None:
-        return plain
-    if block_type == BT_WRITE_REQ:
-        write = pnio.IODWriteReq.decode(blocks)
-        a = write.address
-        return _Record(write.seq_number, write.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
-                       len(write.data), write.data)
-    read = pnio.IODReadReq.decode(blocks)
-    a = read.address
-    return _Record(read.seq_number, read.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
-                   read.max_length)
-
-
-def _record_request_plain(blocks: bytes, block_type: int) -> _Record | None:
-    """The record header when ``blocks`` is exactly that one header block (and a write's data), else None."""
-    size = len(blocks)
-    if size >= 64:
-        btype, blen, vhi, vlo, seq, ar, api, slot, subslot, _pad, index, length = _RECORD_HEAD.unpack_from(blocks)
-        if btype == block_type and blen == _RECORD_HEAD_LENGTH:
-            if block_type == BT_READ_REQ and size == 64:
-                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, b""))
-            if block_type == BT_WRITE_REQ and size == 64 + length:
-                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
-    return None

@@ -1,0 +1,132 @@
+"""The one shape every PNU read and write has on the wire — a plain PNIO record Write/Read call — read and
+answered with one unpack each way.
+
+Why a codec of its own beside :mod:`akdctl.protocol.dcerpc` and :mod:`akdctl.protocol.pnio`: a PNU read is two
+RPCs, and decoding each into an ``RpcHeader`` (three UUIDs), an ``IODWriteReq``/``IODReadReq`` and encoding the reply
+from objects cost several times what the drive's answer does (issue 15). :func:`plain_record_call` recognises only
+requests the general decoders accept (anything else returns None and takes the general path, with every check of
+``dcerpc.view_packet``, ``pnio.decode_request_args`` and the record decoders); the replies are the bytes
+``dcerpc.encode_packet`` and ``IODWriteRes``/``IODReadRes.encode()`` produce. The simulator's PROFINET face uses it;
+tests/test_sim_faces.py holds the two ways together (replies byte-equal to the codecs', the short way's answers
+equal to the general path's).
+"""
+
+from __future__ import annotations
+
+import functools
+import struct
+from typing import NamedTuple
+
+from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol.pnio import BT_READ_REQ, BT_WRITE_REQ, OK, OP_READ, OP_WRITE
+
+#: The device interface UUID as it appears on the wire, by the request's byte order (True: little endian).
+DEVICE_INTERFACE_WIRE = {False: pnio.DEVICE_INTERFACE.bytes, True: pnio.DEVICE_INTERFACE.bytes_le}
+_HEAD_TAIL = {False: struct.Struct(">I"), True: struct.Struct("<I")}  # server boot time at byte 56
+_LENGTH_FRAGMENT = {False: struct.Struct(">HH"), True: struct.Struct("<HH")}  # body length, fragment: byte 74
+
+
+def reply_head(data: bytes, little: bool, ptype: int, boot: int, body_length: int) -> bytes:
+    """The 80-byte header of a reply to the request ``data``: its header with the reply's type, flags (NOFACK on a
+    response), this device's boot time, fragment 0 and the body's length; UUIDs, sequence, opnum, hints and
+    data representation stay as the request sent them (``little``: its data representation)."""
+    head = bytearray(data[:dcerpc.HEADER_SIZE])
+    head[1], head[2], head[3] = ptype, dcerpc.FLAG_NOFACK if ptype == dcerpc.PT_RESPONSE else 0, 0
+    _HEAD_TAIL[little].pack_into(head, 56, boot)
+    _LENGTH_FRAGMENT[little].pack_into(head, 74, body_length, 0)
+    return bytes(head)
+
+
+# DCE/RPC CL header (drep order) + the NDR request arguments: the fields a plain record call is checked by
+_CALL = {order: struct.Struct(order + "B B B 1x B 19x 16s 16s 4x 4x I H 4x H 2x 2x I I I I I")
+         for order in (">", "<")}
+
+
+def plain_record_call(data: bytes) -> tuple[bool, int, int, RecordCall] | None:
+    """(little endian, sequence number, opnum, record request) of a datagram of the one shape every PNU read and
+    write has - a DCE/RPC v4 request to the device interface, not fragmented, NDR arguments holding exactly one
+    IODWriteReq or IODReadReq header (a write's record data after it) - else None, and the general path takes it
+    with every check of dcerpc.view_packet, pnio.decode_request_args and the record decoders. This recognises
+    only requests those accept, and the face answers them as the general path would."""
+    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
+            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
+        return None
+    little = data[4] >> 4 == 1
+    (_v, _t, _f, _drep, interface, _act, sequence, opnum, length, _args_max, args_length, maximum, offset,
+     actual) = _CALL["<" if little else ">"].unpack_from(data)
+    if interface != DEVICE_INTERFACE_WIRE[little] or (opnum != OP_WRITE and opnum != OP_READ):
+        return None
+    body_end = dcerpc.HEADER_SIZE + length
+    if body_end > len(data) or offset or actual > maximum or args_length > length - 20 or actual > length - 20:
+        return None
+    blocks = data[100:100 + args_length]
+    req = record_request_plain(blocks, BT_WRITE_REQ if opnum == OP_WRITE else BT_READ_REQ)
+    return None if req is None else (little, sequence, opnum, req)
+
+
+class RecordCall(NamedTuple):
+    """A record read/write request as the face needs it (``ar``: the AR UUID's 16 bytes)."""
+
+    seq: int
+    ar: bytes
+    api: int
+    slot: int
+    subslot: int
+    pad: bytes
+    index: int
+    length: int  # write: the record data's length; read: the most the client takes
+    data: bytes = b""
+
+
+# BlockHeader (type, length, version) + the record header (seq, AR UUID, API, slot, subslot, padding, index, length)
+_RECORD_HEAD = struct.Struct(">HHBBH16sIHH2sHI")
+_RECORD_HEAD_LENGTH = 60  # BlockLength of IODWriteReqHeader and IODReadReqHeader (58 bytes after the version)
+_RECORD = struct.Struct(">H16sIHH2sHI")  # the record header alone (34 bytes)
+_WRITE_RES = pnio.block_header(pnio.BT_WRITE_RES, 58)
+_READ_RES = pnio.block_header(pnio.BT_READ_RES, 58)
+_NO_ADDITIONAL = bytes(4)  # AdditionalValue1, AdditionalValue2
+_PAD2, _PAD16, _PAD20 = bytes(2), bytes(16), bytes(20)
+_OK_BYTES = OK.encode()
+#: A RecordCall from a plain tuple, without the Python-level ``__new__`` (the hot path builds one per request).
+_new_record = functools.partial(tuple.__new__, RecordCall)
+
+
+def write_res(req: RecordCall, status: pnio.PnioStatus) -> tuple[pnio.PnioStatus, bytes]:
+    """IODWriteResHeader: the request's record header, AdditionalValue1/2 = 0, the status, 16 reserved bytes."""
+    code = _OK_BYTES if status is OK else status.encode()
+    return status, _WRITE_RES + _RECORD.pack(*req[:7], len(req.data)) + _NO_ADDITIONAL + code + _PAD16
+
+
+def read_res(req: RecordCall, data: bytes) -> tuple[pnio.PnioStatus, bytes]:
+    """IODReadResHeader: the request's record header with the data's length, 24 bytes 0; then the data."""
+    return OK, _READ_RES + _RECORD.pack(*req[:7], len(data)) + _NO_ADDITIONAL + _PAD20 + data
+
+
+def record_request(blocks: bytes, block_type: int) -> RecordCall:
+    """The request's record header: one unpack when it is the one block it should be, else the general decoder
+    (which refuses what does not parse with the same PnioError)."""
+    plain = record_request_plain(blocks, block_type)
+    if plain is not None:
+        return plain
+    if block_type == BT_WRITE_REQ:
+        write = pnio.IODWriteReq.decode(blocks)
+        a = write.address
+        return RecordCall(write.seq_number, write.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
+                       len(write.data), write.data)
+    read = pnio.IODReadReq.decode(blocks)
+    a = read.address
+    return RecordCall(read.seq_number, read.ar_uuid.bytes, a.api, a.slot, a.subslot, b"\0\0", a.index,
+                   read.max_length)
+
+
+def record_request_plain(blocks: bytes, block_type: int) -> RecordCall | None:
+    """The record header when ``blocks`` is exactly that one header block (and a write's data), else None."""
+    size = len(blocks)
+    if size >= 64:
+        btype, blen, vhi, vlo, seq, ar, api, slot, subslot, _pad, index, length = _RECORD_HEAD.unpack_from(blocks)
+        if btype == block_type and blen == _RECORD_HEAD_LENGTH:
+            if block_type == BT_READ_REQ and size == 64:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, b""))
+            if block_type == BT_WRITE_REQ and size == 64 + length:
+                return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
+    return None
