@@ -29,7 +29,6 @@ from collections.abc import Sequence
 from typing import Any
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
-from akdctl.catalog.texts import profidrive_error_phrase
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.record import Record
 
@@ -356,6 +355,8 @@ def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
     readings = []
     for spec, result in zip(specs, results):
         if isinstance(result, ParameterFailure):
+            from akdctl.catalog.texts import profidrive_error_phrase  # here: the texts are read only for a refusal
+
             readings.append(PnuReading(spec, error=result.error, error_text=profidrive_error_phrase(result.error), additional=result.additional))
             continue
         raw = list(result.values)
@@ -383,6 +384,8 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
         if failure is None:
             out.append(PnuReading(spec, values=list(values), format=spec.info.wire_format if spec.info else None))
         else:
+            from akdctl.catalog.texts import profidrive_error_phrase
+
             out.append(PnuReading(spec, error=failure.error, error_text=profidrive_error_phrase(failure.error), additional=failure.additional))
     return out
 
