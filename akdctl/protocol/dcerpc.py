@@ -66,8 +66,28 @@ def uuid_from_wire(data: bytes, little: bool) -> uuid.UUID:
     return uuid.UUID(bytes_le=bytes(data)) if little else uuid.UUID(bytes=bytes(data))
 
 
+class _HeaderFlags:
+    """What the header's type and flags say, the same for the decoded :class:`RpcHeader` and the :class:`RpcView`."""
+
+    __slots__ = ()
+    ptype: int
+    flags1: int
+
+    @property
+    def is_fragment(self) -> bool:
+        return bool(self.flags1 & FLAG_FRAG)
+
+    @property
+    def is_last_fragment(self) -> bool:
+        return not self.is_fragment or bool(self.flags1 & FLAG_LASTFRAG)
+
+    @property
+    def type_name(self) -> str:
+        return PACKET_TYPE_NAMES.get(self.ptype, f"type {self.ptype}")
+
+
 @dataclass(frozen=True)
-class RpcHeader:
+class RpcHeader(_HeaderFlags):
     """The 80-byte DCE/RPC CL header. ``body_length`` is filled by :func:`encode_packet`."""
 
     ptype: int
@@ -93,17 +113,6 @@ class RpcHeader:
     def little_endian(self) -> bool:
         return (self.drep[0] >> 4) == 1
 
-    @property
-    def is_fragment(self) -> bool:
-        return bool(self.flags1 & FLAG_FRAG)
-
-    @property
-    def is_last_fragment(self) -> bool:
-        return not self.is_fragment or bool(self.flags1 & FLAG_LASTFRAG)
-
-    @property
-    def type_name(self) -> str:
-        return PACKET_TYPE_NAMES.get(self.ptype, f"type {self.ptype}")
 
 
 @dataclass(frozen=True)
@@ -143,7 +152,7 @@ _FIELDS_BE = struct.Struct(">IIIHHHHH")
 _FIELDS_LE = struct.Struct("<IIIHHHHH")
 
 
-class RpcView:
+class RpcView(_HeaderFlags):
     """A received datagram as a client needs it: header fields and body, the UUIDs left as wire bytes.
 
     Why not :class:`RpcHeader`: decoding three ``uuid.UUID`` objects and an 18-field frozen dataclass per
@@ -166,17 +175,6 @@ class RpcView:
     def little_endian(self) -> bool:
         return self.little
 
-    @property
-    def is_fragment(self) -> bool:
-        return bool(self.flags1 & FLAG_FRAG)
-
-    @property
-    def is_last_fragment(self) -> bool:
-        return not self.is_fragment or bool(self.flags1 & FLAG_LASTFRAG)
-
-    @property
-    def type_name(self) -> str:
-        return PACKET_TYPE_NAMES.get(self.ptype, f"type {self.ptype}")
 
 
 def view_packet(data: bytes) -> RpcView:
