@@ -8,7 +8,7 @@ twice, a duplicate of an earlier answer is never taken for the current request, 
 from __future__ import annotations
 
 import random
-from collections import Counter, deque
+from collections import deque
 
 import pytest
 
@@ -17,27 +17,15 @@ from akdctl.errors import MalformedReply, NoAnswer, UnknownOutcome
 from akdctl.links import Budget, MailboxLink
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
-from akdctl.sim.sdo_server import SdoAccessError, SdoServer
+from akdctl.sim.sdo_server import SdoServer
+from tests import fakes
 
 
-class CountingObjects:
+class CountingObjects(fakes.CountingObjects):
     """Objects whose every applied write is counted (what "applied twice" would show)."""
 
-    def __init__(self) -> None:
-        self.values: dict[tuple[int, int], bytes] = {(0x6040, 0): b"\x00\x00", (0x607A, 0): bytes(4),
-                                                      (0x2100, 0): b"start", (0x1000, 0): b"\x92\x01\x02\x00"}
-        self.writes: Counter[tuple[int, int, bytes]] = Counter()
-
-    def object_read(self, index: int, subindex: int) -> bytes:
-        try:
-            return self.values[(index, subindex)]
-        except KeyError:
-            raise SdoAccessError(0x06020000) from None
-
-    def object_write(self, index: int, subindex: int, data: bytes) -> None:
-        self.object_read(index, subindex)
-        self.values[(index, subindex)] = bytes(data)
-        self.writes[(index, subindex, bytes(data))] += 1
+    VALUES = {(0x6040, 0): b"\x00\x00", (0x607A, 0): bytes(4),
+              (0x2100, 0): b"start", (0x1000, 0): b"\x92\x01\x02\x00"}
 
 
 class Wire(MailboxLink):

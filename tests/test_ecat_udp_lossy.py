@@ -13,7 +13,6 @@ import contextlib
 import socket
 import threading
 import time
-from collections import Counter
 from collections.abc import Iterator
 
 import pytest
@@ -23,32 +22,19 @@ from akdctl.errors import NoAnswer, UnknownOutcome
 from akdctl.links import Budget
 from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
-from akdctl.sim.sdo_server import SdoAccessError, SdoServer
+from akdctl.sim.sdo_server import SdoServer
 from akdctl.transport.ethercat_udp import GatewayMailboxLink
 from akdctl.transport.trace import Tracer
+from tests import fakes
 from tests.harness import LossyUdpRelay, SimServer, run_akdctl
 
 STATION = 1001
 
 
-class CountingObjects:
+class CountingObjects(fakes.CountingObjects):
     """The objects behind the fake gateway; every applied write is counted."""
 
-    def __init__(self) -> None:
-        self.values: dict[tuple[int, int], bytes] = {(0x6081, 0): bytes(4), (0x6040, 0): bytes(2)}
-        self.writes: Counter[tuple[int, int, bytes]] = Counter()
-        self.lock = threading.Lock()
-
-    def object_read(self, index: int, subindex: int) -> bytes:
-        try:
-            return self.values[(index, subindex)]
-        except KeyError:
-            raise SdoAccessError(0x06020000) from None
-
-    def object_write(self, index: int, subindex: int, data: bytes) -> None:
-        self.object_read(index, subindex)
-        self.values[(index, subindex)] = bytes(data)
-        self.writes[(index, subindex, bytes(data))] += 1
+    VALUES = {(0x6081, 0): bytes(4), (0x6040, 0): bytes(2)}
 
 
 class FakeGateway:
