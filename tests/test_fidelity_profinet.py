@@ -1,6 +1,6 @@
 """The simulated AKD against the PROFINET manuals (issue 16 items 1-6): each test quotes the statement it checks.
 
-Manuals (``/work/shared/seeds``): ``000`` AKD PROFINET Communication (Oct 2011), ``004`` AKD PROFINET RT
+Manuals (the project's seed manuals): ``000`` AKD PROFINET Communication (Oct 2011), ``004`` AKD PROFINET RT
 Communication (edition B), ``003`` AKD PROFINET RT Kommunikation (German, later). Rulings of our own are
 docs/fidelity.md F1..; SPEC-NOTES numbers are named where a test relies on one.
 """
