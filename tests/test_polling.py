@@ -137,3 +137,14 @@ def test_home_at_simulator_speed_polls_at_the_scaled_pause(akd_inproc, monkeypat
     code, out, err = akd_inproc("--json", "-y", "home", "--mode", "0")  # 'current position': done at once
     assert code == 0, err
     assert all(p >= POLL_FIRST_S for p in pauses)
+
+
+def test_a_pause_that_a_signal_may_end_sleeps_in_short_slices_and_stops_at_once(clock: FakeClock) -> None:
+    assert polling.pause_unless_stopped(0.12, lambda: False) is False
+    assert clock.pauses == pytest.approx([0.05, 0.05, 0.02]) and max(clock.pauses) <= polling.STOP_SLICE_S
+    clock.pauses.clear()
+    asked = iter([False, False, True])
+    assert polling.pause_unless_stopped(10.0, lambda: next(asked)) is True
+    assert clock.pauses == pytest.approx([0.05, 0.05])  # the rest of the 10 s is not slept
+    clock.pauses.clear()
+    assert polling.pause_unless_stopped(1.0, lambda: True) is True and clock.pauses == []

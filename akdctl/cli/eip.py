@@ -201,11 +201,10 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
       akdctl -T eip://192.168.0.20 -y eip io move 10000 --velocity 2000
       akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2
     """
-    import time
-
     from akdctl.cli.consent import require_consent
-    from akdctl.drive.motion_plan import check_executed_limits
     from akdctl.drive.cip_axis import CipAxis
+    from akdctl.drive.motion_plan import check_executed_limits
+    from akdctl.drive.polling import pause_unless_stopped
     from akdctl.drive.eip_io import run_command
     from akdctl.protocol import akd_assembly as asm
     from akdctl.transport.eip_io import IoConnection
@@ -256,9 +255,7 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
                                               tracer=app.options.tracer) as conn:
         result = run_command(conn, command, timeout=app.options.timeout)
         if timed:
-            end = time.monotonic() + hold  # type: ignore[operator]
-            while not stop() and time.monotonic() < end:
-                time.sleep(min(0.05, max(0.0, end - time.monotonic())))
+            pause_unless_stopped(hold, stop)  # type: ignore[arg-type]
             final = conn.wait_input(lambda r: True, "a response", app.options.timeout)
         else:
             final = conn.wait_input(lambda r: stop() or (bool(r.status1 & asm.ST1_IN_POSITION)

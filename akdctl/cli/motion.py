@@ -130,6 +130,7 @@ def status(watch: bool, interval: float) -> None:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
         return
     from akdctl.cli.signals import stop_signals
+    from akdctl.drive.polling import pause_unless_stopped
 
     with contextlib.suppress(Interrupted), stop_signals() as stop, LiveView(app.json) as view:
         while not stop():
@@ -137,9 +138,7 @@ def status(watch: bool, interval: float) -> None:
             view.show({"time": time.strftime("%Y-%m-%dT%H:%M:%S", now), "target": app.target.display,
                        "status": status.to_json()},
                       lambda s=status, t=time.strftime("%H:%M:%S", now): _watch_doc(app, s, t))
-            end = time.monotonic() + interval
-            while time.monotonic() < end and not stop():
-                time.sleep(0.05)
+            pause_unless_stopped(interval, stop)
 
 
 def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:

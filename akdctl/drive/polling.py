@@ -75,3 +75,21 @@ class Poll:
             wait = min(wait, max(0.0, self.deadline - monotonic()))
         sleep(wait)
         self.next = min(self.steady, self.next * POLL_GROWTH)
+
+
+#: The longest slice of a pause that must notice a stop request (Ctrl-C, SIGTERM) promptly.
+STOP_SLICE_S = 0.05
+
+
+def pause_unless_stopped(seconds: float, stopped: Callable[[], bool]) -> bool:
+    """Sleep ``seconds`` in slices of at most :data:`STOP_SLICE_S`, checking ``stopped()`` before each; True as soon
+    as it says stop (the rest is not slept), False after the whole pause. The one way a command waits on the wall
+    clock while a signal may end it (``status --watch``, ``eip io --for``, a recipe's ``wait``)."""
+    end = monotonic() + seconds
+    while True:
+        if stopped():
+            return True
+        left = end - monotonic()
+        if left <= 0:
+            return False
+        sleep(min(STOP_SLICE_S, left))

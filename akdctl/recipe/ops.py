@@ -23,7 +23,9 @@ from akdctl.recipe.schema import PlannedStep
 if TYPE_CHECKING:
     from akdctl.connection import Connection
 
-POLL_S = 0.05
+#: How often a recipe's ``check ... within`` reads its target again (a parameter, not the axis's status word:
+#: drive/polling.py paces the axis waits).
+CHECK_INTERVAL_S = 0.1
 
 
 class Session:
@@ -62,15 +64,11 @@ class Session:
         return self._axis is not None
 
     def sleep(self, seconds: float) -> None:
-        """Sleep in short slices so Ctrl-C is seen promptly (the runner then stops the axis)."""
-        end = time.monotonic() + seconds
-        while True:
-            if self.interrupted():
-                raise KeyboardInterrupt
-            left = end - time.monotonic()
-            if left <= 0:
-                return
-            time.sleep(min(POLL_S, left))
+        """Sleep so Ctrl-C is seen promptly (the runner then stops the axis)."""
+        from akdctl.drive.polling import pause_unless_stopped
+
+        if pause_unless_stopped(seconds, self.interrupted):
+            raise KeyboardInterrupt
 
 
 # ---------------------------------------------------------------------------- reading and comparing
@@ -169,7 +167,7 @@ def do_wait(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
             raise CheckFailed(f"{_describe_comparison(target['label'], comparison)} did not hold within "
                               f"{params['timeout']:g} s (last read {got})", details={"read": got})
-        session.sleep(POLL_S * 2)
+        session.sleep(CHECK_INTERVAL_S)
 
 
 def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
