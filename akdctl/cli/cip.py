@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
+from akdctl.drive.values import TYPE_HELP
 from akdctl.errors import UsageError
 
 def parse_path(text: str) -> tuple[int, int, int]:
@@ -48,7 +47,7 @@ def cip() -> None:
 def get(path: str, type_name: str | None) -> None:
     """Get_Attribute_Single; TYPE decodes the value (default: hex octets).
 
-    TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
+    TYPE: {types}.
 
     \b
     Examples:
@@ -68,6 +67,9 @@ def get(path: str, type_name: str | None) -> None:
               "type": dtype, "value": json_value(dtype, value), "raw": data.hex()},
              lambda: Doc(f"attribute {label}", app.target.display).kv("type", dtype).kv("value", text)
              .kv("hex", hex_text or data.hex(" ")))
+
+
+get.help = (get.help or "").replace("{types}", TYPE_HELP)  # the one list (drive/values.TYPE_HELP)
 
 
 @cip.command("set")

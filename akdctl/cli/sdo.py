@@ -11,6 +11,7 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
+from akdctl.drive.values import TYPE_HELP
 from akdctl.errors import CheckFailed, SdoAborted, UsageError
 
 #: SDO abort "object does not exist in the object dictionary" (CiA 301).
@@ -47,7 +48,7 @@ def sdo() -> None:
 def read(address: str, type_name: str | None) -> None:
     """Upload an object; TYPE defaults to the catalogue's type.
 
-    TYPE: u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os bool.
+    TYPE: {types}.
 
     \b
     Examples:
@@ -74,6 +75,9 @@ def read(address: str, type_name: str | None) -> None:
         lambda: Doc(f"object {addr.label}", app.target.display)
         .kv("name", name).kv("type", dtype).kv("value", text).kv("hex", hex_text or data.hex(" ")),
     )
+
+
+read.help = (read.help or "").replace("{types}", TYPE_HELP)  # the one list (drive/values.TYPE_HELP)
 
 
 @sdo.command("write")
