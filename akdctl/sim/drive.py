@@ -37,14 +37,16 @@ import re
 import stat
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
 from akdctl.io.atomic import atomic_open
 from akdctl.sim.model import DriveModel
+
+T = TypeVar("T")
 
 LOCK_TIMEOUT = 5.0
 DEFAULT_TIME_SCALE = 1.0
@@ -309,7 +311,7 @@ class SimDrive:
             self._save(DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
 
     def set_time_scale(self, scale: float) -> None:
-        with self.transaction() as _model:
+        with self.transaction():  # the scale is saved with the model, under its lock
             self.meta["time_scale"] = float(scale)
 
     def snapshot(self) -> dict[str, Any]:
@@ -330,18 +332,7 @@ class SimDrive:
             from akdctl.sim.pnu_server import PnuServer
 
             server = self._pnu_server = PnuServer(_OUTSIDE)
-        lock_fd = self._acquire()
-        try:
-            held = self._begin(lock_fd, True)
-            server.access = held.model
-            try:
-                response = server.handle(request)
-            finally:
-                server.access = _OUTSIDE
-            self._commit(held, lock_fd)
-            return response
-        finally:
-            self._release(lock_fd)
+        return self._serve(server, server.handle, request)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
         """Answer one EtherCAT mailbox (CoE) with the mailboxes the drive sends back.
@@ -355,19 +346,26 @@ class SimDrive:
             from akdctl.sim.sdo_server import SdoServer
 
             server = self._sdo_server = SdoServer(_OUTSIDE)
+        return self._serve(server, self._answer_mailbox, mailbox)
+
+    def _answer_mailbox(self, mailbox: bytes) -> list[bytes]:
+        server = self._sdo_server
+        for emcy in server.access.faults.take_emergencies():  # type: ignore[union-attr]
+            server.queue_emergency(emcy)  # type: ignore[union-attr]
+        return server.handle(mailbox)  # type: ignore[union-attr]
+
+    def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
+        """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs."""
         lock_fd = self._acquire()
         try:
             held = self._begin(lock_fd, True)
-            model = held.model
-            server.access = model
+            server.access = held.model
             try:
-                for emcy in model.faults.take_emergencies():
-                    server.queue_emergency(emcy)
-                replies = server.handle(mailbox)
+                result = answer(request)
             finally:
                 server.access = _OUTSIDE
             self._commit(held, lock_fd)
-            return replies
+            return result
         finally:
             self._release(lock_fd)
 
