@@ -107,16 +107,9 @@ class CoeObjectChannel(ObjectChannel):
 
     def upload(self, index: int, subindex: int) -> bytes:
         with self.budget.request() as deadline:
-            attempts = deadline.attempts
-            for attempt in range(attempts):
-                try:
-                    return self._upload_once(index, subindex, deadline, attempts - attempt)
-                except _Silence:
-                    if deadline.expired():
-                        break
-                    if attempt + 1 < attempts:
-                        log.info("SDO upload of %s: no answer, repeating (%d/%d)", _where(index, subindex),
-                                 attempt + 2, attempts)
+            data = self._upload_attempts(index, subindex, deadline, deadline.attempts)
+            if data is not None:
+                return data
             raise NoAnswer(f"no answer to SDO upload of {_where(index, subindex)} within {deadline.describe()}",
                            details={"timeout": deadline.total, "attempts": deadline.attempts})
 
@@ -239,13 +232,23 @@ class CoeObjectChannel(ObjectChannel):
         confirm_write(why, data, read, {"index": index, "subindex": subindex})
 
     def _read_back(self, index: int, subindex: int, deadline: Deadline, attempts: int) -> bytes:
+        data = self._upload_attempts(index, subindex, deadline, attempts)
+        if data is None:
+            raise NoAnswer(f"no answer to reading {_where(index, subindex)} back")
+        return data
+
+    def _upload_attempts(self, index: int, subindex: int, deadline: Deadline, attempts: int) -> bytes | None:
+        """Up to ``attempts`` uploads within ``deadline`` (an upload is safe to repeat); None if none was answered."""
         for attempt in range(attempts):
             try:
                 return self._upload_once(index, subindex, deadline, attempts - attempt)
             except _Silence:
                 if deadline.expired():
                     break
-        raise NoAnswer(f"no answer to reading {_where(index, subindex)} back")
+                if attempt + 1 < attempts:
+                    log.info("SDO upload of %s: no answer, repeating (%d/%d)", _where(index, subindex),
+                             attempt + 2, attempts)
+        return None
 
     def _abort(self, index: int, subindex: int, code: int) -> None:
         """Tell the server to drop its transfer state (CiA 301: the client aborts what it gives up)."""
