@@ -34,7 +34,6 @@ import json
 import math
 import os
 import re
-import stat
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -187,25 +186,21 @@ class SimDrive:
                         os.unlink(entry.path)
 
     def _read_text(self) -> str | None:
-        """The state file's text, None when there is none; anything but a small regular UTF-8 file is refused."""
+        """The state file's text, None when there is none; anything but a small regular UTF-8 file is refused
+        (the one bounded reader, io/safe_read.py)."""
+        from akdctl.io.safe_read import FileRefused, read_bounded
+
         try:
-            fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+            data = read_bounded(self.path, MAX_STATE_BYTES)
         except FileNotFoundError:
             return None
         except OSError as exc:
             raise self._os_error("cannot read simulator state", self.path, exc) from None
-        try:
-            info = os.fstat(fd)
-            if not stat.S_ISREG(info.st_mode):
-                raise self._corrupt("not a regular file")
-            if info.st_size > MAX_STATE_BYTES:
-                raise self._corrupt(f"{info.st_size} bytes, more than a state ever holds")
-            with open(fd, "rb", closefd=False) as fh:
-                data = fh.read(MAX_STATE_BYTES + 1)
-        except OSError as exc:
-            raise self._os_error("cannot read simulator state", self.path, exc) from None
-        finally:
-            os.close(fd)
+        except FileRefused as refused:
+            if refused.kind is not None:
+                raise self._corrupt(f"{refused.kind}, not a regular file") from None
+            raise self._corrupt(f"{refused.size or 'grew beyond ' + str(MAX_STATE_BYTES)} bytes, "
+                                "more than a state ever holds") from None
         try:
             return data.decode("utf-8")
         except UnicodeDecodeError:
