@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel, ParameterChannel
     from akdctl.channels.cip import CipAttributes
     from akdctl.config import Profile
-    from akdctl.drive.axis import Axis
+    from akdctl.drive.axis.base import Axis
     from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
@@ -215,8 +215,8 @@ class Connection:
         return channel
 
     def axis(self) -> "Axis":
-        """The axis of this target, in the profile :func:`akdctl.drive.axis.open_axis` chooses."""
-        from akdctl.drive.axis import open_axis
+        """The axis of this target, in the profile :func:`akdctl.drive.axis.choice.open_axis` chooses."""
+        from akdctl.drive.axis.choice import open_axis
 
         return open_axis(self)
 

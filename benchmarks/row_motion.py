@@ -21,7 +21,7 @@ SPEED = 1000
 
 OBSERVED_HOME = r"""
 import json, sys, time
-from akdctl.drive import axis as axis_module
+from akdctl.drive.axis import choice as axis_module
 polls = []
 
 def leaves(cls):
@@ -42,7 +42,7 @@ def observe(cls):
         return result
     cls.read_status, cls.home_finished = read_status, home_finished
 
-import akdctl.drive.cip_axis  # noqa: F401 - every axis class, so every leaf is observed
+import akdctl.drive.axis.cip  # noqa: F401 - every axis class, so every leaf is observed
 for cls in leaves(axis_module.Axis):
     observe(cls)
 from akdctl.cli.main import main

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from akdctl.catalog import objects, pnus
-from akdctl.drive.axis import Cia402Axis, ProfidriveAxis
+from akdctl.drive.axis.cia402 import Cia402Axis
+from akdctl.drive.axis.profidrive import ProfidriveAxis
 from akdctl.drive.motion_plan import MAX_JOG_S
 from akdctl.protocol.datatypes import get_type
 from akdctl.sim.drive import SimDrive

@@ -11,7 +11,7 @@ import pytest
 
 from akdctl.connection import Connection
 from akdctl.drive import motion_plan
-from akdctl.drive.axis import Cia402Axis
+from akdctl.drive.axis.cia402 import Cia402Axis
 from akdctl.errors import SafetyRefusal
 from akdctl.protocol import ethercat as ec
 from akdctl.sim.drive import SimDrive

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from akdctl.cli.signals import stop_signals
 from akdctl.drive import gate
-from akdctl.drive.axis import Cia402Axis, ProfidriveAxis
+from akdctl.drive.axis.cia402 import Cia402Axis
+from akdctl.drive.axis.profidrive import ProfidriveAxis
 from akdctl.drive.motion_plan import REL_TOL, MotionRequest, check_request, quantise
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
 

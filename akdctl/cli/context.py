@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from akdctl.cli.output import Doc
     from akdctl.connection import Connection
     from akdctl.config import Profile
-    from akdctl.drive.axis import Axis
+    from akdctl.drive.axis.base import Axis
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
 

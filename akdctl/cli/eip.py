@@ -202,7 +202,7 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
       akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2
     """
     from akdctl.cli.consent import require_consent
-    from akdctl.drive.cip_axis import CipAxis
+    from akdctl.drive.axis.cip import CipAxis
     from akdctl.drive.motion_plan import check_executed_limits
     from akdctl.drive.polling import pause_unless_stopped
     from akdctl.drive.eip_io import run_command

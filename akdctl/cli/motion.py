@@ -94,7 +94,7 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     from akdctl.cli.progress import MotionProgress
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
-    from akdctl.drive.axis import axis_class
+    from akdctl.drive.axis.choice import axis_class
 
     conn = app.connection
     motion_plan.check_request(conn, request, axis_class(conn))  # no drive needed: bad input exits 2 first

@@ -24,7 +24,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class StopFlag:
-    """Callable "was a stop signal received?" for :class:`akdctl.drive.axis.MotionRun` and recipes."""
+    """Callable "was a stop signal received?" for :class:`akdctl.drive.motion_run.MotionRun` and recipes."""
 
     def __init__(self) -> None:
         self.signum: int | None = None

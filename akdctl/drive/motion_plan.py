@@ -293,7 +293,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
                   scales_of: Callable[[str], Any] | None = None) -> MotionPlan:
     """Everything that can be decided without the drive (module docstring); exit 2 / 4 on a problem.
 
-    ``axis_cls`` is the Axis subclass of the target's profile (:func:`akdctl.drive.axis.axis_class`):
+    ``axis_cls`` is the Axis subclass of the target's profile (:func:`akdctl.drive.axis.choice.axis_class`):
     its scales say what the drive can represent. ``scales_of`` replaces ``axis_cls.motion_scales``
     once the drive's own configuration is known (a profile whose grid the drive configures, such as
     the CIP Position Controller's EIP.PROFUNIT).
@@ -517,7 +517,8 @@ def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
 
     ``wait=False`` (``move --no-wait``) returns once the drive acknowledged the move.
     """
-    from akdctl.drive.axis import JogSpec, MotionRun, MoveSpec
+    from akdctl.drive.axis.base import JogSpec, MoveSpec
+    from akdctl.drive.motion_run import MotionRun
 
     r = accepted.request
     if r.kind == "enable":

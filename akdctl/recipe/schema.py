@@ -454,7 +454,7 @@ def _motion(ctx: Context, fields: dict[str, Any], extra: dict[str, Any] | None =
     """enable/home/move: the motion planner's drive-free stage (the same as the commands'), so a recipe
     step is refused exactly when the command line would be."""
     from akdctl.drive import motion_plan
-    from akdctl.drive.axis import axis_class
+    from akdctl.drive.axis.choice import axis_class
 
     request = motion_plan.MotionRequest(**fields)
     if ctx.conn is None:
@@ -520,7 +520,7 @@ def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> set[s
     if action == "telegram":
         return {"parameters"}
     if action in ("enable", "disable", "stop", "acknowledge", "home", "move"):
-        from akdctl.drive.axis import profile_name
+        from akdctl.drive.axis.choice import profile_name
 
         return {"parameters" if profile_name(ctx.conn) == "profidrive" else "objects"}
     return set()
@@ -530,7 +530,7 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
     """Each step's channel must exist on the selected target — checked before the first write, dry runs too."""
     if ctx.conn is None:
         return
-    from akdctl.drive.axis import target_channels
+    from akdctl.drive.axis.choice import target_channels
 
     offered = target_channels(ctx.conn)
     if offered is None:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from akdctl.drive.axis import Axis, AxisStatus, JogSpec, MotionScales, MoveSpec, Scale
+from akdctl.drive.axis.base import Axis, AxisStatus, JogSpec, MotionScales, MoveSpec, Scale
 from akdctl.errors import CipRefused, DriveError, MalformedReply, UsageError
 from akdctl.profiles import statusword as sw
 from akdctl.protocol import cip
