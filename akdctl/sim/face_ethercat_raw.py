@@ -13,21 +13,42 @@ tests interoperability.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import socket
+import struct
 import threading
+import time
+from typing import Any
 
 from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
-from akdctl.protocol.sii import akd_sii_image
+from akdctl.protocol.mailbox import ERR_UNSUPPORTED_PROTOCOL, MailboxType
+from akdctl.protocol.sii import SiiImage, akd_sii_image
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector, failure_reply, mailbox_error_reply, sdo_abort_reply, warm_up
-from akdctl.sim.esc import Esc
+from akdctl.sim.esc import Esc, watchdog_seconds
 from akdctl.sim.face import Face, FaceOption, request_failed
-from akdctl.sim.pdo import AL_STATE_CODES
+from akdctl.sim.pdo import AL_STATE_CODES, apply_outputs, image_size, sample_inputs
 
 
 SIM_MAILBOX = 512
+
+#: FBUS.PARAM03, the AKD's configured station alias (seed 001 5.14; reference foe-alias-recorder.md B).
+ALIAS_OBJECT = 0x36E7
+
+#: Mailbox protocols the simulated slave advertises in SII word 0x1C: CoE and FoE. The real AKD's SII (and its
+#: ESI's <EoE>) advertise EoE as well (0x0E); the simulator does not implement EoE -- the AKD EtherCAT manual
+#: itself lists type 2 as "Reserved: Ethernet over EtherCAT" (seed 001, mailbox header byte 5) -- so it does
+#: not advertise it, and answers an EoE mailbox "unsupported protocol" (issue 23 item 9; docs/fidelity.md F10).
+SIM_MAILBOX_PROTOCOLS = 0x000C
+
+#: Seconds the simulated drive is silent after BOOT -> INIT, while it "restarts" with the downloaded file
+#: [I]: the real AKD's restart time is not published; its ESI allows 50 s for back-to-INIT.
+REBOOT_SECONDS = 1.0
+
+#: How often the application copies process data between the ESC and the drive model (free run), seconds.
+CYCLE_SECONDS = 0.004
 
 
 OPTIONS = (
@@ -67,6 +88,10 @@ class SlaveWorker:
         """The replies to one mailbox and whether injection loses them; never raises."""
         fault = self.injector.decide()
         try:
+            if (self.esc.al_status & 0x0F) == ec.AlState.BOOT and not _is_foe(request):
+                # In BOOT only FoE is available (reference foe-alias-recorder.md A1: KAS help "Bootstrap ...
+                # Only FoE protocol available"): anything else is a mailbox protocol the state does not serve.
+                return [mailbox_error_reply(request, ERR_UNSUPPORTED_PROTOCOL)], False
             if fault == "mbxerr":
                 return [mailbox_error_reply(request)], False
             if fault == "abort" and (abort := sdo_abort_reply(request)) is not None:
@@ -137,17 +162,84 @@ class AlStateBinding:
             model.pdo.set_al_state(state)
 
 
+def _is_foe(request: bytes) -> bool:
+    return len(request) >= 6 and request[5] & 0x0F == MailboxType.FOE
+
+
+class ProcessData:
+    """The drive's cyclic task behind SM2/SM3: outputs into the model in OP, inputs out of it in SAFE-OP/OP,
+    and the SM watchdog.
+
+    Why a free-running thread and not per frame: a real slave's application runs on its own cycle and the
+    ESC's buffered sync managers decouple it from the master's frames; a frame never waits for the model.
+    The watchdog: in OP, with the output SM's watchdog bit set and a non-zero time (0x0400/0x0420), no
+    output write for that long takes the slave to SAFE-OP + ERROR with AL status code 0x001B "sync manager
+    watchdog" (ETG.1000.6 code) [I]: SPEC-NOTES 22 lists the codes the manual names for the AKD, and this
+    one is not among them; the manual does not say which code the AKD reports on a watchdog.
+    """
+
+    def __init__(self, esc: Esc, drive: SimDrive, on_watchdog: Any) -> None:
+        self.esc, self.drive, self.on_watchdog = esc, drive, on_watchdog
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.cycles = 0
+        self.expired = 0
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="ecat-raw-pd", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def _run(self) -> None:
+        seen, last = -1, time.monotonic()
+        while not self._stop.wait(CYCLE_SECONDS):
+            state = self.esc.al_status & 0x0F
+            if state not in (ec.AlState.SAFEOP, ec.AlState.OP) or self.esc.al_status & ec.AL_ERROR_FLAG:
+                seen, last = self.esc.outputs_written, time.monotonic()
+                continue
+            try:
+                seen, last = self.cycle(state, seen, last)
+            except Exception as exc:  # noqa: BLE001 - the cyclic task must outlive one bad cycle
+                request_failed("ethercat-raw", exc)
+
+    def cycle(self, state: int, seen: int, last: float) -> tuple[int, float]:
+        now = time.monotonic()
+        written = self.esc.outputs_written
+        fresh = written != seen
+        if state == ec.AlState.OP and not fresh:
+            limit = watchdog_seconds(self.esc)
+            if limit is not None and now - last > limit:
+                self.expired += 1
+                self.on_watchdog()
+                return written, now
+        outputs = self.esc.process_image(write=True) if state == ec.AlState.OP and fresh else None
+        with self.drive.transaction() as model:
+            if outputs:
+                apply_outputs(model, outputs)
+            inputs = sample_inputs(model)
+        self.esc.set_inputs(inputs)
+        self.cycles += 1
+        return written, (now if fresh else last)
+
+
 class EthercatRawFace(Face):
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
         self.ifname = ifname
-        # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
-        # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
-        image = akd_sii_image(mailbox_size=SIM_MAILBOX, **({"serial": serial} if serial is not None else {}))
-        self.esc = Esc(image)
+        self.serial = serial
+        self.drive = drive
+        self.esc = Esc(self._sii_image())
         self.worker = SlaveWorker(self.esc, drive, injector)
         # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
         self.al = AlStateBinding(self.esc, drive) if drive is not None else None
         self.injector = injector
+        self._sizes: tuple[int, int] = (0, 0)  # (RxPDO, TxPDO) bytes, read when the AL registers are touched
+        self.esc.process_sizes = lambda: self._sizes
+        self.pd = ProcessData(self.esc, drive, self._watchdog_expired) if drive is not None else None
+        self._silent_until = 0.0  # the drive restarts after BOOT -> INIT: no frame is answered until then
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -157,37 +249,104 @@ class EthercatRawFace(Face):
         warm_up(self.worker.drive)
         self._sock.settimeout(0.2)
         self.worker.start()
+        if self.pd is not None:
+            self.pd.start()
         self._thread = threading.Thread(target=self._serve, name="ecat-raw-face", daemon=True)
         self._thread.start()
 
+    def _sii_image(self) -> SiiImage:
+        """The SII the ESC powers up with: the AKD's, without EoE (:data:`SIM_MAILBOX_PROTOCOLS`), with the
+        configured station alias the drive keeps (FBUS.PARAM03, CoE 0x36E7: an alias written to SII word 4
+        is kept there, seed 001 5.14) -- so the alias survives a power cycle (``sim serve`` restarted)."""
+        # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
+        # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
+        image = (akd_sii_image(mailbox_size=SIM_MAILBOX) if self.serial is None
+                 else akd_sii_image(mailbox_size=SIM_MAILBOX, serial=self.serial))
+        image = dataclasses.replace(image, mailbox_protocols=SIM_MAILBOX_PROTOCOLS)
+        if self.drive is not None:
+            with contextlib.suppress(Exception):
+                with self.drive.transaction() as model:
+                    alias = int.from_bytes(model.object_read(ALIAS_OBJECT, 0), "little") & 0xFFFF
+                image = dataclasses.replace(image, station_alias=alias)
+        return image
+
+    def power_cycle(self) -> None:
+        """The drive restarts: the ESC powers up again from its EEPROM (register 0x0012 takes word 4 now)."""
+        eeprom = bytes(self.esc.eeprom)
+        self.esc.reset()
+        self.esc.eeprom[:] = eeprom
+        self.esc.reset()  # load 0x0012 (and the CRC verdict) from the kept EEPROM
+        if self.al is not None:
+            self.al.known = -1
+            _synced(lambda: self.al.push() if self.al is not None else None)
+
+    def _watchdog_expired(self) -> None:
+        self.esc.watchdog_expired()
+        if self.al is not None:
+            _synced(self.al.push)
+
+    def _eeprom_written(self, words: list[int]) -> None:
+        """SII word 4 written: the AKD takes it as its configured station alias (FBUS.PARAM03) and saves its
+        parameters (seed 001 5.14: "forces the AKD to store the drive parameters automatically using
+        DRV.NVSAVE"; the simulator keeps every parameter anyway). Register 0x0012 follows at the next power-on."""
+        if 4 not in words or self.drive is None:
+            return
+        alias = struct.unpack_from("<H", self.esc.eeprom, 8)[0]
+
+        def write() -> None:
+            with self.drive.transaction() as model:
+                model.object_write(ALIAS_OBJECT, 0, alias.to_bytes(4, "little"))
+        _synced(write)
+
     def handle_frame(self, frame: bytes) -> bytes | None:
-        """One received frame -> the frame to send back (None: not EtherCAT, or lost by injection)."""
+        """One received frame -> the frame to send back (None: not EtherCAT, lost by injection, or the drive
+        restarting). Any source MAC is served: EtherCAT slaves do not filter on it (SOEM's, IgH's and many
+        masters' locally administered addresses included); our own replies are told apart by the socket."""
+        if self._silent_until:
+            if time.monotonic() < self._silent_until:
+                return None
+            self._silent_until = 0.0
+            self.power_cycle()
         try:
             dst, src, datagrams = ec.decode_frame(frame)
         except CodecError:
             return None
-        if src[0] & 0x02:
-            return None  # already passed a slave's port 0 (our own echo on a shared segment)
         al = self.al if self.al is not None and self.al.touches(datagrams) else None
-        if al is not None and not _synced(al.pull):
-            al = None  # the ESC still answers the frame; the AL state is synced when the registers are next touched
+        if al is not None:
+            if not _synced(al.pull):
+                al = None  # the ESC still answers; the AL state is synced when the registers are next touched
+            else:
+                _synced(self._update_sizes)
+        before = self.esc.al_status & 0x0F
         self.esc.process(datagrams)
         if al is not None:
             _synced(al.push)
+        if self.esc.eeprom_writes:
+            words, self.esc.eeprom_writes = self.esc.eeprom_writes, []
+            self._eeprom_written(words)
+        if before == ec.AlState.BOOT and (self.esc.al_status & 0x0F) == ec.AlState.INIT:
+            self._silent_until = time.monotonic() + REBOOT_SECONDS  # this frame is answered, then the restart
         if self.esc.lost_frame:
             return None
         # an ESC sets bit 1 of the source MAC's first byte when the frame leaves port 0
         return ec.encode_frame(datagrams, src=bytes([src[0] | 0x02]) + src[1:], dst=dst)
 
+    def _update_sizes(self) -> None:
+        if self.drive is not None:
+            with self.drive.transaction() as model:
+                self._sizes = (image_size(model, "rx"), image_size(model, "tx"))
+
     def _serve(self) -> None:
         assert self._sock is not None
         while not self._stop.is_set():
             try:
-                frame = self._sock.recv(2048)
+                frame, address = self._sock.recvfrom(2048)
             except socket.timeout:
                 continue
             except OSError:
                 break
+            if len(address) > 2 and address[2] == socket.PACKET_OUTGOING:
+                continue  # our own reply, seen on the way out
             try:
                 reply = self.handle_frame(frame)
             except Exception as exc:  # noqa: BLE001 - a frame that breaks the ESC is lost, as on a wire
@@ -202,6 +361,8 @@ class EthercatRawFace(Face):
         if self._thread is not None:
             self._thread.join(timeout=5)
         self.worker.stop()
+        if self.pd is not None:
+            self.pd.stop()
         if self._sock is not None:
             self._sock.close()
             self._sock = None
