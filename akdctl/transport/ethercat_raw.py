@@ -239,6 +239,27 @@ class EcatMaster:
             if time.monotonic() > deadline:
                 raise NoAnswer(f"slave 0x{station:04X}: SII EEPROM stays busy")
 
+    def write_eeprom(self, station: int, word: int, value: int) -> None:
+        """Write one SII word through the ESC's EEPROM interface and wait for it (IgH's way: data, address and
+        the write command with write enable in one 8-byte access at 0x0502; reference B). A NACK or a
+        write-enable error is a one-line CommError; the wait is bounded by the timeout."""
+        deadline = time.monotonic() + self.timeout
+        with contextlib.suppress(CommError):
+            self.fpwr(station, ec.REG_EEP_CONFIG, b"\x00")  # EEPROM access by ECAT (the master)
+        self.fpwr(station, ec.REG_EEP_CONTROL, struct.pack("<HIH", ec.EEP_CMD_WRITE | 0x0001, word, value & 0xFFFF))
+        while True:
+            (ctl,) = struct.unpack("<H", self.fprd(station, ec.REG_EEP_CONTROL, 2))
+            if not ctl & ec.EEP_BUSY:
+                if ctl & (ec.EEP_ERROR_ACK | ec.EEP_ERROR_WRITE_ENABLE):
+                    raise CommError(f"slave 0x{station:04X}: SII EEPROM write of word 0x{word:X} failed "
+                                    f"(status 0x{ctl:04X}: "
+                                    + ("write not enabled" if ctl & ec.EEP_ERROR_WRITE_ENABLE else "not acknowledged")
+                                    + ")")
+                return
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"slave 0x{station:04X}: SII EEPROM stays busy after a write of word 0x{word:X}")
+            time.sleep(0.001)
+
     def read_sii_bytes(self, station: int, start: int, length: int) -> bytes:
         out = bytearray()
         word = start // 2
@@ -529,6 +550,66 @@ class EthercatRawTransport(Transport):
             sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
             sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
+
+    # ------------------------------------------------------------------ bootstrap (firmware download)
+    def enter_boot(self) -> RawMailboxLink:
+        """INIT, SM0/SM1 from the SII's bootstrap mailbox (words 0x14-0x17), BOOT: the state a firmware file is
+        written in (reference foe-alias-recorder.md A1/A6; SOEM's firm_update does the same). Returns the
+        bootstrap mailbox; a slave whose SII declares none is refused before anything changes."""
+        master, slave = self.master, self.slave
+        assert master is not None and slave is not None
+        sii, _raw = master.read_sii(slave.station, full=False)
+        slave.sii = sii
+        if not sii.boot_rx_size or not sii.boot_tx_size:
+            raise UsageError(f"slave 0x{slave.station:04X} declares no bootstrap mailbox in its SII (words 0x14-0x17): "
+                             "it cannot take a file in BOOT")
+        if slave.al_status & 0x0F != ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
+            master.request_state(slave.station, ec.AlState.INIT)
+        sm0 = ec.SyncManager(sii.boot_rx_offset, sii.boot_rx_size, 0x26, 0, ec.SM_ACTIVATE_ENABLE)
+        sm1 = ec.SyncManager(sii.boot_tx_offset, sii.boot_tx_size, 0x22, 0, ec.SM_ACTIVATE_ENABLE)
+        master.fpwr(slave.station, ec.REG_SM0, sm0.encode() + sm1.encode())
+        slave.al_status, slave.al_code = master.request_state(slave.station, ec.AlState.BOOT)
+        self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
+        return self.link
+
+    def leave_boot(self, timeout: float) -> float:
+        """Request INIT from BOOT -- the drive takes the file and restarts -- and wait until it answers again in
+        INIT; returns the seconds it took. The AL-control write may go unanswered (the slave restarting):
+        that is expected. NoAnswer (exit 3) when it is not back within ``timeout``."""
+        master, slave = self.master, self.slave
+        assert master is not None and slave is not None
+        start = time.monotonic()
+        self.link = self.mailbox_link = None
+        with contextlib.suppress(CommError):
+            master.write(ec.Cmd.FPWR, slave.station, ec.REG_AL_CONTROL, struct.pack("<H", ec.AlState.INIT), retries=0)
+        return self.wait_back(timeout, start)
+
+    def wait_back(self, timeout: float, start: float | None = None) -> float:
+        """Poll the line until the slave at POSITION answers again (a restart clears its station address, so
+        addresses are given again), in INIT or higher and not in BOOT; seconds since ``start``."""
+        master = self.master
+        assert master is not None
+        start = time.monotonic() if start is None else start
+        deadline = start + timeout
+        last = "no frame came back"
+        while True:
+            try:
+                count = master.count_slaves()
+                if count > self.position:
+                    station = master.assign_addresses(count)[self.position]
+                    status, code = master.al_status(station)
+                    if status & 0x0F not in (0, ec.AlState.BOOT):
+                        self.slave = SlaveInfo(self.position, station, status, code)
+                        return time.monotonic() - start
+                    last = f"still in {ec.al_state_name(status)}"
+                else:
+                    last = f"{count} slave(s) answer"
+            except CommError as exc:
+                last = str(exc)
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"the drive did not answer again within {timeout:g} s after leaving BOOT ({last}); "
+                               "power-cycle it and check its firmware with 'akdctl ecat scan'")
+            time.sleep(0.2)
 
     def al_state(self) -> str | None:
         """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
