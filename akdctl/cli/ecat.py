@@ -120,16 +120,20 @@ def state(state: str | None) -> None:
              .kv("state", text))
 
 
-@ecat.command("sii")
+@ecat.group("sii", invoke_without_command=True)
 @click.option("--raw", is_flag=True, help="Show the EEPROM bytes as a hex dump instead of decoding them.")
-def sii(raw: bool) -> None:
-    """Read and decode the slave's SII EEPROM (identity, mailboxes, sync managers, PDOs).
+@click.pass_context
+def sii(ctx: click.Context, raw: bool) -> None:
+    """Read and decode the slave's SII EEPROM (identity, mailboxes, sync managers, PDOs); 'read'/'write' copy it.
 
     \b
     Examples:
       akdctl -T ecat://eth1/0 ecat sii
       akdctl -T ecat://eth1/0 ecat sii --raw
+      akdctl -T ecat://eth1/0 ecat sii read -o akd.hex
     """
+    if ctx.invoked_subcommand is not None:
+        return
     app = get_app()
     transport = _bus()
     master, slave = transport.master, transport.slave
@@ -317,3 +321,219 @@ def foe_read(name: str, output: str, password: int, max_size: int) -> None:
     _write_user_file(output, data)
     app.emit({"target": app.target.display, "name": name, "bytes": len(data), "output": output},
              Doc(f"FoE read {name}", app.target.display).kv("bytes", len(data)).kv("written to", output))
+
+
+# ---------------------------------------------------------------------- SII files, registers, alias
+
+def _ask(plan: Any) -> None:
+    from akdctl.cli.consent import require_consent
+    from akdctl.drive.operation import consent_needed
+
+    app = get_app()
+    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
+
+
+def _dry(plan: Any) -> None:
+    get_app().emit({"dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
+
+
+@sii.command("read")
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
+              help="File to write; Intel HEX when it ends in .hex/.ihex or with --format ihex, else raw binary.")
+@click.option("--format", "fmt", type=click.Choice(["auto", "bin", "ihex"]), default="auto", show_default=True,
+              help="File format.")
+def sii_read(output: str, fmt: str) -> None:
+    """Copy the slave's whole SII (up to its end marker) into a file, raw binary or Intel HEX.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat sii read -o akd.bin
+      akdctl -T ecat://eth1/0 ecat sii read -o akd.hex
+    """
+    from akdctl.drive.ecat_registers import read_sii
+    from akdctl.protocol.sii import encode_ihex
+
+    app = get_app()
+    data = read_sii(app.connection)
+    ihex = fmt == "ihex" or (fmt == "auto" and output.lower().endswith((".hex", ".ihex")))
+    _write_user_file(output, encode_ihex(data).encode("ascii") if ihex else data)
+    app.emit({"target": app.target.display, "bytes": len(data), "output": output, "format": "ihex" if ihex else "bin"},
+             Doc("SII read", app.target.display).kv("bytes", len(data)).kv("written to", output)
+             .kv("format", "Intel HEX" if ihex else "raw binary"))
+
+
+def _load_sii_file(path: str, fmt: str) -> bytes:
+    from akdctl.protocol.errors import CodecError
+    from akdctl.protocol.sii import decode_ihex
+
+    data = _read_user_file(path, 0x20000)
+    ihex = fmt == "ihex" or (fmt == "auto" and data[:1] == b":")
+    if not ihex:
+        return data
+    try:
+        return decode_ihex(data.decode("ascii"))
+    except (CodecError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: {exc}") from None
+
+
+@sii.command("write")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", type=click.Choice(["auto", "bin", "ihex"]), default="auto", show_default=True,
+              help="File format (auto: Intel HEX when the file starts with ':').")
+@click.option("--fix-crc", is_flag=True, help="Set word 7's CRC from words 0-6 instead of refusing a wrong one.")
+@click.option("--force", is_flag=True, help="Write an image made for another vendor/product.")
+@click.option("--dry-run", is_flag=True, help="Show the words that would change; write nothing.")
+def sii_write(file: str, fmt: str, fix_crc: bool, force: bool, dry_run: bool) -> None:
+    """Write an SII image (raw binary or Intel HEX) to the slave's EEPROM, word by word, and verify it.
+
+    The CRC in word 7 must match words 0-6 (or --fix-crc); consent required.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat sii write akd.bin --dry-run
+      akdctl -T ecat://eth1/0 -y ecat sii write akd.hex
+    """
+    from akdctl.drive import ecat_registers as regs
+
+    app = get_app()
+    plan = regs.plan_sii_write(app.connection, _load_sii_file(file, fmt), file, fix_crc, force)
+    if dry_run:
+        return _dry(plan)
+    _ask(plan)
+    result = regs.execute_sii_write(app.connection, plan)
+    app.emit(result, Doc("SII write", app.target.display).kv("words written", result["words_written"])
+             .kv("verified", "yes").line("the slave loads words 0-7 at its next power-on"))
+
+
+def _int(text: str, what: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise UsageError(f"{what} {text!r} is not a number (decimal or 0x hex)") from None
+
+
+@ecat.group("reg")
+def reg() -> None:
+    """Read or write ESC registers of the slave (as IgH's reg_read/reg_write; target ecat://IFNAME[/POS]).
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat reg read 0x0130 6
+      akdctl -T ecat://eth1/0 -y ecat reg write 0x0204 0x0000 --size 2
+    """
+
+
+@reg.command("read")
+@click.argument("address")
+@click.argument("size", required=False, default="2")
+def reg_read(address: str, size: str) -> None:
+    """Read SIZE bytes (default 2) at register ADDRESS; shown as bytes and as a little-endian number.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat reg read 0x0012
+      akdctl -T ecat://eth1/0 ecat reg read 0x0800 16
+    """
+    from akdctl.drive.ecat_registers import read_registers
+
+    app = get_app()
+    addr, n = _int(address, "register address"), _int(size, "size")
+    data = read_registers(app.connection, addr, n)
+    value = int.from_bytes(data, "little") if n <= 8 else None
+    doc = Doc(f"register 0x{addr:04X} ({n} byte{'s' if n != 1 else ''})", app.target.display)
+    doc.kv("bytes", data.hex(" "))
+    if value is not None:
+        doc.kv("value", f"{value} (0x{value:0{2 * n}X})")
+    app.emit({"target": app.target.display, "address": addr, "size": n, "hex": data.hex(), "value": value}, doc)
+
+
+@reg.command("write")
+@click.argument("address")
+@click.argument("value")
+@click.option("--size", type=click.IntRange(1, 8), default=None,
+              help="Bytes of VALUE as a little-endian number (default: the smallest of 1/2/4/8 that holds it).")
+@click.option("--hex", "as_hex", is_flag=True, help="VALUE is raw bytes in hex (e.g. 0102ff), any length.")
+@click.option("--force", is_flag=True, help="Write AL control, watchdog, station-address or EEPROM registers too.")
+@click.option("--dry-run", is_flag=True, help="Show what would be written; write nothing.")
+def reg_write(address: str, value: str, size: int | None, as_hex: bool, force: bool, dry_run: bool) -> None:
+    """Write VALUE at register ADDRESS (consent); AL control, watchdog and similar registers need --force.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 -y ecat reg write 0x0204 0 --size 2
+      akdctl -T ecat://eth1/0 ecat reg write 0x0F80 --hex 01020304 --dry-run
+    """
+    from akdctl.drive import ecat_registers as regs
+
+    app = get_app()
+    addr = _int(address, "register address")
+    if as_hex:
+        try:
+            data = bytes.fromhex(value)
+        except ValueError:
+            raise UsageError(f"--hex value {value!r} is not hex bytes") from None
+    else:
+        number = _int(value, "value")
+        n = size or next((k for k in (1, 2, 4, 8) if 0 <= number < 1 << (8 * k)), 0)
+        if n == 0 or not 0 <= number < 1 << (8 * n):
+            raise UsageError(f"value {value} does not fit {size or 8} unsigned byte(s)")
+        data = number.to_bytes(n, "little")
+    plan = regs.plan_register_write(app.connection, addr, data, force)
+    if dry_run:
+        return _dry(plan)
+    _ask(plan)
+    result = regs.execute_register_write(app.connection, plan)
+    app.emit(result, Doc(f"register 0x{addr:04X}", app.target.display).kv("before", plan.data["before"].hex(" "))
+             .kv("written", data.hex(" ")).kv("read back", bytes.fromhex(result["read_back"]).hex(" ")))
+
+
+@ecat.command("alias")
+@click.argument("alias", required=False)
+@click.option("--via", type=click.Choice(["sii", "coe"]), default="sii", show_default=True,
+              help="sii: SII word 4 + CRC (any slave; the AKD saves all RAM parameters); coe: FBUS.PARAM03 (0x36E7).")
+@click.option("--dry-run", is_flag=True, help="Show what would be written; write nothing.")
+def alias(alias: str | None, via: str, dry_run: bool) -> None:
+    """Show the station alias (register 0x0012, SII word 4 + CRC, FBUS.PARAM03, FBUS.PARAM05 bit 5), or set it.
+
+    A new alias reaches register 0x0012 at the drive's next power cycle.
+
+    \b
+    Examples:
+      akdctl -T ecat://eth1/0 ecat alias
+      akdctl -T ecat://eth1/0 -y ecat alias 1001
+      akdctl -T ecat://eth1/0 -y ecat alias 7 --via coe
+    """
+    from akdctl.drive import alias as op
+
+    app = get_app()
+    if alias is None:
+        info = op.read(app.connection)
+        app.emit(info, _alias_doc("station alias", info))
+        return
+    plan = op.plan(app.connection, _int(alias, "alias"), via)
+    if dry_run:
+        return _dry(plan)
+    _ask(plan)
+    from akdctl.cli.output import message
+
+    if via == "sii":
+        message("the AKD saves all its RAM parameters (DRV.NVSAVE) when SII word 4 is written")
+    result = op.execute(app.connection, plan)
+    doc = _alias_doc(f"station alias set to {result['alias']} ({via})", result["after"])
+    doc.line("power-cycle the drive: the master sees the new alias in register 0x0012 after that"
+             if result["power_cycle_needed"] else "register 0x0012 already shows it")
+    app.emit(result, doc)
+
+
+def _alias_doc(title: str, info: dict[str, Any]) -> Doc:
+    doc = Doc(title, get_app().target.display)
+    doc.kv("register 0x0012", info["register_0x0012"])
+    crc = "CRC ok" if info["sii_crc_ok"] else f"CRC WRONG (expected 0x{info['sii_crc_expected']:02X})"
+    doc.kv("SII word 4", f"{info['sii_word4']} ({crc})")
+    doc.kv("FBUS.PARAM03", "unreadable" if info["fbus_param03"] is None else info["fbus_param03"])
+    bit5 = info["fbus_param05_bit5"]
+    doc.kv("FBUS.PARAM05 bit 5", "unreadable" if bit5 is None else int(bit5))
+    doc.kv("alias taken from", info["effective_source"])
+    if info["pending_power_cycle"]:
+        doc.line("register 0x0012 and the stored alias differ: a power cycle of the drive applies it")
+    return doc
