@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import SimServer
+from tests.harness import SimServer, run_akdctl
 from tests.netns import VethPair
 from tests.test_ecat_raw_root import CI, IS_ROOT, _need_pysoem, _run, cli, slave_server
 
@@ -208,3 +208,18 @@ def test_cli_pdo_watch(pair: VethPair, slave: SimServer) -> None:
     assert r.returncode == 4  # explicit outputs need consent
     r = cli(pair, "ecat", "state")
     assert "PREOP" in r.stdout
+
+
+def test_soem_transport_firmware_update_and_foe_read(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
+    _need_pysoem()
+    fw = tmp_path / "soem.i00"
+    fw.write_bytes(IMAGE)
+    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "1"]
+    result = run_akdctl(*target, "-y", "--json", "firmware", "update", str(fw), netns=pair.a)
+    assert result.returncode == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["bytes"] == len(IMAGE) and doc["same_drive"]
+    copy = tmp_path / "copy.bin"
+    back = run_akdctl(*target, "ecat", "foe", "read", "soem.i00", "-o", str(copy), netns=pair.a)
+    assert back.returncode == 0, back.stderr
+    assert copy.read_bytes() == IMAGE

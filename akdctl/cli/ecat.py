@@ -254,8 +254,9 @@ def _firmware_run(operation: str, file: str, name: str | None, password: int, dr
     doc = Doc(f"{operation}: {request.name}", app.target.display)
     before, after = result["before"], result["after"]
     doc.kv("before", f"{_who(before)} firmware {before['firmware'] or '?'}")
-    doc.kv("download", f"{result['bytes']} bytes in {result['download']['packets']} packets of "
-                       f"{result['download']['packet_bytes']} ({result['download']['busy']} busy)")
+    dl = result["download"]
+    doc.kv("download", f"{result['bytes']} bytes" + (f" in {dl['packets']} packets of {dl['packet_bytes']} "
+                                                      f"({dl['busy']} busy)" if dl.get("packets") else " (through SOEM)"))
     doc.kv("restart", f"{result['restart_s']:.1f} s")
     doc.kv("after", f"{_who(after)} firmware {after['firmware'] or '?'}")
     doc.kv("file check", result["header_check"])

@@ -139,6 +139,10 @@ def execute(conn: "Connection", plan: WritePlan, progress: "Progress | None" = N
     transfer = write_in_boot(transport, request, progress)
     restart_s = transfer.pop("restart_s")
     transport.open_mailbox()
+    if getattr(transport, "scheme", "") == "ecat+soem":
+        channel = conn.objects()
+        if hasattr(channel, "slave"):  # the restarted slave, for the reads after
+            channel.slave = transport.sdo_client.slave
     after = drive_state(conn)
     before = plan.data["before"]
     same = before["identity"].get("serial_number") == after["identity"].get("serial_number")
