@@ -162,7 +162,8 @@ def test_cli_firmware_update_foe_read_and_tshark(pair: VethPair, slave: SimServe
     back = cli(pair, "ecat", "foe", "read", "AKD_test.i00", "-o", str(copy))
     assert back.returncode == 0, back.stderr
     assert copy.read_bytes() == IMAGE
-    missing = cli(pair, "ecat", "foe", "read", "nope.bin", "-o", str(tmp_path / "x"))
+    err_pcap = tmp_path / "err.pcap"
+    missing = cli(pair, "--pcap", str(err_pcap), "ecat", "foe", "read", "nope.bin", "-o", str(tmp_path / "x"))
     assert missing.returncode == 1 and "0x8001 Not found" in missing.stderr
     assert len(missing.stderr.strip().splitlines()) == 1
     text = cli(pair, "firmware", "update", str(tmp_path / "missing.i00"))
@@ -179,6 +180,15 @@ def test_cli_firmware_update_foe_read_and_tshark(pair: VethPair, slave: SimServe
     assert any(r[0] == "0x02" and r[1] == "AKD_test.i00" and r[2] == "0" for r in ops), ops[:5]  # WRQ, password 0
     numbers = sorted({int(r[3]) for r in ops if r[0] in ("0x03", "0x04") and r[3]})
     assert numbers[0] in (0, 1) and numbers[-1] == len(IMAGE) // 500 + 1  # DATA/ACK numbers 1..n (+ ACK 0)
+    data_rows = _run("tshark", "-r", str(pcap), "-Y", "ecat_mailbox.foe_opmode == 3", "-T", "fields", "-e",
+                     "ecat_mailbox.foe_packetno", "-e", "ecat_mailbox.length", timeout=60).stdout.split()
+    assert data_rows, "no FoE DATA frame dissected"
+    rrq = _run("tshark", "-r", str(err_pcap), "-Y", "ecat_mailbox.foe_opmode", "-T", "fields", "-e",
+               "ecat_mailbox.foe_opmode", "-e", "ecat_mailbox.foe_filename", "-e", "ecat_mailbox.foe_errcode", "-e",
+               "ecat_mailbox.foe_errtext", timeout=60).stdout.splitlines()
+    cells = [r.split("\t") for r in rrq]
+    assert any(c[0] == "0x01" and c[1] == "nope.bin" for c in cells), cells  # RRQ with its file name
+    assert any(c[0] == "0x05" and int(c[2], 0) == 0x8001 and "nope.bin" in c[3] for c in cells), cells  # ERR
 
 
 def test_cli_register_and_sii_commands(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
