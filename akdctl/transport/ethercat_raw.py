@@ -537,7 +537,8 @@ class EthercatRawTransport(Transport):
         sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
         sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         ready = (state in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
-                 and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled)
+                 and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled
+                 and sm0.is_mailbox and sm1.is_mailbox)  # an SM1 in buffered mode presents stale data for ever
         if ready and (sm0.start, sm0.length, sm1.start, sm1.length) != master.mailbox_layout(slave.station):
             ready = False  # the sync managers disagree with the SII: re-establish the mailbox from it
         if not ready:
