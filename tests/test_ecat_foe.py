@@ -190,3 +190,43 @@ def test_mailbox_error_is_a_drive_refusal() -> None:
 
     with pytest.raises(DriveError, match="mailbox error 2"):
         FoeClient(Refusing(None), 64, timeout=0.5).read("x")
+
+
+def test_a_foe_error_mid_transfer_leaves_the_drive_in_init_and_answering(wire: Wire,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The simulated drive keeps at most 256 KiB of files: a larger image is refused with 0x8003 part-way; the
+    slave is still taken out of BOOT and answers again (a known state)."""
+    import akdctl.sim.face_ethercat_raw as face
+
+    monkeypatch.setattr(face, "REBOOT_SECONDS", 0.2)
+    conn = _conn(wire)
+    big = bytes(range(251)) * 1200  # 301,200 bytes
+    plan = firmware.plan(conn, firmware.FirmwareRequest("big.bin", big))
+    with pytest.raises(FoeRefusedError, match=r"at packet \d+ .*0x8003 Disk full") as info:
+        firmware.execute(conn, plan)
+    assert info.value.exit_code == 1
+    t = conn.transport()
+    assert t.master.al_status(t.slave.station)[0] & 0x0F == ec.AlState.INIT  # type: ignore[attr-defined]
+    conn.close()
+
+
+def test_a_drive_that_never_comes_back_is_exit_3_in_one_line(wire: Wire, monkeypatch: pytest.MonkeyPatch) -> None:
+    import akdctl.sim.face_ethercat_raw as face
+
+    monkeypatch.setattr(face, "REBOOT_SECONDS", 30.0)
+    conn = _conn(wire)
+    plan = firmware.plan(conn, firmware.FirmwareRequest("fw.bin", IMAGE, restart_timeout=0.6))
+    with pytest.raises(NoAnswer, match="did not answer again within 0.6 s after leaving BOOT") as info:
+        firmware.execute(conn, plan)
+    assert info.value.exit_code == 3 and "\n" not in str(info.value)
+    conn.close()
+
+
+def test_the_slave_answers_any_source_mac(wire: Wire) -> None:
+    """SOEM's, IgH's and many masters' source MACs are locally administered (bit 1 of byte 0): still served."""
+    for src in (b"\x02\x00\x00\x00\x00\x01", b"\x01\x01\x01\x01\x01\x01", b"\x00\x1b\x21\xaa\xbb\xcc"):
+        frame = ec.encode_frame([ec.Datagram(ec.Cmd.BRD, 0, ec.REG_TYPE, bytes(2))], src=src)
+        reply = wire.face.handle_frame(frame)
+        assert reply is not None
+        _dst, back_src, datagrams = ec.decode_frame(reply)
+        assert datagrams[0].wkc == 1 and back_src[0] == src[0] | 0x02

@@ -151,3 +151,18 @@ def test_intel_hex_round_trip_and_defects() -> None:
         decode_ihex(text.replace(":10000000000102", ":10000000000103", 1))
     with pytest.raises(CodecError, match="no end record"):
         decode_ihex(text.rsplit(":00000001FF", 1)[0])
+
+
+def test_a_second_slave_without_a_position_is_refused(wire: Wire, monkeypatch: pytest.MonkeyPatch) -> None:
+    from akdctl.transport.ethercat_raw import EthercatRawTransport
+    from akdctl.transport.registry import parse_target
+
+    t = transport(wire)
+    bare = EthercatRawTransport(parse_target("ecat://pair0"), t.options)  # no /POSITION
+    bare.master = t.master
+    conn = Connection.over(bare)
+    conn.transport()
+    monkeypatch.setattr(bare.master, "count_slaves", lambda: 2)
+    with pytest.raises(UsageError, match="2 slaves answer .*name the one to change with its position"):
+        alias_op.plan(conn, 5)
+    conn.close()
