@@ -64,11 +64,11 @@ def read_registers(conn: "Connection", address: int, size: int) -> bytes:
 
 def plan_register_write(conn: "Connection", address: int, data: bytes, force: bool = False) -> WritePlan:
     check_range(address, len(data))
+    transport = raw_bus(conn)
     reasons = guarded(address, len(data))
     if reasons and not force:
         raise SafetyRefusal(f"refusing to write register 0x{address:04X}: it is " + "; ".join(reasons)
                             + " (--force writes it anyway); nothing was written")
-    transport = raw_bus(conn)
     before = bytes(transport.master.fprd(transport.slave.station, address, len(data)))
     return WritePlan("ecat reg write", conn.target.display,
                      [PlannedWrite(f"register 0x{address:04X}", data, data.hex(" "), REGISTER_WRITE)],
