@@ -315,8 +315,9 @@ class EthercatRawFace(Face):
         if al is not None:
             if not _synced(al.pull):
                 al = None  # the ESC still answers; the AL state is synced when the registers are next touched
-            else:
-                _synced(self._update_sizes)
+            elif any(d.cmd in ec.WRITE_CMDS | ec.READWRITE_CMDS and d.ado <= ec.REG_AL_CONTROL + 1
+                     and ec.REG_AL_CONTROL < d.ado + len(d.data) for d in datagrams):
+                _synced(self._update_sizes)  # an AL control write: P -> S checks the SM lengths against these
         before = self.esc.al_status & 0x0F
         self.esc.process(datagrams)
         if al is not None:
