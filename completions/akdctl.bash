@@ -181,7 +181,7 @@ _akdctl() {
         "sim clear") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
-        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
+        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-foe-busy --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "firmware") COMPREPLY=($(compgen -W "update --help" -- "$cur")) ;;
         "firmware update") COMPREPLY=($(compgen -W "--dry-run --help --name --password --restart-timeout" -- "$cur")) ;;

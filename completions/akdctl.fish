@@ -234,6 +234,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ethercat-raw -d 'Be an EtherCAT slave (simulated AKD ESC) on this raw interface (needs '
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ecat-raw-inject -d 'Raw slave fault injection: lose the frame carrying every N-th reply, a'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ecat-serial -d 'Serial number the raw slave\'s SII reports.'
+complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ecat-foe-busy -d 'In BOOT, answer each FoE data packet N times with BUSY before taking i'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l can -d 'Put the drive on a CAN bus as a CANopen node (python-can interface; sl'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l can-heartbeat -d 'Set the node\'s heartbeat producer time (0x1017) before going on the bu'
 complete -c akdctl -n '__fish_seen_subcommand_from sim && __fish_seen_subcommand_from serve' -l ethernetip -d 'Serve the drive over EtherNet/IP (encapsulation on TCP, ListIdentity o'

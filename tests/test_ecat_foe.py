@@ -230,3 +230,18 @@ def test_the_slave_answers_any_source_mac(wire: Wire) -> None:
         assert reply is not None
         _dst, back_src, datagrams = ec.decode_frame(reply)
         assert datagrams[0].wkc == 1 and back_src[0] == src[0] | 0x02
+
+
+def test_a_busy_slave_gets_each_packet_again(wire: Wire, drive: SimDrive, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``sim serve --ecat-foe-busy 2``: every DATA packet in BOOT is answered twice with BUSY first."""
+    import akdctl.sim.face_ethercat_raw as face
+
+    monkeypatch.setattr(face, "REBOOT_SECONDS", 0.2)
+    wire.face.worker.foe_busy = 2
+    conn = _conn(wire)
+    result = firmware.execute(conn, firmware.plan(conn, firmware.FirmwareRequest("busy.bin", IMAGE)))
+    packets = result["download"]["packets"]
+    assert result["download"]["busy"] == 2 * packets
+    with drive.transaction() as model:
+        assert model.foe.files["busy.bin"] == IMAGE
+    conn.close()

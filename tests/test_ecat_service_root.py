@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 import subprocess
 import sys
 import textwrap
@@ -233,3 +234,37 @@ def test_soem_transport_firmware_update_and_foe_read(pair: VethPair, slave: SimS
     back = run_akdctl(*target, "ecat", "foe", "read", "soem.i00", "-o", str(copy), netns=pair.a)
     assert back.returncode == 0, back.stderr
     assert copy.read_bytes() == IMAGE
+
+
+def test_busy_slave_pysoem_and_tshark(pair: VethPair, tmp_path: Path) -> None:
+    """A slave that answers BUSY while flashing (``--ecat-foe-busy 1``): pysoem's foe_write and akdctl both send the
+    packet again; tshark decodes the BUSY frames' done/entire fields from akdctl's --pcap."""
+    _need_pysoem()
+    with slave_server(pair, "--ecat-foe-busy", "1"):
+        out = _pysoem(pair, f"""
+            m.config_init()
+            s = m.slaves[0]
+            s.state = pysoem.INIT_STATE; s.write_state(); s.state_check(pysoem.INIT_STATE, 2_000_000)
+            s.amend_mbx("out", 0x1800, 512); s.amend_mbx("in", 0x1C00, 512)
+            s.state = pysoem.BOOT_STATE; s.write_state()
+            out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
+            out["result"] = s.foe_write("p.bin", 0, {IMAGE[:1200]!r}, 6_000_000)
+            s.state = pysoem.INIT_STATE; s.write_state()
+        """)
+        assert out["boot"] == 3 and out["result"] > 0
+        fw = tmp_path / "b.bin"
+        fw.write_bytes(IMAGE)
+        pcap = tmp_path / "busy.pcap"
+        time.sleep(2.0)  # the slave restarts (1 s) after pysoem's BOOT -> INIT
+        result = cli(pair, "-y", "--json", "--pcap", str(pcap), "ecat", "foe", "write", str(fw))
+        assert result.returncode == 0, result.stderr
+        doc = json.loads(result.stdout)
+        assert doc["download"]["busy"] == doc["download"]["packets"]
+    if shutil.which("tshark") is None:
+        if CI:
+            raise AssertionError("tshark missing in CI")
+        pytest.skip("tshark not installed")
+    rows = _run("tshark", "-r", str(pcap), "-Y", "ecat_mailbox.foe_opmode == 6", "-T", "fields", "-e",
+                "ecat_mailbox.foe_busydone", "-e", "ecat_mailbox.foe_busyentire", timeout=60).stdout.splitlines()
+    pairs = {tuple(int(x, 0) for x in r.split("\t")) for r in rows if r.strip()}
+    assert (0, 1) in pairs and (1, 2) in pairs, sorted(pairs)[:5]

@@ -59,14 +59,23 @@ OPTIONS = (
                     "answer with a mailbox error or an SDO abort."),
     FaceOption("--ecat-serial", "ecat_serial", type=int, metavar="N",
                help="Serial number the raw slave's SII reports."),
+    FaceOption("--ecat-foe-busy", "ecat_foe_busy", type=int, metavar="N",
+               help="In BOOT, answer each FoE data packet N times with BUSY before taking it (a drive busy flashing)."),
 )
 
 
 class SlaveWorker:
-    """The drive application behind the ESC's mailbox: SDO server + fault injection."""
+    """The drive application behind the ESC's mailbox: SDO server + fault injection.
 
-    def __init__(self, esc: Esc, drive: SimDrive, injector: Injector) -> None:
+    ``foe_busy``: in BOOT, each FoE DATA packet is answered that many times with BUSY (done/entire = the
+    packets so far) before the drive takes it -- ETG.1000.6's way for a slave that is still flashing; a master
+    must send the same packet again (SOEM, IgH and akdctl do). Off by default: whether and when the AKD answers
+    BUSY is not public [I]."""
+
+    def __init__(self, esc: Esc, drive: SimDrive, injector: Injector, foe_busy: int = 0) -> None:
         self.esc, self.drive, self.injector = esc, drive, injector
+        self.foe_busy = max(0, foe_busy)
+        self._busy_left: tuple[int, int] | None = None  # (packet number, BUSY answers still to give)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -92,6 +101,9 @@ class SlaveWorker:
                 # In BOOT only FoE is available (reference foe-alias-recorder.md A1: KAS help "Bootstrap ...
                 # Only FoE protocol available"): anything else is a mailbox protocol the state does not serve.
                 return [mailbox_error_reply(request, ERR_UNSUPPORTED_PROTOCOL)], False
+            busy = self._busy(request)
+            if busy is not None:
+                return [busy], False
             if fault == "mbxerr":
                 return [mailbox_error_reply(request)], False
             if fault == "abort" and (abort := sdo_abort_reply(request)) is not None:
@@ -104,6 +116,25 @@ class SlaveWorker:
         except Exception as exc:  # noqa: BLE001 - the slave must keep running; the master sees an abort
             request_failed("ethercat-raw", exc)
             return failure_reply(request), False
+
+    def _busy(self, request: bytes) -> bytes | None:
+        """A BUSY reply to a FoE DATA packet in BOOT while this packet's BUSY answers last, else None."""
+        if not self.foe_busy or (self.esc.al_status & 0x0F) != ec.AlState.BOOT or not _is_foe(request):
+            return None
+        from akdctl.protocol import foe
+        from akdctl.protocol import mailbox as mbx
+
+        _type, counter, address, data = mbx.split(request)
+        frame = foe.decode_foe(data)
+        if frame.opcode != foe.FoeOpcode.DATA:
+            return None
+        number, left = self._busy_left if self._busy_left and self._busy_left[0] == frame.value else (
+            frame.value, self.foe_busy)
+        if left <= 0:
+            self._busy_left = None
+            return None
+        self._busy_left = (number, left - 1)
+        return mbx.pack(mbx.MailboxType.FOE, foe.encode_foe(foe.busy(number - 1, number)), address, counter)
 
     def stop(self) -> None:
         self._stop.set()
@@ -227,12 +258,13 @@ class ProcessData:
 
 
 class EthercatRawFace(Face):
-    def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
+    def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None,
+                 foe_busy: int = 0) -> None:
         self.ifname = ifname
         self.serial = serial
         self.drive = drive
         self.esc = Esc(self._sii_image())
-        self.worker = SlaveWorker(self.esc, drive, injector)
+        self.worker = SlaveWorker(self.esc, drive, injector, foe_busy)
         # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
         self.al = AlStateBinding(self.esc, drive) if drive is not None else None
         self.injector = injector
@@ -393,4 +425,6 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
         return None
     injector = Injector.parse(kwargs.get("ecat_raw_inject") or None, "--ecat-raw-inject")  # type: ignore[arg-type]
     serial = kwargs.get("ecat_serial")
-    return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None)  # type: ignore[arg-type]
+    busy = kwargs.get("ecat_foe_busy")
+    return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None,  # type: ignore[call-overload]
+                           int(busy) if busy else 0)  # type: ignore[call-overload]
