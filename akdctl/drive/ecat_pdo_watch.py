@@ -118,7 +118,8 @@ def execute(conn: "Connection", plan: WritePlan, duration: float, period: float,
     if status & 0x0F != ec.AlState.PREOP:
         master.request_state(slave.station, ec.AlState.PREOP)
     cycle.configure()
-    drops, last_values, started = 0, [], time.monotonic()
+    last_values: list[dict[str, Any]] = []
+    started = time.monotonic()
     ended = "time"
     try:
         master.request_state(slave.station, ec.AlState.SAFEOP)
