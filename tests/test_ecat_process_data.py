@@ -142,3 +142,18 @@ def test_an_output_that_is_not_mapped_is_refused(conn: Connection) -> None:
         watch.plan(conn, {(0x6060, 0): 3})
     plan = watch.plan(conn, {(0x6040, 0): 15})
     assert plan.needing_consent
+
+
+def test_lrd_and_lwr_count_1_and_2(conn: Connection, wire: Wire) -> None:
+    """Separate LRD/LWR datagrams (masters that do not use LRW): WKC +1 for the read, +2 for the write in OP."""
+    from akdctl.transport.ethercat_raw import LOGICAL_BASE
+
+    cycle, plan = _op(conn)
+    t = conn.transport()
+    t.master.request_state(t.slave.station, ec.AlState.OP)  # type: ignore[attr-defined]
+    rx_bytes, tx_bytes = plan.data["rx"].bytes, plan.data["tx"].bytes
+    got = t.master.txrx([ec.logical_datagram(ec.Cmd.LWR, LOGICAL_BASE, bytes(rx_bytes)),  # type: ignore[attr-defined]
+                         ec.logical_datagram(ec.Cmd.LRD, LOGICAL_BASE + rx_bytes, bytes(tx_bytes))])
+    assert [d.wkc for d in got] == [2, 1]
+    outside = t.master.txrx([ec.logical_datagram(ec.Cmd.LRW, 0x00200000, bytes(4))])  # type: ignore[attr-defined]
+    assert outside[0].wkc == 0  # no FMMU maps that logical address

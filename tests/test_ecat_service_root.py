@@ -144,6 +144,18 @@ def test_alias_through_the_cli_and_pysoem_reads_words_4_and_7(pair: VethPair, sl
         out["w7"] = int.from_bytes(s.eeprom_read(7), "little") & 0xFFFF
     """)
     assert out["w4"] == 1001 and out["w7"] & 0xFF == 0x71  # CRC vector of the reference
+    before = cli(pair, "--json", "ecat", "reg", "read", "0x0012")
+    assert json.loads(before.stdout)["value"] == 0  # register 0x0012 follows at power-on only
+
+
+def test_alias_reaches_register_0x0012_after_a_power_cycle(pair: VethPair) -> None:
+    """'sim serve' stopped and started again is the simulated power cycle: the ESC loads word 4 into 0x0012."""
+    with slave_server(pair):
+        assert cli(pair, "-y", "ecat", "alias", "0x1234").returncode == 0
+    with slave_server(pair):
+        doc = json.loads(cli(pair, "--json", "ecat", "alias").stdout)
+    assert doc["register_0x0012"] == 0x1234 and doc["sii_word4"] == 0x1234 and doc["sii_word7"] & 0xFF == 0xE7
+    assert doc["fbus_param03"] == 0x1234 and doc["pending_power_cycle"] is False
 
 
 def test_cli_firmware_update_foe_read_and_tshark(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
