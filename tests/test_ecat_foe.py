@@ -245,3 +245,33 @@ def test_a_busy_slave_gets_each_packet_again(wire: Wire, drive: SimDrive, monkey
     with drive.transaction() as model:
         assert model.foe.files["busy.bin"] == IMAGE
     conn.close()
+
+
+def test_progress_on_a_terminal_shows_bytes_and_eta(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A rich bar (bytes done/total, speed, time remaining) on a terminal; plain lines when piped."""
+    import io
+    import os
+    import pty
+    import sys
+
+    from akdctl.cli.ecat import TransferProgress
+
+    master, slave = pty.openpty()
+    tty = os.fdopen(slave, "w", buffering=1)
+    monkeypatch.setattr(sys, "stderr", tty)
+    monkeypatch.setenv("COLUMNS", "120")
+    with TransferProgress("FoE write fw.bin", 300_000, quiet=False) as progress:
+        assert progress.terminal
+        for done in range(0, 300_001, 30_000):
+            progress(done, 300_000)
+    tty.flush()
+    os.set_blocking(master, False)
+    shown = os.read(master, 65536).decode("utf-8", "replace")
+    tty.close()
+    os.close(master)
+    assert "FoE write fw.bin" in shown and "kB" in shown
+    piped = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", piped)
+    with TransferProgress("FoE read x", None, quiet=False) as progress:
+        progress(1000, None)
+    assert piped.getvalue() == "akdctl: FoE read x: 1000 bytes\n"
