@@ -280,3 +280,13 @@ def test_busy_slave_pysoem_and_tshark(pair: VethPair, tmp_path: Path) -> None:
                 "ecat_mailbox.foe_busydone", "-e", "ecat_mailbox.foe_busyentire", timeout=60).stdout.splitlines()
     pairs = {tuple(int(x, 0) for x in r.split("\t")) for r in rows if r.strip()}
     assert (0, 1) in pairs and (1, 2) in pairs, sorted(pairs)[:5]
+
+
+def test_cli_state_boot_and_back(pair: VethPair, slave: SimServer) -> None:
+    r = cli(pair, "ecat", "state", "BOOT")
+    assert r.returncode == 0 and "BOOT" in r.stdout, r.stderr
+    r = cli(pair, "sdo", "read", "0x1018:1")  # the mailbox is re-established from BOOT (restart, INIT, PRE-OP)
+    assert r.returncode == 0 and "106" in r.stdout, r.stderr
+    assert cli(pair, "ecat", "state", "BOOT").returncode == 0
+    r = cli(pair, "ecat", "state", "PREOP")
+    assert r.returncode == 0 and "PREOP" in r.stdout, r.stderr

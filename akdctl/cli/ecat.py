@@ -85,14 +85,19 @@ def _hex(value: int | None) -> str:
 
 
 @ecat.command("state")
-@click.argument("state", required=False, type=click.Choice(["INIT", "PREOP", "SAFEOP", "OP"], case_sensitive=False))
+@click.argument("state", required=False,
+                type=click.Choice(["INIT", "PREOP", "BOOT", "SAFEOP", "OP"], case_sensitive=False))
 def state(state: str | None) -> None:
     """Show the slave's AL state, or request STATE (stepping through PRE-OP and SAFE-OP).
+
+    BOOT is entered from INIT with the SII's bootstrap mailbox (only FoE works there); leaving BOOT restarts the
+    drive and waits until it answers again (up to 50 s).
 
     \b
     Examples:
       akdctl -T ecat://eth1/0 ecat state
       akdctl -T ecat://eth1/0 ecat state OP
+      akdctl -T ecat://eth1/0 ecat state BOOT
     """
     from akdctl.protocol import ethercat as ec
 
@@ -103,10 +108,18 @@ def state(state: str | None) -> None:
     if state is not None:
         wanted = ec.parse_al_state(state)
         current = slave.al_status & 0x0F
-        if wanted == ec.AlState.INIT or wanted < current:
+        if current == ec.AlState.BOOT and wanted != ec.AlState.BOOT:
+            transport.leave_boot(50.0)  # BOOT goes to INIT only, and the drive restarts
+            slave = transport.slave
+            assert slave is not None
+            current = ec.AlState.INIT
+        if wanted == ec.AlState.BOOT:
+            if current != ec.AlState.BOOT:
+                transport.enter_boot()
+        elif wanted == ec.AlState.INIT or wanted < current:
             master.request_state(slave.station, wanted)
         else:
-            if current in (ec.AlState.INIT, ec.AlState.BOOT) or slave.al_status & ec.AL_ERROR_FLAG:
+            if current == ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
                 transport.open_mailbox()  # INIT -> PRE-OP with SM0/SM1 from the SII
             for step in (ec.AlState.SAFEOP, ec.AlState.OP):
                 if step <= wanted and master.al_status(slave.station)[0] & 0x0F < step:

@@ -407,7 +407,7 @@ class Esc:
         if current == S.BOOT:
             return 0x0011
         if requested == S.PREOP:
-            return self._check_mailbox_sms() if current in (S.INIT, S.BOOT) else 0
+            return self._check_mailbox_sms() if current == S.INIT else 0
         if requested == S.SAFEOP:
             if current == S.INIT:
                 return 0x0011

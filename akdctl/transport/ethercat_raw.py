@@ -36,6 +36,8 @@ from akdctl.transport.trace import Tracer
 
 MASTER_MAC = b"\x01\x01\x01\x01\x01\x01"  # as SOEM: EtherCAT ignores MACs; slaves set bit 1 of byte 0
 STATION_BASE = 0x1001
+#: Seconds a slave leaving BOOT may take to answer again: the AKD ESI's back-to-INIT timeout.
+BOOT_EXIT_TIMEOUT = 50.0
 SII_MAX_BYTES = 0x4000
 
 
@@ -542,6 +544,10 @@ class EthercatRawTransport(Transport):
         if ready and (sm0.start, sm0.length, sm1.start, sm1.length) != master.mailbox_layout(slave.station):
             ready = False  # the sync managers disagree with the SII: re-establish the mailbox from it
         if not ready:
+            if state == ec.AlState.BOOT:  # BOOT leaves to INIT only, and the drive restarts (a firmware download)
+                self.leave_boot(BOOT_EXIT_TIMEOUT)
+                slave = self.slave
+                assert slave is not None
             sii, _raw = master.read_sii(slave.station, full=False)
             slave.sii = sii
             if state != ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
