@@ -227,6 +227,7 @@ class ProcessData:
 
     def _run(self) -> None:
         seen, last = -1, time.monotonic()
+        said = ""
         while not self._stop.wait(CYCLE_SECONDS):
             state = self.esc.al_status & 0x0F
             if state not in (ec.AlState.SAFEOP, ec.AlState.OP) or self.esc.al_status & ec.AL_ERROR_FLAG:
@@ -234,8 +235,11 @@ class ProcessData:
                 continue
             try:
                 seen, last = self.cycle(state, seen, last)
+                said = ""
             except Exception as exc:  # noqa: BLE001 - the cyclic task must outlive one bad cycle
-                request_failed("ethercat-raw", exc)
+                if str(exc) != said:  # once per cause, not every 4 ms
+                    said = str(exc)
+                    request_failed("ethercat-raw", exc)
 
     def cycle(self, state: int, seen: int, last: float) -> tuple[int, float]:
         now = time.monotonic()
