@@ -607,8 +607,7 @@ def pdo_watch(duration: float, period: float, outs: tuple[str, ...], dry_run: bo
     with _LiveView(app.json) as view:
         result = op.execute(app.connection, plan, duration, period, view.show)
     doc = Doc("process data (last cycle)", app.target.display)
-    doc.table(["object", "name", "value", "unit"], [[v["address"], v["name"], v["value"], v["unit"]]
-                                                    for v in result["inputs"]])
+    doc.table(["object", "name", "value"], [[v["address"], v["name"], v["shown"]] for v in result["inputs"]])
     doc.kv("cycles", f"{result['cycles']} in {result['seconds']} s, working counter {result['expected_wkc']} each")
     app.emit(result, doc)
 
@@ -642,16 +641,16 @@ class _LiveView:
             from rich.table import Table
 
             table = Table(title=f"cycle {cycle}  WKC {wkc}{mark}")
-            for col in ("object", "name", "value", "unit"):
+            for col in ("object", "name", "value"):
                 table.add_column(col)
             for v in values:
-                table.add_row(v["address"], v["name"], str(v["value"]), v["unit"])
+                table.add_row(v["address"], v["name"], v["shown"])
             self._live.update(table, refresh=True)
             return
         now = time.monotonic()
         if not self.quiet and (now - self._last >= 1.0 or wkc != expected):
             self._last = now
-            text = ", ".join(f"{v['name']}={v['value']}" for v in values)
+            text = ", ".join(f"{v['name']} {v['shown']}" for v in values)
             self.stream.write(f"akdctl: cycle {cycle} WKC {wkc}{mark}: {text}\n")
             self.stream.flush()
 

@@ -33,6 +33,21 @@ UNITS = {0x6064: "counts", 0x6063: "counts", 0x607A: "counts", 0x60F4: "counts",
          0x6078: "per mille of rated current", 0x2077: "mA"}
 
 
+def _shown(index: int, raw: int) -> str:
+    """The value as a technician reads it: positions also in revolutions, velocities in rpm (AKD default
+    scaling, 2^16 counts per revolution), status/control words in hex."""
+    from akdctl.profiles.units import CIA_COUNTS_PER_REV, cia_rpm
+
+    unit = UNITS.get(index, "")
+    if unit == "counts":
+        return f"{raw} counts ({raw / CIA_COUNTS_PER_REV:.3f} rev)"
+    if unit == "counts/s":
+        return f"{raw} counts/s ({cia_rpm(raw):.1f} rpm)"
+    if index in (0x6040, 0x6041):
+        return f"0x{raw:04X}"
+    return f"{raw} {unit}".strip()
+
+
 class Layout:
     """The process image of one direction: (entry, bit offset, name, signed) in mapping order."""
 
@@ -57,7 +72,7 @@ class Layout:
             if signed and raw >> (entry.bits - 1):
                 raw -= 1 << entry.bits
             out.append({"address": f"0x{entry.index:04X}:{entry.subindex:02X}", "name": name, "value": raw,
-                        "unit": UNITS.get(entry.index, "")})
+                        "unit": UNITS.get(entry.index, ""), "shown": _shown(entry.index, raw)})
         return out
 
     def encode(self, values: dict[tuple[int, int], int]) -> bytes:
