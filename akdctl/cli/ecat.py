@@ -279,7 +279,7 @@ def _firmware_run(operation: str, file: str, name: str | None, password: int, dr
 
 def _who(state: dict[str, Any]) -> str:
     ident = state.get("identity") or {}
-    return f"serial {ident.get('serial_number', '?')}"
+    return f"serial {ident.get('serial', '?')}"
 
 
 @ecat.group("foe")

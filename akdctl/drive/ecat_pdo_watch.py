@@ -146,9 +146,12 @@ def execute(conn: "Connection", plan: WritePlan, duration: float, period: float,
             now = time.monotonic()
             if now >= end:
                 break
-            inputs, wkc, al = cycle.exchange(outputs)
+            check = now >= next_show  # the AL status rides along at each display refresh (a WKC drop shows sooner)
+            inputs, wkc, al = cycle.exchange(outputs, with_status=check)
             last_values = tx.decode(inputs)
-            if al & 0x0F != ec.AlState.OP or al & ec.AL_ERROR_FLAG:
+            if al is None and wkc != cycle.expected_wkc:
+                al = cycle.exchange(outputs)[2]  # why did it drop: a slave out of OP says so
+            if al is not None and (al & 0x0F != ec.AlState.OP or al & ec.AL_ERROR_FLAG):
                 code = master.al_status(slave.station)[1]
                 ended = "left-op"
                 raise DriveError(f"the slave left OP at cycle {cycle.cycles}: now {ec.describe_al(al, code)}",

@@ -145,7 +145,9 @@ def execute(conn: "Connection", plan: WritePlan, progress: "Progress | None" = N
             channel.slave = transport.sdo_client.slave
     after = drive_state(conn)
     before = plan.data["before"]
-    same = before["identity"].get("serial_number") == after["identity"].get("serial_number")
+    same = (before["identity"].get("serial") is not None
+            and before["identity"].get("serial") == after["identity"].get("serial")
+            and before["identity"].get("product_code") == after["identity"].get("product_code"))
     changed = before["firmware"] != after["firmware"]
     verdict = (f"downloaded {len(request.data)} bytes as {request.name!r}; the drive restarted in {restart_s:.1f} s; "
                f"firmware {before['firmware'] or '?'} -> {after['firmware'] or '?'}"

@@ -649,8 +649,8 @@ SM2_CONTROL, SM3_CONTROL = 0x64, 0x20
 
 class ProcessDataCycle:
     """Our master's cyclic exchange with one slave: SM2/SM3 and two FMMUs programmed in PRE-OP, then one frame
-    per cycle holding an LRW of the whole image and an FPRD of the AL status, so every cycle shows both the
-    working counter and whether the slave is still in OP.
+    per cycle holding an LRW of the whole image and, when asked (``ecat pdo watch``: every display refresh), an
+    FPRD of the AL status, so the working counter and whether the slave is still in OP come in one frame.
 
     Why LRW: one datagram writes the outputs and reads the inputs (WKC 3 per slave in OP: +1 read, +2 write);
     the expected WKC is derived from the mapping (``expected_wkc``), as SOEM derives it from its groups.
@@ -676,12 +676,14 @@ class ProcessDataCycle:
             fmmus += struct.pack("<IHBBHBBB3x", logical, length, 0, 7, physical, 0, kind, 1 if length else 0)
         m.fpwr(st, ec.REG_FMMU0, fmmus)
 
-    def exchange(self, outputs: bytes) -> tuple[bytes, int, int]:
-        """One cycle: (inputs, working counter of the LRW, AL status). FrameLost when the frame is lost."""
+    def exchange(self, outputs: bytes, with_status: bool = True) -> tuple[bytes, int, int | None]:
+        """One cycle: (inputs, working counter of the LRW, AL status or None when not asked for). FrameLost when
+        the frame is lost. The AL status rides in the same frame when ``with_status``."""
         image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
-        lrw = ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)
-        status = ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2))
-        got = self.master.txrx([lrw, status], retries=0)
+        datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
+        if with_status:
+            datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
+        got = self.master.txrx(datagrams, retries=0)
         self.cycles += 1
-        al = struct.unpack("<H", got[1].data)[0] if got[1].wkc == 1 else 0
+        al = None if not with_status else (struct.unpack("<H", got[1].data)[0] if got[1].wkc == 1 else 0)
         return bytes(got[0].data[self.rx_bytes:]), got[0].wkc, al
