@@ -48,7 +48,7 @@ _NOT_FIRMWARE = (
     (b"\x0a\x0d\x0d\x0a", "a pcapng capture"), (b"{", "a JSON document"), (b"<?xml", "an XML document"),
 )
 
-RESTARTS = Gated("the drive", "it leaves operation, takes the file in BOOT and restarts (firmware replaced)")
+RESTARTS = Gated("a firmware file", "the drive leaves operation, takes the file in BOOT and restarts with it")
 
 
 class FirmwareRequest:
