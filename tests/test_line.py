@@ -264,3 +264,42 @@ def test_discover_inventory_commission_and_diff_a_line_of_eight_drives(tmp_path:
         for server in (gateway, profinet, eip):
             server.stop()
 
+
+
+@pytest.mark.slow
+def test_forked_and_spawned_drives_give_the_same_document(tmp_path: Path) -> None:
+    inv = _inv(tmp_path, "a", "b", "c")
+    forked = run_akdctl("--inventory", inv, "sdo", "read", "0x1018:4", "--json")
+    spawned = run_akdctl("--inventory", inv, "sdo", "read", "0x1018:4", "--json", env={"AKDCTL_LINE_SPAWN": "1"})
+    assert forked.code == spawned.code == 0, (forked, spawned)
+
+    def results(text: str) -> list:
+        return [(d["name"], d["state"], d["result"]) for d in json.loads(text)["drives"]]
+
+    assert results(forked.stdout) == results(spawned.stdout)
+    serials = [d[2]["value"] for d in results(forked.stdout)]
+    assert len(set(serials)) == 3, "each simulated drive has a serial number of its own"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spawn", ["0", "1"])
+def test_ctrl_c_during_a_line_commission_stops_every_axis(tmp_path: Path, spawn: str) -> None:
+    inv = _inv(tmp_path, "m1", "m2")
+    recipe = _write(tmp_path, "[recipe]\nname='long move'\n[[step]]\naction='enable'\n[[step]]\naction='home'\n"
+                              "[[step]]\naction='move'\ntarget=200\nunit='rev'\nvelocity=120\n", "long.toml")
+    proc = start_akdctl("--yes", "--inventory", inv, "commission", recipe, env={"AKDCTL_LINE_SPAWN": spawn})
+    deadline = time.monotonic() + 30
+    moving: set[str] = set()
+    while time.monotonic() < deadline and len(moving) < 2:
+        for name in ("m1", "m2"):
+            status = run_akdctl("-T", f"sim://{name}", "status", "--json")
+            if status.code == 0 and abs(json.loads(status.stdout)["status"]["velocity_rpm"] or 0) > 1:
+                moving.add(name)
+        time.sleep(0.2)
+    assert moving == {"m1", "m2"}, "both axes should be moving before the interrupt"
+    proc.send_signal(2)
+    result = finish(proc, timeout=40)
+    assert result.code == 130, result
+    for name in ("m1", "m2"):
+        status = json.loads(run_akdctl("-T", f"sim://{name}", "status", "--json").stdout)["status"]
+        assert abs(status["velocity_rpm"]) < 1 and status["standstill"] is True, status

@@ -161,10 +161,13 @@ class DriveRun:
         self.stdout = ""
         self.stderr = ""
         self.seconds = 0.0
-        self.cpu_s = 0.0
         self.skipped = ""  # why it never ran (stop on error, interrupted)
-        self.process: subprocess.Popen[bytes] | None = None
         self.files: dict[str, str] = {}
+        self.pid = 0
+        self._process: subprocess.Popen[bytes] | None = None  # spawned (not forked) drives
+        self._fds: dict[int, bytearray] = {}  # open pipe -> what came through it
+        self._out_fd = self._err_fd = -1
+        self._status: int | None = None  # raw wait status once reaped
 
     @property
     def state(self) -> str:
@@ -206,28 +209,59 @@ def _child_env() -> dict[str, str]:
     return env
 
 
+def fork_mode() -> bool:
+    """Drives run in forked copies of this process (no interpreter start, no imports per drive: the line's CPU
+    is the drives' work) where the platform forks; ``AKDCTL_LINE_SPAWN=1`` starts a fresh interpreter per drive
+    instead (the same command line, the same result)."""
+    return hasattr(os, "fork") and os.environ.get("AKDCTL_LINE_SPAWN") != "1"
+
+
+def warm_up(command: Sequence[str]) -> None:
+    """Import, once in the parent, what every forked drive would otherwise import itself: the command's module
+    and the modules a drive command needs whatever the target (connection, axis, values, catalogue)."""
+    import importlib
+
+    from akdctl.cli.main import COMMANDS
+
+    entry = COMMANDS.get(command[0])
+    names = [entry[0]] if entry else []
+    names += ["akdctl.connection", "akdctl.config", "akdctl.cli.output", "akdctl.drive.values",
+              "akdctl.transport.registry", "akdctl.transport.trace"]
+    if command == ("commission",):
+        names += ["akdctl.recipe", "akdctl.recipe.schema", "akdctl.recipe.runner", "akdctl.recipe.ops",
+                  "akdctl.recipe.report", "akdctl.drive.gate"]
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            continue
+
+
 def run_all(runs: list[DriveRun], parallel: int, *, stop_on_error: bool = False,
             on_done: Callable[[DriveRun], None] | None = None) -> bool:
     """Run every drive's process, at most ``parallel`` at once; returns False when interrupted.
 
-    Ctrl-C (SIGINT) and SIGTERM reach the drives' processes, which stop their axes; the parent starts no new
-    drive and waits for the running ones (killing one only after :data:`STOP_GRACE_S`).
+    One thread: the drives' pipes are read by one selector loop (a chatty drive never blocks on a full pipe,
+    and a fork is never taken while another thread holds a lock). Ctrl-C (SIGINT) and SIGTERM reach the
+    drives' processes, which stop their axes; the parent starts no new drive and waits for the running ones
+    (killing one only after :data:`STOP_GRACE_S`).
     """
+    import selectors
     import signal
 
+    forking = fork_mode()
     pending = list(runs)
     running: list[DriveRun] = []
-    stopping = threading.Event()
+    stopping: list[float] = []  # when the stop began
+    by_fd: dict[int, DriveRun] = {}
+    selector = selectors.DefaultSelector()
     previous: dict[int, Any] = {}
 
     def on_signal(signum: int, frame: Any) -> None:
-        stopping.set()
+        if not stopping:
+            stopping.append(time.monotonic())
         for run in running:
-            if run.process is not None and run.process.poll() is None:
-                try:
-                    run.process.send_signal(signal.SIGINT)
-                except OSError:
-                    pass
+            _signal(run, signal.SIGINT)
 
     if threading.current_thread() is threading.main_thread():
         for signum in (signal.SIGINT, signal.SIGTERM):
@@ -235,71 +269,146 @@ def run_all(runs: list[DriveRun], parallel: int, *, stop_on_error: bool = False,
     failed = False
     try:
         while pending or running:
-            while pending and len(running) < parallel and not stopping.is_set() and not (stop_on_error and failed):
+            while pending and len(running) < parallel and not stopping and not (stop_on_error and failed):
                 run = pending.pop(0)
-                _start(run)
+                _start(run, forking)
+                for fd in run._fds:
+                    selector.register(fd, selectors.EVENT_READ)
+                    by_fd[fd] = run
                 running.append(run)
-            for run in list(running):
-                if _reap(run, block=False):
-                    running.remove(run)
-                    failed = failed or run.exit_code != EXIT_OK
-                    if on_done is not None:
-                        on_done(run)
-            if (stopping.is_set() or (stop_on_error and failed)) and pending:
-                why = "interrupted" if stopping.is_set() else "not run: --stop-on-error after a failed drive"
+            if (stopping or (stop_on_error and failed)) and pending:
+                why = "interrupted" if stopping else "not run: --stop-on-error after a failed drive"
                 for run in pending:
                     run.skipped = why
                 pending.clear()
-            if running:
-                time.sleep(0.005 if len(running) < parallel else 0.01)
-                if stopping.is_set():
-                    _grace(running)
+            for key, _ in selector.select(timeout=0.05):
+                fd = int(key.fd)
+                run = by_fd[fd]
+                try:
+                    chunk = os.read(fd, 65536)
+                except (BlockingIOError, InterruptedError):
+                    continue
+                if chunk:
+                    run._fds[fd] += chunk
+                else:
+                    selector.unregister(fd)
+                    os.close(fd)
+                    del by_fd[fd]
+                    run._fds[fd] = run._fds[fd]  # kept: the text is read from it at the end
+                    _closed(run, fd)
+            for run in list(running):
+                if _open_fds(run) or not _reap(run):
+                    continue
+                running.remove(run)
+                failed = failed or run.exit_code != EXIT_OK
+                if on_done is not None:
+                    on_done(run)
+            if stopping and running and time.monotonic() - stopping[0] > STOP_GRACE_S:
+                for run in running:
+                    _signal(run, signal.SIGKILL)
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    return not stopping.is_set()
+        selector.close()
+    return not stopping
 
 
-def _start(run: DriveRun) -> None:
+def _signal(run: DriveRun, signum: int) -> None:
+    if run.pid and run._status is None:
+        try:
+            os.kill(run.pid, signum)
+        except OSError:
+            pass
+
+
+def _open_fds(run: DriveRun) -> bool:
+    return run._out_fd != -1 or run._err_fd != -1
+
+
+def _closed(run: DriveRun, fd: int) -> None:
+    if fd == run._out_fd:
+        run.stdout = run._fds[fd].decode("utf-8", "replace")
+        run._out_fd = -1
+    elif fd == run._err_fd:
+        run.stderr = run._fds[fd].decode("utf-8", "replace")
+        run._err_fd = -1
+
+
+def _start(run: DriveRun, forking: bool) -> None:
     run.seconds = time.monotonic()
-    run.process = subprocess.Popen(run.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                   stderr=subprocess.PIPE, env=_child_env())
-    # one reader thread per pipe: a chatty drive can never block on a full pipe
-    run._readers = [_reader(run.process.stdout, run, "stdout"), _reader(run.process.stderr, run, "stderr")]  # type: ignore[attr-defined]
+    if not forking:
+        run._process = subprocess.Popen(run.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, env=_child_env())
+        run.pid = run._process.pid
+        assert run._process.stdout is not None and run._process.stderr is not None
+        run._out_fd = os.dup(run._process.stdout.fileno())
+        run._err_fd = os.dup(run._process.stderr.fileno())
+        run._process.stdout.close()
+        run._process.stderr.close()
+    else:
+        out_r, out_w = os.pipe()
+        err_r, err_w = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # the drive: this process, forked, runs the one command and never returns
+            _drive_process(run.argv, out_r, out_w, err_r, err_w)
+        os.close(out_w)
+        os.close(err_w)
+        run.pid, run._out_fd, run._err_fd = pid, out_r, err_r
+    for fd in (run._out_fd, run._err_fd):
+        os.set_blocking(fd, False)
+        run._fds[fd] = bytearray()
 
 
-def _reader(stream: Any, run: DriveRun, field: str) -> threading.Thread:
-    def pump() -> None:
-        data = stream.read()
-        stream.close()
-        setattr(run, field, data.decode("utf-8", "replace"))
+def _drive_process(argv: list[str], out_r: int, out_w: int, err_r: int, err_w: int) -> None:
+    """In the forked child: stdin from /dev/null, stdout/stderr into the parent's pipes, default signal
+    handling, then the ordinary entry point with the drive's command line; exits with its code."""
+    import signal
 
-    thread = threading.Thread(target=pump, daemon=True)
-    thread.start()
-    return thread
+    code = 70
+    try:
+        os.close(out_r)
+        os.close(err_r)
+        null = os.open(os.devnull, os.O_RDONLY)
+        os.dup2(null, 0)
+        os.dup2(out_w, 1)
+        os.dup2(err_w, 2)
+        for fd in (null, out_w, err_w):
+            os.close(fd)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_DFL if signum == signal.SIGTERM else signal.default_int_handler)
+        os.environ.pop("AKDCTL_TARGET", None)
+        from akdctl.cli.main import main
+
+        try:
+            main(argv[3:])  # argv is [python, -m, akdctl, ...]: the same command line a spawned drive gets
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    finally:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(code)
 
 
-def _reap(run: DriveRun, *, block: bool) -> bool:
-    assert run.process is not None
-    code = run.process.wait() if block else run.process.poll()
-    if code is None:
-        return False
-    for thread in run._readers:  # type: ignore[attr-defined]
-        thread.join(5.0)
+def _reap(run: DriveRun) -> bool:
+    if run._process is not None:
+        code = run._process.poll()
+        if code is None:
+            return False
+        run._status = code
+    else:
+        pid, status = os.waitpid(run.pid, os.WNOHANG)
+        if pid == 0:
+            return False
+        run._status = status
+        code = os.waitstatus_to_exitcode(status)
     run.exit_code = code if code >= 0 else EXIT_INTERRUPTED
     run.seconds = time.monotonic() - run.seconds
     return True
-
-
-def _grace(running: list[DriveRun]) -> None:
-    deadline = time.monotonic() + STOP_GRACE_S
-    for run in running:
-        if run.process is None:
-            continue
-        try:
-            run.process.wait(max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            run.process.kill()
 
 
 def child_argv(target: str, rest: list[str], *, json_output: bool) -> list[str]:
@@ -328,6 +437,8 @@ def run(args: Sequence[str]) -> int:
     with tempfile.TemporaryDirectory(prefix="akdctl-line-") as scratch:
         runs = [DriveRun(d, child_argv(d.target, per_drive_args(line, d, Path(scratch)), json_output=line.json))
                 for d in drives]
+        if fork_mode():
+            warm_up(line.command)
         completed = run_all(runs, line.parallel, stop_on_error=line.stop_on_error,
                             on_done=None if line.json else _progress)
         return finish(line, inv, runs, completed)

@@ -167,8 +167,10 @@ def _run(line: LineArgs, inv: Any, drives: list[Any], rest: list[str], index: in
             run = DriveRun(drive, child_argv(drive.target, args, json_output=True))
             run.files = files
             runs.append(run)
-        from akdctl.cli.line import _progress
+        from akdctl.cli.line import _progress, fork_mode, warm_up
 
+        if fork_mode():
+            warm_up(("commission",))
         completed = run_all(runs, line.parallel, stop_on_error=line.stop_on_error,
                             on_done=None if line.json else _progress)
         for run in runs:  # the user wrote one recipe: name it, not the hidden per-drive copy

@@ -76,6 +76,10 @@ def run_param_diff(line: LineArgs, inv: Any, drives: list[Any]) -> int:
             run = DriveRun(drive, child_argv(drive.target, _backup_args(rest, path), json_output=False))
             run.files = {"backup": path}
             runs.append(run)
+        from akdctl.cli.line import fork_mode, warm_up
+
+        if fork_mode():
+            warm_up(("params",))
         completed = run_all(runs, line.parallel)
         values: dict[str, dict[str, Any]] = {}
         for run in runs:
