@@ -303,3 +303,32 @@ def test_ctrl_c_during_a_line_commission_stops_every_axis(tmp_path: Path, spawn:
     for name in ("m1", "m2"):
         status = json.loads(run_akdctl("-T", f"sim://{name}", "status", "--json").stdout)["status"]
         assert abs(status["velocity_rpm"]) < 1 and status["standstill"] is True, status
+
+
+@pytest.mark.slow
+def test_the_documented_ci_matrix_command_runs_against_simulated_drives(tmp_path: Path) -> None:
+    """docs/line.md's CI-matrix job, its akdctl command line verbatim with the matrix value filled in."""
+    import shlex
+    import subprocess
+    import sys
+
+    from tests.harness import ROOT, akdctl_env
+
+    doc = (ROOT / "docs" / "line.md").read_text(encoding="utf-8")
+    line = next(text for text in doc.splitlines() if "akdctl --yes --inventory inventories/" in text)
+    argv = shlex.split(line.split("- run: ", 1)[1].replace("${{ matrix.line }}", "line2"))
+    assert argv[0] == ".venv/bin/akdctl"
+    (tmp_path / "inventories").mkdir()
+    (tmp_path / "recipes").mkdir()
+    (tmp_path / "inventories" / "line2.toml").write_text(
+        "".join(f"[[drive]]\nname='l2a{k}'\ntarget='sim://l2a{k}'\n[drive.vars]\nmode={k % 2 * 2 + 1}\n" for k in range(3)))
+    (tmp_path / "recipes" / "line.toml").write_text(
+        "[recipe]\nname='line ${name}'\n[[step]]\naction='set'\nobjects={ '0x6060:0' = ${vars.mode} }\n"
+        "[[step]]\naction='check_faults'\n")
+    proc = subprocess.run([sys.executable, "-m", "akdctl", *argv[1:]], cwd=tmp_path, env=akdctl_env(),
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert proc.returncode == 0, proc.stderr
+    suites = ET.parse(tmp_path / "junit-line2.xml").getroot()
+    assert [s.get("name") for s in suites.iter("testsuite")] == [f"l2a{k} (sim://l2a{k})" for k in range(3)]
+    report = json.loads((tmp_path / "report-line2.json").read_text())
+    assert report["summary"]["passed"] == 3
