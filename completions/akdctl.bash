@@ -130,7 +130,7 @@ _akdctl() {
         "params restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
         "info") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "discover") COMPREPLY=($(compgen -W "--ecat-udp --eip --eip-iface --help --pn --pn-iface --sim --stations --tag --write-inventory" -- "$cur")) ;;
+        "discover") COMPREPLY=($(compgen -W "--can --ecat --ecat-udp --eip --eip-iface --help --nodes --pn --pn-iface --sim --stations --tag --write-inventory" -- "$cur")) ;;
         "targets") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pn") COMPREPLY=($(compgen -W "blink scan set-ip set-name --help" -- "$cur")) ;;
         "pn blink") COMPREPLY=($(compgen -W "--help --iface -i" -- "$cur")) ;;

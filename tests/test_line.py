@@ -332,3 +332,36 @@ def test_the_documented_ci_matrix_command_runs_against_simulated_drives(tmp_path
     assert [s.get("name") for s in suites.iter("testsuite")] == [f"l2a{k} (sim://l2a{k})" for k in range(3)]
     report = json.loads((tmp_path / "report-line2.json").read_text())
     assert report["summary"]["passed"] == 3
+
+
+@pytest.mark.slow
+def test_discover_lists_the_nodes_of_a_can_bus_and_writes_them_to_an_inventory(tmp_path: Path) -> None:
+    link = tmp_path / "slcan-tty"
+    with SimServer("--can", f"slcan-pty:{link}:5", "--name", "c5"):
+        bus = f"slcan/{link.as_posix().replace('/', '%2F')}?sleep_after_open=0"
+        found = run_akdctl("discover", "--can", bus, "--nodes", "1-8", "--timeout", "1",
+                           "--write-inventory", str(tmp_path / "can.toml"), "--json")
+        assert found.code == 0, found
+        drives = json.loads(found.stdout)["drives"]
+        assert [(d["transport"], d["alias"], d["vendor"]) for d in drives] == [("can", "5", "Kollmorgen")]
+        inv = inventory.load(str(tmp_path / "can.toml"))
+        assert inv.drives[0].target == f"can://{bus.split('?')[0]}/5?sleep_after_open=0"
+        status = run_akdctl("--inventory", str(tmp_path / "can.toml"), "sdo", "read", "0x1018:1", "--json")
+        assert status.code == 0, status
+        assert json.loads(status.stdout)["drives"][0]["result"]["value"] == 0x6A
+
+
+@pytest.mark.slow
+@pytest.mark.root
+@pytest.mark.skipif(os.geteuid() != 0 and os.environ.get("CI") != "true",
+                    reason="needs root for network namespaces and raw sockets")
+def test_discover_lists_the_slaves_of_a_raw_ethercat_interface_with_their_sii_identity() -> None:
+    from tests.netns import VethPair
+
+    with VethPair() as pair, SimServer("--ethercat-raw", pair.if_b, netns=pair.b):
+        found = run_akdctl("discover", "--ecat", pair.if_a, "--timeout", "1", "--json", netns=pair.a)
+        assert found.code == 0, found
+        drives = json.loads(found.stdout)["drives"]
+        assert [(d["transport"], d["target"], d["vendor"]) for d in drives] == \
+            [("ecat", f"ecat://{pair.if_a}/0", "Kollmorgen")]
+        assert drives[0]["serial"] and drives[0]["key"] == f"serial:{drives[0]['serial']}"

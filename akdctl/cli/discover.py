@@ -27,7 +27,7 @@ IDENTIFY_AT_ONCE = 8
 class Found(Record):
     """One drive a source found: how to reach it (``target``), what the source already knew, and its identity."""
 
-    __slots__ = ("transport", "target", "name", "alias", "identity", "error", "same_as")
+    __slots__ = ("transport", "target", "name", "alias", "identity", "error", "same_as", "identified")
 
     def __init__(self, transport: str, target: str, name: str = "", alias: str = "",
                  identity: dict[str, Any] | None = None, error: str = "") -> None:
@@ -38,6 +38,7 @@ class Found(Record):
         self.identity = dict(identity or {})
         self.error = error
         self.same_as = ""  # the target of the first entry reporting the same serial number
+        self.identified = False  # the source's scan already read the identity (a bus: one master, no reopening)
 
     @property
     def key(self) -> str:
@@ -123,10 +124,74 @@ def _ecat_udp(gateways: tuple[str, ...], stations: str) -> list[Found]:
     return [Found("ecat-udp", f"ecat-udp://{gw}/{n}", alias=str(n)) for gw in gateways for n in numbers]
 
 
+def _bus_found(transport: str, target: str, name: str, alias: str, vendor: int | None, product: int | None,
+               revision: int | None, serial: int | None, firmware: str | None = None) -> Found:
+    from akdctl.catalog.texts import CANOPEN_VENDORS
+
+    identity: dict[str, Any] = {"vendor": CANOPEN_VENDORS.get(vendor) if vendor is not None else None,
+                                "model": name or (f"product 0x{product:08X}" if product is not None else None),
+                                "revision": revision, "serial": str(serial) if serial is not None else None,
+                                "firmware": firmware}
+    found = Found(transport, target, name=name, alias=alias,
+                  identity={k: v for k, v in identity.items() if v not in (None, "")})
+    found.identified = True
+    return found
+
+
+def _can(buses: tuple[str, ...], nodes: str, app: Any) -> list[Found]:
+    """The nodes on each CANopen bus (``INTERFACE/CHANNEL``), by the transport's own scan (0x1018 of each)."""
+    from akdctl.cli.can import parse_nodes
+    from akdctl.cli.context import AppContext
+    from akdctl.transport.canopen_bus import CanopenTransport
+
+    wanted = parse_nodes(nodes)
+    found: list[Found] = []
+    for spec in buses:
+        bus, _, query = spec.partition("?")
+        query = f"?{query}" if query else ""
+        if bus.count("/") != 1:
+            raise UsageError(f"--can {spec!r}: INTERFACE/CHANNEL[?OPTIONS], e.g. socketcan/can0")
+        probe = AppContext(target_text=f"can://{bus}/{wanted[0]}{query}", timeout=app.timeout, retries=app.retries)
+        try:
+            transport = probe.transport()
+            assert isinstance(transport, CanopenTransport)
+            for node in transport.scan(wanted):
+                found.append(_bus_found("can", f"can://{bus}/{node.node}{query}", node.device_name or "", str(node.node),
+                                        node.vendor_id, node.product_code, node.revision, node.serial))
+        finally:
+            probe.close()
+    return found
+
+
+def _ecat(interfaces: tuple[str, ...], app: Any) -> list[Found]:
+    """The slaves on each raw EtherCAT interface, by akdctl's master (identity from each slave's SII)."""
+    from akdctl.cli.context import AppContext
+    from akdctl.transport.ethercat_raw import EthercatRawTransport
+
+    found: list[Found] = []
+    for interface in interfaces:
+        probe = AppContext(target_text=f"ecat://{interface}", timeout=app.timeout, retries=app.retries)
+        transport = probe.connection.new_transport()
+        assert isinstance(transport, EthercatRawTransport)
+        try:
+            transport.open_bus()
+            assert transport.master is not None
+            for slave in transport.master.scan(with_sii=True):
+                sii = slave.sii
+                found.append(_bus_found("ecat", f"ecat://{interface}/{slave.position}", sii.name if sii else "",
+                                        f"0x{slave.station:04X}", sii.vendor_id if sii else None,
+                                        sii.product_code if sii else None, sii.revision if sii else None,
+                                        sii.serial if sii else None))
+        finally:
+            transport.close()
+            probe.close()
+    return found
+
+
 def _identify(found: Found, timeout: float, retries: int | None) -> Found:
     """Who the drive at ``found.target`` is, through the one identity reader; a silent target is kept with its
     error (discover lists what it asked and what answered)."""
-    if found.error:
+    if found.error or found.identified:
         return found
     from akdctl.cli.context import AppContext
     from akdctl.drive.identity import read_identity, summary
@@ -152,29 +217,34 @@ def _identify(found: Found, timeout: float, retries: int | None) -> Found:
               help="Ask the stations of this ETG.8200 mailbox gateway (repeatable; see --stations).")
 @click.option("--stations", default="1001-1008", show_default=True, metavar="RANGE",
               help="With --ecat-udp: station addresses to ask, e.g. 1001-1016.")
+@click.option("--can", "can_buses", multiple=True, metavar="INTERFACE/CHANNEL",
+              help="Scan this CANopen bus for nodes (repeatable; see --nodes).")
+@click.option("--nodes", default="1-127", show_default=True, metavar="RANGE", help="With --can: node ids to ask.")
+@click.option("--ecat", "ecat_ifaces", multiple=True, metavar="IFNAME",
+              help="Scan the EtherCAT slaves on this raw interface as the master (needs CAP_NET_RAW).")
 @click.option("--write-inventory", "inventory_path", metavar="FILE", type=click.Path(dir_okay=False),
               help="Write the drives that answered as an inventory file (TOML) for --inventory.")
 @click.option("--tag", "tags", multiple=True, metavar="TAG", help="Tag every drive of the written inventory (repeatable).")
 def discover(with_sim: bool, eip_hosts: tuple[str, ...], eip_iface: str | None, pn_hosts: tuple[str, ...],
-             pn_iface: str | None, gateways: tuple[str, ...], stations: str, inventory_path: str | None,
-             tags: tuple[str, ...]) -> None:
+             pn_iface: str | None, gateways: tuple[str, ...], stations: str, can_buses: tuple[str, ...], nodes: str,
+             ecat_ifaces: tuple[str, ...], inventory_path: str | None, tags: tuple[str, ...]) -> None:
     """Find drives on every transport given: one table of transport, target, vendor, model, firmware, serial,
     name and alias; --write-inventory writes the line's inventory.
 
-    EtherCAT on a raw interface and CANopen buses are listed by 'akdctl ecat scan' and 'akdctl can scan'; their
-    drives go into an inventory as ecat://IF/POS and can://IF/CH/NODE targets.
+    With no source option only the simulator's named drives are listed: akdctl never scans a network unasked.
 
     \b
     Examples:
       akdctl discover
       akdctl discover --eip 192.168.0.20 --pn 192.168.0.21 --write-inventory line3.toml --tag line3
       akdctl discover --ecat-udp 127.0.0.1:34980 --stations 1001-1016 --json
+      akdctl discover --can socketcan/can0 --nodes 1-16 --ecat eth1
     """
     from akdctl.drive import inventory
 
     app = get_app()
     options = app.options
-    sources = bool(eip_hosts or eip_iface or pn_hosts or pn_iface or gateways)
+    sources = bool(eip_hosts or eip_iface or pn_hosts or pn_iface or gateways or can_buses or ecat_ifaces)
     if inventory_path:
         from pathlib import Path
 
@@ -193,6 +263,10 @@ def discover(with_sim: bool, eip_hosts: tuple[str, ...], eip_iface: str | None, 
         candidates += _ecat_udp(gateways, stations)
     if eip_hosts or eip_iface:
         candidates += _eip(eip_hosts, eip_iface, options)
+    if ecat_ifaces:
+        candidates += _ecat(ecat_ifaces, app)
+    if can_buses:
+        candidates += _can(can_buses, nodes, app)
     if with_sim or not sources:  # last: a simulated drive served on a face is listed by its network target
         candidates += _sim_drives()
     with ThreadPoolExecutor(max_workers=IDENTIFY_AT_ONCE) as pool:
