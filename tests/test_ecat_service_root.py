@@ -290,3 +290,25 @@ def test_cli_state_boot_and_back(pair: VethPair, slave: SimServer) -> None:
     assert cli(pair, "ecat", "state", "BOOT").returncode == 0
     r = cli(pair, "ecat", "state", "PREOP")
     assert r.returncode == 0 and "PREOP" in r.stdout, r.stderr
+
+
+def test_pysoem_writes_the_alias_as_eepromtool_does(pair: VethPair, slave: SimServer) -> None:
+    """SOEM's eepromtool -walias: word 4, then word 7 = CRC; the simulated AKD takes it as FBUS.PARAM03."""
+    _need_pysoem()
+    out = _pysoem(pair, """
+        m.config_init()
+        s = m.slaves[0]
+        words = [int.from_bytes(s.eeprom_read(w), "little") & 0xFFFF for w in range(7)]
+        words[4] = 7
+        crc = 0xFF
+        for byte in b"".join(w.to_bytes(2, "little") for w in words):
+            crc ^= byte
+            for _ in range(8):
+                crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        s.eeprom_write(4, (7).to_bytes(2, "little"))
+        s.eeprom_write(7, crc.to_bytes(2, "little"))
+        out["crc"] = crc
+    """)
+    doc = json.loads(cli(pair, "--json", "ecat", "alias").stdout)
+    assert doc["sii_word4"] == 7 and doc["sii_crc_ok"] and doc["sii_word7"] & 0xFF == out["crc"]
+    assert doc["fbus_param03"] == 7 and doc["register_0x0012"] == 0 and doc["pending_power_cycle"]
