@@ -157,3 +157,26 @@ def test_lrd_and_lwr_count_1_and_2(conn: Connection, wire: Wire) -> None:
     assert [d.wkc for d in got] == [2, 1]
     outside = t.master.txrx([ec.logical_datagram(ec.Cmd.LRW, 0x00200000, bytes(4))])  # type: ignore[attr-defined]
     assert outside[0].wkc == 0  # no FMMU maps that logical address
+
+
+def test_missing_frames_while_enabled_raise_f125(conn: Connection, wire: Wire, drive: SimDrive) -> None:
+    """Seed 001 5.14: FBUS.PARAM04 = 1 (the EtherCAT default) and more than seven frames missed while the drive is
+    enabled: F125 "Synchronization lost". The SM watchdog is switched off (0x0420 = 0) so that this, not the
+    watchdog, is what notices the silent master."""
+    import time
+
+    cycle, plan = _op(conn)
+    t = conn.transport()
+    t.master.fpwr(t.slave.station, 0x0420, b"\x00\x00")  # type: ignore[attr-defined]
+    t.master.request_state(t.slave.station, ec.AlState.OP)  # type: ignore[attr-defined]
+    rx = plan.data["rx"]
+    for word in (0x06, 0x07) + (0x0F,) * 10:
+        cycle.exchange(rx.encode({(0x6040, 0): word}), with_status=False)
+        time.sleep(0.01)
+    with drive.transaction() as model:
+        assert model.object_value(0x6041, 0) & 0x6F == 0x27
+    time.sleep(0.4)  # the master falls silent
+    assert wire.face.pd is not None and wire.face.pd.f125 == 1
+    with drive.transaction() as model:
+        assert 125 in model.faults.situations[0]
+        assert model.object_value(0x6041, 0) & 0x6F != 0x27  # no longer operation enabled

@@ -83,6 +83,7 @@ class Esc:
         self.process_sizes: Callable[[], tuple[int, int]] | None = None
         self.drop_next_reply = False  # fault injection: the frame that reads the next reply is lost
         self.eeprom_writes: list[int] = []  # words the master wrote, for the face's application to act on
+        self.inputs_read = 0  # input process data frames served
         self.outputs_written = 0  # output process data frames taken (the application and the SM watchdog watch it)
         self.lost_frame = False  # set by process(): the face must not send this frame back
         self.reset()
@@ -248,6 +249,8 @@ class Esc:
                 wrote = True
         if wrote:
             self.outputs_written += 1
+        if read:
+            self.inputs_read += 1
         d.data = bytes(data)
         d.wkc = (d.wkc + (1 if read else 0) + (2 if wrote else 0)) & 0xFFFF
 

@@ -47,6 +47,10 @@ SIM_MAILBOX_PROTOCOLS = 0x000C
 #: [I]: the real AKD's restart time is not published; its ESI allows 50 s for back-to-INIT.
 REBOOT_SECONDS = 1.0
 
+#: FBUS.PARAM04, synchronization supervision (seed 001 5.14), and the frames it may miss.
+SYNC_SUPERVISION = 0x36E8
+SYNC_LOST_FRAMES = 7
+
 #: How often the application copies process data between the ESC and the drive model (free run), seconds.
 CYCLE_SECONDS = 0.004
 
@@ -215,6 +219,11 @@ class ProcessData:
         self._thread: threading.Thread | None = None
         self.cycles = 0
         self.expired = 0
+        self.f125 = 0
+        self.interval: float | None = None  # observed period of the master's output frames, seconds
+        self.sync_lost = False
+        self._fresh_at = 0.0
+        self._served = -1
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="ecat-raw-pd", daemon=True)
@@ -232,6 +241,7 @@ class ProcessData:
             state = self.esc.al_status & 0x0F
             if state not in (ec.AlState.SAFEOP, ec.AlState.OP) or self.esc.al_status & ec.AL_ERROR_FLAG:
                 seen, last = self.esc.outputs_written, time.monotonic()
+                self.interval, self._fresh_at = None, 0.0  # a new OP measures the master's period anew
                 continue
             try:
                 seen, last = self.cycle(state, seen, last)
@@ -242,15 +252,32 @@ class ProcessData:
                     request_failed("ethercat-raw", exc)
 
     def cycle(self, state: int, seen: int, last: float) -> tuple[int, float]:
+        """One application cycle; (outputs frames seen, time of the last fresh output frame).
+
+        The model is touched only when a master exchanged process data since the last cycle, so a master that
+        died does not keep the drive's own watchdog fed (docs/fidelity.md F4)."""
         now = time.monotonic()
-        written = self.esc.outputs_written
+        written, served = self.esc.outputs_written, self.esc.inputs_read
         fresh = written != seen
+        if fresh:
+            if self._fresh_at:
+                gap = now - self._fresh_at
+                self.interval = gap if self.interval is None else 0.8 * self.interval + 0.2 * gap
+            self._fresh_at = now
+            self.sync_lost = False
         if state == ec.AlState.OP and not fresh:
             limit = watchdog_seconds(self.esc)
             if limit is not None and now - last > limit:
                 self.expired += 1
                 self.on_watchdog()
                 return written, now
+            if self.interval is not None and not self.sync_lost and \
+                    now - last > max(SYNC_LOST_FRAMES * self.interval, 3 * CYCLE_SECONDS):
+                self.sync_lost = True
+                self._supervise_sync()
+        if not fresh and served == self._served:
+            return written, last
+        self._served = served
         outputs = self.esc.process_image(write=True) if state == ec.AlState.OP and fresh else None
         with self.drive.transaction() as model:
             if outputs:
@@ -259,6 +286,17 @@ class ProcessData:
         self.esc.set_inputs(inputs)
         self.cycles += 1
         return written, (now if fresh else last)
+
+    def _supervise_sync(self) -> None:
+        """Seed 001 5.14: with FBUS.PARAM04 = 1, "when more than ... seven EtherCAT frames have not been received
+        and the drive is enabled, fault F125 ("Synchronization lost") occurs". The frame period is the one
+        observed (an average, at the application cycle's 4 ms resolution) [I: the drive's own measure is not
+        described]."""
+        with self.drive.transaction() as model:
+            supervised = int.from_bytes(model.object_read(SYNC_SUPERVISION, 0), "little") == 1
+            if supervised and model.object_value(0x6041, 0) & 0x6F == 0x27:
+                model.faults.raise_fault("F125")
+                self.f125 += 1
 
 
 class EthercatRawFace(Face):
