@@ -77,8 +77,11 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
         out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
         s.foe_write("AKD.i00", 0, {IMAGE!r}, 6_000_000)
         s.state = pysoem.INIT_STATE; s.write_state()
-        time.sleep(2.0)  # the drive restarts
-        out["n_after"] = m.config_init()
+        for _ in range(40):  # the drive restarts (1 s; longer on a loaded machine)
+            time.sleep(0.5)
+            out["n_after"] = m.config_init()
+            if out["n_after"]:
+                break
         s = m.slaves[0]
         s.state = pysoem.PREOP_STATE; s.write_state()
         out["preop"] = s.state_check(pysoem.PREOP_STATE, 2_000_000)
