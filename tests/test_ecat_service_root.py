@@ -80,7 +80,7 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
         for _ in range(40):  # the drive restarts (1 s; longer on a loaded machine)
             time.sleep(0.5)
             out["n_after"] = m.config_init()
-            if out["n_after"]:
+            if out["n_after"] > 0:
                 break
         s = m.slaves[0]
         s.state = pysoem.PREOP_STATE; s.write_state()
