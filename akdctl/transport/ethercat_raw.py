@@ -135,7 +135,11 @@ class EcatMaster:
         deadline = time.monotonic() + self.frame_timeout
         buffer = self._buffer
         while True:
-            sock.settimeout(max(0.0, deadline - time.monotonic()))
+            left = deadline - time.monotonic()
+            if left <= 0:  # a peer flooding frames that are not the answer does not hold us past the deadline
+                raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
+                                "no slave connected, or the link is down")
+            sock.settimeout(left)
             try:
                 reply = buffer[:sock.recv_into(buffer)]
             except (socket.timeout, BlockingIOError):
