@@ -254,7 +254,7 @@ def test_progress_on_a_terminal_shows_bytes_and_eta(monkeypatch: pytest.MonkeyPa
     import pty
     import sys
 
-    from akdctl.cli.ecat import TransferProgress
+    from akdctl.cli.ecat_foe import TransferProgress
 
     master, slave = pty.openpty()
     tty = os.fdopen(slave, "w", buffering=1)

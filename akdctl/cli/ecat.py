@@ -1,9 +1,12 @@
-"""``akdctl ecat scan|state|sii``: EtherCAT bus-level commands on an ``ecat://IFNAME[/POS]`` target.
+"""``akdctl ecat scan|state|sii|reg|alias``: EtherCAT bus-level commands on an ``ecat://IFNAME[/POS]`` target.
 
 These talk to the slave controllers, not to the drive's object dictionary, so
 they need akdctl as the master (``ecat://``); through a gateway (``ecat-udp://``)
 only the master itself could answer them. ``scan`` changes nothing but the
-station addresses; ``state`` with no argument only reads.
+station addresses; ``state`` with no argument only reads; the writing ones
+(``sii write``, ``reg write``, ``alias N``) plan, ask consent and execute through
+``drive/`` (:mod:`akdctl.drive.ecat_registers`, :mod:`akdctl.drive.alias`).
+``ecat foe`` and ``ecat pdo`` live in cli/ecat_foe.py and cli/ecat_pdo.py.
 """
 
 from __future__ import annotations
@@ -13,6 +16,13 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from akdctl.cli.context import get_app
+from akdctl.cli.ecat_common import (
+    ask_plan,
+    dry_run_plan,
+    parse_int,
+    read_user_file,
+    write_user_file,
+)
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
@@ -176,180 +186,7 @@ def sii(ctx: click.Context, raw: bool) -> None:
     app.emit({"target": app.target.display, **info}, doc)
 
 
-# ---------------------------------------------------------------------- file access (FoE)
-
-class TransferProgress:
-    """Bytes and ETA of a file transfer: a rich bar on a terminal (stderr), one plain line a second when piped,
-    nothing with ``--json``. Its instance is the FoE client's progress callback."""
-
-    def __init__(self, what: str, total: int | None, quiet: bool) -> None:
-        import sys
-
-        self.what, self.total, self.stream = what, total, sys.stderr
-        self.quiet = quiet
-        self.terminal = not quiet and self.stream.isatty()
-        self._bar: Any = None
-        self._task: Any = None
-        self._last = 0.0
-
-    def __enter__(self) -> "TransferProgress":
-        if self.terminal:
-            from rich.progress import (BarColumn, DownloadColumn, Progress, TextColumn, TimeRemainingColumn,
-                                       TransferSpeedColumn)
-
-            from akdctl.cli.output import console
-
-            self._bar = Progress(TextColumn("{task.description}"), BarColumn(), DownloadColumn(),
-                                 TransferSpeedColumn(), TimeRemainingColumn(), console=console(stderr=True),
-                                 transient=True)
-            self._bar.start()
-            self._task = self._bar.add_task(self.what, total=self.total)
-        return self
-
-    def __call__(self, done: int, total: int | None) -> None:
-        import time
-
-        if self._bar is not None:
-            self._bar.update(self._task, completed=done, total=total)
-            return
-        now = time.monotonic()
-        if not self.quiet and now - self._last >= 1.0:
-            self._last = now
-            of = f" of {total}" if total else ""
-            self.stream.write(f"akdctl: {self.what}: {done}{of} bytes\n")
-            self.stream.flush()
-
-    def __exit__(self, *exc: object) -> None:
-        if self._bar is not None:
-            self._bar.stop()
-
-
-def _read_user_file(path: str, limit: int) -> bytes:
-    """A file from the user, bounded; a one-line UsageError for anything but a readable regular file."""
-    from akdctl.io.safe_read import FileRefused, read_bounded
-
-    try:
-        return read_bounded(path, limit)
-    except FileRefused as exc:
-        raise UsageError(f"{path}: {exc}") from None
-    except OSError as exc:
-        raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-
-
-def _write_user_file(path: str, data: bytes) -> None:
-    from pathlib import Path
-
-    from akdctl.io.atomic import write_user_file
-
-    try:
-        write_user_file(Path(path), data)
-    except OSError as exc:
-        raise UsageError(f"{path}: cannot write it ({exc.strerror or exc})") from None
-
-
-def _firmware_run(operation: str, file: str, name: str | None, password: int, dry_run: bool,
-                  restart_timeout: float) -> None:
-    """``ecat foe write`` and ``firmware update``: parse, plan, consent, execute, render."""
-    from akdctl.cli.consent import require_consent
-    from akdctl.drive import firmware
-    from akdctl.drive.operation import consent_needed
-
-    app = get_app()
-    data = _read_user_file(file, firmware.MAX_FIRMWARE_BYTES)
-    request = firmware.FirmwareRequest(file, data, name, password, restart_timeout)
-    plan = firmware.plan(app.connection, request, operation)
-    if dry_run:
-        app.emit({"dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-        return
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
-    with TransferProgress(f"FoE write {request.name}", len(data), quiet=app.json) as progress:
-        result = firmware.execute(app.connection, plan, progress)
-    doc = Doc(f"{operation}: {request.name}", app.target.display)
-    before, after = result["before"], result["after"]
-    doc.kv("before", f"{_who(before)} firmware {before['firmware'] or '?'}")
-    dl = result["download"]
-    doc.kv("download", f"{result['bytes']} bytes" + (f" in {dl['packets']} packets of {dl['packet_bytes']} "
-                                                      f"({dl['busy']} busy)" if dl.get("packets") else " (through SOEM)"))
-    doc.kv("restart", f"{result['restart_s']:.1f} s")
-    doc.kv("after", f"{_who(after)} firmware {after['firmware'] or '?'}")
-    doc.kv("file check", result["header_check"])
-    doc.line(result["verdict"])
-    app.emit(result, doc)
-
-
-def _who(state: dict[str, Any]) -> str:
-    ident = state.get("identity") or {}
-    return f"serial {ident.get('serial', '?')}"
-
-
-@ecat.group("foe")
-def foe_group() -> None:
-    """File access over EtherCAT (FoE): firmware download and file read (target ecat:// or ecat+soem://).
-
-    \b
-    Examples:
-      akdctl -T ecat://eth1 ecat foe write AKD_01-20-00-003.i00
-      akdctl -T ecat://eth1 ecat foe read NAME -o copy.bin
-    """
-
-
-@foe_group.command("write")
-@click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--name", help="File name on the slave (default: FILE's base name, as IgH's foe_write).")
-@click.option("--password", default=0, type=click.IntRange(0, 0xFFFFFFFF), help="FoE password (u32, default 0).")
-@click.option("--restart-timeout", default=50.0, type=click.FloatRange(0.5, 600),
-              help="Seconds to wait for the drive to answer after the download (ESI back-to-INIT: 50 s).")
-@click.option("--dry-run", is_flag=True, help="Check the file and the drive, print the plan, write nothing.")
-def foe_write(file: str, name: str | None, password: int, restart_timeout: float, dry_run: bool) -> None:
-    """Download FILE in BOOT: INIT, bootstrap mailbox, BOOT, FoE write, INIT; the drive restarts.
-
-    Refused while the drive's power stage is on; needs consent (--yes) because the drive restarts.
-
-    \b
-    Examples:
-      akdctl -T ecat://eth1 -y ecat foe write firmware.i00
-      akdctl -T ecat://eth1 ecat foe write firmware.i00 --dry-run
-    """
-    _firmware_run("ecat foe write", file, name, password, dry_run, restart_timeout)
-
-
-@foe_group.command("read")
-@click.argument("name")
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
-              help="Where to store the file.")
-@click.option("--password", default=0, type=click.IntRange(0, 0xFFFFFFFF), help="FoE password (u32, default 0).")
-@click.option("--max-size", default=16 * 1024 * 1024, type=click.IntRange(1, 256 * 1024 * 1024),
-              help="Refuse a file larger than this many bytes (default 16 MiB).")
-def foe_read(name: str, output: str, password: int, max_size: int) -> None:
-    """Read file NAME from the slave (in its current mailbox state, PRE-OP or higher) into OUTPUT.
-
-    \b
-    Examples:
-      akdctl -T ecat://eth1 ecat foe read config.txt -o config.txt
-    """
-    from akdctl.drive.ecat_files import read_file
-
-    app = get_app()
-    with TransferProgress(f"FoE read {name}", None, quiet=app.json) as progress:
-        data = read_file(app.connection, name, password, max_size, progress)
-    _write_user_file(output, data)
-    app.emit({"target": app.target.display, "name": name, "bytes": len(data), "output": output},
-             Doc(f"FoE read {name}", app.target.display).kv("bytes", len(data)).kv("written to", output))
-
-
 # ---------------------------------------------------------------------- SII files, registers, alias
-
-def _ask(plan: Any) -> None:
-    from akdctl.cli.consent import require_consent
-    from akdctl.drive.operation import consent_needed
-
-    app = get_app()
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
-
-
-def _dry(plan: Any) -> None:
-    get_app().emit({"dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-
 
 @sii.command("read")
 @click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
@@ -370,7 +207,7 @@ def sii_read(output: str, fmt: str) -> None:
     app = get_app()
     data = read_sii(app.connection)
     ihex = fmt == "ihex" or (fmt == "auto" and output.lower().endswith((".hex", ".ihex")))
-    _write_user_file(output, encode_ihex(data).encode("ascii") if ihex else data)
+    write_user_file(output, encode_ihex(data).encode("ascii") if ihex else data)
     app.emit({"target": app.target.display, "bytes": len(data), "output": output, "format": "ihex" if ihex else "bin"},
              Doc("SII read", app.target.display).kv("bytes", len(data)).kv("written to", output)
              .kv("format", "Intel HEX" if ihex else "raw binary"))
@@ -380,7 +217,7 @@ def _load_sii_file(path: str, fmt: str) -> bytes:
     from akdctl.protocol.errors import CodecError
     from akdctl.protocol.sii import decode_ihex
 
-    data = _read_user_file(path, 0x20000)
+    data = read_user_file(path, 0x20000)
     ihex = fmt == "ihex" or (fmt == "auto" and data[:1] == b":")
     if not ihex:
         return data
@@ -412,18 +249,11 @@ def sii_write(file: str, fmt: str, fix_crc: bool, force: bool, dry_run: bool) ->
     app = get_app()
     plan = regs.plan_sii_write(app.connection, _load_sii_file(file, fmt), file, fix_crc, force)
     if dry_run:
-        return _dry(plan)
-    _ask(plan)
+        return dry_run_plan(plan)
+    ask_plan(plan)
     result = regs.execute_sii_write(app.connection, plan)
     app.emit(result, Doc("SII write", app.target.display).kv("words written", result["words_written"])
              .kv("verified", "yes").line("the slave loads words 0-7 at its next power-on"))
-
-
-def _int(text: str, what: str) -> int:
-    try:
-        return int(text, 0)
-    except ValueError:
-        raise UsageError(f"{what} {text!r} is not a number (decimal or 0x hex)") from None
 
 
 @ecat.group("reg")
@@ -451,7 +281,7 @@ def reg_read(address: str, size: str) -> None:
     from akdctl.drive.ecat_registers import read_registers
 
     app = get_app()
-    addr, n = _int(address, "register address"), _int(size, "size")
+    addr, n = parse_int(address, "register address"), parse_int(size, "size")
     data = read_registers(app.connection, addr, n)
     value = int.from_bytes(data, "little") if n <= 8 else None
     doc = Doc(f"register 0x{addr:04X} ({n} byte{'s' if n != 1 else ''})", app.target.display)
@@ -480,22 +310,22 @@ def reg_write(address: str, value: str, size: int | None, as_hex: bool, force: b
     from akdctl.drive import ecat_registers as regs
 
     app = get_app()
-    addr = _int(address, "register address")
+    addr = parse_int(address, "register address")
     if as_hex:
         try:
             data = bytes.fromhex(value)
         except ValueError:
             raise UsageError(f"--hex value {value!r} is not hex bytes") from None
     else:
-        number = _int(value, "value")
+        number = parse_int(value, "value")
         n = size or next((k for k in (1, 2, 4, 8) if 0 <= number < 1 << (8 * k)), 0)
         if n == 0 or not 0 <= number < 1 << (8 * n):
             raise UsageError(f"value {value} does not fit {size or 8} unsigned byte(s)")
         data = number.to_bytes(n, "little")
     plan = regs.plan_register_write(app.connection, addr, data, force)
     if dry_run:
-        return _dry(plan)
-    _ask(plan)
+        return dry_run_plan(plan)
+    ask_plan(plan)
     result = regs.execute_register_write(app.connection, plan)
     app.emit(result, Doc(f"register 0x{addr:04X}", app.target.display).kv("before", plan.data["before"].hex(" "))
              .kv("written", data.hex(" ")).kv("read back", bytes.fromhex(result["read_back"]).hex(" ")))
@@ -524,10 +354,10 @@ def alias(alias: str | None, via: str, dry_run: bool) -> None:
         info = op.read(app.connection)
         app.emit(info, _alias_doc("station alias", info))
         return
-    plan = op.plan(app.connection, _int(alias, "alias"), via)
+    plan = op.plan(app.connection, parse_int(alias, "alias"), via)
     if dry_run:
-        return _dry(plan)
-    _ask(plan)
+        return dry_run_plan(plan)
+    ask_plan(plan)
     from akdctl.cli.output import message
 
     if via == "sii":
@@ -553,107 +383,13 @@ def _alias_doc(title: str, info: dict[str, Any]) -> Doc:
     return doc
 
 
-# ---------------------------------------------------------------------- process data in OP
+def _register() -> None:
+    """The subgroups that live in modules of their own (one job each), loaded with this one."""
+    from akdctl.cli.ecat_foe import foe_group
+    from akdctl.cli.ecat_pdo import ecat_pdo
 
-@ecat.group("pdo")
-def ecat_pdo() -> None:
-    """Cyclic process data with akdctl as the master (target ecat://IFNAME[/POS]).
-
-    \b
-    Examples:
-      akdctl -T ecat://eth1/0 ecat pdo watch --for 5
-    """
+    ecat.add_command(foe_group, "foe")
+    ecat.add_command(ecat_pdo, "pdo")
 
 
-def _parse_out(text: str) -> tuple[tuple[int, int], int]:
-    where, sep, value = text.partition("=")
-    if not sep:
-        raise UsageError(f"--out {text!r}: write INDEX[:SUB]=VALUE, e.g. 0x6040:0=15")
-    index_text, _, sub_text = where.strip().partition(":")
-    return (_int(index_text, "object index"), _int(sub_text or "0", "sub-index")), _int(value.strip(), "value")
-
-
-@ecat_pdo.command("watch")
-@click.option("--for", "duration", default=10.0, type=click.FloatRange(0.05, 86400), show_default=True,
-              help="Seconds to stay in OP.")
-@click.option("--period", default=0.01, type=click.FloatRange(0.001, 1.0), show_default=True,
-              help="Cycle time in seconds (the slave's SM watchdog is 100 ms by default).")
-@click.option("--out", "outs", multiple=True, metavar="INDEX[:SUB]=VALUE",
-              help="An RxPDO value to write every cycle instead of 0 (needs --yes / consent).")
-@click.option("--dry-run", is_flag=True, help="Show the mapping and the outputs that would go out; change nothing.")
-def pdo_watch(duration: float, period: float, outs: tuple[str, ...], dry_run: bool) -> None:
-    """Take the slave to OP with its current mapping and show the TxPDO values and the working counter live.
-
-    Outputs are all 0 (controlword 0) unless --out values are given (consent). A working-counter drop ends
-    with exit 3, a slave leaving OP with exit 1; the slave is left in PRE-OP.
-
-    \b
-    Examples:
-      akdctl -T ecat://eth1/0 ecat pdo watch --for 5
-      akdctl -T ecat://eth1/0 -y ecat pdo watch --out 0x6040:0=6
-    """
-    from akdctl.drive import ecat_pdo_watch as op
-
-    app = get_app()
-    outputs = dict(_parse_out(text) for text in outs)
-    plan = op.plan(app.connection, outputs)
-    if dry_run:
-        return _dry(plan)
-    if outputs:
-        from akdctl.cli.consent import require_consent
-
-        require_consent(app, "write these RxPDO values every cycle in OP: "
-                        + ", ".join(f"0x{i:04X}:{s:02X}={v}" for (i, s), v in outputs.items()))
-    with _LiveView(app.json) as view:
-        result = op.execute(app.connection, plan, duration, period, view.show)
-    doc = Doc("process data (last cycle)", app.target.display)
-    doc.table(["object", "name", "value"], [[v["address"], v["name"], v["shown"]] for v in result["inputs"]])
-    doc.kv("cycles", f"{result['cycles']} in {result['seconds']} s, working counter {result['expected_wkc']} each")
-    app.emit(result, doc)
-
-
-class _LiveView:
-    """TxPDO values and WKC redrawn in place on a terminal (stderr); a plain line a second when piped."""
-
-    def __init__(self, quiet: bool) -> None:
-        import sys
-
-        self.quiet, self.stream = quiet, sys.stderr
-        self.terminal = not quiet and self.stream.isatty()
-        self._live: Any = None
-        self._last = 0.0
-
-    def __enter__(self) -> "_LiveView":
-        if self.terminal:
-            from rich.live import Live
-
-            from akdctl.cli.output import console
-
-            self._live = Live(console=console(stderr=True), transient=True, auto_refresh=False)
-            self._live.start()
-        return self
-
-    def show(self, values: list[dict[str, Any]], wkc: int, expected: int, cycle: int) -> None:
-        import time
-
-        mark = "" if wkc == expected else f" (expected {expected}!)"
-        if self._live is not None:
-            from rich.table import Table
-
-            table = Table(title=f"cycle {cycle}  WKC {wkc}{mark}")
-            for col in ("object", "name", "value"):
-                table.add_column(col)
-            for v in values:
-                table.add_row(v["address"], v["name"], v["shown"])
-            self._live.update(table, refresh=True)
-            return
-        now = time.monotonic()
-        if not self.quiet and (now - self._last >= 1.0 or wkc != expected):
-            self._last = now
-            text = ", ".join(f"{v['name']} {v['shown']}" for v in values)
-            self.stream.write(f"akdctl: cycle {cycle} WKC {wkc}{mark}: {text}\n")
-            self.stream.flush()
-
-    def __exit__(self, *exc: object) -> None:
-        if self._live is not None:
-            self._live.stop()
+_register()

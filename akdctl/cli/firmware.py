@@ -39,6 +39,6 @@ def update(file: str, name: str | None, password: int, restart_timeout: float, d
       akdctl -T ecat://eth1 firmware update fw.i00 --dry-run
       akdctl -T ecat://eth1 -y --json firmware update fw.i00
     """
-    from akdctl.cli.ecat import _firmware_run
+    from akdctl.cli.ecat_foe import firmware_run
 
-    _firmware_run("firmware update", file, name, password, dry_run, restart_timeout)
+    firmware_run("firmware update", file, name, password, dry_run, restart_timeout)
