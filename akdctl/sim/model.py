@@ -42,6 +42,7 @@ from akdctl.sim.faults import FaultComponent
 from akdctl.sim.foe import FoeFiles
 from akdctl.sim.motion import MotionComponent
 from akdctl.sim.pdo import PdoComponent
+from akdctl.sim.recorder import Recorder
 
 STATE_VERSION = 1
 
@@ -89,7 +90,8 @@ class DriveModel:
         self.faults = FaultComponent(self)
         self.pdo = PdoComponent(self)
         self.foe = FoeFiles(self)
-        self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
+        self.recorder = Recorder(self)  # REC.*: samples the motion at its own instants (advance below)
+        self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe, self.recorder]
         # the components that move with time (the others keep Component.tick, which does nothing), in tick order
         self._tickers = [c.tick for c in self.components if type(c).tick is not Component.tick]
 
@@ -113,6 +115,12 @@ class DriveModel:
     # ------------------------------------------------------------------ time
     def advance(self, dt: float) -> None:
         """Advance virtual time; components integrate motion, timers, watchdogs."""
+        if dt <= 0:
+            return
+        self.recorder.advance(dt, self._step)
+
+    def _step(self, dt: float) -> None:
+        """One advance of the clock and the components (the recorder splits :meth:`advance` at its samples)."""
         if dt <= 0:
             return
         self.clock += dt

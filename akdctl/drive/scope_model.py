@@ -1,0 +1,188 @@
+"""One sample model for every scope source: a time axis, named channels with units, and the trigger's index.
+
+Why one model: the poll, recorder and PDO sources differ in how samples reach the host (one request per sample,
+the drive's recorder buffer, one bus cycle each), but a technician reads the same picture from each, and the CSV,
+SVG, PNG, JSON, the terminal plot, a support bundle and a recipe's bounds all read this one record. So a source
+only fills a :class:`Recording`; nothing below it knows about files or plots.
+
+Time: seconds relative to the trigger sample (negative before it), as WorkBench's scope shows it. The poll source
+stamps samples with the host's monotonic clock; the recorder has no time column and the axis comes from REC.GAP
+(shared/reference/foe-alias-recorder.md §C3).
+
+A recording that ended early (a timeout, a refusal, an overflow) keeps what was taken and says why in
+``partial``; every output marks it (CSV comment ``# PARTIAL: ...``, JSON ``"partial"``, a title in the plots),
+so a short file is never mistaken for a whole one.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from akdctl.protocol.record import Record
+
+FORMAT_VERSION = 1
+
+
+class Channel(Record):
+    """One recorded signal: ``name`` as the user gave it (``VL.FB``, ``0x606C:0``, ``PNU 6``), its ``unit``
+    (``""`` when it has none) and where it came from (``address``: ``0x606C:0``, ``PNU 6``, ``REC.CH1``)."""
+
+    __slots__ = ("name", "unit", "address")
+
+    def __init__(self, name: str, unit: str = "", address: str = "") -> None:
+        self.name = name
+        self.unit = unit
+        self.address = address
+
+    @property
+    def label(self) -> str:
+        return f"{self.name} [{self.unit}]" if self.unit else self.name
+
+    def to_json(self) -> dict[str, str]:
+        return {"name": self.name, "unit": self.unit, "address": self.address}
+
+
+class Recording:
+    """Samples of ``channels`` at ``times`` (s, 0 = trigger); ``values[i]`` is channel i's column."""
+
+    def __init__(self, target: str, source: str, channels: Sequence[Channel], *, trigger: str = "immediate",
+                 rate_requested: float | None = None) -> None:
+        self.target = target
+        self.source = source
+        self.channels = list(channels)
+        self.times: list[float] = []
+        self.values: list[list[float]] = [[] for _ in self.channels]
+        self.trigger = trigger
+        self.trigger_index: int | None = None
+        self.rate_requested = rate_requested
+        self.partial: str | None = None
+        self.notes: list[str] = []
+        self.started: str = ""  # wall-clock time of the first sample, ISO 8601 UTC (for the reader, not the axis)
+
+    # ------------------------------------------------------------------ filling
+    def add(self, t: float, row: Sequence[float]) -> None:
+        self.times.append(float(t))
+        for column, value in zip(self.values, row):
+            column.append(float(value))
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def mark_partial(self, why: str) -> None:
+        """Keep what was recorded and say why it is not the whole recording."""
+        if self.partial is None:
+            self.partial = why
+
+    def shift_to_trigger(self) -> None:
+        """Make the trigger sample t = 0 (a source stamps from its own start)."""
+        if self.trigger_index is not None and 0 <= self.trigger_index < len(self.times):
+            zero = self.times[self.trigger_index]
+            self.times = [t - zero for t in self.times]
+
+    # ------------------------------------------------------------------ facts
+    @property
+    def rate_achieved(self) -> float | None:
+        """Samples per second actually taken (mean spacing); None with fewer than two samples."""
+        if len(self.times) < 2 or self.times[-1] <= self.times[0]:
+            return None
+        return (len(self.times) - 1) / (self.times[-1] - self.times[0])
+
+    @property
+    def trigger_time(self) -> float | None:
+        if self.trigger_index is None or not 0 <= self.trigger_index < len(self.times):
+            return None
+        return self.times[self.trigger_index]
+
+    def column(self, name: str) -> list[float]:
+        for channel, column in zip(self.channels, self.values):
+            if channel.name.upper() == name.upper():
+                return column
+        raise KeyError(name)
+
+    def summary(self) -> str:
+        """One line: samples, span, the achieved rate against the requested one."""
+        span = (self.times[-1] - self.times[0]) if len(self.times) > 1 else 0.0
+        rate = self.rate_achieved
+        text = f"{len(self)} samples over {span:.4g} s"
+        if rate is not None:
+            text += f", {rate:.4g} samples/s achieved"
+        if self.rate_requested:
+            text += f" ({self.rate_requested:.4g} requested)"
+        return text
+
+    # ------------------------------------------------------------------ outputs
+    def comment_line(self) -> str:
+        rate = self.rate_achieved
+        parts = [f"target={self.target}", f"source={self.source}",
+                 f"rate={rate:.6g}Hz" if rate is not None else "rate=n/a"]
+        if self.rate_requested:
+            parts.append(f"requested={self.rate_requested:.6g}Hz")
+        parts += [f"trigger={self.trigger}", f"trigger_index={self.trigger_index if self.trigger_index is not None else ''}",
+                  f"samples={len(self)}"]
+        if self.started:
+            parts.append(f"started={self.started}")
+        return "# akdctl scope: " + " ".join(parts)
+
+    def to_csv(self) -> str:
+        """CSV: a comment line (target, source, rate, trigger), ``# PARTIAL: ...`` when partial, ``# note: ...``,
+        a header naming each column with its unit, then one row per sample."""
+        lines = [self.comment_line()]
+        if self.partial:
+            lines.append(f"# PARTIAL: {self.partial}")
+        lines += [f"# note: {note}" for note in self.notes]
+        lines.append(",".join(["t [s]"] + [_csv_field(c.label) for c in self.channels]))
+        for i, t in enumerate(self.times):
+            lines.append(",".join([f"{t:.6f}"] + [_number(column[i]) for column in self.values]))
+        return "\n".join(lines) + "\n"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"format": "akdctl-scope", "version": FORMAT_VERSION, "target": self.target, "source": self.source,
+                "started": self.started, "trigger": {"condition": self.trigger, "index": self.trigger_index},
+                "rate_hz": {"requested": self.rate_requested, "achieved": self.rate_achieved},
+                "samples": len(self), "partial": self.partial, "notes": list(self.notes),
+                "channels": [c.to_json() for c in self.channels], "t": list(self.times),
+                "values": [list(column) for column in self.values]}
+
+    @classmethod
+    def from_json(cls, data: Any) -> "Recording":
+        """A recording back from :meth:`to_json` (a bundle member, a file); ValueError when it is not one."""
+        if not isinstance(data, dict) or data.get("format") != "akdctl-scope":
+            raise ValueError("not an akdctl scope recording")
+        try:
+            channels = [Channel(str(c["name"]), str(c.get("unit", "")), str(c.get("address", "")))
+                        for c in data["channels"]]
+            trigger = data.get("trigger") or {}
+            rate = data.get("rate_hz") or {}
+            rec = cls(str(data.get("target", "")), str(data.get("source", "")), channels,
+                      trigger=str(trigger.get("condition", "immediate")), rate_requested=rate.get("requested"))
+            times = [float(t) for t in data["t"]]
+            columns = [[float(v) for v in column] for column in data["values"]]
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ValueError(f"damaged scope recording: {exc}") from None
+        if len(columns) != len(channels) or any(len(column) != len(times) for column in columns):
+            raise ValueError("damaged scope recording: columns and time axis differ in length")
+        rec.times, rec.values = times, columns
+        index = trigger.get("index")
+        rec.trigger_index = int(index) if isinstance(index, int) else None
+        rec.partial = data.get("partial") or None
+        rec.notes = [str(n) for n in data.get("notes") or []]
+        rec.started = str(data.get("started") or "")
+        return rec
+
+
+def _number(value: float) -> str:
+    if math.isnan(value):
+        return ""
+    return f"{value:.6g}" if not float(value).is_integer() else str(int(value))
+
+
+def _csv_field(text: str) -> str:
+    return f'"{text}"' if any(ch in text for ch in ',"\n') else text
+
+
+def utc_now() -> str:
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")

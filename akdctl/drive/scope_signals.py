@@ -1,0 +1,203 @@
+"""What the poll source reads for a signal name, and how one sample of all of them is read.
+
+Why a table of live views: an AKD parameter name (VL.FB) is what a technician types, but the fieldbus value that
+moves with the axis is often another address: the CiA 402 velocity actual value 0x606C, PROFIdrive's NIST_A (PNU 6).
+So the names the scope knows map to the live address of each channel kind, with the scale to engineering units
+(the tool's conventions: CiA positions 65536 counts/rev, profiles/units.py; PROFIdrive N2/X2 normalisations, seed
+003 §5.6). Anything else is read by address: ``0x606C[:0]`` (the catalogue's type), ``PNU 6``/``pnu:6`` (the
+catalogue's sign), or an AKD name the catalogue maps to an object (raw value; the AKD-names catalogue of
+``catalog/akd_params.py`` when present gives its scale).
+
+One sample = one batched PNU read for all PNU signals (the PROFIdrive channel packs up to 39 per request) plus one
+SDO upload per object (the AKD has no SDO Complete Access: foe-alias-recorder.md §C2).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
+
+_CIA_REV = 1.0 / 65536
+
+
+class Signal(Record):
+    """One polled signal: ``kind`` "pnu" (``pnu``, ``sub``) or "object" (``index``, ``sub``, ``type``);
+    ``convert(raw) -> float`` in ``unit``; ``address`` as the user reads it."""
+
+    __slots__ = ("name", "unit", "address", "kind", "pnu", "index", "sub", "type", "convert")
+
+    def __init__(self, name: str, unit: str, address: str, kind: str, *, pnu: int = 0, index: int = 0, sub: int = 0,
+                 type: str = "", convert: Callable[[Any], float] = float) -> None:
+        self.name = name
+        self.unit = unit
+        self.address = address
+        self.kind = kind
+        self.pnu = pnu
+        self.index = index
+        self.sub = sub
+        self.type = type
+        self.convert = convert
+
+
+def _x15_rpm(raw: Any) -> float:
+    from akdctl.profiles.units import x_to_rpm
+
+    return x_to_rpm(int(raw), 15)
+
+
+#: AKD name -> its live CiA 402 object: (index, sub, type, factor, unit).
+LIVE_OBJECTS: dict[str, tuple[int, int, str, float, str]] = {
+    "VL.FB": (0x606C, 0, "i32", 60.0 * _CIA_REV, "rpm"),
+    "PL.FB": (0x6064, 0, "i32", _CIA_REV, "rev"),
+    "PL.CMD": (0x60FC, 0, "i32", _CIA_REV, "rev"),
+    "PL.ERR": (0x60F4, 0, "i32", _CIA_REV, "rev"),
+    "IL.FB": (0x6077, 0, "i16", 0.1, "% rated torque"),
+    "STATUSWORD": (0x6041, 0, "u16", 1.0, ""),
+}
+#: AKD name -> its live PROFIdrive signal PNU: (pnu, converter, unit). PL.FB needs PNU 1002 (added at resolve).
+LIVE_PNUS: dict[str, tuple[int, Callable[[Any], float], str]] = {
+    "VL.FB": (6, _x15_rpm, "rpm"),
+    "VL.CMD": (5, _x15_rpm, "rpm"),
+    "IL.FB": (52, lambda raw: int(raw) * 100.0 / (1 << 14), "% DRV.IPEAK"),
+    "STATUSWORD": (2, float, ""),
+}
+ALIASES = {"DS402.STATUSWORD": "STATUSWORD", "ZSW1": "STATUSWORD", "SW": "STATUSWORD", "STATUS": "STATUSWORD"}
+NAMES_HELP = "VL.FB, VL.CMD, PL.FB, PL.CMD, PL.ERR, IL.FB, STATUSWORD, 0xINDEX[:SUB], PNU N, an AKD name"
+
+
+class Resolver:
+    """Turns names into :class:`Signal` s for one connection (which channels it offers decides the address)."""
+
+    def __init__(self, has_pnus: bool, has_objects: bool, singleturn_bits: Callable[[], int] | None = None) -> None:
+        self.has_pnus = has_pnus
+        self.has_objects = has_objects
+        self._singleturn_bits = singleturn_bits
+
+    def resolve(self, text: str) -> Signal:
+        name = text.strip()
+        upper = ALIASES.get(name.upper(), name.upper())
+        pnu_match = re.fullmatch(r"(?:PNU[ :]?)(\d+)(?:\[(\d+)\])?", upper.replace(" ", ""))
+        obj_match = re.fullmatch(r"0X([0-9A-F]{1,4})(?::(0X[0-9A-F]{1,2}|\d{1,3}))?", upper)
+        if pnu_match:
+            return self._pnu_address(name, int(pnu_match.group(1)), int(pnu_match.group(2) or 0))
+        if obj_match:
+            sub_text = obj_match.group(2) or "0"
+            sub = int(sub_text, 16) if sub_text.startswith("0X") else int(sub_text)
+            return self._object_address(name, int(obj_match.group(1), 16), sub)
+        if self.has_pnus and upper in LIVE_PNUS:
+            pnu, convert, unit = LIVE_PNUS[upper]
+            return Signal(name, unit, f"PNU {pnu}", "pnu", pnu=pnu, convert=convert)
+        if self.has_pnus and upper == "PL.FB":
+            bits = self._singleturn_bits() if self._singleturn_bits else 16
+            return Signal(name, "rev", "PNU 28", "pnu", pnu=28, convert=lambda raw: int(raw) / float(1 << bits))
+        if self.has_objects and upper in LIVE_OBJECTS:
+            index, sub, type_name, factor, unit = LIVE_OBJECTS[upper]
+            return Signal(name, unit, f"0x{index:04X}:{sub}", "object", index=index, sub=sub, type=type_name,
+                          convert=lambda raw, f=factor: float(raw) * f)
+        if upper in LIVE_PNUS or upper in LIVE_OBJECTS or upper == "PL.FB":
+            offered = "PROFIdrive parameters" if self.has_pnus else "SDO objects" if self.has_objects else "no channel"
+            raise UsageError(f"signal {name}: not readable live over this target ({offered}); "
+                             "try --source recorder, or its address (0x..., PNU N)")
+        return self._named(name, upper)
+
+    def _pnu_address(self, name: str, pnu: int, sub: int) -> Signal:
+        from akdctl.catalog.pnus import lookup
+
+        if not self.has_pnus:
+            raise UsageError(f"signal {name}: this target offers no PROFIdrive parameters")
+        info = lookup(pnu)
+        if info is None:
+            raise UsageError(f"signal {name}: unknown PNU {pnu} (not in the AKD catalogue)")
+        if info.access == "wo" or info.type in ("OS", "VS"):
+            raise UsageError(f"signal {name}: PNU {pnu} ({info.name}) is not a number the scope can plot")
+        return Signal(name, "", f"PNU {pnu}" + (f"[{sub}]" if sub else ""), "pnu", pnu=pnu, sub=sub)
+
+    def _object_address(self, name: str, index: int, sub: int) -> Signal:
+        from akdctl.catalog.objects import lookup
+
+        if not self.has_objects:
+            raise UsageError(f"signal {name}: this target offers no SDO objects")
+        entry = lookup(index, sub)
+        if entry is None:
+            raise UsageError(f"signal {name}: unknown object 0x{index:04X}:{sub} (not in the AKD catalogue)")
+        if not entry.readable or entry.short_type in ("vs", "os"):
+            raise UsageError(f"signal {name}: 0x{index:04X}:{sub} ({entry.name}) is not a readable number")
+        return Signal(name, "", f"0x{index:04X}:{sub}", "object", index=index, sub=sub, type=entry.short_type)
+
+    def _named(self, name: str, upper: str) -> Signal:
+        coe = _akd_names_coe(upper)
+        if coe is not None and self.has_objects:
+            index, sub, type_name, scale = coe
+            signal = self._object_address(name, index, sub)
+            signal.type = type_name or signal.type
+            if scale:
+                signal.convert = lambda raw, f=scale: float(raw) * f
+            return signal
+        from akdctl.catalog.objects import by_param
+
+        entries = by_param(upper) if "." in upper else []
+        if entries and self.has_objects:
+            entry = entries[0]
+            return self._object_address(name, entry.index, entry.subindex)
+        raise UsageError(f"unknown signal {name!r}; signals: {NAMES_HELP}")
+
+
+def _akd_names_coe(upper: str) -> tuple[int, int, str, float | None] | None:
+    """(index, sub, type, scale) of an AKD name from the AKD-names catalogue when it is installed (another
+    engineer's module: ``lookup(name) -> row`` with ``.coe``); None otherwise."""
+    try:
+        from akdctl.catalog import akd_params  # type: ignore[attr-defined]
+    except ImportError:
+        return None
+    try:
+        row = akd_params.lookup(upper)
+    except (KeyError, LookupError, ValueError):
+        return None
+    coe = getattr(row, "coe", None) if row is not None else None
+    if not coe:
+        return None
+    index, sub, type_name, scale = (list(coe) + [None, None, None, None])[:4]
+    return int(index), int(sub or 0), str(type_name or ""), float(scale) if scale else None
+
+
+class Sampler:
+    """Reads one sample of ``signals`` (plus, optionally, the status word for a bit trigger) per :meth:`read`."""
+
+    def __init__(self, conn: Any, signals: Sequence[Signal]) -> None:
+        self.conn = conn
+        self.signals = list(signals)
+        self._pnu_slots = [i for i, s in enumerate(self.signals) if s.kind == "pnu"]
+        self._specs: list[Any] = []
+        if self._pnu_slots:
+            from akdctl.drive.values import pnu_spec
+
+            self._specs = [pnu_spec(self.signals[i].pnu, self.signals[i].sub, 1) for i in self._pnu_slots]
+
+    @property
+    def requests_per_sample(self) -> int:
+        return (1 if self._pnu_slots else 0) + sum(1 for s in self.signals if s.kind == "object")
+
+    def read(self) -> list[float]:
+        """One value per signal, in engineering units; a refusal or a lost answer raises (the caller keeps what
+        it has and marks the recording partial)."""
+        from akdctl.errors import DriveError
+
+        row: list[float] = [0.0] * len(self.signals)
+        if self._pnu_slots:
+            from akdctl.drive.values import read_pnus
+
+            for slot, reading in zip(self._pnu_slots, read_pnus(self.conn.parameters(), self._specs)):
+                if not reading.ok:
+                    raise DriveError(f"{self.signals[slot].address}: {reading.error_text}")
+                row[slot] = self.signals[slot].convert(reading.values[0])
+        for slot, signal in enumerate(self.signals):
+            if signal.kind == "object":
+                from akdctl.drive.values import read_object
+
+                value = read_object(self.conn.objects(), signal.index, signal.sub, signal.type)
+                row[slot] = signal.convert(value)
+        return row
