@@ -52,10 +52,13 @@ class PollSpec:
 def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec, *, trigger_slot: int | None,
            stopped: Callable[[], bool] = lambda: False, on_sample: Callable[[Recording], None] | None = None,
            clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
+           on_first: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
            ) -> AkdError | None:
     """Fill ``recording`` from ``read()`` (one row: the recording's channels, then hidden trigger/status values);
-    ``trigger_slot`` is the row index the trigger watches. Returns the error that ended it early (the recording is
-    then marked partial and keeps what it has), else None."""
+    ``trigger_slot`` is the row index the trigger watches; ``on_first`` runs after the first sample (a recorded
+    move starts there, so the recording shows the axis at rest first). Returns the error that ended it early (the
+    recording is then marked partial and keeps what it has), else None. ``on_tick`` runs before each sample
+    (a recorded jog ends at its duration there)."""
     width = len(recording.channels)
     trig = spec.trigger
     period = 1.0 / spec.rate_hz if spec.rate_hz else 0.0
@@ -69,6 +72,8 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
         while True:
             if stopped():
                 raise Interrupted("interrupted while recording")
+            if on_tick is not None:
+                on_tick()
             now = clock()
             if period:
                 if due - now > MIN_SLEEP_S:
@@ -80,6 +85,8 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
             row = read()
             if not recording.started:
                 recording.started = utc_now()
+                if on_first is not None:
+                    on_first()
             if not fired:
                 pre.append((t, row))
                 full = (len(pre) > (spec.pre_samples or 0)) if spec.samples is not None \

@@ -130,9 +130,11 @@ def check_signals(signals: Sequence[str]) -> None:
 
 def record(link: CommandLink, spec: RecorderSpec, recording: Recording, *, stopped: Callable[[], bool],
            clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
-           on_chunk: Callable[[Recording], None] | None = None) -> AkdError | None:
+           on_chunk: Callable[[Recording], None] | None = None, on_armed: Callable[[], None] | None = None,
+           on_wait: Callable[[], None] | None = None) -> AkdError | None:
     """Program, arm, wait, retrieve into ``recording``; returns the error that ended it early (recording marked
-    partial), else None. A refusal while programming raises (nothing was recorded)."""
+    partial), else None. A refusal while programming raises (nothing was recorded). ``on_armed`` runs once the
+    recorder is armed (a recorded move starts there), ``on_wait`` at each REC.DONE poll (watching that move)."""
     link.command("REC.OFF")
     for name, value in spec.writes():
         link.command(f"{name} {value}")
@@ -140,7 +142,11 @@ def record(link: CommandLink, spec: RecorderSpec, recording: Recording, *, stopp
     recording.started = utc_now()
     deadline = clock() + spec.timeout_s + spec.span_s
     try:
+        if on_armed is not None:
+            on_armed()
         while link.command("REC.DONE").strip() != "1":
+            if on_wait is not None:
+                on_wait()
             if stopped():
                 raise Interrupted("interrupted while the recorder ran")
             if clock() > deadline:
@@ -245,23 +251,3 @@ def parse_retrieve(text: str) -> tuple[int, int, list[str], list[list[float]]]:
 
 def channels_for(signals: Sequence[str]) -> list[Channel]:
     return [Channel(name.upper(), UNITS.get(name.upper(), ""), f"REC.CH{i + 1}") for i, name in enumerate(signals)]
-
-
-class SimCommandLink:
-    """The simulated recorder behind a :class:`CommandLink`, in process: each command is one transaction of the
-    simulated drive (its virtual time advances with the wall clock, as over the network face). Until the ``akd://``
-    transport offers ``commands()`` this is how ``sim`` targets reach REC.*."""
-
-    def __init__(self, drive: Any) -> None:
-        self.drive = drive
-
-    def command(self, line: str) -> str:
-        from akdctl.errors import DriveError
-        from akdctl.sim.recorder import RecorderError, handle_rec
-
-        name, _, arg = line.strip().partition(" ")
-        try:
-            with self.drive.transaction() as model:
-                return handle_rec(model, name, arg or None)
-        except RecorderError as exc:
-            raise DriveError(f"{line.strip()}: Error: {exc}") from None

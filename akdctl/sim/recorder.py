@@ -392,10 +392,11 @@ def _signal_arg(text: str) -> str:
 
 
 def _internal(value: float) -> str:
-    """Internal format: ``F<d><signed hex>`` = hex times 10^-d (``F3-0x56`` = -0.086); 3 decimals, as the
-    standard format."""
-    scaled = round(value * 1000)
-    return f"F3{'-' if scaled < 0 else ''}0x{abs(scaled):X}"
+    """Internal format: ``F<d><signed hex>`` = hex times 10^-d (``F3-0x56`` = -0.086). The simulator sends 6
+    decimals (a following error of a few thousandths of a revolution keeps its shape) [I: the drive's d per
+    parameter is not documented]."""
+    scaled = round(value * 1_000_000)
+    return f"F6{'-' if scaled < 0 else ''}0x{abs(scaled):X}"
 
 
 def recorder_of(model: "DriveModel") -> Recorder:

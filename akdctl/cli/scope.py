@@ -1,0 +1,232 @@
+"""``akdctl scope SIGNAL...``: record signals and show them as a picture.
+
+Thin, like every command: parse, plan (drive/scope.py), ask the one consent when the recording moves the axis,
+execute under the stop signals, then render: a terminal plot (plotille), ``--csv``, ``--svg``, ``--png``,
+``--json``. A recording that ended early is still written, marked partial in every output, and the command then
+exits with the error's code (docs/scope.md).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from akdctl.cli.context import get_app
+from akdctl.errors import UsageError
+
+#: How often the live terminal plot is redrawn while the poll source records (seconds).
+LIVE_REDRAW_S = 0.5
+
+
+@click.command()
+@click.argument("signals", nargs=-1, required=True, metavar="SIGNAL...")
+@click.option("--for", "duration", metavar="DURATION", help="How long to record (2s, 500ms; default 1 s).")
+@click.option("--samples", type=int, metavar="N", help="How many samples to record (instead of --for).")
+@click.option("--rate", type=float, metavar="HZ",
+              help="Samples per second (poll: paced, the rate achieved is printed; recorder: 16000/REC.GAP).")
+@click.option("--source", type=click.Choice(["auto", "poll", "recorder", "pdo"]), default="auto", show_default=True,
+              help="poll: the host reads (every transport); recorder: the AKD's REC.* (akd://, sim); "
+                   "pdo: one sample per EtherCAT cycle (ecat://). auto: recorder on akd://, else poll.")
+@click.option("--trigger", metavar="COND", help="immediate (default), rise:SIG:LEVEL, fall:SIG:LEVEL, "
+                                                 "above:SIG:LEVEL, below:SIG:LEVEL, bit:N[=0|1], fault.")
+@click.option("--pretrigger", type=float, default=0.0, metavar="PCT", help="Share of the recording before the "
+                                                                           "trigger, in percent.")
+@click.option("--timeout", "wait_s", type=float, default=10.0, show_default=True, metavar="SECONDS",
+              help="How long to wait for the trigger (recorder: for REC.DONE, plus the recording's span).")
+@click.option("--csv", "csv_path", metavar="FILE", help="Write CSV (header with names and units; '-' = stdout).")
+@click.option("--svg", "svg_path", metavar="FILE", help="Write an SVG plot (no extra needed).")
+@click.option("--png", "png_path", metavar="FILE", help="Write a PNG plot (needs the 'plot' extra: matplotlib).")
+@click.option("--plot/--no-plot", default=None, help="Terminal plot on stdout (default: on unless --json or --csv -).")
+@click.option("--jog", "jog_rpm", type=float, metavar="RPM",
+              help="Record during a jog at RPM for --jog-for (as 'jog --for'); asks consent like 'jog'.")
+@click.option("--jog-for", "jog_for", metavar="DURATION", help="How long the recorded jog runs (e.g. 1s).")
+@click.option("--accel", type=float, help="rpm/s of the recorded jog (default as 'jog').")
+@click.option("--dry-run", is_flag=True, help="Show what would be written and moved; record nothing.")
+def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, rate: float | None, source: str,
+          trigger: str | None, pretrigger: float, wait_s: float, csv_path: str | None, svg_path: str | None,
+          png_path: str | None, plot: bool | None, jog_rpm: float | None, jog_for: str | None,
+          accel: float | None, dry_run: bool) -> None:
+    """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.
+
+    \b
+    Examples:
+      akdctl scope VL.FB PL.ERR --for 2s --rate 200 --svg jog.svg
+      akdctl -y scope VL.FB PL.ERR --jog 300 --jog-for 1s --for 2s --csv jog.csv --svg jog.svg
+      akdctl scope VL.FB --source recorder --samples 2000 --rate 4000 --trigger rise:VL.FB:100 --pretrigger 10
+      akdctl scope IL.FB --trigger fault --pretrigger 50 --for 1s --timeout 60 --json
+    """
+    from akdctl.cli.motion import _duration
+    from akdctl.drive import scope as op
+
+    app = get_app()
+    move = None
+    seconds = _duration(duration) if duration is not None else None
+    if jog_rpm is not None or jog_for is not None:
+        from akdctl.drive.motion_plan import MotionRequest
+
+        if jog_rpm is None or jog_for is None:
+            raise UsageError("a recorded jog needs both --jog RPM and --jog-for DURATION (the motion is bounded)")
+        move = MotionRequest("jog", velocity=jog_rpm, duration_s=_duration(jog_for), accel=accel)
+        if seconds is None and samples is None:
+            seconds = min(op.MAX_DURATION_S, move.duration_s * 1.5 + 0.5)  # the stop too
+    elif accel is not None:
+        raise UsageError("--accel describes a recorded jog: give --jog RPM --jog-for DURATION too")
+    request = op.ScopeRequest(signals, duration_s=seconds,
+                              samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
+                              timeout_s=wait_s, move=move)
+    op.check(request)  # bad input exits 2 before the target is opened
+    for path in (csv_path, svg_path, png_path):
+        if path not in (None, "-"):
+            _check_writable(path)
+    if png_path is not None:
+        _check_png_extra()
+    conn = app.connection
+    plan = op.plan(conn, request, _command_link(app))
+    if dry_run:
+        _render_plan(app, plan)
+        return
+    motion = op.motion_text(plan)
+    if motion is not None:
+        from akdctl.cli.consent import require_consent
+
+        require_consent(app, motion)
+    from akdctl.cli.signals import stop_signals
+
+    live = _LivePlot() if (not app.json and sys.stderr.isatty() and plot is not False) else None
+    with stop_signals() as stop:
+        recording, failure = op.execute(conn, plan, stopped=stop, on_sample=live.update if live else None)
+    if live is not None:
+        live.clear()
+    written = _write_outputs(recording, csv_path, svg_path, png_path)
+    _render(app, recording, written, plot if plot is not None else not app.json and csv_path != "-")
+    if failure is not None:
+        if written:
+            failure.message += f"; partial recording written to {', '.join(written)}"
+        failure.reported = app.json
+        raise failure
+
+
+def _command_link(app: Any) -> Any:
+    """A factory of the target's ASCII command link, or None: the ``akd://`` transport's ``commands()`` once merged
+    (engineer "names"), the in-process simulated recorder for ``sim`` targets."""
+    conn = app.connection
+    commands = getattr(conn, "commands", None)  # Connection.commands() arrives with the akd:// transport
+    if callable(commands):
+        return commands
+    if conn.target.scheme == "sim":
+        from akdctl.transport.sim_commands import SimCommandLink
+
+        return lambda: SimCommandLink(conn.transport().drive)
+    return None
+
+
+def _check_writable(path: str) -> None:
+    parent = Path(path).expanduser().resolve().parent
+    if not parent.is_dir():
+        raise UsageError(f"cannot write {path}: directory {parent} does not exist")
+
+
+def _check_png_extra() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("matplotlib") is None:
+        raise UsageError("--png needs matplotlib: pip install 'akdctl[plot]' (or use --svg, which needs nothing)")
+
+
+def _write_outputs(recording: Any, csv_path: str | None, svg_path: str | None, png_path: str | None) -> list[str]:
+    from akdctl.io.atomic import atomic_open
+
+    written = []
+    if csv_path == "-":
+        sys.stdout.write(recording.to_csv())
+    elif csv_path is not None:
+        with atomic_open(Path(csv_path)) as out:
+            out.write(recording.to_csv())
+        written.append(csv_path)
+    if svg_path is not None:
+        from akdctl.drive.scope_svg import render_svg
+
+        with atomic_open(Path(svg_path)) as out:
+            out.write(render_svg(recording))
+        written.append(svg_path)
+    if png_path is not None:
+        from akdctl.drive.scope_plot import write_png
+
+        write_png(recording, png_path)
+        written.append(png_path)
+    return written
+
+
+def _render_plan(app: Any, plan: Any) -> None:
+    from akdctl.cli.output import emit_json
+
+    motion = plan.data.get("motion")
+    if app.json:
+        data = plan.to_json()
+        data["source"] = plan.data["source"]
+        if motion is not None:
+            data["motion"] = motion.to_json()
+        emit_json({"dry_run": True, "plan": data})
+        return
+    lines = [f"source: {plan.data['source']}", *plan.lines()]
+    sys.stdout.write("\n".join(lines) + "\n")
+
+
+def _render(app: Any, recording: Any, written: list[str], plot: bool) -> None:
+    from akdctl.cli.output import Doc, emit_json, message, render
+
+    if app.json:
+        data = recording.to_json()
+        data["files"] = written
+        emit_json({"recording": data})
+        return
+    message(recording.summary() + (f"; PARTIAL: {recording.partial}" if recording.partial else ""))
+    if plot:
+        from akdctl.drive.scope_plot import terminal_plot
+
+        width = max(40, min(160, _columns() - 14))
+        sys.stdout.write(terminal_plot(recording, width=width, height=12, colours=sys.stdout.isatty()))
+        return
+    if written:
+        doc = Doc("scope", recording.target)
+        doc.kv("source", recording.source)
+        doc.kv("samples", len(recording))
+        doc.kv("files", ", ".join(written))
+        render(doc)
+
+
+def _columns() -> int:
+    import shutil
+
+    return shutil.get_terminal_size((100, 24)).columns
+
+
+class _LivePlot:
+    """The plot redrawn in place on stderr while recording (a terminal only), at most every LIVE_REDRAW_S."""
+
+    def __init__(self) -> None:
+        self._last = 0.0
+        self._lines = 0
+
+    def update(self, recording: Any) -> None:
+        now = time.monotonic()
+        if now - self._last < LIVE_REDRAW_S or len(recording) < 2:
+            return
+        self._last = now
+        from akdctl.drive.scope_plot import terminal_plot
+
+        text = terminal_plot(recording, width=max(40, min(120, _columns() - 14)), height=8, colours=True)
+        self.clear()
+        sys.stderr.write(text)
+        sys.stderr.flush()
+        self._lines = text.count("\n")
+
+    def clear(self) -> None:
+        if self._lines:
+            sys.stderr.write(f"\x1b[{self._lines}F\x1b[J")
+            sys.stderr.flush()
+            self._lines = 0

@@ -1,0 +1,260 @@
+"""The scope operation: plan a recording (and the move it may watch), then record it.
+
+Why an operation in the plan -> consent -> execute shape (drive/operation.py): a recording with the drive's
+recorder writes REC.* settings, and a recording "during a move" moves the axis. Both are decided before anything
+is written: :func:`plan` resolves the signals, checks the counts, rates and trigger, builds the REC.* writes and,
+when a move is asked, the motion planner's plan (limits, homed rule, travel; drive/motion_plan.py); the CLI and the
+recipe step then ask the one consent for the move and call :func:`execute`, which starts the move only after the
+recording is armed (so the recording shows the start), records, and brings the axis to its end or stops it on any
+error or interrupt.
+
+Sources (docs/scope.md): ``poll`` (every transport, host-timed), ``recorder`` (the AKD's REC.* over a
+:class:`~akdctl.drive.scope_recorder.CommandLink`), ``pdo`` (cyclic process data on ``ecat://``:
+:mod:`akdctl.drive.scope_pdo`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from akdctl.drive.operation import PlannedWrite, WritePlan
+from akdctl.drive.scope_model import Recording
+from akdctl.drive.scope_trigger import Trigger, check_pretrigger, parse_trigger
+from akdctl.errors import AkdError, UsageError
+from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
+
+SOURCES = ("auto", "poll", "recorder", "pdo")
+#: --for / --samples bounds: a recording is a look, not a logger.
+MAX_DURATION_S = 600.0
+MAX_POLL_SAMPLES = 1_000_000
+DEFAULT_TIMEOUT_S = 10.0
+
+
+class ScopeRequest(Record):
+    """What the command line or a recipe step asks: signals, exactly one of ``duration_s``/``samples`` (neither:
+    1 s), ``rate_hz`` (None: as fast as the source goes / the recorder's default spacing), ``source``, trigger text,
+    pre-trigger percent, trigger/recorder ``timeout_s``, and an optional relative ``move`` (MotionRequest) to record."""
+
+    __slots__ = ("signals", "duration_s", "samples", "rate_hz", "source", "trigger", "pretrigger", "timeout_s", "move")
+
+    def __init__(self, signals: Sequence[str], *, duration_s: float | None = None, samples: int | None = None,
+                 rate_hz: float | None = None, source: str = "auto", trigger: str | None = None,
+                 pretrigger: float = 0.0, timeout_s: float = DEFAULT_TIMEOUT_S, move: Any = None) -> None:
+        self.signals = [str(s) for s in signals]
+        self.duration_s = duration_s
+        self.samples = samples
+        self.rate_hz = rate_hz
+        self.source = source
+        self.trigger = trigger
+        self.pretrigger = pretrigger
+        self.timeout_s = timeout_s
+        self.move = move
+
+
+def check(request: ScopeRequest) -> Trigger:
+    """Input checks that need no drive (exit 2): counts, times, rates, trigger grammar."""
+    if not request.signals:
+        raise UsageError("scope needs at least one SIGNAL (e.g. VL.FB)")
+    if request.source not in SOURCES:
+        raise UsageError(f"unknown source {request.source!r}; sources: {', '.join(SOURCES)}")
+    if request.duration_s is not None and request.samples is not None:
+        raise UsageError("give --for or --samples, not both")
+    if request.duration_s is not None and not (math.isfinite(request.duration_s) and 0 < request.duration_s
+                                               <= MAX_DURATION_S):
+        raise UsageError(f"--for {request.duration_s:g}: a recording lasts more than 0 and at most "
+                         f"{MAX_DURATION_S:g} s")
+    if request.samples is not None and not 2 <= request.samples <= MAX_POLL_SAMPLES:
+        raise UsageError(f"--samples {request.samples}: between 2 and {MAX_POLL_SAMPLES}")
+    if request.rate_hz is not None and not (math.isfinite(request.rate_hz) and request.rate_hz > 0):
+        raise UsageError(f"--rate {request.rate_hz:g}: a rate is a positive number of samples per second")
+    if not (math.isfinite(request.timeout_s) and 0 < request.timeout_s <= 3600):
+        raise UsageError(f"--timeout {request.timeout_s:g}: between 0 and 3600 s")
+    trigger = parse_trigger(request.trigger)
+    check_pretrigger(request.pretrigger, trigger)
+    return trigger
+
+
+def source_for(conn: "Connection", request: ScopeRequest) -> str:
+    """``auto``: the recorder where the target's scheme is the AKD's ASCII channel (``akd://``), else polling."""
+    if request.source != "auto":
+        return request.source
+    return "recorder" if conn.target.scheme == "akd" else "poll"
+
+
+def plan(conn: "Connection", request: ScopeRequest, command_link: Callable[[], Any] | None = None) -> WritePlan:
+    """Check everything and decide what will be written (REC.* for the recorder) and moved (``request.move``),
+    reading only. ``data`` carries what :func:`execute` needs."""
+    trigger = check(request)
+    source = source_for(conn, request)
+    data: dict[str, Any] = {"request": request, "trigger": trigger, "source": source}
+    writes: list[PlannedWrite] = []
+    notes: list[str] = []
+    if source == "pdo":
+        from akdctl.drive.scope_pdo import refuse_without_cyclic
+
+        refuse_without_cyclic(conn)
+    if source == "recorder":
+        from akdctl.drive import scope_recorder as rec
+
+        rec.check_signals(request.signals)
+        points, gap, timing_notes = rec.timing(request.samples, request.duration_s, request.rate_hz)
+        spec = rec.RecorderSpec(request.signals, points, gap, trigger, request.pretrigger, request.timeout_s)
+        if command_link is None:
+            raise UsageError(f"--source recorder needs the AKD's ASCII channel (akd://HOST, or a sim target); "
+                             f"{conn.target.display} offers none: use --source poll")
+        data["link"] = command_link()
+        data["spec"] = spec
+        writes = [PlannedWrite(name, value, value) for name, value in spec.writes()]
+        writes.append(PlannedWrite("REC.TRIG", "", "(arm)"))
+        notes += timing_notes
+        notes.append(f"{points} samples every {gap} x 62.5 us = {spec.rate_hz:.6g}/s, {spec.span_s:.6g} s")
+    elif source == "poll":
+        data["signals"], data["hidden"] = _poll_signals(conn, request.signals, trigger)
+        from akdctl.drive.scope_signals import Sampler
+
+        sampler = Sampler(conn, data["signals"] + data["hidden"])
+        sampler.read()  # every signal readable before anything moves; loads what the first sample would pay for
+        data["sampler"] = sampler
+        notes.append(f"{sampler.requests_per_sample} request(s) per sample; the rate achieved is measured")
+    if request.move is not None:
+        from akdctl.drive import motion_plan
+        from akdctl.drive.axis.choice import axis_class
+
+        motion_plan.check_request(conn, request.move, axis_class(conn))
+        axis = conn.axis()
+        data["axis"] = axis
+        data["motion"] = motion_plan.plan(conn, axis, request.move)
+        notes.append(f"moves the axis during the recording: {data['motion'].what}")
+    return WritePlan("scope", conn.target.display, writes, notes=notes, data=data)
+
+
+def _poll_signals(conn: "Connection", names: Sequence[str], trigger: Trigger) -> tuple[list[Any], list[Any]]:
+    from akdctl.drive.scope_signals import Resolver
+
+    def singleturn_bits() -> int:
+        from akdctl.drive.values import read_pnu_map
+
+        return int(read_pnu_map(conn.parameters(), [1002])[1002][0])
+
+    resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits)
+    signals = [resolver.resolve(name) for name in names]
+    hidden: list[Any] = []
+    if trigger.on_status:
+        hidden.append(resolver.resolve("STATUSWORD"))
+    elif trigger.signal is not None:
+        wanted = trigger.signal.upper()
+        if not any(s.name.upper() == wanted for s in signals):
+            hidden.append(resolver.resolve(trigger.signal))
+    return signals, hidden
+
+
+def motion_text(plan_: WritePlan) -> str | None:
+    """The consent sentence of the move the plan watches (None: the recording moves nothing)."""
+    motion = plan_.data.get("motion")
+    return None if motion is None else f"{motion.what} (mode: {motion.mode_text}) while recording"
+
+
+def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool],
+            on_sample: Callable[[Recording], None] | None = None) -> tuple[Recording, AkdError | None]:
+    """Record (after consent for a move): returns the recording and the error that ended it early (the recording
+    is then marked partial and keeps what it has; the caller writes the files, then raises)."""
+    data = plan_.data
+    request: ScopeRequest = data["request"]
+    trigger: Trigger = data["trigger"]
+    source = data["source"]
+    motion = data.get("motion")
+    axis = data.get("axis")
+    started: list[float] = []  # monotonic time the motion started
+    jog_ended = [False]
+
+    def start_motion() -> None:
+        if motion is not None and not started:
+            from akdctl.drive import motion_plan
+
+            started.append(time.monotonic())
+            motion_plan.start(axis, motion, stopped)
+
+    def tick() -> None:
+        """A timed jog ends at its duration (ramp to standstill), wherever the recording is."""
+        r = motion.request if motion is not None else None
+        if started and not jog_ended[0] and r is not None and r.kind == "jog" and r.duration_s is not None \
+                and time.monotonic() - started[0] >= r.duration_s:
+            jog_ended[0] = True
+            axis.end_jog()
+
+    try:
+        if source == "recorder":
+            from akdctl.drive import scope_recorder as rec
+
+            spec = data["spec"]
+            recording = Recording(plan_.target, "recorder", rec.channels_for(spec.signals), trigger=trigger.text,
+                                  rate_requested=spec.rate_hz)
+            failure = rec.record(data["link"], spec, recording, stopped=stopped, on_armed=start_motion,
+                                 on_wait=(lambda: (_watch(axis), tick())) if motion is not None else None)
+        else:
+            from akdctl.drive import scope_poll
+            from akdctl.drive.scope_model import Channel
+
+            signals = data["signals"]
+            recording = Recording(plan_.target, "poll", [Channel(s.name, s.unit, s.address) for s in signals],
+                                  trigger=trigger.text, rate_requested=request.rate_hz)
+            sampler = data["sampler"]
+            recording.notes.append(f"{sampler.requests_per_sample} request(s) per sample, host monotonic time")
+            slot = None
+            if trigger.on_status:
+                slot = len(signals)
+            elif trigger.signal is not None:
+                names = [s.name.upper() for s in signals + data["hidden"]]
+                slot = names.index(trigger.signal.upper())
+            spec = scope_poll.PollSpec(samples=request.samples,
+                                       duration_s=request.duration_s if request.samples is None else None,
+                                       rate_hz=request.rate_hz, trigger=trigger, pretrigger=request.pretrigger,
+                                       timeout_s=request.timeout_s)
+            if spec.samples is None and spec.duration_s is None:
+                spec.duration_s = 1.0
+            failure = scope_poll.record(sampler.read, recording, spec, trigger_slot=slot, stopped=stopped,
+                                        on_sample=on_sample, on_first=start_motion,
+                                        on_tick=tick if motion is not None else None)
+        if motion is not None:
+            _finish_motion(axis, motion, bool(started), jog_ended[0], failure)
+    except BaseException:
+        if started:
+            axis.safe_stop()
+        raise
+    return recording, failure
+
+
+def _watch(axis: Any) -> None:
+    """While the recorder runs a move: read the axis (a fault ends the recording; the read also tells the
+    simulated drive someone is there, as a real master's traffic would)."""
+    from akdctl.errors import DriveFault
+
+    status = axis.read_status()
+    if status.fault:
+        raise DriveFault(f"drive fault during the recorded move: {status.fault_summary()}")
+
+
+def _finish_motion(axis: Any, motion: Any, started: bool, jog_ended: bool, failure: AkdError | None) -> None:
+    """The motion the recording watched ends: a jog still running is ended (ramp), a move waited for; the axis is
+    stopped when the recording failed."""
+    if not started:
+        return
+    if failure is not None:
+        _, outcome = axis.safe_stop()
+        if "stop" not in failure.message:
+            failure.message = f"{failure.message} ({outcome})"
+        return
+    r = motion.request
+    if r.kind == "jog" and r.duration_s is not None:
+        if not jog_ended:
+            axis.end_jog()
+        axis.wait_for(lambda s: s.standstill, "standstill after the recorded jog", timeout=axis.timeout + 5.0)
+        return
+    axis.wait_for(lambda s: s.target_reached and s.standstill, "the recorded move to finish",
+                  timeout=max(motion.deadline_s, 1.0))
