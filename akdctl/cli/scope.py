@@ -131,10 +131,11 @@ def _check_writable(path: str) -> None:
 
 
 def _check_png_extra() -> None:
-    import importlib.util
-
-    if importlib.util.find_spec("matplotlib") is None:
-        raise UsageError("--png needs matplotlib: pip install 'akdctl[plot]' (or use --svg, which needs nothing)")
+    try:
+        import matplotlib  # noqa: F401 - only asked when --png is given
+    except ImportError:
+        raise UsageError("--png needs matplotlib: pip install 'akdctl[plot]' (or use --svg, which needs nothing)") \
+            from None
 
 
 def _write_outputs(recording: Any, csv_path: str | None, svg_path: str | None, png_path: str | None) -> list[str]:

@@ -40,6 +40,13 @@ class Channel(Record):
     def label(self) -> str:
         return f"{self.name} [{self.unit}]" if self.unit else self.name
 
+    @property
+    def legend(self) -> str:
+        """The label plus where it was read, when that is not the name itself (``VL.FB [rpm] (PNU 6)``)."""
+        if self.address and self.address.upper() != self.name.upper() and not self.address.startswith("REC."):
+            return f"{self.label} ({self.address})"
+        return self.label
+
     def to_json(self) -> dict[str, str]:
         return {"name": self.name, "unit": self.unit, "address": self.address}
 

@@ -46,7 +46,7 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
             lo, hi = lo - (abs(lo) * 0.1 or 1.0), hi + (abs(hi) * 0.1 or 1.0)
         fig.set_y_limits(min_=lo, max_=hi)
         for i in indexes:
-            fig.plot(times, recording.values[i], label=recording.channels[i].label,
+            fig.plot(times, recording.values[i], label=recording.channels[i].legend,
                      lc=TERMINAL_COLOURS[i % len(TERMINAL_COLOURS)] if colours else None)
         if trigger_t is not None and t0 < trigger_t <= t1:
             fig.axvline((trigger_t - t0) / (t1 - t0), lc="red" if colours else None)
@@ -78,7 +78,7 @@ def write_png(recording: Recording, path: str) -> None:
     for ax, (unit, indexes) in zip(axes, groups):
         for i in indexes:
             ax.plot(recording.times, recording.values[i], color=COLOURS[i % len(COLOURS)], linewidth=1.2,
-                    label=recording.channels[i].label)
+                    label=recording.channels[i].legend)
         ax.set_ylabel(unit or "value")
         ax.grid(True, color="#ddd")
         if trigger_t is not None:

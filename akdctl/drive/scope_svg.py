@@ -122,7 +122,7 @@ def render_svg(recording: Recording) -> str:
         legend_x = LEFT + 8
         for i in indexes:
             colour = COLOURS[i % len(COLOURS)]
-            text = recording.channels[i].label
+            text = recording.channels[i].legend
             out.append(f'<rect x="{legend_x}" y="{top + 8}" width="14" height="4" fill="{colour}"/>')
             out.append(f'<text x="{legend_x + 18}" y="{top + 14}">{escape(text)}</text>')
             legend_x += 26 + 7 * len(text)

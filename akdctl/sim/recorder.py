@@ -296,6 +296,8 @@ class Recorder(Component):
                 raise RecorderError(f"Argument is not a number: {arg}")
             self.trigval = value
             return ""
+        if key not in _COMMANDS:
+            raise RecorderError(f"Command was not found (REC.{key})")
         if arg is not None:
             raise RecorderError(f"REC.{key} takes no argument")
         return self._command(key)
@@ -366,6 +368,10 @@ class Recorder(Component):
         for name in self.FIELDS:
             if name in state:
                 setattr(self, name, state[name])
+
+
+_COMMANDS = frozenset({"TRIG", "OFF", "DONE", "ACTIVE", "RETRIEVE", "RETRIEVEHDR", "RETRIEVEDATA", "RECPRMLIST",
+                       "TRIGPRMLIST"})
 
 
 def _number(value: float) -> str:
