@@ -21,6 +21,7 @@ _akdctl() {
             ":telegram") path="telegram" ;;
             ":fault") path="fault" ;;
             ":support") path="support" ;;
+            ":scope") path="scope" ;;
             ":params") path="params" ;;
             ":commission") path="commission" ;;
             ":info") path="info" ;;
@@ -84,7 +85,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -123,6 +124,7 @@ _akdctl() {
         "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
         "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output -o" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
+        "scope") COMPREPLY=($(compgen -W "--accel --csv --dry-run --for --help --jog --jog-for --no-plot --plot --png --pretrigger --rate --samples --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;
