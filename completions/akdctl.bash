@@ -122,7 +122,7 @@ _akdctl() {
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;
         "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
-        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output -o" -- "$cur")) ;;
+        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output --scope -o" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
         "scope") COMPREPLY=($(compgen -W "--accel --csv --dry-run --for --help --jog --jog-for --no-plot --plot --png --pretrigger --rate --samples --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;

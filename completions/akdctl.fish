@@ -109,6 +109,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from support' -a bundle -d 'Collec
 complete -c akdctl -n '__fish_seen_subcommand_from support' -a show -d 'Render a support bundle (no drive needed).'
 complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcommand_from bundle' -l output -d 'Bundle file to write (JSON; a name ending in .zip writes a zip with th'
 complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcommand_from bundle' -l all-objects -d 'Snapshot every readable object of the dictionary, not only the core on'
+complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcommand_from bundle' -l scope -d 'Attach a recording (\'akdctl scope ... --json > FILE\') as the bundle\'s '
 complete -c akdctl -n '__fish_seen_subcommand_from support && __fish_seen_subcommand_from show' -l trace-all -d 'Show every frame of the session trace (default: the first 20).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l for -d 'How long to record (2s, 500ms; default 1 s).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l samples -d 'How many samples to record (instead of --for).'

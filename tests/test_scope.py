@@ -282,3 +282,21 @@ def test_png_without_the_extra_is_one_line(akd_inproc, tmp_path: Path, monkeypat
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     code, out, err = akd_inproc("scope", "VL.FB", "--samples", "3", "--png", str(tmp_path / "x.png"))
     assert code == EXIT_USAGE and "akdctl[plot]" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_recording_travels_in_a_support_bundle(akd_inproc, tmp_path: Path) -> None:
+    code, out, err = akd_inproc("--json", "scope", "VL.FB", "--samples", "5")
+    assert code == 0, err
+    rec = tmp_path / "rec.json"
+    rec.write_text(out)
+    bundle = tmp_path / "b.json"
+    code, out, err = akd_inproc("support", "bundle", "-o", str(bundle), "--scope", str(rec))
+    assert code == 0, err
+    data = json.loads(bundle.read_text())
+    assert data["scope"]["format"] == "akdctl-scope" and data["scope"]["samples"] == 5
+    code, out, err = akd_inproc("support", "show", str(bundle))
+    assert code == 0, err
+    assert "scope recording" in out and "VL.FB [rpm] (PNU 6)" in out and "(rpm)" in out
+    (tmp_path / "bad.json").write_text("{}")
+    code, out, err = akd_inproc("support", "bundle", "-o", str(bundle), "--scope", str(tmp_path / "bad.json"))
+    assert code == EXIT_USAGE and "not an akdctl scope recording" in err

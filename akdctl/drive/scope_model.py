@@ -193,3 +193,30 @@ def utc_now() -> str:
     import datetime
 
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+#: The largest recording file ``support bundle --scope`` reads (10000 points x 6 channels as JSON is ~2 MiB).
+MAX_RECORDING_BYTES = 16 * 1024 * 1024
+
+
+def load_recording(path: str) -> Recording:
+    """A recording from a file ``scope --json`` wrote (``{"recording": ...}``) or its bare recording object;
+    UsageError (exit 2) in one line for a missing, oversized, foreign or damaged file."""
+    import json
+
+    from akdctl.errors import UsageError
+    from akdctl.io.safe_read import FileRefused, read_bounded
+
+    try:
+        raw = read_bounded(path, MAX_RECORDING_BYTES)
+    except FileRefused as exc:
+        raise UsageError(f"{path}: not read as a scope recording: {exc}") from None
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(raw.decode("utf-8"))
+        if isinstance(data, dict) and "recording" in data:
+            data = data["recording"]
+        return Recording.from_json(data)
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError, ValueError) as exc:
+        raise UsageError(f"{path}: not an akdctl scope recording ({type(exc).__name__}: {str(exc)[:80]})") from None
