@@ -45,11 +45,17 @@ LIVE_REDRAW_S = 0.5
               help="Record during a jog at RPM for --jog-for (as 'jog --for'); asks consent like 'jog'.")
 @click.option("--jog-for", "jog_for", metavar="DURATION", help="How long the recorded jog runs (e.g. 1s).")
 @click.option("--accel", type=float, help="rpm/s of the recorded jog (default as 'jog').")
+@click.option("--max-following-error", "max_fe", type=float, metavar="X",
+              help="Check: |PL.ERR| stays at most X at every sample (exit 5 otherwise).")
+@click.option("--max-settle-time", "max_settle", type=float, metavar="S",
+              help="Check: after the recorded jog ends, PL.ERR is within --settle-band within S seconds (exit 5).")
+@click.option("--settle-band", type=float, metavar="B", help="The band of --max-settle-time (PL.ERR's unit).")
 @click.option("--dry-run", is_flag=True, help="Show what would be written and moved; record nothing.")
 def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, rate: float | None, source: str,
           trigger: str | None, pretrigger: float, wait_s: float, csv_path: str | None, svg_path: str | None,
           png_path: str | None, plot: bool | None, jog_rpm: float | None, jog_for: str | None,
-          accel: float | None, dry_run: bool) -> None:
+          accel: float | None, max_fe: float | None, max_settle: float | None, settle_band: float | None,
+          dry_run: bool) -> None:
     """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.
 
     \b
@@ -63,21 +69,12 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
     from akdctl.drive import scope as op
 
     app = get_app()
-    move = None
-    seconds = _duration(duration) if duration is not None else None
-    if jog_rpm is not None or jog_for is not None:
-        from akdctl.drive.motion_plan import MotionRequest
-
-        if jog_rpm is None or jog_for is None:
-            raise UsageError("a recorded jog needs both --jog RPM and --jog-for DURATION (the motion is bounded)")
-        move = MotionRequest("jog", velocity=jog_rpm, duration_s=_duration(jog_for), accel=accel)
-        if seconds is None and samples is None:
-            seconds = min(op.MAX_DURATION_S, move.duration_s * 1.5 + 0.5)  # the stop too
-    elif accel is not None:
-        raise UsageError("--accel describes a recorded jog: give --jog RPM --jog-for DURATION too")
-    request = op.ScopeRequest(signals, duration_s=seconds,
-                              samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
-                              timeout_s=wait_s, move=move)
+    request = op.build_request(signals, duration_s=_duration(duration) if duration is not None else None,
+                               samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
+                               timeout_s=wait_s, jog_rpm=jog_rpm, jog_s=_duration(jog_for) if jog_for else None,
+                               accel=accel)
+    bounds = op.Bounds(max_fe, max_settle, settle_band)
+    bounds.check_request(request)
     op.check(request)  # bad input exits 2 before the target is opened
     for path in (csv_path, svg_path, png_path):
         if path not in (None, "-"):
@@ -85,7 +82,7 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
     if png_path is not None:
         _check_png_extra()
     conn = app.connection
-    plan = op.plan(conn, request, _command_link(app))
+    plan = op.plan(conn, request)
     if dry_run:
         _render_plan(app, plan)
         return
@@ -108,20 +105,11 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
             failure.message += f"; partial recording written to {', '.join(written)}"
         failure.reported = app.json
         raise failure
+    if bounds.any:
+        measured = op.check_bounds(recording, bounds)
+        from akdctl.cli.output import message
 
-
-def _command_link(app: Any) -> Any:
-    """A factory of the target's ASCII command link, or None: the ``akd://`` transport's ``commands()`` once merged
-    (engineer "names"), the in-process simulated recorder for ``sim`` targets."""
-    conn = app.connection
-    commands = getattr(conn, "commands", None)  # Connection.commands() arrives with the akd:// transport
-    if callable(commands):
-        return commands
-    if conn.target.scheme == "sim":
-        from akdctl.transport.sim_commands import SimCommandLink
-
-        return lambda: SimCommandLink(conn.transport().drive)
-    return None
+        message("bounds kept: " + ", ".join(f"{k} {v:.6g}" for k, v in measured.items()))
 
 
 def _check_writable(path: str) -> None:

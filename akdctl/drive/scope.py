@@ -57,6 +57,28 @@ class ScopeRequest(Record):
         self.move = move
 
 
+def build_request(signals: Sequence[str], *, duration_s: float | None = None, samples: int | None = None,
+                  rate_hz: float | None = None, source: str = "auto", trigger: str | None = None,
+                  pretrigger: float = 0.0, timeout_s: float = DEFAULT_TIMEOUT_S, jog_rpm: float | None = None,
+                  jog_s: float | None = None, accel: float | None = None) -> ScopeRequest:
+    """The one way the command line and a recipe step turn their words into a request (their parity): a
+    recorded jog needs both its speed and its duration, and without --for/--samples the recording lasts the jog,
+    its stop and a margin."""
+    move = None
+    if jog_rpm is not None or jog_s is not None:
+        from akdctl.drive.motion_plan import MotionRequest
+
+        if jog_rpm is None or jog_s is None:
+            raise UsageError("a recorded jog needs both its speed (--jog, jog) and its duration (--jog-for, jog_for)")
+        move = MotionRequest("jog", velocity=jog_rpm, duration_s=jog_s, accel=accel)
+        if duration_s is None and samples is None:
+            duration_s = min(MAX_DURATION_S, jog_s * 1.5 + 0.5)
+    elif accel is not None:
+        raise UsageError("an acceleration describes a recorded jog: give its speed and duration too")
+    return ScopeRequest(signals, duration_s=duration_s, samples=samples, rate_hz=rate_hz, source=source,
+                        trigger=trigger, pretrigger=pretrigger, timeout_s=timeout_s, move=move)
+
+
 def check(request: ScopeRequest) -> Trigger:
     """Input checks that need no drive (exit 2): counts, times, rates, trigger grammar."""
     if not request.signals:
@@ -87,11 +109,27 @@ def source_for(conn: "Connection", request: ScopeRequest) -> str:
     return "recorder" if conn.target.scheme == "akd" else "poll"
 
 
+def command_link_factory(conn: "Connection") -> Callable[[], Any] | None:
+    """A factory of the target's ASCII command link (:class:`~akdctl.drive.scope_recorder.CommandLink`), or None:
+    the ``akd://`` transport's ``Connection.commands()`` once it is merged (engineer "names"), the in-process
+    simulated recorder for ``sim`` targets (transport/sim_commands.py)."""
+    commands = getattr(conn, "commands", None)  # Connection.commands() arrives with the akd:// transport
+    if callable(commands):
+        return commands  # type: ignore[no-any-return]
+    if conn.target.scheme == "sim":
+        from akdctl.transport.sim_commands import SimCommandLink
+
+        return lambda: SimCommandLink(conn.transport().drive)  # type: ignore[attr-defined]
+    return None
+
+
 def plan(conn: "Connection", request: ScopeRequest, command_link: Callable[[], Any] | None = None) -> WritePlan:
     """Check everything and decide what will be written (REC.* for the recorder) and moved (``request.move``),
     reading only. ``data`` carries what :func:`execute` needs."""
     trigger = check(request)
     source = source_for(conn, request)
+    if command_link is None:
+        command_link = command_link_factory(conn)
     data: dict[str, Any] = {"request": request, "trigger": trigger, "source": source}
     writes: list[PlannedWrite] = []
     notes: list[str] = []
@@ -172,6 +210,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
     axis = data.get("axis")
     started: list[float] = []  # monotonic time the motion started
     jog_ended = [False]
+    events: dict[str, float] = {}  # host monotonic instants (the poll source's clock)
 
     def start_motion() -> None:
         if motion is not None and not started:
@@ -179,6 +218,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
 
             started.append(time.monotonic())
             motion_plan.start(axis, motion, stopped)
+            events["motion_start"] = time.monotonic()
 
     def tick() -> None:
         """A timed jog ends at its duration (ramp to standstill), wherever the recording is."""
@@ -186,6 +226,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
         if started and not jog_ended[0] and r is not None and r.kind == "jog" and r.duration_s is not None \
                 and time.monotonic() - started[0] >= r.duration_s:
             jog_ended[0] = True
+            events["jog_end"] = time.monotonic()
             axis.end_jog()
 
     try:
@@ -218,6 +259,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
                                        timeout_s=request.timeout_s)
             if spec.samples is None and spec.duration_s is None:
                 spec.duration_s = 1.0
+            recording.events = events  # stamped by the same monotonic clock as the samples, shifted with them
             failure = scope_poll.record(sampler.read, recording, spec, trigger_slot=slot, stopped=stopped,
                                         on_sample=on_sample, on_first=start_motion,
                                         on_tick=tick if motion is not None else None)
@@ -258,3 +300,87 @@ def _finish_motion(axis: Any, motion: Any, started: bool, jog_ended: bool, failu
         return
     axis.wait_for(lambda s: s.target_reached and s.standstill, "the recorded move to finish",
                   timeout=max(motion.deadline_s, 1.0))
+
+
+# ====================================================================== bounds (recipes: assert on behaviour)
+class Bounds(Record):
+    """What a recording must show: ``max_following_error`` (|PL.ERR| at every sample, in its unit),
+    ``max_settle_time`` (s from the end of the recorded jog until ``settle_signal`` stays within
+    ``settle_band``; the poll source, which stamps that instant on its clock)."""
+
+    __slots__ = ("max_following_error", "max_settle_time", "settle_band", "settle_signal")
+
+    def __init__(self, max_following_error: float | None = None, max_settle_time: float | None = None,
+                 settle_band: float | None = None, settle_signal: str = "PL.ERR") -> None:
+        self.max_following_error = max_following_error
+        self.max_settle_time = max_settle_time
+        self.settle_band = settle_band
+        self.settle_signal = settle_signal
+
+    @property
+    def any(self) -> bool:
+        return self.max_following_error is not None or self.max_settle_time is not None
+
+    def check_request(self, request: ScopeRequest) -> None:
+        """Usage errors (exit 2) a bound can know before recording: the signals it reads, the jog it times."""
+        names = [n.strip().upper() for n in request.signals]
+        if self.max_following_error is not None and "PL.ERR" not in names:
+            raise UsageError("a following-error bound needs PL.ERR among the recorded signals")
+        if self.max_settle_time is not None:
+            if self.settle_signal.upper() not in names:
+                raise UsageError(f"a settle-time bound needs {self.settle_signal} among the recorded signals")
+            if request.move is None or request.move.duration_s is None:
+                raise UsageError("a settle-time bound is measured from the end of a recorded jog: give jog and "
+                                 "jog_for (--jog, --jog-for)")
+            if self.settle_band is None or not self.settle_band > 0:
+                raise UsageError("a settle-time bound needs a positive settle band (settle_band, --settle-band)")
+            if request.source == "recorder":
+                raise UsageError("a settle-time bound needs the poll source (the recorder's clock is the drive's)")
+
+
+def measure(recording: Recording, bounds: Bounds) -> dict[str, Any]:
+    """The measured values a bound compares (``following_error_max``, ``settle_time``)."""
+    out: dict[str, Any] = {}
+    if bounds.max_following_error is not None:
+        column = recording.column("PL.ERR")
+        out["following_error_max"] = max((abs(v) for v in column), default=None)
+    if bounds.max_settle_time is not None:
+        end = recording.events.get("jog_end")
+        column = recording.column(bounds.settle_signal)
+        band = float(bounds.settle_band or 0.0)
+        if end is None:
+            out["settle_time"] = None
+        else:
+            outside = [t for t, v in zip(recording.times, column) if t >= end and abs(v) > band]
+            out["settle_time"] = (outside[-1] - end) if outside else 0.0
+            if outside and outside[-1] == recording.times[-1]:
+                out["settle_time"] = math.inf  # still outside the band at the last sample: not settled
+    return out
+
+
+def check_bounds(recording: Recording, bounds: Bounds) -> dict[str, Any]:
+    """Compare: one CheckFailed (exit 5) naming every bound the recording broke; returns the measurements."""
+    from akdctl.errors import CheckFailed
+
+    measured = measure(recording, bounds)
+    problems = []
+    fe = measured.get("following_error_max")
+    if bounds.max_following_error is not None:
+        if fe is None:
+            problems.append("no PL.ERR sample recorded")
+        elif fe > bounds.max_following_error:
+            problems.append(f"following error reached {fe:.6g} (bound {bounds.max_following_error:g})")
+    if bounds.max_settle_time is not None:
+        settle = measured.get("settle_time")
+        if settle is None:
+            problems.append("the end of the jog was not recorded: no settle time")
+        elif settle > bounds.max_settle_time:
+            shown = "not settled by the last sample" if math.isinf(settle) else f"{settle:.4g} s"
+            problems.append(f"settle time {shown} ({bounds.settle_signal} within {bounds.settle_band:g}; bound "
+                            f"{bounds.max_settle_time:g} s)")
+    if recording.partial:
+        problems.append(f"the recording is partial: {recording.partial}")
+    if problems:
+        raise CheckFailed("scope: " + "; ".join(problems),
+                          details={"measured": {k: v for k, v in measured.items() if v is None or math.isfinite(v)}})
+    return measured

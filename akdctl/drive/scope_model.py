@@ -67,6 +67,8 @@ class Recording:
         self.partial: str | None = None
         self.notes: list[str] = []
         self.started: str = ""  # wall-clock time of the first sample, ISO 8601 UTC (for the reader, not the axis)
+        #: named instants on the time axis (``motion_start``, ``jog_end``), stamped by the source's clock
+        self.events: dict[str, float] = {}
 
     # ------------------------------------------------------------------ filling
     def add(self, t: float, row: Sequence[float]) -> None:
@@ -87,6 +89,7 @@ class Recording:
         if self.trigger_index is not None and 0 <= self.trigger_index < len(self.times):
             zero = self.times[self.trigger_index]
             self.times = [t - zero for t in self.times]
+            self.events = {name: t - zero for name, t in self.events.items()}
 
     # ------------------------------------------------------------------ facts
     @property
@@ -148,7 +151,7 @@ class Recording:
         return {"format": "akdctl-scope", "version": FORMAT_VERSION, "target": self.target, "source": self.source,
                 "started": self.started, "trigger": {"condition": self.trigger, "index": self.trigger_index},
                 "rate_hz": {"requested": self.rate_requested, "achieved": self.rate_achieved},
-                "samples": len(self), "partial": self.partial, "notes": list(self.notes),
+                "samples": len(self), "partial": self.partial, "notes": list(self.notes), "events": dict(self.events),
                 "channels": [c.to_json() for c in self.channels], "t": list(self.times),
                 "values": [list(column) for column in self.values]}
 
@@ -176,6 +179,8 @@ class Recording:
         rec.partial = data.get("partial") or None
         rec.notes = [str(n) for n in data.get("notes") or []]
         rec.started = str(data.get("started") or "")
+        events = data.get("events") or {}
+        rec.events = {str(k): float(v) for k, v in events.items()} if isinstance(events, dict) else {}
         return rec
 
 
