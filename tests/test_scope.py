@@ -16,7 +16,14 @@ import pytest
 from akdctl.drive.scope_model import Channel, Recording
 from akdctl.drive.scope_poll import PollSpec, record
 from akdctl.drive.scope_trigger import parse_trigger
-from akdctl.errors import CommError, EXIT_COMM, EXIT_DRIVE, EXIT_USAGE, TriggerTimeout, UsageError
+from akdctl.errors import (
+    EXIT_COMM,
+    EXIT_DRIVE,
+    EXIT_USAGE,
+    CommError,
+    TriggerTimeout,
+    UsageError,
+)
 
 
 # ------------------------------------------------------------------ model
@@ -129,12 +136,12 @@ def _csv(path: Path) -> tuple[list[str], list[list[float]]]:
 
 def test_polled_recording_during_a_jog_shows_the_ramp(akd_inproc, tmp_path: Path) -> None:
     csv, svg = tmp_path / "jog.csv", tmp_path / "jog.svg"
-    code, out, err = akd_inproc("-y", "scope", "VL.FB", "PL.ERR", "--jog", "600", "--jog-for", "0.8s",
+    code, _out, err = akd_inproc("-y", "scope", "VL.FB", "PL.ERR", "--jog", "600", "--jog-for", "0.8s",
                                 "--for", "1.6s", "--csv", str(csv), "--svg", str(svg), "--no-plot")
     assert code == 0, err
     lines, rows = _csv(csv)
     assert lines[0].startswith("# akdctl scope: target=sim source=poll rate=")
-    assert lines[[i for i, l in enumerate(lines) if l.startswith("t [")][0]] == "t [s],VL.FB [rpm],PL.ERR [rev]"
+    assert lines[next(i for i, l in enumerate(lines) if l.startswith("t ["))] == "t [s],VL.FB [rpm],PL.ERR [rev]"
     times = [r[0] for r in rows]
     assert times == sorted(set(times)) and times[0] == 0.0  # strictly monotonic host time
     velocity = [r[1] for r in rows]
@@ -185,7 +192,7 @@ def test_dry_run_shows_the_rec_writes_and_records_nothing(akd_inproc) -> None:
     (["0x6040:0", "--samples", "3"], 0, ""),
 ])
 def test_bad_input_is_one_line_with_its_exit_code(akd_inproc, args: list[str], code: int, words: str) -> None:
-    got, out, err = akd_inproc("scope", *args, "--no-plot")
+    got, _out, err = akd_inproc("scope", *args, "--no-plot")
     assert got == code, err
     if code:
         lines = err.strip().splitlines()
@@ -195,7 +202,7 @@ def test_bad_input_is_one_line_with_its_exit_code(akd_inproc, args: list[str], c
 
 def test_unreachable_rate_writes_a_marked_partial_file(akd_inproc, tmp_path: Path) -> None:
     csv = tmp_path / "fast.csv"
-    code, out, err = akd_inproc("scope", "VL.FB", "PL.ERR", "--samples", "20", "--rate", "100000",
+    code, _out, err = akd_inproc("scope", "VL.FB", "PL.ERR", "--samples", "20", "--rate", "100000",
                                 "--csv", str(csv), "--no-plot")
     assert code == EXIT_COMM
     assert "rate not reached" in err and str(csv) in err
@@ -204,7 +211,7 @@ def test_unreachable_rate_writes_a_marked_partial_file(akd_inproc, tmp_path: Pat
 
 def test_a_drive_that_never_triggers_is_a_marked_partial_file(akd_inproc, tmp_path: Path) -> None:
     csv = tmp_path / "never.csv"
-    code, out, err = akd_inproc("scope", "VL.FB", "--trigger", "fault", "--pretrigger", "50", "--for", "0.2s",
+    code, _out, err = akd_inproc("scope", "VL.FB", "--trigger", "fault", "--pretrigger", "50", "--for", "0.2s",
                                 "--timeout", "0.3", "--csv", str(csv), "--no-plot")
     assert code == EXIT_COMM and "did not fire" in err
     text = csv.read_text()
@@ -213,7 +220,7 @@ def test_a_drive_that_never_triggers_is_a_marked_partial_file(akd_inproc, tmp_pa
 
 def test_recorder_that_never_triggers_and_retrieval_overflow(akd_inproc, tmp_path: Path) -> None:
     csv = tmp_path / "rec.csv"
-    code, out, err = akd_inproc("scope", "VL.FB", "--source", "recorder", "--samples", "10", "--rate", "1000",
+    code, _out, err = akd_inproc("scope", "VL.FB", "--source", "recorder", "--samples", "10", "--rate", "1000",
                                 "--trigger", "rise:VL.FB:100", "--timeout", "0.3", "--csv", str(csv), "--no-plot")
     assert code == EXIT_COMM and "REC.DONE stayed 0" in err
     assert "# PARTIAL:" in csv.read_text()
@@ -280,7 +287,7 @@ def test_png_without_the_extra_is_one_line(akd_inproc, tmp_path: Path, monkeypat
     import sys
 
     monkeypatch.setitem(sys.modules, "matplotlib", None)
-    code, out, err = akd_inproc("scope", "VL.FB", "--samples", "3", "--png", str(tmp_path / "x.png"))
+    code, _out, err = akd_inproc("scope", "VL.FB", "--samples", "3", "--png", str(tmp_path / "x.png"))
     assert code == EXIT_USAGE and "akdctl[plot]" in err and len(err.strip().splitlines()) == 1
 
 

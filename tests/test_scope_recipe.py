@@ -54,7 +54,7 @@ def test_a_recipe_records_a_jog_and_checks_its_bounds(akd_inproc, tmp_path: Path
     recipe = _recipe(tmp_path, 'max_following_error = 0.05\nmax_settle_time = 1.0\nsettle_band = 0.001\n'
                                'csv = "jog.csv"\nsvg = "jog.svg"\njson = "jog.json"')
     out_dir, report = tmp_path / "out", tmp_path / "report.json"
-    code, out, err = akd_inproc("-y", "commission", str(recipe), "--output-dir", str(out_dir), "--report", str(report))
+    code, _out, err = akd_inproc("-y", "commission", str(recipe), "--output-dir", str(out_dir), "--report", str(report))
     assert code == 0, err
     details = json.loads(report.read_text())["steps"][0]["details"]
     assert 0 < details["measured"]["following_error_max"] <= 0.05
@@ -71,7 +71,7 @@ def test_a_broken_bound_fails_the_recipe_with_exit_5(akd_inproc, tmp_path: Path)
 
 
 def test_a_recorded_jog_needs_consent(akd_inproc, tmp_path: Path) -> None:
-    code, out, err = akd_inproc("commission", str(_recipe(tmp_path)))
+    code, _out, err = akd_inproc("commission", str(_recipe(tmp_path)))
     assert code == EXIT_SAFETY and "nothing was written" in err
 
 
@@ -83,5 +83,5 @@ def test_a_recorded_jog_needs_consent(akd_inproc, tmp_path: Path) -> None:
 ])
 def test_bad_scope_steps_are_refused_before_anything_runs(akd_inproc, tmp_path: Path, extra: str,
                                                            words: str) -> None:
-    code, out, err = akd_inproc("commission", str(_recipe(tmp_path, extra)), "--dry-run")
+    code, _out, err = akd_inproc("commission", str(_recipe(tmp_path, extra)), "--dry-run")
     assert code == EXIT_USAGE and words in err

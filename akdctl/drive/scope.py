@@ -41,7 +41,7 @@ class ScopeRequest(Record):
     1 s), ``rate_hz`` (None: as fast as the source goes / the recorder's default spacing), ``source``, trigger text,
     pre-trigger percent, trigger/recorder ``timeout_s``, and an optional relative ``move`` (MotionRequest) to record."""
 
-    __slots__ = ("signals", "duration_s", "samples", "rate_hz", "source", "trigger", "pretrigger", "timeout_s", "move")
+    __slots__ = ("duration_s", "move", "pretrigger", "rate_hz", "samples", "signals", "source", "timeout_s", "trigger")
 
     def __init__(self, signals: Sequence[str], *, duration_s: float | None = None, samples: int | None = None,
                  rate_hz: float | None = None, source: str = "auto", trigger: str | None = None,
@@ -102,14 +102,14 @@ def check(request: ScopeRequest) -> Trigger:
     return trigger
 
 
-def source_for(conn: "Connection", request: ScopeRequest) -> str:
+def source_for(conn: Connection, request: ScopeRequest) -> str:
     """``auto``: the recorder where the target's scheme is the AKD's ASCII channel (``akd://``), else polling."""
     if request.source != "auto":
         return request.source
     return "recorder" if conn.target.scheme == "akd" else "poll"
 
 
-def command_link_factory(conn: "Connection") -> Callable[[], Any] | None:
+def command_link_factory(conn: Connection) -> Callable[[], Any] | None:
     """A factory of the target's ASCII command link (:class:`~akdctl.drive.scope_recorder.CommandLink`), or None:
     the ``akd://`` transport's ``Connection.commands()`` once it is merged (engineer "names"), the in-process
     simulated recorder for ``sim`` targets (transport/sim_commands.py)."""
@@ -123,7 +123,7 @@ def command_link_factory(conn: "Connection") -> Callable[[], Any] | None:
     return None
 
 
-def plan(conn: "Connection", request: ScopeRequest, command_link: Callable[[], Any] | None = None) -> WritePlan:
+def plan(conn: Connection, request: ScopeRequest, command_link: Callable[[], Any] | None = None) -> WritePlan:
     """Check everything and decide what will be written (REC.* for the recorder) and moved (``request.move``),
     reading only. ``data`` carries what :func:`execute` needs."""
     trigger = check(request)
@@ -172,7 +172,7 @@ def plan(conn: "Connection", request: ScopeRequest, command_link: Callable[[], A
     return WritePlan("scope", conn.target.display, writes, notes=notes, data=data)
 
 
-def _poll_signals(conn: "Connection", names: Sequence[str], trigger: Trigger) -> tuple[list[Any], list[Any]]:
+def _poll_signals(conn: Connection, names: Sequence[str], trigger: Trigger) -> tuple[list[Any], list[Any]]:
     from akdctl.drive.scope_signals import Resolver
 
     def singleturn_bits() -> int:
@@ -198,7 +198,7 @@ def motion_text(plan_: WritePlan) -> str | None:
     return None if motion is None else f"{motion.what} (mode: {motion.mode_text}) while recording"
 
 
-def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool],
+def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
             on_sample: Callable[[Recording], None] | None = None) -> tuple[Recording, AkdError | None]:
     """Record (after consent for a move): returns the recording and the error that ended it early (the recording
     is then marked partial and keeps what it has; the caller writes the files, then raises)."""
@@ -207,7 +207,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
     trigger: Trigger = data["trigger"]
     source = data["source"]
     motion = data.get("motion")
-    axis = data.get("axis")
+    axis: Any = data.get("axis")
     started: list[float] = []  # monotonic time the motion started
     jog_ended = [False]
     events: dict[str, float] = {}  # host monotonic instants (the poll source's clock)
@@ -219,6 +219,10 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
             started.append(time.monotonic())
             motion_plan.start(axis, motion, stopped)
             events["motion_start"] = time.monotonic()
+
+    def watch() -> None:
+        _watch(axis)
+        tick()
 
     def tick() -> None:
         """A timed jog ends at its duration (ramp to standstill), wherever the recording is."""
@@ -237,7 +241,7 @@ def execute(conn: "Connection", plan_: WritePlan, *, stopped: Callable[[], bool]
             recording = Recording(plan_.target, "recorder", rec.channels_for(spec.signals), trigger=trigger.text,
                                   rate_requested=spec.rate_hz)
             failure = rec.record(data["link"], spec, recording, stopped=stopped, on_armed=start_motion,
-                                 on_wait=(lambda: (_watch(axis), tick())) if motion is not None else None)
+                                 on_wait=watch if motion is not None else None)
         else:
             from akdctl.drive import scope_poll
             from akdctl.drive.scope_model import Channel

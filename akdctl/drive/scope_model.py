@@ -29,7 +29,7 @@ class Channel(Record):
     """One recorded signal: ``name`` as the user gave it (``VL.FB``, ``0x606C:0``, ``PNU 6``), its ``unit``
     (``""`` when it has none) and where it came from (``address``: ``0x606C:0``, ``PNU 6``, ``REC.CH1``)."""
 
-    __slots__ = ("name", "unit", "address")
+    __slots__ = ("address", "name", "unit")
 
     def __init__(self, name: str, unit: str = "", address: str = "") -> None:
         self.name = name
@@ -156,7 +156,7 @@ class Recording:
                 "values": [list(column) for column in self.values]}
 
     @classmethod
-    def from_json(cls, data: Any) -> "Recording":
+    def from_json(cls, data: Any) -> Recording:
         """A recording back from :meth:`to_json` (a bundle member, a file); ValueError when it is not one."""
         if not isinstance(data, dict) or data.get("format") != "akdctl-scope":
             raise ValueError("not an akdctl scope recording")
@@ -197,7 +197,7 @@ def _csv_field(text: str) -> str:
 def utc_now() -> str:
     import datetime
 
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 #: The largest recording file ``support bundle --scope`` reads (10000 points x 6 channels as JSON is ~2 MiB).

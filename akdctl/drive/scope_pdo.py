@@ -82,8 +82,8 @@ def record(inputs: CyclicInputs, names: Sequence[str], recording_target: str, *,
     columns = columns_for(inputs.mapped_inputs(), names)
     recording = Recording(recording_target, "pdo", [c for _, _, c in columns], trigger=trigger.text,
                           rate_requested=1.0 / inputs.cycle_s)
-    types = [(lookup(e.index, e.subindex).short_type if lookup(e.index, e.subindex) else f"i{e.bits}")
-             for _, e, _ in columns]
+    entries = [lookup(e.index, e.subindex) for _, e, _ in columns]
+    types = [found.short_type if found is not None else f"i{e.bits}" for found, (_, e, _) in zip(entries, columns)]
     previous: float | None = None
     waited = 0
     count = 0

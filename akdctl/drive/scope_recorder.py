@@ -20,11 +20,17 @@ import math
 import re
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol
+from typing import Protocol
 
 from akdctl.drive.scope_model import Channel, Recording, utc_now
 from akdctl.drive.scope_trigger import Trigger
-from akdctl.errors import AkdError, Interrupted, MalformedReply, TriggerTimeout, UsageError
+from akdctl.errors import (
+    AkdError,
+    Interrupted,
+    MalformedReply,
+    TriggerTimeout,
+    UsageError,
+)
 
 BASE_HZ = 16000
 MAX_CHANNELS = 6

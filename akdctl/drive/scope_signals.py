@@ -28,7 +28,7 @@ class Signal(Record):
     """One polled signal: ``kind`` "pnu" (``pnu``, ``sub``) or "object" (``index``, ``sub``, ``type``);
     ``convert(raw) -> float`` in ``unit``; ``address`` as the user reads it."""
 
-    __slots__ = ("name", "unit", "address", "kind", "pnu", "index", "sub", "type", "convert")
+    __slots__ = ("address", "convert", "index", "kind", "name", "pnu", "sub", "type", "unit")
 
     def __init__(self, name: str, unit: str, address: str, kind: str, *, pnu: int = 0, index: int = 0, sub: int = 0,
                  type: str = "", convert: Callable[[Any], float] = float) -> None:
@@ -41,6 +41,12 @@ class Signal(Record):
         self.sub = sub
         self.type = type
         self.convert = convert
+
+
+def _scaled(factor: float) -> Callable[[Any], float]:
+    def convert(raw: Any) -> float:
+        return float(raw) * factor
+    return convert
 
 
 def _x15_rpm(raw: Any) -> float:
@@ -97,7 +103,7 @@ class Resolver:
         if self.has_objects and upper in LIVE_OBJECTS:
             index, sub, type_name, factor, unit = LIVE_OBJECTS[upper]
             return Signal(name, unit, f"0x{index:04X}:{sub}", "object", index=index, sub=sub, type=type_name,
-                          convert=lambda raw, f=factor: float(raw) * f)
+                          convert=_scaled(factor))
         if upper in LIVE_PNUS or upper in LIVE_OBJECTS or upper == "PL.FB":
             offered = "PROFIdrive parameters" if self.has_pnus else "SDO objects" if self.has_objects else "no channel"
             raise UsageError(f"signal {name}: not readable live over this target ({offered}); "
@@ -135,7 +141,7 @@ class Resolver:
             signal = self._object_address(name, index, sub)
             signal.type = type_name or signal.type
             if scale:
-                signal.convert = lambda raw, f=scale: float(raw) * f
+                signal.convert = _scaled(scale)
             return signal
         from akdctl.catalog.objects import by_param
 
@@ -191,8 +197,8 @@ class Sampler:
             from akdctl.drive.values import read_pnus
 
             for slot, reading in zip(self._pnu_slots, read_pnus(self.conn.parameters(), self._specs)):
-                if not reading.ok:
-                    raise DriveError(f"{self.signals[slot].address}: {reading.error_text}")
+                if not reading.ok or not reading.values:
+                    raise DriveError(f"{self.signals[slot].address}: {reading.error_text or 'no value'}")
                 row[slot] = self.signals[slot].convert(reading.values[0])
         for slot, signal in enumerate(self.signals):
             if signal.kind == "object":

@@ -80,8 +80,8 @@ def render_svg(recording: Recording) -> str:
     def x_of(t: float) -> float:
         return LEFT + (t - xlo) / (xhi - xlo) * plot_w
 
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" '
-           f'viewBox="0 0 {WIDTH} {height}" font-family="DejaVu Sans, Arial, sans-serif" font-size="12">',
+    out = [(f'<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" '
+            f'viewBox="0 0 {WIDTH} {height}" font-family="DejaVu Sans, Arial, sans-serif" font-size="12">'),
            f'<rect width="{WIDTH}" height="{height}" fill="white"/>',
            f'<text x="{LEFT}" y="20" font-size="14" font-weight="bold">{escape(title_of(recording))}</text>']
     out.append(f'<text x="{LEFT}" y="38" font-size="12" fill="#333">{escape(subtitle_of(recording))}</text>')

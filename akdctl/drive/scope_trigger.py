@@ -32,7 +32,7 @@ TRIGGER_HELP = ("immediate | rise:SIGNAL:LEVEL | fall:SIGNAL:LEVEL | above:SIGNA
 class Trigger(Record):
     """``kind`` (KINDS); ``signal`` and ``level`` for the signal kinds; ``bit`` and ``state`` for ``bit``."""
 
-    __slots__ = ("kind", "signal", "level", "bit", "state", "text")
+    __slots__ = ("bit", "kind", "level", "signal", "state", "text")
 
     def __init__(self, kind: str = "immediate", signal: str | None = None, level: float = 0.0, bit: int = 0,
                  state: int = 1, text: str = "immediate") -> None:
@@ -99,12 +99,13 @@ def parse_trigger(text: str | None) -> Trigger:
         number, _, state = rest.partition("=")
         try:
             bit = int(number.strip())
-            level = int(state.strip()) if state.strip() else 1
+            wanted = int(state.strip()) if state.strip() else 1
         except ValueError:
-            raise UsageError(f"bad trigger {raw!r}: bit:N[=0|1] needs a bit number 0..15; triggers: {TRIGGER_HELP}") from None
-        if not 0 <= bit <= 15 or level not in (0, 1):
+            raise UsageError(f"bad trigger {raw!r}: bit:N[=0|1] needs a bit number 0..15; "
+                             f"triggers: {TRIGGER_HELP}") from None
+        if not 0 <= bit <= 15 or wanted not in (0, 1):
             raise UsageError(f"bad trigger {raw!r}: bit number 0..15 and state 0 or 1; triggers: {TRIGGER_HELP}")
-        return Trigger("bit", bit=bit, state=level, text=f"status word bit {bit} -> {level}")
+        return Trigger("bit", bit=bit, state=wanted, text=f"status word bit {bit} -> {wanted}")
     if kind in ("rise", "fall", "above", "below"):
         signal, _, level_text = rest.rpartition(":")
         try:

@@ -55,12 +55,12 @@ class RecorderError(Exception):
     """A REC.* request the drive refuses; ``str()`` is the drive's error text (without ``Error:``)."""
 
 
-def _signals() -> dict[str, tuple[Callable[["DriveModel"], float], str]]:
+def _signals() -> dict[str, tuple[Callable[[DriveModel], float], str]]:
     """The recordable signals: name -> (live value of the model, unit)."""
     from akdctl.sim.kinematics import FOLLOWING_LAG_S
     from akdctl.sim.power_states import ENABLED
 
-    def axis(m: "DriveModel") -> Any:
+    def axis(m: DriveModel) -> Any:
         return m.motion.axis
 
     def feedback_rpm(vel: float, acc: float) -> float:
@@ -69,7 +69,7 @@ def _signals() -> dict[str, tuple[Callable[["DriveModel"], float], str]]:
         fb = vel - acc * FOLLOWING_LAG_S
         return 0.0 if fb * vel < 0 or (vel == 0 and acc) else fb * 60.0
 
-    def current(m: "DriveModel") -> float:
+    def current(m: DriveModel) -> float:
         return m.motion._current_fraction() * SIM_IPEAK_A
 
     return {
@@ -85,10 +85,10 @@ def _signals() -> dict[str, tuple[Callable[["DriveModel"], float], str]]:
     }
 
 
-_SIGNALS: dict[str, tuple[Callable[["DriveModel"], float], str]] | None = None
+_SIGNALS: dict[str, tuple[Callable[[DriveModel], float], str]] | None = None
 
 
-def signals() -> dict[str, tuple[Callable[["DriveModel"], float], str]]:
+def signals() -> dict[str, tuple[Callable[[DriveModel], float], str]]:
     global _SIGNALS
     if _SIGNALS is None:
         _SIGNALS = _signals()
@@ -120,7 +120,7 @@ class Recorder(Component):
     FIELDS = ("settings", "channels", "trigtype", "trigparam", "trigval", "state", "next_t", "pre", "rows",
               "written", "trigger_index", "retrieved", "last", "command_seen")
 
-    def __init__(self, model: "DriveModel") -> None:
+    def __init__(self, model: DriveModel) -> None:
         super().__init__(model)
         self.settings = {k: v[2] for k, v in _SETTINGS.items()}
         self.channels: list[str] = [""] * MAX_CHANNELS
@@ -289,12 +289,12 @@ class Recorder(Component):
                 return _number(self.trigval)
             self._refuse_while_running(key)
             try:
-                value = float(arg)
+                level = float(arg)
             except ValueError:
                 raise RecorderError(f"Argument is not a number: {arg}") from None
-            if not math.isfinite(value):
+            if not math.isfinite(level):
                 raise RecorderError(f"Argument is not a number: {arg}")
-            self.trigval = value
+            self.trigval = level
             return ""
         if key not in _COMMANDS:
             raise RecorderError(f"Command was not found (REC.{key})")
@@ -405,12 +405,12 @@ def _internal(value: float) -> str:
     return f"F6{'-' if scaled < 0 else ''}0x{abs(scaled):X}"
 
 
-def recorder_of(model: "DriveModel") -> Recorder:
+def recorder_of(model: DriveModel) -> Recorder:
     """The model's recorder (attached by sim/model.py)."""
     return model.recorder  # type: ignore[attr-defined, no-any-return]
 
 
-def handle_rec(model: "DriveModel", name: str, arg: str | None) -> str:
+def handle_rec(model: DriveModel, name: str, arg: str | None) -> str:
     """One REC.* command of the ASCII channel: ``name`` as typed (``REC.GAP``, case-insensitive), ``arg`` the rest
     of the line or None. Returns the reply text (empty for a write); raises :class:`RecorderError` with the drive's
     text when refused."""
