@@ -307,3 +307,26 @@ def test_a_recording_travels_in_a_support_bundle(akd_inproc, tmp_path: Path) -> 
     (tmp_path / "bad.json").write_text("{}")
     code, out, err = akd_inproc("support", "bundle", "-o", str(bundle), "--scope", str(tmp_path / "bad.json"))
     assert code == EXIT_USAGE and "not an akdctl scope recording" in err
+
+
+def test_a_stop_request_ends_the_recording_partial_and_stops_the_jog() -> None:
+    from akdctl.connection import Connection
+    from akdctl.drive import scope as op
+    from akdctl.errors import Interrupted
+    from akdctl.transport.base import LinkOptions
+    from akdctl.transport.target import split_target
+
+    conn = Connection(split_target("sim"), LinkOptions())
+    plan = op.plan(conn, op.build_request(["VL.FB"], jog_rpm=300, jog_s=5.0))
+    calls = {"n": 0}
+
+    def stopped() -> bool:  # Ctrl-C arrives after 20 checks, while the jog runs
+        calls["n"] += 1
+        return calls["n"] > 20
+
+    recording, failure = op.execute(conn, plan, stopped=stopped)
+    assert isinstance(failure, Interrupted) and recording.partial and "interrupted" in recording.partial
+    assert 0 < len(recording) < 25
+    status = conn.axis().read_status()
+    assert status.standstill  # the axis was stopped before the error is reported
+    conn.close()

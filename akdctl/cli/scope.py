@@ -94,17 +94,17 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
     from akdctl.cli.signals import stop_signals
 
     live = _LivePlot() if (not app.json and sys.stderr.isatty() and plot is not False) else None
-    with stop_signals() as stop:
+    with stop_signals() as stop:  # a stop signal ends the recording; the files are still written, then it exits
         recording, failure = op.execute(conn, plan, stopped=stop, on_sample=live.update if live else None)
-    if live is not None:
-        live.clear()
-    written = _write_outputs(recording, csv_path, svg_path, png_path)
-    _render(app, recording, written, plot if plot is not None else not app.json and csv_path != "-")
-    if failure is not None:
-        if written:
-            failure.message += f"; partial recording written to {', '.join(written)}"
-        failure.reported = app.json
-        raise failure
+        if live is not None:
+            live.clear()
+        written = _write_outputs(recording, csv_path, svg_path, png_path)
+        _render(app, recording, written, plot if plot is not None else not app.json and csv_path != "-")
+        if failure is not None:
+            if written:
+                failure.message += f"; partial recording written to {', '.join(written)}"
+            failure.reported = app.json
+            raise failure
     if bounds.any:
         measured = op.check_bounds(recording, bounds)
         from akdctl.cli.output import message

@@ -72,7 +72,7 @@ def build_request(signals: Sequence[str], *, duration_s: float | None = None, sa
             raise UsageError("a recorded jog needs both its speed (--jog, jog) and its duration (--jog-for, jog_for)")
         move = MotionRequest("jog", velocity=jog_rpm, duration_s=jog_s, accel=accel)
         if duration_s is None and samples is None:
-            duration_s = min(MAX_DURATION_S, jog_s * 1.5 + 0.5)
+            duration_s = min(MAX_DURATION_S, jog_s * 1.5 + 1.0)
     elif accel is not None:
         raise UsageError("an acceleration describes a recorded jog: give its speed and duration too")
     return ScopeRequest(signals, duration_s=duration_s, samples=samples, rate_hz=rate_hz, source=source,
@@ -216,9 +216,9 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
         if motion is not None and not started:
             from akdctl.drive import motion_plan
 
-            started.append(time.monotonic())
+            started.append(math.nan)  # from here on an error stops the axis
             motion_plan.start(axis, motion, stopped)
-            events["motion_start"] = time.monotonic()
+            started[0] = events["motion_start"] = time.monotonic()  # the jog's time runs from the drive's start
 
     def watch() -> None:
         _watch(axis)
