@@ -38,6 +38,7 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
         fig = plotille.Figure()
         fig.width, fig.height = max(20, width), max(4, height)
         fig.with_colors = colours
+        fig.register_label_formatter(float, _label)
         fig.x_label, fig.y_label = "t [s]", unit or "value"
         fig.set_x_limits(min_=t0, max_=t1 if t1 > t0 else t0 + 1e-3)
         values = [v for i in indexes for v in recording.values[i] if math.isfinite(v)]
@@ -55,6 +56,12 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
             lines.append(f"trigger ({recording.trigger}) at t = {trigger_t:g} s"
                          + (" (vertical line)" if t0 < trigger_t <= t1 else " (first sample)"))
     return "\n".join(lines) + "\n"
+
+
+def _label(value: float, chars: int, delta: float, left: bool = False) -> str:
+    """Axis labels with 4 significant digits (plotille's default prints 7: ``0.2939038``)."""
+    text = f"{value:.4g}"
+    return text.ljust(chars) if left else text.rjust(chars)
 
 
 def write_png(recording: Recording, path: str) -> None:
