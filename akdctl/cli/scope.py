@@ -73,6 +73,8 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
                                samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
                                timeout_s=wait_s, jog_rpm=jog_rpm, jog_s=_duration(jog_for) if jog_for else None,
                                accel=accel)
+    if csv_path == "-" and app.json:
+        raise UsageError("--csv - and --json both write to stdout: give --csv a file name")
     bounds = op.Bounds(max_fe, max_settle, settle_band)
     bounds.check_request(request)
     op.check(request)  # bad input exits 2 before the target is opened

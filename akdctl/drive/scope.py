@@ -180,7 +180,10 @@ def _poll_signals(conn: Connection, names: Sequence[str], trigger: Trigger) -> t
 
         return int(read_pnu_map(conn.parameters(), [1002])[1002][0])
 
-    resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits)
+    from akdctl.drive.axis.choice import profile_name
+
+    resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits,
+                        prefer_objects=profile_name(conn) == "cia402")
     signals = [resolver.resolve(name) for name in names]
     hidden: list[Any] = []
     if trigger.on_status:

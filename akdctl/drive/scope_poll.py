@@ -63,6 +63,7 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
     trig = spec.trigger
     period = 1.0 / spec.rate_hz if spec.rate_hz else 0.0
     pre: list[tuple[float, list[float]]] = []
+    read_times: list[float] = []  # how long each sample's reads took (its values are that far apart at most)
     previous: float | None = None
     fired = trig.kind == "immediate"
     start = clock()
@@ -83,6 +84,7 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
                 due += period
             t = clock()
             row = read()
+            read_times.append(clock() - t)
             if not recording.started:
                 recording.started = utc_now()
                 if on_first is not None:
@@ -128,9 +130,27 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
     except AkdError as exc:
         recording.mark_partial(_why(exc, len(recording)))
         recording.shift_to_trigger()
+        _timing_notes(recording, read_times)
         return exc
     recording.shift_to_trigger()
+    _timing_notes(recording, read_times)
     return check_rate(recording)
+
+
+def _timing_notes(recording: Recording, read_times: list[float]) -> None:
+    """What a reader of the picture must know about the host's timing: how long one sample's reads took (its
+    values were read that far apart; its time is the start of its reads) and the largest gap between samples."""
+    if read_times:
+        recording.notes.append(f"one sample's reads took {1000 * sum(read_times) / len(read_times):.3g} ms on "
+                               f"average, {1000 * max(read_times):.3g} ms at most (t = start of its reads)")
+    gaps = [b - a for a, b in zip(recording.times, recording.times[1:])]
+    if gaps:
+        ordered = sorted(gaps)
+        median = ordered[len(ordered) // 2]
+        if max(gaps) > 2 * median:
+            at = recording.times[gaps.index(max(gaps))]
+            recording.notes.append(f"uneven spacing: largest gap {1000 * max(gaps):.3g} ms at t = {at:.4g} s "
+                                   f"(median {1000 * median:.3g} ms)")
 
 
 def check_rate(recording: Recording) -> AkdError | None:

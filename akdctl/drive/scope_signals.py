@@ -58,6 +58,7 @@ def _x15_rpm(raw: Any) -> float:
 #: AKD name -> its live CiA 402 object: (index, sub, type, factor, unit).
 LIVE_OBJECTS: dict[str, tuple[int, int, str, float, str]] = {
     "VL.FB": (0x606C, 0, "i32", 60.0 * _CIA_REV, "rpm"),
+    "VL.CMD": (0x606B, 0, "i32", 60.0 * _CIA_REV, "rpm"),
     "PL.FB": (0x6064, 0, "i32", _CIA_REV, "rev"),
     "PL.CMD": (0x60FC, 0, "i32", _CIA_REV, "rev"),
     "PL.ERR": (0x60F4, 0, "i32", _CIA_REV, "rev"),
@@ -78,10 +79,14 @@ NAMES_HELP = "VL.FB, VL.CMD, PL.FB, PL.CMD, PL.ERR, IL.FB, STATUSWORD, 0xINDEX[:
 class Resolver:
     """Turns names into :class:`Signal` s for one connection (which channels it offers decides the address)."""
 
-    def __init__(self, has_pnus: bool, has_objects: bool, singleturn_bits: Callable[[], int] | None = None) -> None:
+    def __init__(self, has_pnus: bool, has_objects: bool, singleturn_bits: Callable[[], int] | None = None, *,
+                 prefer_objects: bool = False) -> None:
         self.has_pnus = has_pnus
         self.has_objects = has_objects
         self._singleturn_bits = singleturn_bits
+        #: a CiA 402 axis on a target with both channels: its live values are the objects (VL.CMD = 0x606B, not
+        #: PROFIdrive's NSOLL_A, which such an axis never writes)
+        self.prefer_objects = prefer_objects
 
     def resolve(self, text: str) -> Signal:
         name = text.strip()
@@ -94,6 +99,8 @@ class Resolver:
             sub_text = obj_match.group(2) or "0"
             sub = int(sub_text, 16) if sub_text.startswith("0X") else int(sub_text)
             return self._object_address(name, int(obj_match.group(1), 16), sub)
+        if self.prefer_objects and self.has_objects and upper in LIVE_OBJECTS:
+            return self._live_object(name, upper)
         if self.has_pnus and upper in LIVE_PNUS:
             pnu, convert, unit = LIVE_PNUS[upper]
             return Signal(name, unit, f"PNU {pnu}", "pnu", pnu=pnu, convert=convert)
@@ -101,14 +108,17 @@ class Resolver:
             bits = self._singleturn_bits() if self._singleturn_bits else 16
             return Signal(name, "rev", "PNU 28", "pnu", pnu=28, convert=lambda raw: int(raw) / float(1 << bits))
         if self.has_objects and upper in LIVE_OBJECTS:
-            index, sub, type_name, factor, unit = LIVE_OBJECTS[upper]
-            return Signal(name, unit, f"0x{index:04X}:{sub}", "object", index=index, sub=sub, type=type_name,
-                          convert=_scaled(factor))
+            return self._live_object(name, upper)
         if upper in LIVE_PNUS or upper in LIVE_OBJECTS or upper == "PL.FB":
             offered = "PROFIdrive parameters" if self.has_pnus else "SDO objects" if self.has_objects else "no channel"
             raise UsageError(f"signal {name}: not readable live over this target ({offered}); "
                              "try --source recorder, or its address (0x..., PNU N)")
         return self._named(name, upper)
+
+    def _live_object(self, name: str, upper: str) -> Signal:
+        index, sub, type_name, factor, unit = LIVE_OBJECTS[upper]
+        return Signal(name, unit, f"0x{index:04X}:{sub}", "object", index=index, sub=sub, type=type_name,
+                      convert=_scaled(factor))
 
     def _pnu_address(self, name: str, pnu: int, sub: int) -> Signal:
         from akdctl.catalog.pnus import lookup
