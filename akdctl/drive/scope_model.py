@@ -85,11 +85,21 @@ class Recording:
             self.partial = why
 
     def shift_to_trigger(self) -> None:
-        """Make the trigger sample t = 0 (a source stamps from its own start)."""
+        """Make the trigger sample t = 0 (a source stamps from its own start); without a trigger (it never
+        fired) the first sample is t = 0 (:attr:`time_origin` says which)."""
         if self.trigger_index is not None and 0 <= self.trigger_index < len(self.times):
             zero = self.times[self.trigger_index]
-            self.times = [t - zero for t in self.times]
-            self.events = {name: t - zero for name, t in self.events.items()}
+        elif self.times:
+            zero = self.times[0]
+        else:
+            return
+        self.times = [t - zero for t in self.times]
+        self.events = {name: t - zero for name, t in self.events.items()}
+
+    @property
+    def time_origin(self) -> str:
+        """What t = 0 is, for axis labels."""
+        return "trigger" if self.trigger_time is not None else "first sample, no trigger"
 
     # ------------------------------------------------------------------ facts
     @property

@@ -39,7 +39,7 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
         fig.width, fig.height = max(20, width), max(4, height)
         fig.with_colors = colours
         fig.register_label_formatter(float, _label)
-        fig.x_label, fig.y_label = "t [s]", unit or "value"
+        fig.x_label, fig.y_label = "t [s]", unit or "value"  # t = 0: recording.time_origin, named below
         fig.set_x_limits(min_=t0, max_=t1 if t1 > t0 else t0 + 1e-3)
         values = [v for i in indexes for v in recording.values[i] if math.isfinite(v)]
         lo, hi = (min(values), max(values)) if values else (0.0, 1.0)
@@ -55,6 +55,8 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
         if trigger_t is not None:
             lines.append(f"trigger ({recording.trigger}) at t = {trigger_t:g} s"
                          + (" (vertical line)" if t0 < trigger_t <= t1 else " (first sample)"))
+        else:
+            lines.append("no trigger: t = 0 is the first sample")
     return "\n".join(lines) + "\n"
 
 
@@ -77,7 +79,9 @@ def write_png(recording: Recording, path: str) -> None:
     groups = unit_groups(recording)
     fig = Figure(figsize=(11, 1.2 + 2.6 * len(groups)), dpi=100)
     axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
-    title = f"{title_of(recording)}\n{subtitle_of(recording)}"
+    import textwrap
+
+    title = f"{title_of(recording)}\n" + "\n".join(textwrap.wrap(subtitle_of(recording), 150))
     if recording.partial:
         title += f"\nPARTIAL: {recording.partial}"
     fig.suptitle(title, fontsize=9, color="#C00000" if recording.partial else "black")
@@ -91,6 +95,6 @@ def write_png(recording: Recording, path: str) -> None:
         if trigger_t is not None:
             ax.axvline(trigger_t, color="#C00000", linestyle="--", linewidth=1.2, label="trigger")
         ax.legend(loc="upper right", fontsize=8)
-    axes[-1].set_xlabel("time [s] (0 = trigger)")
+    axes[-1].set_xlabel(f"time [s] (0 = {recording.time_origin})")
     fig.tight_layout()
     fig.savefig(path, format="png")

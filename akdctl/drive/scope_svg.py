@@ -19,7 +19,7 @@ from akdctl.drive.scope_model import Recording
 COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000")
 WIDTH = 960
 PANEL_H = 230
-LEFT, RIGHT, TOP, GAP, BOTTOM = 86, 24, 76, 34, 52
+LEFT, RIGHT, GAP, BOTTOM = 86, 24, 34, 52
 
 
 def nice_ticks(low: float, high: float, count: int = 6) -> list[float]:
@@ -65,10 +65,20 @@ def subtitle_of(recording: Recording) -> str:
     return recording.summary() + (f" — {'; '.join(recording.notes)}" if recording.notes else "")
 
 
+def wrapped(text: str, width: int = 130) -> list[str]:
+    import textwrap
+
+    return textwrap.wrap(text, width) or [""]
+
+
 def render_svg(recording: Recording) -> str:
     """The whole picture as SVG text."""
     groups = unit_groups(recording)
-    height = TOP + len(groups) * PANEL_H + (len(groups) - 1) * GAP + BOTTOM
+    head = [(line, "#333", "12", "normal") for line in wrapped(subtitle_of(recording))]
+    if recording.partial:
+        head += [(line, "#C00000", "13", "bold") for line in wrapped(f"PARTIAL: {recording.partial}", 110)]
+    top_of_panels = 34 + 18 * len(head)
+    height = top_of_panels + len(groups) * PANEL_H + (len(groups) - 1) * GAP + BOTTOM
     plot_w = WIDTH - LEFT - RIGHT
     times = recording.times
     t0, t1 = (times[0], times[-1]) if times else (0.0, 1.0)
@@ -84,13 +94,12 @@ def render_svg(recording: Recording) -> str:
             f'viewBox="0 0 {WIDTH} {height}" font-family="DejaVu Sans, Arial, sans-serif" font-size="12">'),
            f'<rect width="{WIDTH}" height="{height}" fill="white"/>',
            f'<text x="{LEFT}" y="20" font-size="14" font-weight="bold">{escape(title_of(recording))}</text>']
-    out.append(f'<text x="{LEFT}" y="38" font-size="12" fill="#333">{escape(subtitle_of(recording))}</text>')
-    if recording.partial:
-        out.append(f'<text x="{LEFT}" y="58" font-size="13" fill="#C00000" font-weight="bold">'
-                   f'PARTIAL: {escape(recording.partial)}</text>')
+    for number, (line, colour, size, weight) in enumerate(head):
+        out.append(f'<text x="{LEFT}" y="{38 + 18 * number}" font-size="{size}" fill="{colour}" '
+                   f'font-weight="{weight}">{escape(line)}</text>')
     trigger_t = recording.trigger_time
     for number, (unit, indexes) in enumerate(groups):
-        top = TOP + number * (PANEL_H + GAP)
+        top = top_of_panels + number * (PANEL_H + GAP)
         bottom = top + PANEL_H
         values = [v for i in indexes for v in recording.values[i] if math.isfinite(v)]
         lo, hi = (min(values), max(values)) if values else (0.0, 1.0)
@@ -133,6 +142,6 @@ def render_svg(recording: Recording) -> str:
             out.append(f'<text x="{x + 4:.1f}" y="{bottom - 6}" fill="#C00000">trigger</text>')
     axis_y = height - 14
     out.append(f'<text x="{LEFT + plot_w / 2:.0f}" y="{axis_y}" text-anchor="middle" font-weight="bold">'
-               'time [s] (0 = trigger)</text>')
+               f'time [s] (0 = {recording.time_origin})</text>')
     out.append("</svg>")
     return "\n".join(out) + "\n"
