@@ -125,7 +125,7 @@ _akdctl() {
         "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
         "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output --scope -o" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
-        "scope") COMPREPLY=($(compgen -W "--accel --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
+        "scope") COMPREPLY=($(compgen -W "--accel --continuous --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --ring --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;

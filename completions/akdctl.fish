@@ -128,6 +128,8 @@ complete -c akdctl -n '__fish_seen_subcommand_from scope' -l csv -d 'Write CSV (
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l svg -d 'Write an SVG plot (no extra needed).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l png -d 'Write a PNG plot (needs the \'plot\' extra: matplotlib).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l plot -d 'Terminal plot on stdout (default: on unless --json or --csv -).'
+complete -c akdctl -n '__fish_seen_subcommand_from scope' -l continuous -d 'Recorder: stream a continuous recording (REC.STOPTYPE 1) through the d'
+complete -c akdctl -n '__fish_seen_subcommand_from scope' -l ring -d 'Points of the drive\'s ring for --continuous (default 10000).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l jog -d 'Record during a jog at RPM for --jog-for (as \'jog --for\'); asks consen'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l jog-for -d 'How long the recorded jog runs (e.g. 1s).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l accel -d 'rpm/s of the recorded jog (default as \'jog\').'

@@ -330,3 +330,30 @@ def test_a_stop_request_ends_the_recording_partial_and_stops_the_jog() -> None:
     status = conn.axis().read_status()
     assert status.standstill  # the axis was stopped before the error is reported
     conn.close()
+
+
+def test_a_continuous_recording_streams_past_the_ring(akd_inproc) -> None:
+    code, out, err = akd_inproc("--json", "scope", "VL.FB", "--source", "recorder", "--continuous", "--ring", "1000",
+                                "--samples", "3000", "--rate", "4000")
+    assert code == 0, err
+    data = json.loads(out)["recording"]
+    assert data["samples"] == 3000  # three rings' worth, every row once and in order
+    assert {round(b - a, 9) for a, b in zip(data["t"], data["t"][1:])} == {0.00025}
+
+
+def test_a_continuous_recording_the_host_cannot_keep_up_with_overflows(akd_inproc, tmp_path: Path) -> None:
+    csv = tmp_path / "ov.csv"
+    code, out, err = akd_inproc("scope", "VL.FB", "--source", "recorder", "--continuous", "--ring", "20",
+                                "--samples", "5000", "--rate", "16000", "--csv", str(csv), "--no-plot")
+    errors = [line for line in err.splitlines() if line.startswith("akdctl: error:")]
+    assert code == EXIT_DRIVE and len(errors) == 1 and "overflow" in errors[0] and "Traceback" not in err
+    assert "# PARTIAL: streaming stopped" in csv.read_text()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--ring", "100"], "--continuous"), (["--continuous"], "--source recorder"),
+    (["--continuous", "--ring", "1", "--source", "recorder"], "2..10000"),
+])
+def test_continuous_options_are_checked(akd_inproc, args: list[str], words: str) -> None:
+    code, _out, err = akd_inproc("scope", "VL.FB", *args, "--no-plot")
+    assert code == EXIT_USAGE and words in err

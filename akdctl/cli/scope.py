@@ -41,6 +41,10 @@ LIVE_REDRAW_S = 0.5
 @click.option("--svg", "svg_path", metavar="FILE", help="Write an SVG plot (no extra needed).")
 @click.option("--png", "png_path", metavar="FILE", help="Write a PNG plot (needs the 'plot' extra: matplotlib).")
 @click.option("--plot/--no-plot", default=None, help="Terminal plot on stdout (default: on unless --json or --csv -).")
+@click.option("--continuous", is_flag=True,
+              help="Recorder: stream a continuous recording (REC.STOPTYPE 1) through the drive's ring, so --samples "
+                   "may exceed its 10000 points; a host too slow for the rate gets the drive's overflow error.")
+@click.option("--ring", type=int, metavar="N", help="Points of the drive's ring for --continuous (default 10000).")
 @click.option("--jog", "jog_rpm", type=float, metavar="RPM",
               help="Record during a jog at RPM for --jog-for (as 'jog --for'); asks consent like 'jog'.")
 @click.option("--jog-for", "jog_for", metavar="DURATION", help="How long the recorded jog runs (e.g. 1s).")
@@ -53,7 +57,8 @@ LIVE_REDRAW_S = 0.5
 @click.option("--dry-run", is_flag=True, help="Show what would be written and moved; record nothing.")
 def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, rate: float | None, source: str,
           trigger: str | None, pretrigger: float, wait_s: float, csv_path: str | None, svg_path: str | None,
-          png_path: str | None, plot: bool | None, jog_rpm: float | None, jog_for: str | None,
+          png_path: str | None, plot: bool | None, continuous: bool, ring: int | None,
+          jog_rpm: float | None, jog_for: str | None,
           accel: float | None, max_fe: float | None, max_settle: float | None, settle_band: float | None,
           dry_run: bool) -> None:
     """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.
@@ -72,7 +77,9 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
     request = op.build_request(signals, duration_s=_duration(duration) if duration is not None else None,
                                samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
                                timeout_s=wait_s, jog_rpm=jog_rpm, jog_s=_duration(jog_for) if jog_for else None,
-                               accel=accel)
+                               accel=accel, ring=(ring or 10000) if continuous else None)
+    if ring is not None and not continuous:
+        raise UsageError("--ring sizes a continuous recording: give --continuous too")
     if csv_path == "-" and app.json:
         raise UsageError("--csv - and --json both write to stdout: give --csv a file name")
     bounds = op.Bounds(max_fe, max_settle, settle_band)

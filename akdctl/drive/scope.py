@@ -41,11 +41,13 @@ class ScopeRequest(Record):
     1 s), ``rate_hz`` (None: as fast as the source goes / the recorder's default spacing), ``source``, trigger text,
     pre-trigger percent, trigger/recorder ``timeout_s``, and an optional relative ``move`` (MotionRequest) to record."""
 
-    __slots__ = ("duration_s", "move", "pretrigger", "rate_hz", "samples", "signals", "source", "timeout_s", "trigger")
+    __slots__ = ("duration_s", "move", "pretrigger", "rate_hz", "ring", "samples", "signals", "source", "timeout_s",
+                 "trigger")
 
     def __init__(self, signals: Sequence[str], *, duration_s: float | None = None, samples: int | None = None,
                  rate_hz: float | None = None, source: str = "auto", trigger: str | None = None,
-                 pretrigger: float = 0.0, timeout_s: float = DEFAULT_TIMEOUT_S, move: Any = None) -> None:
+                 pretrigger: float = 0.0, timeout_s: float = DEFAULT_TIMEOUT_S, move: Any = None,
+                 ring: int | None = None) -> None:
         self.signals = [str(s) for s in signals]
         self.duration_s = duration_s
         self.samples = samples
@@ -55,12 +57,13 @@ class ScopeRequest(Record):
         self.pretrigger = pretrigger
         self.timeout_s = timeout_s
         self.move = move
+        self.ring = ring  # a continuous recorder recording streamed through a ring of this many points
 
 
 def build_request(signals: Sequence[str], *, duration_s: float | None = None, samples: int | None = None,
                   rate_hz: float | None = None, source: str = "auto", trigger: str | None = None,
                   pretrigger: float = 0.0, timeout_s: float = DEFAULT_TIMEOUT_S, jog_rpm: float | None = None,
-                  jog_s: float | None = None, accel: float | None = None) -> ScopeRequest:
+                  jog_s: float | None = None, accel: float | None = None, ring: int | None = None) -> ScopeRequest:
     """The one way the command line and a recipe step turn their words into a request (their parity): a
     recorded jog needs both its speed and its duration, and without --for/--samples the recording lasts the jog,
     its stop and a margin."""
@@ -76,7 +79,7 @@ def build_request(signals: Sequence[str], *, duration_s: float | None = None, sa
     elif accel is not None:
         raise UsageError("an acceleration describes a recorded jog: give its speed and duration too")
     return ScopeRequest(signals, duration_s=duration_s, samples=samples, rate_hz=rate_hz, source=source,
-                        trigger=trigger, pretrigger=pretrigger, timeout_s=timeout_s, move=move)
+                        trigger=trigger, pretrigger=pretrigger, timeout_s=timeout_s, move=move, ring=ring)
 
 
 def check(request: ScopeRequest) -> Trigger:
@@ -97,6 +100,12 @@ def check(request: ScopeRequest) -> Trigger:
         raise UsageError(f"--rate {request.rate_hz:g}: a rate is a positive number of samples per second")
     if not (math.isfinite(request.timeout_s) and 0 < request.timeout_s <= 3600):
         raise UsageError(f"--timeout {request.timeout_s:g}: between 0 and 3600 s")
+    if request.ring is not None:
+        if request.source != "recorder":
+            raise UsageError("a continuous recording (--continuous, --ring) streams the drive's recorder: "
+                             "give --source recorder")
+        if not 2 <= request.ring <= 10000:
+            raise UsageError(f"--ring {request.ring}: the recorder's ring holds 2..10000 points (REC.NUMPOINTS)")
     trigger = parse_trigger(request.trigger)
     check_pretrigger(request.pretrigger, trigger)
     return trigger
@@ -141,8 +150,10 @@ def plan(conn: Connection, request: ScopeRequest, command_link: Callable[[], Any
         from akdctl.drive import scope_recorder as rec
 
         rec.check_signals(request.signals)
-        points, gap, timing_notes = rec.timing(request.samples, request.duration_s, request.rate_hz)
-        spec = rec.RecorderSpec(request.signals, points, gap, trigger, request.pretrigger, request.timeout_s)
+        points, gap, timing_notes = rec.timing(request.samples, request.duration_s, request.rate_hz,
+                                               continuous=request.ring is not None)
+        spec = rec.RecorderSpec(request.signals, points, gap, trigger, request.pretrigger, request.timeout_s,
+                                ring=request.ring)
         if command_link is None:
             raise UsageError(f"--source recorder needs the AKD's ASCII channel (akd://HOST, or a sim target); "
                              f"{conn.target.display} offers none: use --source poll")
@@ -151,7 +162,8 @@ def plan(conn: Connection, request: ScopeRequest, command_link: Callable[[], Any
         writes = [PlannedWrite(name, value, value) for name, value in spec.writes()]
         writes.append(PlannedWrite("REC.TRIG", "", "(arm)"))
         notes += timing_notes
-        notes.append(f"{points} samples every {gap} x 62.5 us = {spec.rate_hz:.6g}/s, {spec.span_s:.6g} s")
+        notes.append(f"{points} samples every {gap} x 62.5 us = {spec.rate_hz:.6g}/s, {spec.span_s:.6g} s"
+                     + (f", streamed through a ring of {spec.ring} points (REC.STOPTYPE 1)" if spec.ring else ""))
     elif source == "poll":
         data["signals"], data["hidden"] = _poll_signals(conn, request.signals, trigger)
         from akdctl.drive.scope_signals import Sampler

@@ -129,7 +129,7 @@ class Recording:
         if rate is not None:
             text += f", {rate:.4g} samples/s achieved"
         if self.rate_requested:
-            text += f" ({self.rate_requested:.4g} requested)"
+            text += f" ({self.rate_requested:.6g} requested)"
         return text
 
     # ------------------------------------------------------------------ outputs

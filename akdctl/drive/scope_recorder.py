@@ -36,6 +36,8 @@ BASE_HZ = 16000
 MAX_CHANNELS = 6
 MAX_POINTS = 10000  # aakd: "max buffer size" [I]
 MAX_GAP = 65535
+#: The most points a continuous recording streams (a look, not a logger).
+MAX_STREAM_POINTS = 1_000_000
 DEFAULT_POINTS = 1000
 RETRIEVE_SIZE = 500
 #: How often REC.DONE is asked while the recorder runs.
@@ -58,13 +60,20 @@ class RecorderSpec:
     """What to record: signal names, points, gap (ticks of 62.5 us), trigger, pre-trigger percent, timeout."""
 
     def __init__(self, signals: Sequence[str], points: int, gap: int, trigger: Trigger, pretrigger: float,
-                 timeout_s: float) -> None:
+                 timeout_s: float, ring: int | None = None) -> None:
         self.signals = [s.strip().upper() for s in signals]
         self.points = points
         self.gap = gap
         self.trigger = trigger
         self.pretrigger = pretrigger
         self.timeout_s = timeout_s
+        #: continuous recording (REC.STOPTYPE 1) into a ring of this many points, streamed with REC.RETRIEVEDATA;
+        #: None: one-shot (REC.STOPTYPE 0) of ``points``
+        self.ring = ring
+
+    @property
+    def buffer_points(self) -> int:
+        return self.ring if self.ring is not None else self.points
 
     @property
     def rate_hz(self) -> float:
@@ -78,21 +87,23 @@ class RecorderSpec:
     def trigger_index(self) -> int:
         if self.trigger.kind == "immediate":
             return 0
-        return min(self.points - 1, round(self.points * self.pretrigger / 100.0))
+        return min(self.buffer_points - 1, round(self.buffer_points * self.pretrigger / 100.0))
 
     def writes(self) -> list[tuple[str, str]]:
         """The REC.* writes in order, before ``REC.TRIG`` (which arms)."""
-        out = [("REC.GAP", str(self.gap)), ("REC.NUMPOINTS", str(self.points))]
+        out = [("REC.GAP", str(self.gap)), ("REC.NUMPOINTS", str(self.buffer_points))]
         for slot in range(MAX_CHANNELS):
             out.append((f"REC.CH{slot + 1}", self.signals[slot] if slot < len(self.signals) else "CLR"))
         out += self.trigger.recorder_settings()
         if self.trigger.kind != "immediate":
             out.append(("REC.TRIGPOS", str(max(1, round(self.pretrigger)))))
-        out += [("REC.STOPTYPE", "0"), ("REC.RETRIEVEFRMT", "1"), ("REC.RETRIEVESIZE", str(RETRIEVE_SIZE))]
+        out += [("REC.STOPTYPE", "0" if self.ring is None else "1"), ("REC.RETRIEVEFRMT", "1"),
+                ("REC.RETRIEVESIZE", str(RETRIEVE_SIZE))]
         return out
 
 
-def timing(samples: int | None, duration_s: float | None, rate_hz: float | None) -> tuple[int, int, list[str]]:
+def timing(samples: int | None, duration_s: float | None, rate_hz: float | None, *,
+           continuous: bool = False) -> tuple[int, int, list[str]]:
     """(points, gap, notes) for the request; UsageError (exit 2) for what the recorder cannot do.
 
     The recorder's rate is 16000/gap exactly: a requested rate between two gaps is recorded at the nearest one,
@@ -118,6 +129,10 @@ def timing(samples: int | None, duration_s: float | None, rate_hz: float | None)
         if gap > MAX_GAP:
             raise UsageError(f"--for {span:g} s: the recorder spans at most {points * MAX_GAP / BASE_HZ:.4g} s "
                              f"with {points} points")
+    if continuous and 2 <= points <= MAX_STREAM_POINTS:
+        return points, gap, notes
+    if continuous:
+        raise UsageError(f"{points} samples: a continuous recording streams 2..{MAX_STREAM_POINTS} points")
     if not 2 <= points <= MAX_POINTS:
         raise UsageError(f"{points} samples: the AKD's recorder holds 2..{MAX_POINTS} points (REC.NUMPOINTS); "
                          "lower --rate or --for")
@@ -147,6 +162,9 @@ def record(link: CommandLink, spec: RecorderSpec, recording: Recording, *, stopp
     link.command("REC.TRIG")
     recording.started = utc_now()
     deadline = clock() + spec.timeout_s + spec.span_s
+    if spec.ring is not None:
+        return _stream(link, spec, recording, stopped=stopped, clock=clock, sleep=sleep, on_chunk=on_chunk,
+                       on_armed=on_armed, on_wait=on_wait)
     try:
         if on_armed is not None:
             on_armed()
@@ -192,6 +210,64 @@ def record(link: CommandLink, spec: RecorderSpec, recording: Recording, *, stopp
         recording.notes.append(f"the drive recorded {points} points at REC.GAP {gap} "
                                f"(asked {spec.points} at {spec.gap})")
     return None
+
+
+def _stream(link: CommandLink, spec: RecorderSpec, recording: Recording, *, stopped: Callable[[], bool],
+            clock: Callable[[], float], sleep: Callable[[float], None],
+            on_chunk: Callable[[Recording], None] | None, on_armed: Callable[[], None] | None,
+            on_wait: Callable[[], None] | None) -> AkdError | None:
+    """A continuous recording (REC.STOPTYPE 1): chunks of REC.RETRIEVEDATA as the ring fills, until ``points``
+    arrived. The drive's overflow error (the ring overwrote rows not yet fetched) ends it, partial."""
+    width = len(spec.signals)
+    step = spec.gap / BASE_HZ
+    recording.trigger_index = spec.trigger_index
+    # half the ring's time between fetches at most, so a host that keeps up never overflows
+    pause = min(DONE_POLL_S, spec.buffer_points * step / 2)
+    deadline = clock() + spec.timeout_s
+    try:
+        if on_armed is not None:
+            on_armed()
+        reply = link.command("REC.RETRIEVEDATA 0")
+        while True:
+            rows = parse_rows(reply, width, skip_first=True)
+            first = _chunk_start(reply)
+            if rows and first is not None and first != len(recording):
+                raise MalformedReply(f"REC.RETRIEVEDATA sent rows from {first}, expected {len(recording)}")
+            for row in rows[: spec.points - len(recording)]:
+                recording.add((len(recording) - recording.trigger_index) * step, row)
+            if rows and on_chunk is not None:
+                on_chunk(recording)
+            if len(recording) >= spec.points:
+                break
+            if stopped():
+                raise Interrupted("interrupted while the recorder streamed")
+            if not recording and clock() > deadline:
+                raise TriggerTimeout(f"the recorder sent no rows within {spec.timeout_s:.3g} s "
+                                     f"(trigger {spec.trigger.text})")
+            if on_wait is not None:
+                on_wait()
+            if not rows:
+                sleep(pause)
+            reply = link.command("REC.RETRIEVEDATA")
+    except AkdError as exc:
+        _quiet_off(link)
+        recording.mark_partial(f"streaming stopped after {len(recording)} samples: {exc.message}")
+        if not recording:
+            recording.trigger_index = None
+        return exc
+    _quiet_off(link)
+    return None
+
+
+def _chunk_start(reply: str) -> int | None:
+    """The first row's index from the first line of a REC.RETRIEVEDATA reply, read as ``<first index>,<rows>``
+    as the simulator writes it [I: the drive's first line is not documented]; None when it is not that shape
+    (then rows are taken in order, unchecked)."""
+    head = reply.replace("\r", "\n").split("\n", 1)[0].strip()
+    try:
+        return int(head.split(",")[0])
+    except ValueError:
+        return None
 
 
 def _quiet_off(link: CommandLink) -> None:

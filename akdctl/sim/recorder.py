@@ -338,7 +338,7 @@ class Recorder(Component):
         return self._retrieve_data()
 
     def _retrieve_data(self) -> str:
-        if not self.rows and self.state != "recording":
+        if not self.rows and not self.running:
             raise RecorderError("No data recorded")
         oldest = self.written - len(self.rows)
         if self.retrieved < oldest:
