@@ -343,7 +343,7 @@ def test_a_continuous_recording_streams_past_the_ring(akd_inproc) -> None:
 
 def test_a_continuous_recording_the_host_cannot_keep_up_with_overflows(akd_inproc, tmp_path: Path) -> None:
     csv = tmp_path / "ov.csv"
-    code, out, err = akd_inproc("scope", "VL.FB", "--source", "recorder", "--continuous", "--ring", "20",
+    code, _out, err = akd_inproc("scope", "VL.FB", "--source", "recorder", "--continuous", "--ring", "20",
                                 "--samples", "5000", "--rate", "16000", "--csv", str(csv), "--no-plot")
     errors = [line for line in err.splitlines() if line.startswith("akdctl: error:")]
     assert code == EXIT_DRIVE and len(errors) == 1 and "overflow" in errors[0] and "Traceback" not in err
