@@ -256,7 +256,7 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
             recording = Recording(plan_.target, "recorder", rec.channels_for(spec.signals), trigger=trigger.text,
                                   rate_requested=spec.rate_hz)
             failure = rec.record(data["link"], spec, recording, stopped=stopped, on_armed=start_motion,
-                                 on_wait=watch if motion is not None else None)
+                                 on_wait=watch if motion is not None else None, on_chunk=on_sample)
         else:
             from akdctl.drive import scope_poll
             from akdctl.drive.scope_model import Channel

@@ -47,7 +47,7 @@ ACTIONS: dict[str, dict[str, Any]] = {
     "scope": {"signals": list, "for": NUMBER, "samples": int, "rate": NUMBER, "source": str, "trigger": str,
               "pretrigger": NUMBER, "timeout": NUMBER, "jog": NUMBER, "jog_for": NUMBER, "accel": NUMBER,
               "csv": str, "svg": str, "json": str, "max_following_error": NUMBER, "max_settle_time": NUMBER,
-              "settle_band": NUMBER},
+              "settle_band": NUMBER, "ring": int},
 }
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",),
             "scope": ("signals",)}
@@ -619,7 +619,8 @@ def _check_scope(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], st
                                    rate_hz=data.get("rate"), source=data.get("source", "auto"),
                                    trigger=data.get("trigger"), pretrigger=float(data.get("pretrigger", 0.0)),
                                    timeout_s=float(data.get("timeout", op.DEFAULT_TIMEOUT_S)),
-                                   jog_rpm=data.get("jog"), jog_s=data.get("jog_for"), accel=data.get("accel"))
+                                   jog_rpm=data.get("jog"), jog_s=data.get("jog_for"), accel=data.get("accel"),
+                                   ring=data.get("ring"))
         op.check(request)
         bounds = op.Bounds(data.get("max_following_error"), data.get("max_settle_time"), data.get("settle_band"))
         bounds.check_request(request)
