@@ -175,13 +175,18 @@ class Recorder(Component):
             step(max(0.0, target - clock - self.gap_s))
             self.next_t = target
             clock = self.model.clock
-        while self.running and self.next_t <= end + 1e-12:
-            piece = self.next_t - clock
+        next_t, gap_s, taken = self.next_t, self.gap_s, 0
+        while self.state in ("armed", "recording") and next_t <= end + 1e-12:
+            piece = next_t - clock
             if piece > 0:
                 step(piece)
                 clock = self.model.clock
             self._sample()
-            self.next_t = self.next_t + self.gap_s
+            taken += 1
+            next_t += gap_s
+        self.next_t = next_t  # assigned once: a tracked field (sim/component.Tracked) costs a compare per write
+        if taken:
+            self.changed()  # the rows and the pre-trigger ring are containers: one revision bump per advance
         if end - clock > 0:
             step(end - clock)
 
@@ -220,7 +225,6 @@ class Recorder(Component):
             self.pre.append(row)
             if len(self.pre) > pre_n + 1:
                 del self.pre[0]
-            self.changed()
             if len(self.pre) < pre_n + 1:  # the pre-trigger part must be full first (module doc)
                 if self.trigtype >= 2:
                     self._fires()  # keep the edge detector current
@@ -239,7 +243,6 @@ class Recorder(Component):
                 del self.rows[0]
             self.rows.append(row)
             self.written += 1
-            self.changed()
         if self.settings["STOPTYPE"] == 0 and len(self.rows) >= self.numpoints:
             self.state = "done"
 
