@@ -304,9 +304,11 @@ def _watch(axis: Any) -> None:
 def _finish_motion(axis: Any, motion: Any, started: bool, jog_ended: bool, failure: AkdError | None) -> None:
     """The motion the recording watched ends: a jog still running is ended (ramp), a move waited for; the axis is
     stopped when the recording failed."""
+    from akdctl.drive.scope_poll import RateNotReached
+
     if not started:
         return
-    if failure is not None:
+    if failure is not None and not isinstance(failure, RateNotReached):
         _, outcome = axis.safe_stop()
         if "stop" not in failure.message:
             failure.message = f"{failure.message} ({outcome})"

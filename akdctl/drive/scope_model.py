@@ -110,6 +110,15 @@ class Recording:
         return (len(self.times) - 1) / (self.times[-1] - self.times[0])
 
     @property
+    def rate_sustained(self) -> float | None:
+        """Samples per second at the median spacing (what the link sustains, pauses aside); None with fewer
+        than two samples."""
+        gaps = sorted(b - a for a, b in zip(self.times, self.times[1:]))
+        if not gaps or gaps[len(gaps) // 2] <= 0:
+            return None
+        return 1.0 / gaps[len(gaps) // 2]
+
+    @property
     def trigger_time(self) -> float | None:
         if self.trigger_index is None or not 0 <= self.trigger_index < len(self.times):
             return None
@@ -128,6 +137,9 @@ class Recording:
         text = f"{len(self)} samples over {span:.4g} s"
         if rate is not None:
             text += f", {rate:.4g} samples/s achieved"
+            sustained = self.rate_sustained
+            if sustained is not None and abs(sustained - rate) > 0.1 * rate:
+                text += f" ({sustained:.4g}/s at the median spacing)"
         if self.rate_requested:
             text += f" ({self.rate_requested:.6g} requested)"
         return text

@@ -153,14 +153,23 @@ def _timing_notes(recording: Recording, read_times: list[float]) -> None:
                                    f"(median {1000 * median:.3g} ms)")
 
 
+class RateNotReached(CommError):
+    """The link did not sustain the requested rate (exit 3); the samples were taken and the motion, if any, ran
+    to its end as planned."""
+
+    kind = "rate-not-reached"
+
+
 def check_rate(recording: Recording) -> AkdError | None:
-    """A requested rate the link did not reach: the recording is marked partial and a CommError returned."""
-    wanted, got = recording.rate_requested, recording.rate_achieved
+    """A requested rate the link did not sustain (the median spacing: a single pause, such as the drive
+    accepting a recorded jog's start, is named in the notes, not counted as the link's rate): the recording is
+    marked partial and a RateNotReached returned."""
+    wanted, got = recording.rate_requested, recording.rate_sustained
     if wanted and got is not None and got < RATE_TOLERANCE * wanted:
         why = (f"requested {wanted:g} samples/s, the link reached {got:.4g}/s "
                f"({recording.notes[0] if recording.notes else 'one request per sample'})")
         recording.mark_partial(why)
-        return CommError(f"rate not reached: {why}; the file holds the samples taken, at their real times")
+        return RateNotReached(f"rate not reached: {why}; the file holds the samples taken, at their real times")
     return None
 
 
@@ -172,4 +181,4 @@ def _why(exc: AkdError, taken: int) -> str:
     return f"stopped after {taken} samples: {exc.message}"
 
 
-__all__ = ["PollSpec", "TriggerTimeout", "check_rate", "record"]
+__all__ = ["PollSpec", "RateNotReached", "TriggerTimeout", "check_rate", "record"]
