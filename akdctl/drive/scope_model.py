@@ -149,6 +149,9 @@ class Recording:
         rate = self.rate_achieved
         parts = [f"target={self.target}", f"source={self.source}",
                  f"rate={rate:.6g}Hz" if rate is not None else "rate=n/a"]
+        sustained = self.rate_sustained
+        if sustained is not None and rate is not None and abs(sustained - rate) > 0.1 * rate:
+            parts.append(f"median_rate={sustained:.6g}Hz")
         if self.rate_requested:
             parts.append(f"requested={self.rate_requested:.6g}Hz")
         parts += [f"trigger={self.trigger}", f"trigger_index={self.trigger_index if self.trigger_index is not None else ''}",
@@ -172,7 +175,8 @@ class Recording:
     def to_json(self) -> dict[str, Any]:
         return {"format": "akdctl-scope", "version": FORMAT_VERSION, "target": self.target, "source": self.source,
                 "started": self.started, "trigger": {"condition": self.trigger, "index": self.trigger_index},
-                "rate_hz": {"requested": self.rate_requested, "achieved": self.rate_achieved},
+                "rate_hz": {"requested": self.rate_requested, "achieved": self.rate_achieved,
+                            "median": self.rate_sustained},
                 "samples": len(self), "partial": self.partial, "notes": list(self.notes), "events": dict(self.events),
                 "channels": [c.to_json() for c in self.channels], "t": list(self.times),
                 "values": [list(column) for column in self.values]}
