@@ -357,3 +357,29 @@ def test_a_continuous_recording_the_host_cannot_keep_up_with_overflows(akd_inpro
 def test_continuous_options_are_checked(akd_inproc, args: list[str], words: str) -> None:
     code, _out, err = akd_inproc("scope", "VL.FB", *args, "--no-plot")
     assert code == EXIT_USAGE and words in err
+
+
+def test_names_resolve_through_the_akd_names_catalogue_when_it_is_installed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The row shape of catalog/akd_params.py (branch wip/names): coe (index, sub), coe_type, scale text, unit."""
+    import sys
+    import types
+
+    from akdctl.drive.scope_signals import Resolver
+
+    class Row:
+        coe, coe_type, scale, unit = (0x3548, 0), "u32", "1000", "A/(rad/s)"
+
+        def mark(self, fact: str) -> str:
+            return "I" if fact == "scale" else "V"
+
+    fake = types.ModuleType("akdctl.catalog.akd_params")
+    fake.lookup = lambda name: Row() if name == "VL.KP" else None  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "akdctl.catalog.akd_params", fake)
+    import akdctl.catalog
+
+    monkeypatch.setattr(akdctl.catalog, "akd_params", fake, raising=False)
+    signal = Resolver(False, True).resolve("VL.KP")
+    assert (signal.index, signal.sub, signal.type, signal.unit) == (0x3548, 0, "u32", "A/(rad/s)")
+    assert signal.convert(1500) == pytest.approx(1.5) and "[I]" in signal.address
+    with pytest.raises(UsageError, match="unknown signal"):
+        Resolver(False, True).resolve("NOPE.X")

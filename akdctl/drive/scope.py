@@ -122,9 +122,10 @@ def command_link_factory(conn: Connection) -> Callable[[], Any] | None:
     """A factory of the target's ASCII command link (:class:`~akdctl.drive.scope_recorder.CommandLink`), or None:
     the ``akd://`` transport's ``Connection.commands()`` once it is merged (engineer "names"), the in-process
     simulated recorder for ``sim`` targets (transport/sim_commands.py)."""
-    commands = getattr(conn, "commands", None)  # Connection.commands() arrives with the akd:// transport
-    if callable(commands):
-        return commands  # type: ignore[no-any-return]
+    # Connection.has_commands / commands() arrive with the akd:// transport (branch wip/names); until both are
+    # merged this probes for them (at merge: `if conn.has_commands: return conn.commands`)
+    if getattr(type(conn), "has_commands", None) is not None and conn.has_commands:  # type: ignore[attr-defined]
+        return conn.commands  # type: ignore[attr-defined, no-any-return]
     if conn.target.scheme == "sim":
         from akdctl.transport.sim_commands import SimCommandLink
 

@@ -147,11 +147,14 @@ class Resolver:
     def _named(self, name: str, upper: str) -> Signal:
         coe = _akd_names_coe(upper)
         if coe is not None and self.has_objects:
-            index, sub, type_name, scale = coe
+            index, sub, type_name, factor, unit, mark = coe
             signal = self._object_address(name, index, sub)
             signal.type = type_name or signal.type
-            if scale:
-                signal.convert = _scaled(scale)
+            signal.unit = unit
+            if factor is not None:
+                signal.convert = _scaled(factor)
+                if factor != 1.0:
+                    signal.address += f" /{1 / factor:g}" + (f" [{mark}]" if mark else "")
             return signal
         from akdctl.catalog.objects import by_param
 
@@ -162,22 +165,28 @@ class Resolver:
         raise UsageError(f"unknown signal {name!r}; signals: {NAMES_HELP}")
 
 
-def _akd_names_coe(upper: str) -> tuple[int, int, str, float | None] | None:
-    """(index, sub, type, scale) of an AKD name from the AKD-names catalogue when it is installed (another
-    engineer's module: ``lookup(name) -> row`` with ``.coe``); None otherwise."""
+def _akd_names_coe(upper: str) -> tuple[int, int, str, float | None, str, str] | None:
+    """(index, sub, type, factor, unit, scale mark) of an AKD name from the AKD-names catalogue
+    (``catalog/akd_params.py``, branch wip/names: ``lookup(name)`` -> a row with ``.coe`` = (index, sub),
+    ``.coe_type``, ``.scale`` = "1000" when wire 1000 is 1.000, "var" when it depends on UNIT.*, ``.unit``,
+    ``.mark("scale")``); None when the catalogue is not installed or has no CoE address for the name."""
     try:
         from akdctl.catalog import akd_params  # type: ignore[attr-defined]
     except ImportError:
         return None
-    try:
-        row = akd_params.lookup(upper)
-    except (KeyError, LookupError, ValueError):
-        return None
+    row = akd_params.lookup(upper)
     coe = getattr(row, "coe", None) if row is not None else None
     if not coe:
         return None
-    index, sub, type_name, scale = (list(coe) + [None, None, None, None])[:4]
-    return int(index), int(sub or 0), str(type_name or ""), float(scale) if scale else None
+    scale_text = str(getattr(row, "scale", "") or "")
+    try:
+        scale = float(scale_text)
+        factor: float | None = 1.0 / scale if scale else None
+    except ValueError:
+        factor = None  # "var" (depends on UNIT.*) or unknown: the raw integer, said so by the unit
+    mark = row.mark("scale") if hasattr(row, "mark") else ""
+    unit = str(getattr(row, "unit", "") or "") if factor is not None else "raw"
+    return int(coe[0]), int(coe[1]), str(getattr(row, "coe_type", "") or ""), factor, unit, str(mark or "")
 
 
 class Sampler:
