@@ -383,3 +383,27 @@ def test_names_resolve_through_the_akd_names_catalogue_when_it_is_installed(monk
     assert signal.convert(1500) == pytest.approx(1.5) and "[I]" in signal.address
     with pytest.raises(UsageError, match="unknown signal"):
         Resolver(False, True).resolve("NOPE.X")
+
+
+def test_a_fault_during_a_recorded_jog_ends_it_partial_and_stopped() -> None:
+    from akdctl.connection import Connection
+    from akdctl.drive import scope as op
+    from akdctl.errors import DriveFault
+    from akdctl.transport.base import LinkOptions
+    from akdctl.transport.target import split_target
+
+    conn = Connection(split_target("sim"), LinkOptions())
+    plan = op.plan(conn, op.build_request(["VL.FB"], jog_rpm=300, jog_s=3.0))
+    calls = {"n": 0}
+
+    def stopped() -> bool:  # the drive faults (F501, bus overvoltage) while the jog runs
+        calls["n"] += 1
+        if calls["n"] == 30:
+            with conn.transport().drive.transaction() as model:  # type: ignore[attr-defined]
+                model.faults.raise_fault("F501")
+        return False
+
+    recording, failure = op.execute(conn, plan, stopped=stopped)
+    assert isinstance(failure, DriveFault) and failure.exit_code == EXIT_DRIVE and "F501" in failure.message
+    assert recording.partial and "F501" in recording.partial and len(recording) >= 20
+    conn.close()

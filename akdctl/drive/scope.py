@@ -34,6 +34,8 @@ SOURCES = ("auto", "poll", "recorder", "pdo")
 MAX_DURATION_S = 600.0
 MAX_POLL_SAMPLES = 1_000_000
 DEFAULT_TIMEOUT_S = 10.0
+#: How often the axis is read while a recorded motion runs (a fault ends the recording).
+WATCH_S = 0.05
 
 
 class ScopeRequest(Record):
@@ -236,12 +238,14 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
             motion_plan.start(axis, motion, stopped)
             started[0] = events["motion_start"] = time.monotonic()  # the jog's time runs from the drive's start
 
-    def watch() -> None:
-        _watch(axis)
-        tick()
+    watched = [0.0]
 
     def tick() -> None:
-        """A timed jog ends at its duration (ramp to standstill), wherever the recording is."""
+        """While the motion runs: the axis is read every WATCH_S (a fault ends the recording, and the traffic tells
+        the simulated drive's watchdog someone is there); a timed jog ends at its duration (ramp to standstill)."""
+        if started and time.monotonic() - watched[0] >= WATCH_S:
+            watched[0] = time.monotonic()
+            _watch(axis)
         r = motion.request if motion is not None else None
         if started and not jog_ended[0] and r is not None and r.kind == "jog" and r.duration_s is not None \
                 and time.monotonic() - started[0] >= r.duration_s:
@@ -257,7 +261,7 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
             recording = Recording(plan_.target, "recorder", rec.channels_for(spec.signals), trigger=trigger.text,
                                   rate_requested=spec.rate_hz)
             failure = rec.record(data["link"], spec, recording, stopped=stopped, on_armed=start_motion,
-                                 on_wait=watch if motion is not None else None, on_chunk=on_sample)
+                                 on_wait=tick if motion is not None else None, on_chunk=on_sample)
         else:
             from akdctl.drive import scope_poll
             from akdctl.drive.scope_model import Channel
@@ -293,13 +297,12 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
 
 
 def _watch(axis: Any) -> None:
-    """While the recorder runs a move: read the axis (a fault ends the recording; the read also tells the
-    simulated drive someone is there, as a real master's traffic would)."""
+    """Read the axis during a recorded motion: a fault ends the recording (DriveFault, exit 1)."""
     from akdctl.errors import DriveFault
 
     status = axis.read_status()
     if status.fault:
-        raise DriveFault(f"drive fault during the recorded move: {status.fault_summary()}")
+        raise DriveFault(f"drive fault during the recorded motion: {status.fault_summary()}")
 
 
 def _finish_motion(axis: Any, motion: Any, started: bool, jog_ended: bool, failure: AkdError | None) -> None:
