@@ -407,3 +407,35 @@ def test_a_fault_during_a_recorded_jog_ends_it_partial_and_stopped() -> None:
     assert isinstance(failure, DriveFault) and failure.exit_code == EXIT_DRIVE and "F501" in failure.message
     assert recording.partial and "F501" in recording.partial and len(recording) >= 20
     conn.close()
+
+
+def test_pdo_source_decodes_the_txpdo_image_of_each_cycle() -> None:
+    """drive/scope_pdo.py against its CyclicInputs interface: the statusword and velocity of each cycle's TxPDO
+    image (little-endian, mapping order), one row per cycle, t = cycles x cycle time, trigger on a bit edge."""
+    import struct
+
+    from akdctl.catalog.objects import PdoEntry
+    from akdctl.drive.scope_pdo import record as pdo_record
+
+    class Inputs:
+        cycle_s = 0.001
+
+        def __init__(self) -> None:
+            self.k = 0
+
+        def mapped_inputs(self) -> list[PdoEntry]:
+            return [PdoEntry(0x6041, 0, 16), PdoEntry(0x606C, 0, 32)]
+
+        def next_inputs(self, timeout: float) -> bytes:
+            self.k += 1
+            word = 0x0637 if self.k >= 5 else 0x0631  # bit 2 (operation enabled) from cycle 5 on
+            return struct.pack("<Hi", word, 1000 * self.k)
+
+    rec, failure = pdo_record(Inputs(), ["0x6041:0", "0x606C:0"], "ecat://x", cycles=4,
+                              trigger=parse_trigger("bit:2"), trigger_slot=0, stopped=lambda: False, timeout_s=1.0)
+    assert failure is None and len(rec) == 4 and rec.trigger_index == 0
+    assert rec.values[0] == [0x0637] * 4 and rec.values[1] == [5000.0, 6000.0, 7000.0, 8000.0]
+    assert rec.times == pytest.approx([0.0, 0.001, 0.002, 0.003])
+    with pytest.raises(UsageError, match="not in the mapped TxPDO"):
+        pdo_record(Inputs(), ["0x6077:0"], "ecat://x", cycles=2, trigger=parse_trigger(None), trigger_slot=None,
+                   stopped=lambda: False, timeout_s=1.0)
