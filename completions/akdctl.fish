@@ -132,7 +132,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from scope' -l continuous -d 'Reco
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l ring -d 'Points of the drive\'s ring for --continuous (default 10000).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l jog -d 'Record during a jog at RPM for --jog-for (as \'jog --for\'); asks consen'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l jog-for -d 'How long the recorded jog runs (e.g. 1s).'
-complete -c akdctl -n '__fish_seen_subcommand_from scope' -l accel -d 'rpm/s of the recorded jog (default as \'jog\').'
+complete -c akdctl -n '__fish_seen_subcommand_from scope' -l accel -d 'Acceleration of the recorded jog (default as \'jog\').'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l max-following-error -d 'Check: |PL.ERR| stays at most X at every sample (exit 5 otherwise).'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l max-settle-time -d 'Check: after the recorded jog ends, PL.ERR is within --settle-band wit'
 complete -c akdctl -n '__fish_seen_subcommand_from scope' -l settle-band -d 'The band of --max-settle-time (PL.ERR\'s unit).'

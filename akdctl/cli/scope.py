@@ -48,7 +48,7 @@ LIVE_REDRAW_S = 0.5
 @click.option("--jog", "jog_rpm", type=float, metavar="RPM",
               help="Record during a jog at RPM for --jog-for (as 'jog --for'); asks consent like 'jog'.")
 @click.option("--jog-for", "jog_for", metavar="DURATION", help="How long the recorded jog runs (e.g. 1s).")
-@click.option("--accel", type=float, help="rpm/s of the recorded jog (default as 'jog').")
+@click.option("--accel", type=float, metavar="RPM/S", help="Acceleration of the recorded jog (default as 'jog').")
 @click.option("--max-following-error", "max_fe", type=float, metavar="X",
               help="Check: |PL.ERR| stays at most X at every sample (exit 5 otherwise).")
 @click.option("--max-settle-time", "max_settle", type=float, metavar="S",
@@ -62,6 +62,10 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
           accel: float | None, max_fe: float | None, max_settle: float | None, settle_band: float | None,
           dry_run: bool) -> None:
     """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.
+
+    A recording that ends early (no answer, a rate the link does not sustain, a trigger that never fires, the
+    recorder's overflow, Ctrl-C) is still written, marked PARTIAL in every output, and the command exits with
+    the error's code (docs/scope.md).
 
     \b
     Examples:
