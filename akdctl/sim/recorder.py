@@ -176,7 +176,23 @@ class Recorder(Component):
             self.next_t = target
             clock = self.model.clock
         next_t, gap_s, taken = self.next_t, self.gap_s, 0
+        axis = self.model.motion.axis
         while self.state in ("armed", "recording") and next_t <= end + 1e-12:
+            if axis.gen is None and not axis.vel and not axis.acc_now:
+                # at rest nothing changes between requests (motion starts only on one): integrate to the last
+                # instant at once; every sample in between reads the same values it would have read
+                count = math.floor((end - next_t) / gap_s + 1e-9) + 1
+                last = next_t + (count - 1) * gap_s
+                if last - clock > 0:
+                    step(last - clock)
+                    clock = self.model.clock
+                for _ in range(count):
+                    if self.state not in ("armed", "recording"):
+                        break
+                    self._sample()
+                    taken += 1
+                    next_t += gap_s
+                continue
             piece = next_t - clock
             if piece > 0:
                 step(piece)
