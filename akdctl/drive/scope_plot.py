@@ -97,4 +97,12 @@ def write_png(recording: Recording, path: str) -> None:
         ax.legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel(f"time [s] (0 = {recording.time_origin})")
     fig.tight_layout()
-    fig.savefig(path, format="png")
+    import io
+    from pathlib import Path
+
+    from akdctl.io.atomic import atomic_open
+
+    image = io.BytesIO()
+    fig.savefig(image, format="png")
+    with atomic_open(Path(path), "wb") as out:  # as every file akdctl writes: whole or not at all
+        out.write(image.getvalue())
