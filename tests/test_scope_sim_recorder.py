@@ -186,3 +186,29 @@ def test_a_long_idle_advance_is_bounded() -> None:
     assert time.perf_counter() - started < 10
     assert model.clock == pytest.approx(3600.0)
     assert len(model.recorder.rows) == 100
+
+
+# ------------------------------------------------------------------ the parsers never raise anything but MalformedReply
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from akdctl.errors import MalformedReply  # noqa: E402
+from akdctl.sim.recorder import _internal  # noqa: E402
+
+
+@given(st.floats(min_value=-1e9, max_value=1e9, allow_nan=False))
+def test_internal_format_round_trips(value: float) -> None:
+    assert parse_value(_internal(value)) == pytest.approx(value, abs=1e-6)
+
+
+@settings(max_examples=300)
+@given(st.text(max_size=200), st.integers(min_value=1, max_value=6), st.booleans())
+def test_any_reply_text_parses_or_is_a_malformed_reply(text: str, width: int, skip: bool) -> None:
+    from akdctl.drive.scope_recorder import parse_header
+
+    for parse in (lambda: parse_rows(text, width, skip_first=skip), lambda: parse_header(text),
+                  lambda: parse_retrieve(text)):
+        try:
+            parse()
+        except MalformedReply:
+            pass
