@@ -9,10 +9,13 @@ acceleration ramp), not against the recorder's own output.
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from akdctl.drive.scope_recorder import parse_retrieve, parse_rows, parse_value
+from akdctl.errors import MalformedReply
 from akdctl.sim.model import DriveModel
-from akdctl.sim.recorder import BASE_S, RecorderError, handle_rec
+from akdctl.sim.recorder import BASE_S, RecorderError, _internal, handle_rec
 
 ACC = 100.0  # rev/s²
 TOP = 10.0  # rev/s
@@ -189,11 +192,6 @@ def test_a_long_idle_advance_is_bounded() -> None:
 
 
 # ------------------------------------------------------------------ the parsers never raise anything but MalformedReply
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from akdctl.errors import MalformedReply  # noqa: E402
-from akdctl.sim.recorder import _internal  # noqa: E402
 
 
 @given(st.floats(min_value=-1e9, max_value=1e9, allow_nan=False))
