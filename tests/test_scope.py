@@ -439,3 +439,26 @@ def test_pdo_source_decodes_the_txpdo_image_of_each_cycle() -> None:
     with pytest.raises(UsageError, match="not in the mapped TxPDO"):
         pdo_record(Inputs(), ["0x6077:0"], "ecat://x", cycles=2, trigger=parse_trigger(None), trigger_slot=None,
                    stopped=lambda: False, timeout_s=1.0)
+
+
+def test_poll_over_the_ascii_channel_reads_value_and_unit_lines() -> None:
+    """akd:// (Connection.commands(), branch wip/names): a polled AKD name is the line NAME -> 'value [unit]'
+    (akd-ascii-channel.md §2.1); a text reply is a MalformedReply, never a number made up."""
+    from akdctl.drive.scope_signals import Resolver, Sampler, parse_reading
+    from akdctl.errors import MalformedReply
+
+    class Link:
+        def command(self, line: str) -> str:
+            return {"VL.FB": "12.500 [rpm]", "DRV.ACTIVE": "1", "DRV.INFO": "AKD-P00306"}[line]
+
+    class Conn:
+        def commands(self) -> Link:
+            return Link()
+
+    resolver = Resolver(False, False, has_commands=True)
+    signals = [resolver.resolve("VL.FB"), resolver.resolve("drv.active")]
+    sampler = Sampler(Conn(), signals)
+    assert sampler.read() == [12.5, 1.0] and sampler.requests_per_sample == 2
+    assert signals[0].unit == "rpm" and signals[0].address == "VL.FB (ASCII)"
+    with pytest.raises(MalformedReply, match="not a number"):
+        parse_reading("AKD-P00306", "DRV.INFO")

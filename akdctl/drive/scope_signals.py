@@ -73,6 +73,7 @@ LIVE_PNUS: dict[str, tuple[int, Callable[[Any], float], str]] = {
     "STATUSWORD": (2, float, ""),
 }
 ALIASES = {"DS402.STATUSWORD": "STATUSWORD", "ZSW1": "STATUSWORD", "SW": "STATUSWORD", "STATUS": "STATUSWORD"}
+_AKD_NAME = re.compile(r"[A-Z][A-Z0-9]*\.[A-Z0-9.]+")
 NAMES_HELP = "VL.FB, VL.CMD, PL.FB, PL.CMD, PL.ERR, IL.FB, STATUSWORD, 0xINDEX[:SUB], PNU N, an AKD name"
 
 
@@ -80,9 +81,11 @@ class Resolver:
     """Turns names into :class:`Signal` s for one connection (which channels it offers decides the address)."""
 
     def __init__(self, has_pnus: bool, has_objects: bool, singleturn_bits: Callable[[], int] | None = None, *,
-                 prefer_objects: bool = False) -> None:
+                 prefer_objects: bool = False, has_commands: bool = False) -> None:
         self.has_pnus = has_pnus
         self.has_objects = has_objects
+        #: the AKD's ASCII channel (akd://): an AKD name is read as the text line ``NAME`` -> ``value [unit]``
+        self.has_commands = has_commands
         self._singleturn_bits = singleturn_bits
         #: a CiA 402 axis on a target with both channels: its live values are the objects (VL.CMD = 0x606B, not
         #: PROFIdrive's NSOLL_A, which such an axis never writes)
@@ -99,6 +102,8 @@ class Resolver:
             sub_text = obj_match.group(2) or "0"
             sub = int(sub_text, 16) if sub_text.startswith("0X") else int(sub_text)
             return self._object_address(name, int(obj_match.group(1), 16), sub)
+        if not self.has_pnus and not self.has_objects and self.has_commands and _AKD_NAME.fullmatch(upper):
+            return Signal(name, "", f"{upper} (ASCII)", "command", type=upper)
         if self.prefer_objects and self.has_objects and upper in LIVE_OBJECTS:
             return self._live_object(name, upper)
         if self.has_pnus and upper in LIVE_PNUS:
@@ -204,7 +209,7 @@ class Sampler:
 
     @property
     def requests_per_sample(self) -> int:
-        return (1 if self._pnu_slots else 0) + sum(1 for s in self.signals if s.kind == "object")
+        return (1 if self._pnu_slots else 0) + sum(1 for s in self.signals if s.kind in ("object", "command"))
 
     def read(self) -> list[float]:
         """One value per signal, in engineering units; a refusal or a lost answer raises (the caller keeps what
@@ -225,4 +230,22 @@ class Sampler:
 
                 value = read_object(self.conn.objects(), signal.index, signal.sub, signal.type)
                 row[slot] = signal.convert(value)
+            elif signal.kind == "command":
+                value, unit = parse_reading(self.conn.commands().command(signal.type), signal.type)
+                signal.unit = signal.unit or unit  # the drive names it in every reply (UNIT.* decides)
+                row[slot] = value
         return row
+
+
+def parse_reading(reply: str, name: str) -> tuple[float, str]:
+    """``value [unit]`` (akd-ascii-channel.md §2.1: floats with their unit in brackets, integers bare) -> (value,
+    unit); MalformedReply for anything else (a text report is no signal)."""
+    import math
+
+    from akdctl.errors import MalformedReply
+
+    match = re.fullmatch(r"\s*([-+]?[0-9.]+(?:[eE][-+]?\d+)?)\s*(?:\[([^\]]*)\])?\s*", reply)
+    value = float(match.group(1)) if match else math.nan
+    if match is None or not math.isfinite(value):
+        raise MalformedReply(f"{name}: the drive answered {reply[:60]!r}, not a number")
+    return value, (match.group(2) or "").strip()
