@@ -112,8 +112,6 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
                         while len(pre) > 1 and t - pre[1][0] >= spec.pre_seconds:
                             del pre[0]
                     if t - start > spec.timeout_s + spec.pre_seconds:
-                        for ts, r in pre:
-                            recording.add(ts, r[:width])
                         raise TriggerTimeout(f"the trigger ({trig.text}) did not fire within {spec.timeout_s:g} s")
                     continue
             else:
@@ -128,6 +126,9 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
             if spec.duration_s is not None and t - post_start >= spec.duration_s - spec.pre_seconds:
                 break
     except AkdError as exc:
+        if not fired:  # what was taken while waiting for the trigger is kept (no trigger index)
+            for ts, r in pre:
+                recording.add(ts, r[:width])
         recording.mark_partial(_why(exc, len(recording)))
         recording.shift_to_trigger()
         _timing_notes(recording, read_times)
