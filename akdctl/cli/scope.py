@@ -16,7 +16,7 @@ from typing import Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.errors import UsageError
+from akdctl.errors import CheckFailed, UsageError
 
 #: How often the live terminal plot is redrawn while the poll source records (seconds).
 LIVE_REDRAW_S = 0.5
@@ -86,9 +86,9 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
         raise UsageError("--ring sizes a continuous recording: give --continuous too")
     if csv_path == "-" and app.json:
         raise UsageError("--csv - and --json both write to stdout: give --csv a file name")
+    op.check(request)  # bad input exits 2 before the target is opened
     bounds = op.Bounds(max_fe, max_settle, settle_band)
     bounds.check_request(request)
-    op.check(request)  # bad input exits 2 before the target is opened
     for path in (csv_path, svg_path, png_path):
         if path not in (None, "-"):
             _check_writable(path)
@@ -112,14 +112,23 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
         if live is not None:
             live.clear()
         written = _write_outputs(recording, csv_path, svg_path, png_path)
-        _render(app, recording, written, plot if plot is not None else not app.json and csv_path != "-")
+        broken, measured = None, None
+        if failure is None and bounds.any:
+            try:
+                measured = op.check_bounds(recording, bounds)
+            except CheckFailed as exc:
+                broken, measured = exc, exc.details.get("measured")
+        _render(app, recording, written, plot if plot is not None else not app.json and csv_path != "-",
+                None if not bounds.any else {"measured": measured, "kept": failure is None and broken is None})
         if failure is not None:
             if written:
                 failure.message += f"; partial recording written to {', '.join(written)}"
             failure.reported = app.json
             raise failure
-    if bounds.any:
-        measured = op.check_bounds(recording, bounds)
+    if broken is not None:
+        broken.reported = app.json
+        raise broken
+    if measured:
         from akdctl.cli.output import message
 
         message("bounds kept: " + ", ".join(f"{k} {v:.6g}" for k, v in measured.items()))
@@ -178,13 +187,16 @@ def _render_plan(app: Any, plan: Any) -> None:
     sys.stdout.write("\n".join(lines) + "\n")
 
 
-def _render(app: Any, recording: Any, written: list[str], plot: bool) -> None:
+def _render(app: Any, recording: Any, written: list[str], plot: bool, bounds: dict[str, Any] | None) -> None:
     from akdctl.cli.output import Doc, emit_json, message, render
 
     if app.json:
         data = recording.to_json()
         data["files"] = written
-        emit_json({"recording": data})
+        document: dict[str, Any] = {"recording": data}
+        if bounds is not None:
+            document["bounds"] = bounds
+        emit_json(document)
         return
     message(recording.summary() + (f"; PARTIAL: {recording.partial}" if recording.partial else ""))
     if plot:
