@@ -112,7 +112,8 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
         if live is not None:
             live.clear()
         written = _write_outputs(recording, csv_path, svg_path, png_path)
-        broken, measured = None, None
+        broken: CheckFailed | None = None
+        measured: Any = None
         if failure is None and bounds.any:
             try:
                 measured = op.check_bounds(recording, bounds)

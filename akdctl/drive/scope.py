@@ -197,7 +197,9 @@ def _poll_signals(conn: Connection, names: Sequence[str], trigger: Trigger) -> t
 
     from akdctl.drive.axis.choice import profile_name
 
-    has_commands = bool(getattr(type(conn), "has_commands", None) is not None and conn.has_commands)  # akd://
+    # akd:// (Connection.has_commands arrives with branch wip/names)
+    has_commands = bool(getattr(type(conn), "has_commands", None) is not None
+                        and conn.has_commands)  # type: ignore[attr-defined]
     resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits,
                         prefer_objects=not has_commands and profile_name(conn) == "cia402", has_commands=has_commands)
     signals = [resolver.resolve(name) for name in names]
