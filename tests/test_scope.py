@@ -353,6 +353,9 @@ def test_a_continuous_recording_the_host_cannot_keep_up_with_overflows(akd_inpro
 @pytest.mark.parametrize("args, words", [
     (["--ring", "100"], "--continuous"), (["--continuous"], "--source recorder"),
     (["--continuous", "--ring", "1", "--source", "recorder"], "2..10000"),
+    (["--continuous", "--ring", "0", "--source", "recorder"], "2..10000"),
+    (["--csv", "/"], "it is a directory"), (["--svg", "/nonexistent-dir/x.svg"], "does not exist"),
+    (["--rate", "nan"], "positive number"), (["--for", "0"], "more than 0"), (["--timeout", "0"], "between 0"),
 ])
 def test_continuous_options_are_checked(akd_inproc, args: list[str], words: str) -> None:
     code, _out, err = akd_inproc("scope", "VL.FB", *args, "--no-plot")

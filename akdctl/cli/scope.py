@@ -81,7 +81,7 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
     request = op.build_request(signals, duration_s=_duration(duration) if duration is not None else None,
                                samples=samples, rate_hz=rate, source=source, trigger=trigger, pretrigger=pretrigger,
                                timeout_s=wait_s, jog_rpm=jog_rpm, jog_s=_duration(jog_for) if jog_for else None,
-                               accel=accel, ring=(ring or 10000) if continuous else None)
+                               accel=accel, ring=(ring if ring is not None else 10000) if continuous else None)
     if ring is not None and not continuous:
         raise UsageError("--ring sizes a continuous recording: give --continuous too")
     if csv_path == "-" and app.json:
@@ -136,6 +136,8 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
 
 
 def _check_writable(path: str) -> None:
+    if Path(path).expanduser().is_dir():
+        raise UsageError(f"cannot write {path}: it is a directory; give a file name")
     parent = Path(path).expanduser().resolve().parent
     if not parent.is_dir():
         raise UsageError(f"cannot write {path}: directory {parent} does not exist")
@@ -150,9 +152,21 @@ def _check_png_extra() -> None:
 
 
 def _write_outputs(recording: Any, csv_path: str | None, svg_path: str | None, png_path: str | None) -> list[str]:
+    """Write the files asked for; one that cannot be written is a one-line usage error naming it (those written
+    before it stay, and are named)."""
+    written: list[str] = []
+    try:
+        _write_files(recording, csv_path, svg_path, png_path, written)
+    except OSError as exc:
+        done = f" (written: {', '.join(written)})" if written else ""
+        raise UsageError(f"cannot write {exc.filename or 'an output file'}: {exc.strerror or exc}{done}") from None
+    return written
+
+
+def _write_files(recording: Any, csv_path: str | None, svg_path: str | None, png_path: str | None,
+                 written: list[str]) -> None:
     from akdctl.io.atomic import atomic_open
 
-    written = []
     if csv_path == "-":
         sys.stdout.write(recording.to_csv())
     elif csv_path is not None:
@@ -170,7 +184,6 @@ def _write_outputs(recording: Any, csv_path: str | None, svg_path: str | None, p
 
         write_png(recording, png_path)
         written.append(png_path)
-    return written
 
 
 def _render_plan(app: Any, plan: Any) -> None:
