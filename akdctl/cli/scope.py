@@ -237,14 +237,13 @@ class _LivePlot:
     """The plot redrawn in place on stderr while recording (a terminal only), at most every LIVE_REDRAW_S."""
 
     def __init__(self) -> None:
-        self._last = 0.0
+        self._next = 0.0
         self._lines = 0
 
     def update(self, recording: Any) -> None:
         now = time.monotonic()
-        if now - self._last < LIVE_REDRAW_S or len(recording) < 2:
+        if now < self._next or len(recording) < 2:
             return
-        self._last = now
         from akdctl.drive.scope_plot import terminal_plot
 
         text = terminal_plot(recording, width=max(40, min(120, _columns() - 14)), height=8, colours=True)
@@ -252,6 +251,8 @@ class _LivePlot:
         sys.stderr.write(text)
         sys.stderr.flush()
         self._lines = text.count("\n")
+        # the drawing costs the recording's time: at most a tenth of it, however long the recording grows
+        self._next = time.monotonic() + max(LIVE_REDRAW_S, 10 * (time.monotonic() - now))
 
     def clear(self) -> None:
         if self._lines:

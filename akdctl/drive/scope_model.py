@@ -72,6 +72,7 @@ class Recording:
 
     # ------------------------------------------------------------------ filling
     def add(self, t: float, row: Sequence[float]) -> None:
+        """One sample; every value finite (a source's parser refuses anything else: MalformedReply)."""
         self.times.append(float(t))
         for column, value in zip(self.values, row):
             column.append(float(value))
@@ -113,10 +114,13 @@ class Recording:
     def rate_sustained(self) -> float | None:
         """Samples per second at the median spacing (what the link sustains, pauses aside); None with fewer
         than two samples."""
+        cached = self.__dict__.get("_median")
+        if cached is not None and cached[0] == len(self.times):
+            return cached[1]  # type: ignore[no-any-return]
         gaps = sorted(b - a for a, b in zip(self.times, self.times[1:]))
-        if not gaps or gaps[len(gaps) // 2] <= 0:
-            return None
-        return 1.0 / gaps[len(gaps) // 2]
+        rate = None if not gaps or gaps[len(gaps) // 2] <= 0 else 1.0 / gaps[len(gaps) // 2]
+        self.__dict__["_median"] = (len(self.times), rate)
+        return rate
 
     @property
     def trigger_time(self) -> float | None:
@@ -195,6 +199,8 @@ class Recording:
                       trigger=str(trigger.get("condition", "immediate")), rate_requested=rate.get("requested"))
             times = [float(t) for t in data["t"]]
             columns = [[float(v) for v in column] for column in data["values"]]
+            if not all(math.isfinite(v) for v in times) or not all(math.isfinite(v) for c in columns for v in c):
+                raise ValueError("a time or value is not a finite number")
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ValueError(f"damaged scope recording: {exc}") from None
         if len(columns) != len(channels) or any(len(column) != len(times) for column in columns):

@@ -11,10 +11,8 @@ vertical line, and PARTIAL in the title of a recording that ended early.
 
 from __future__ import annotations
 
-import math
-
 from akdctl.drive.scope_model import Recording
-from akdctl.drive.scope_svg import COLOURS, subtitle_of, title_of, unit_groups
+from akdctl.drive.scope_svg import COLOURS, envelope, subtitle_of, title_of, unit_groups
 from akdctl.errors import UsageError
 
 TERMINAL_COLOURS = ("blue", "red", "green", "magenta", "yellow", "cyan")
@@ -41,13 +39,14 @@ def terminal_plot(recording: Recording, width: int = 72, height: int = 12, colou
         fig.register_label_formatter(float, _label)
         fig.x_label, fig.y_label = "t [s]", unit or "value"  # t = 0: recording.time_origin, named below
         fig.set_x_limits(min_=t0, max_=t1 if t1 > t0 else t0 + 1e-3)
-        values = [v for i in indexes for v in recording.values[i] if math.isfinite(v)]
-        lo, hi = (min(values), max(values)) if values else (0.0, 1.0)
+        columns = [recording.values[i] for i in indexes if recording.values[i]]
+        lo, hi = (min(min(c) for c in columns), max(max(c) for c in columns)) if columns else (0.0, 1.0)
         if hi <= lo:
             lo, hi = lo - (abs(lo) * 0.1 or 1.0), hi + (abs(hi) * 0.1 or 1.0)
         fig.set_y_limits(min_=lo, max_=hi)
         for i in indexes:
-            fig.plot(times, recording.values[i], label=recording.channels[i].legend,
+            drawn_t, drawn_v = envelope(times, recording.values[i], max(200, 4 * width))
+            fig.plot(drawn_t, drawn_v, label=recording.channels[i].legend,
                      lc=TERMINAL_COLOURS[i % len(TERMINAL_COLOURS)] if colours else None)
         if trigger_t is not None and t0 < trigger_t <= t1:
             fig.axvline((trigger_t - t0) / (t1 - t0), lc="red" if colours else None)
@@ -88,7 +87,8 @@ def write_png(recording: Recording, path: str) -> None:
     trigger_t = recording.trigger_time
     for ax, (unit, indexes) in zip(axes, groups):
         for i in indexes:
-            ax.plot(recording.times, recording.values[i], color=COLOURS[i % len(COLOURS)], linewidth=1.2,
+            drawn_t, drawn_v = envelope(recording.times, recording.values[i])
+            ax.plot(drawn_t, drawn_v, color=COLOURS[i % len(COLOURS)], linewidth=1.2,
                     label=recording.channels[i].legend)
         ax.set_ylabel(unit or "value")
         ax.grid(True, color="#ddd")

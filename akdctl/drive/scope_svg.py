@@ -49,6 +49,30 @@ def tick_text(value: float, ticks: Sequence[float]) -> str:
     return f"{value:.{min(decimals, 9)}f}"
 
 
+#: Above this many samples a trace is drawn as its min/max envelope (each of MAX_DRAWN/2 buckets keeps its lowest
+#: and highest sample, in time order): a spike survives, a million-sample file stays small.
+MAX_DRAWN = 4000
+
+
+def envelope(times: list[float], values: list[float], max_points: int = MAX_DRAWN) -> tuple[list[float], list[float]]:
+    """The points to draw for one trace: all of them, or the min/max envelope when there are more than
+    ``max_points``."""
+    if len(times) <= max_points:
+        return times, values
+    buckets = max(1, max_points // 2)
+    size = len(times) / buckets
+    out_t: list[float] = []
+    out_v: list[float] = []
+    for b in range(buckets):
+        lo = int(b * size)
+        segment = values[lo:max(lo + 1, int((b + 1) * size))]  # finite: Recording refuses anything else
+        low, high = lo + segment.index(min(segment)), lo + segment.index(max(segment))
+        for i in ((low, high) if low < high else (high, low) if high < low else (low,)):
+            out_t.append(times[i])
+            out_v.append(values[i])
+    return out_t, out_v
+
+
 def unit_groups(recording: Recording) -> list[tuple[str, list[int]]]:
     """(unit, channel indexes) in the order the units first appear."""
     groups: dict[str, list[int]] = {}
@@ -62,7 +86,8 @@ def title_of(recording: Recording) -> str:
 
 
 def subtitle_of(recording: Recording) -> str:
-    return recording.summary() + (f" — {'; '.join(recording.notes)}" if recording.notes else "")
+    thinned = f" (drawn as a min/max envelope of {MAX_DRAWN} points)" if len(recording) > MAX_DRAWN else ""
+    return recording.summary() + thinned + (f" — {'; '.join(recording.notes)}" if recording.notes else "")
 
 
 def wrapped(text: str, width: int = 130) -> list[str]:
@@ -101,8 +126,8 @@ def render_svg(recording: Recording) -> str:
     for number, (unit, indexes) in enumerate(groups):
         top = top_of_panels + number * (PANEL_H + GAP)
         bottom = top + PANEL_H
-        values = [v for i in indexes for v in recording.values[i] if math.isfinite(v)]
-        lo, hi = (min(values), max(values)) if values else (0.0, 1.0)
+        columns = [recording.values[i] for i in indexes if recording.values[i]]
+        lo, hi = (min(min(c) for c in columns), max(max(c) for c in columns)) if columns else (0.0, 1.0)
         yticks = nice_ticks(lo, hi, 6)
         ylo, yhi = yticks[0], yticks[-1]
 
@@ -124,8 +149,8 @@ def render_svg(recording: Recording) -> str:
                    f'font-weight="bold">{escape(label)}</text>')
         for i in indexes:
             colour = COLOURS[i % len(COLOURS)]
-            points = " ".join(f"{x_of(t):.2f},{y_of(v):.2f}" for t, v in zip(times, recording.values[i])
-                              if math.isfinite(v))
+            drawn_t, drawn_v = envelope(times, recording.values[i])
+            points = " ".join(f"{x_of(t):.2f},{y_of(v):.2f}" for t, v in zip(drawn_t, drawn_v) if math.isfinite(v))
             if points:
                 out.append(f'<polyline fill="none" stroke="{colour}" stroke-width="1.6" points="{points}"/>')
         legend_x = LEFT + 8
