@@ -465,3 +465,16 @@ def test_poll_over_the_ascii_channel_reads_value_and_unit_lines() -> None:
     assert signals[0].unit == "rpm" and signals[0].address == "VL.FB (ASCII)"
     with pytest.raises(MalformedReply, match="not a number"):
         parse_reading("AKD-P00306", "DRV.INFO")
+
+
+def test_a_long_recording_is_drawn_as_an_envelope_that_keeps_a_spike() -> None:
+    from akdctl.drive.scope_svg import MAX_DRAWN, envelope, render_svg
+
+    rec = Recording("sim", "poll", [Channel("X", "u")])
+    for k in range(50_000):
+        rec.add(k * 1e-4, [7.0 if k == 31_337 else 0.0])
+    rec.trigger_index = 0
+    drawn_t, drawn_v = envelope(rec.times, rec.values[0])
+    assert len(drawn_t) <= MAX_DRAWN and max(drawn_v) == 7.0 and drawn_t == sorted(drawn_t)
+    svg = render_svg(rec)
+    assert "min/max envelope" in svg and len(svg) < 200_000
