@@ -282,6 +282,21 @@ def check_executed_limits(conn: Any, *, rpm: float | None = None, acc_rpm_s: flo
         _check_travel(limits, end_rev)
 
 
+def check_duration(limits: dict[str, Any], duration_s: Any, what: str = "jog --for",
+                   hint: str = "use --distance for a move the drive ends itself") -> float:
+    """A motion the tool ends after ``duration_s``: at most :data:`MAX_JOG_S` and the profile's
+    ``max_jog_duration`` (every timed motion: ``jog --for``, ``eip io jog|velocity|torque --for``)."""
+    seconds = finite(duration_s, f"{what} duration")
+    if not 0 < seconds <= MAX_JOG_S:
+        raise UsageError(f"{what} must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
+                         f"motion; {hint}), got {seconds:g} s")
+    profile_bound = _limit(limits, "max_jog_duration")
+    if profile_bound is not None and seconds > profile_bound:  # a profile limit, like velocity: exit 4
+        raise SafetyRefusal(f"refusing: {what} {seconds:g} s exceeds the profile's max_jog_duration "
+                            f"{profile_bound:g} s; nothing was sent")
+    return seconds
+
+
 def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float:
     """Trapezoid time (s) of a move; an upper bound, so the wait for it is finite but sufficient."""
     v = max(abs(rpm) / 60.0, 1e-6)
@@ -343,15 +358,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
         if velocity == 0:
             raise UsageError("jog velocity must not be 0")
         if r.duration_s is not None:
-            seconds = finite(r.duration_s, "jog duration")
-            if not 0 < seconds <= MAX_JOG_S:
-                raise UsageError(f"jog --for must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
-                                 f"jog; use --distance for a move the drive ends itself), got {seconds:g} s")
-            profile_bound = _limit(limits, "max_jog_duration")
-            if profile_bound is not None and seconds > profile_bound:  # a profile limit, like velocity: exit 4
-                raise SafetyRefusal(f"refusing: jog --for {seconds:g} s exceeds the profile's max_jog_duration "
-                                    f"{profile_bound:g} s; nothing was sent")
-            plan.duration_s = seconds
+            plan.duration_s = check_duration(limits, r.duration_s)
         else:
             finite(r.distance, "jog distance")
     else:
