@@ -211,7 +211,15 @@ class Connection:
 
     def _offered(self, channel: "T | None", missing: str) -> "T":
         if channel is None:
-            raise UsageError(f"target {self.target.display} offers {missing}")
+            # Name only what this target has (issue 23 item 20): a hint to 'sdo' on a target without SDO misleads.
+            missing, _, where = missing.partition("; use ")
+            has = [words for present, words in ((self._parameters is not None or self._record_link is not None,
+                                                 "'pnu' commands"), (self._objects is not None, "'sdo' commands"),
+                                                (self._cip is not None, "'cip' and 'eip' commands"))
+                   if present]
+            where = where.split(" or ")[-1] if " or " in where else where
+            hint = (f"; this target offers {' and '.join(has)}" if has else "") + (f"; or use {where}" if where else "")
+            raise UsageError(f"target {self.target.display} offers {missing}{hint}")
         return channel
 
     def axis(self) -> "Axis":

@@ -37,7 +37,9 @@ def _axis(app: Any) -> Any:
 def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None = None) -> Doc:
     doc = Doc(title, app.target.display)
     for key, value in (extra or {}).items():
-        doc.kv(key, value)
+        if key == "homed" and status.homed is not None:
+            continue  # the status below says it, read from the drive
+        doc.kv(key, ("yes" if value else "no") if isinstance(value, bool) else value)  # one rendering of a yes/no
     doc.kv("profile", status.profile)
     doc.kv("state", f"{status.state} ({status.state_text})" if status.state != status.state_text else status.state)
     doc.kv("mode", f"{status.mode} ({status.mode_text})")

@@ -52,9 +52,16 @@ def run_command(io: object, command: asm.Command, timeout: float = 2.0) -> Hands
     sent.append(idle.encode())
     error = done.error
     if error is not None:
+        from akdctl.protocol import cip
+
+        hint = ""
+        if error.code == cip.DEVICE_STATE_CONFLICT and command.command_type in (asm.CMD_TARGET_POSITION,
+                                                                                 asm.CMD_POSITION_MOVE):
+            hint = ("; the AKD runs position commands only on a homed axis [M-11]: run 'akdctl home' first "
+                    "(a jog or velocity command does not home it)")
         raise DriveError(f"the drive refused the {asm.COMMAND_TYPES.get(command.command_type, 'command')} "
                          f"(response type 0x14): {cip_status_text(error.code)}, additional code "
-                         f"0x{error.additional:02X}", code=error.code,
+                         f"0x{error.additional:02X}{hint}", code=error.code,
                          details={"error_code": error.code, "additional_code": error.additional,
                                   "echo": f"{error.echo_command:02X} {error.echo_response:02X}"})
     cleared = io.wait_input(lambda r: not r.load_complete, "Load Complete = 0 after Load/Start = 0",  # type: ignore[attr-defined]
@@ -247,13 +254,24 @@ def execute(conn: "Connection", accepted: IoPlan, stop: Callable[[], bool]) -> d
 
 
 def _stop_and_wait(io: Any, accepted: IoPlan) -> str:
-    """Smooth Stop (Enable kept, so the drive decelerates on its ramp), then wait for standstill; words."""
+    """Smooth Stop (Enable kept, so the drive decelerates on its ramp), wait for standstill, then leave a zero
+    set point behind (a velocity or torque command of 0): the drive must not resume the old set point when the
+    next connection enables it. Never raises; says what happened."""
     stopping = replace(accepted.command, control=(accepted.command.control | asm.CTL_SMOOTH_STOP)
                        & ~asm.CTL_LOAD_START)
     io.set_output(stopping)
     try:
         io.wait_input(_standstill, "standstill", STOP_WAIT_S)
-    except NoAnswer as exc:
+    except (NoAnswer, DriveError) as exc:
         return (f"could not confirm standstill within {STOP_WAIT_S:g} s ({exc}); the connection is closed, so the "
                 "drive disables the axis")
-    return "the axis stopped; the connection is closed, so the drive disables the axis"
+    words = "the axis stopped; the connection is closed, so the drive disables the axis"
+    if accepted.request.kind in TIMED:
+        kind = asm.CMD_TORQUE if accepted.request.kind == "torque" else asm.CMD_VELOCITY_SETPOINT
+        zero = asm.Command(control=(accepted.command.control & ~asm.CTL_LOAD_START) | asm.CTL_SMOOTH_STOP,
+                           command_type=kind, data=0)
+        try:
+            run_command(io, zero, timeout=STOP_WAIT_S)
+        except (NoAnswer, DriveError) as exc:
+            words += f" (the drive did not take a zero set point: {exc})"
+    return words

@@ -407,6 +407,8 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
         raise UsageError(f"'unit' {plan.unit!r} is not a unit: expected one of {', '.join(UNITS)}")
     if plan.unit == "user" and not per_rev_of(conn):
         raise UsageError("--units user needs [units] per_rev in the config profile")
+    if r.kind == "move" and not r.relative and axis_cls.NO_ABSOLUTE_MOVES:
+        raise SafetyRefusal(f"refusing: absolute moves are not possible over this link: {axis_cls.NO_ABSOLUTE_MOVES}")
     if r.kind == "move" and not r.relative and plan.unit != "counts":
         _check_travel(limits, to_rev(conn, float(r.target), plan.unit, None))  # type: ignore[arg-type]
     positioning = r.kind == "move" or r.distance is not None

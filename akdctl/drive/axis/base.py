@@ -218,6 +218,9 @@ class Axis(ABC):
     RELATIVE_MOVES_NEED_HOME = False
     #: Where the homed state comes from, for refusals.
     HOMED_SOURCE = ""
+    #: Why absolute moves are not possible over this profile at all ("" when they are once homed): the planner
+    #: refuses them with this reason before reading the drive, instead of a "not homed" a 'home' cannot cure.
+    NO_ABSOLUTE_MOVES = ""
     #: The homing modes/methods the drive accepts, and where they go.
     HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
     HOME_MODE_FIELD = ""

@@ -82,6 +82,9 @@ class CipAxis(Axis):
     # moves are refused (confirm_homed is False); relative moves and jogs need no home.
     RELATIVE_MOVES_NEED_HOME = False
     HOMED_SOURCE = "no Position Controller attribute reports it over explicit messaging"
+    NO_ABSOLUTE_MOVES = ("explicit messaging has no attribute that reports the homed state, so akdctl cannot know "
+                         "that an absolute position means anything, even right after 'akdctl home'; move with "
+                         "--relative, or use 'akdctl eip io position|move' (the drive itself checks homing there)")
     HOME_MODE_RANGE = (-32768, 32767)
     HOME_MODE_FIELD = "the home mode 0x25/1/100 (INT)"
 
