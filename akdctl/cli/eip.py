@@ -208,7 +208,7 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
       akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2s
     """
     from akdctl.cli.consent import require_consent
-    from akdctl.cli.durations import parse as parse_duration
+    from akdctl.cli.parsing import parse_duration
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import eip_io
 

@@ -17,7 +17,6 @@ Velocities are rpm, accelerations rpm/s; positions take ``--units``.
 from __future__ import annotations
 
 import contextlib
-import re
 import time
 from typing import Any
 
@@ -25,6 +24,7 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc, LiveView, message
+from akdctl.cli.parsing import Duration
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 from akdctl.errors import Interrupted, UsageError
 
@@ -74,18 +74,6 @@ def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None
         return doc
 
     app.emit(data, human)
-
-
-_DURATION = r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|m|min)?\s*$"  # compiled on first use (status needs none)
-
-
-def _duration(text: str) -> float:
-    match = re.match(_DURATION, text)
-    if not match:
-        raise UsageError(f"bad duration {text!r}: use e.g. 2s, 500ms, 1.5")
-    value = float(match.group(1))
-    unit = match.group(2) or "s"
-    return value / 1000.0 if unit == "ms" else value * 60.0 if unit in ("m", "min") else value
 
 
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
@@ -216,22 +204,26 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
         request = MotionRequest("jog", velocity=abs(velocity), distance=distance, accel=accel, unit=unit)
         _plan_and_run(get_app(), request, "jog finished", {"distance": distance})
         return
-    seconds = _duration(duration) if duration is not None else None
+    from akdctl.cli.parsing import parse_duration
+
+    seconds = parse_duration(duration, "jog --for") if duration is not None else None
     request = MotionRequest("jog", velocity=velocity, duration_s=seconds, accel=accel)
     _plan_and_run(get_app(), request, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds})
 
 
 @click.command()
 @click.option("--mode", "home_mode", type=int, help="Homing mode: PNU 1001 (HOME.MODE) or 0x6098 method.")
-@click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
-              help="Seconds the whole homing may take before the axis is stopped.")
+@click.option("--max-time", "--timeout", "home_timeout", type=Duration(0.0, 3600.0), default=60.0, metavar="DURATION",
+              help="How long the whole homing may take before the axis is stopped (default 60 s; 30, 30s, 2m). "
+                   "'home --timeout' is this option too; the wait for each request is the global "
+                   "'akdctl --timeout' before the command.")
 def home(home_mode: int | None, home_timeout: float) -> None:
     """Run the drive's homing procedure and wait until the home position is set.
 
     \b
     Examples:
       akdctl -y home
-      akdctl -y home --mode 3 --timeout 30
+      akdctl -y home --mode 3 --max-time 30s
     """
     from akdctl.drive.motion_plan import MotionRequest
 

@@ -13,6 +13,7 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
+from akdctl.cli.parsing import Duration
 
 _COLUMNS = ["task", "position", "mode", "velocity [rpm]", "accel [rpm/s]", "decel [rpm/s]"]
 
@@ -122,7 +123,9 @@ def set_(number: int, position: float, velocity: float, accel: float, decel: flo
 
 @task.command("start")
 @click.argument("number", type=int)
-@click.option("--timeout", "task_timeout", type=float, help="Seconds the task may take before the axis is stopped.")
+@click.option("--max-time", "--timeout", "task_timeout", type=Duration(0.0, 3600.0), metavar="DURATION",
+              help="How long the task may take before the axis is stopped (30, 30s, 2m; default from the task). "
+                   "'task start --timeout' is this option too; the per-request wait is the global 'akdctl --timeout'.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
 @click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent to motion without a prompt.")
 def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: bool) -> None:
