@@ -366,11 +366,18 @@ class Axis(ABC):
         if not quick:
             self._ramp_stop_command()
             try:
-                return self.wait_for(lambda s: s.standstill, "standstill", timeout=wait, allow_fault=True)
+                status = self.wait_for(lambda s: s.standstill, "standstill", timeout=wait, allow_fault=True)
             except DriveError:
                 pass  # the ramp was not obeyed in time: quick stop
+            else:
+                return self._drop_held_motion(status)
         self._quick_stop_command()
         return self.wait_for(lambda s: s.standstill, "standstill after quick stop", timeout=wait, allow_fault=True)
+
+    def _drop_held_motion(self, status: AxisStatus) -> AxisStatus:
+        """After a ramp stop at standstill: a profile that only *holds* the interrupted motion (CiA 402 halt keeps
+        the positioning task) drops it here, so nothing resumes it later. Default: nothing is held."""
+        return status
 
     def acknowledge_faults(self) -> AxisStatus:
         self._ack_command()

@@ -151,6 +151,25 @@ class Cia402Axis(Axis):
         elif status.state not in ("quick stop active",):
             self.controlword(sw.CW_SHUTDOWN)
 
+    def _drop_held_motion(self, status: AxisStatus) -> AxisStatus:
+        """Halt only pauses a profile-position task (CiA 402: clearing halt resumes it), so an interrupted move
+        would continue on the next controlword without halt, and the PROFIdrive view of the same drive shows no
+        "drive stopped" (ZSW1 bit 13) while the task is held. Replace it by a set point at the standstill
+        position (change immediately, absolute), which ends at once; then the axis holds where it stopped."""
+        if status.state != "operation enabled" or status.mode != 1 or not status.control & sw.CW_HALT:
+            return status
+        here = self._up(0x6064, 0)
+        self._down(0x607A, 0, here)
+        base = sw.CW_ENABLE_OPERATION_CMD | sw.CW_CHANGE_IMMEDIATELY
+        self.controlword(base | sw.CW_NEW_SETPOINT)
+        try:
+            self.wait_for(lambda s: s.task_ack, "set-point acknowledge (statusword bit 12)")
+        except DriveError:
+            self.controlword(base | sw.CW_HALT)  # not taken: keep holding with halt
+            return self.read_status()
+        self.controlword(base)
+        return self.wait_for(lambda s: s.standstill, "standstill at the stop position", allow_fault=True)
+
     def _quick_stop_command(self) -> None:
         self.controlword(sw.CW_QUICK_STOP_CMD | sw.CW_SWITCH_ON | sw.CW_ENABLE_OPERATION)  # 0x000B
 
