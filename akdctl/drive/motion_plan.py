@@ -610,8 +610,9 @@ def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) 
 
 def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
     """Re-check under the owner lock (the drive may have changed since the plan), confirm homed,
-    switch the mode, enable. A relative move is measured from the position read here."""
-    status = axis.read_status()
+    switch the mode, enable. A relative move is measured from the position read here. With no prompt between
+    (``--yes``) the plan's own read is recent enough to stand for this one (Axis.recent_status)."""
+    status = axis.recent_status()
     axis.refuse_if_fault(status)
     if not status.standstill:
         raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")

@@ -55,7 +55,7 @@ class MotionRun:
                 _, outcome = self.axis.safe_stop()
                 raise Interrupted(f"interrupted during {what}; {outcome}", details={"stop": outcome})
             try:
-                status = poll.read(self.axis.read_status)
+                status = poll.read(self.axis.read_motion_status)
             except AkdError as exc:
                 self._stop_and_raise(exc)
             poll.observe(status.word)

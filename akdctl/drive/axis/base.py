@@ -242,8 +242,35 @@ class Axis(ABC):
         return Poll(self.time_scale_source() if self.time_scale_source is not None else 1.0, deadline)
 
     # ---------------------------------------------------------------- primitives per profile
+    #: How old a status may be to stand in for a new read (:meth:`recent_status`): no human prompt fits in it,
+    #: and every write of the axis forgets the status (:meth:`_forget`), so it never hides a change we made.
+    RECENT_S = 0.25
+    _last: tuple[float, AxisStatus] | None = None
+
+    def read_status(self) -> AxisStatus:
+        """The drive's status, read now (and remembered for :meth:`recent_status`)."""
+        status = self._read_status()
+        self._last = (time.monotonic(), status)
+        return status
+
+    def recent_status(self) -> AxisStatus:
+        """The status read within :data:`RECENT_S` with no write of ours since, else a new read: the one read the
+        planner and the preparation of a motion share (issue 22 item 6), instead of two back to back."""
+        if self._last is not None and time.monotonic() - self._last[0] <= self.RECENT_S:
+            return self._last[1]
+        return self.read_status()
+
+    def read_motion_status(self) -> AxisStatus:
+        """The status a poll of a running motion needs; a profile whose full status costs extra requests for what
+        a poll does not use (CiA 402: the torque) reads less here."""
+        return self.read_status()
+
+    def _forget(self) -> None:
+        """A write of ours: the remembered status is no longer the drive's."""
+        self._last = None
+
     @abstractmethod
-    def read_status(self) -> AxisStatus: ...
+    def _read_status(self) -> AxisStatus: ...
 
     @abstractmethod
     def _enable_steps(self, status: AxisStatus) -> None: ...
@@ -345,7 +372,7 @@ class Axis(ABC):
                                 details={"faults": status.faults})
 
     def enable(self) -> AxisStatus:
-        status = self.read_status()
+        status = self.recent_status()
         self.refuse_if_fault(status)
         if status.enabled:
             return status

@@ -68,6 +68,7 @@ class CipAxis(Axis):
             data = struct.pack(fmt, value)
         except struct.error:
             raise UsageError(f"value {value} does not fit attribute 0x25/1/{attribute} ({fmt[1:]})") from None
+        self._forget()
         self.channel.set(PC, 1, attribute, data)
 
     def units(self) -> tuple[int, int]:
@@ -117,7 +118,7 @@ class CipAxis(Axis):
         return False
 
     # ---------------------------------------------------------------- status
-    def read_status(self) -> AxisStatus:
+    def _read_status(self) -> AxisStatus:
         mode = self._get(3, "<B")
         enabled = bool(self._get(17, "<B"))
         load_complete = bool(self._get(58, "<B"))
