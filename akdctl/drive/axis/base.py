@@ -78,6 +78,29 @@ class AxisStatus(Record):
             return "; ".join(f"{w['code']} {w['text']}".strip() for w in self.warnings)
         return "a warning is present (the drive did not report its number)" if self.warning else "none"
 
+    def homing_phase(self) -> str | None:
+        """Where a running homing stands, in words, as far as the drive's status word tells (issue 28 item 7);
+        None when the profile's word says nothing about homing in this mode.
+
+        CiA 402 homing mode (0x6061 = 6), statusword bits 13/12/10 (CiA 402 homing mode table): 000 in progress,
+        001 interrupted or not started, 010 attained but target not reached, 011 completed, 1x0 error while
+        moving, 1x1 error at standstill. PROFIdrive position mode (SPEC-NOTES 9): ZSW1 bits 10/11/13 are clear
+        while homing runs and all set when it finished; bit 11 alone is the home position set."""
+        if self.profile == "cia402" and self.mode == 6:
+            bits = (bool(self.word & sw.SW_BIT13), bool(self.word & sw.SW_BIT12), bool(self.word & sw.SW_TARGET_REACHED))
+            return {(False, False, False): "homing in progress",
+                    (False, False, True): "homing interrupted or not started",
+                    (False, True, False): "home found, still moving to it",
+                    (False, True, True): "homing completed"}.get(
+                bits, "homing error" + (" at standstill" if bits[2] else ", still moving"))
+        if self.profile == "profidrive" and self.mode == 2:
+            if self.word & sw.ZSW1_HOME_POSITION_SET and self.word & sw.ZSW1_DRIVE_STOPPED:
+                return "homing completed"
+            if self.word & sw.ZSW1_HOME_POSITION_SET:
+                return "home position set, still moving"
+            return "searching for the reference" if not self.standstill else "homing not running"
+        return None
+
     def to_json(self) -> dict[str, Any]:
         return {
             "profile": self.profile,
