@@ -150,3 +150,32 @@ def test_a_signal_returns_only_after_standstill(served, tmp_path: Path, sig: int
     assert proc.returncode == 128 + sig, err
     assert "the axis stopped" in err, err
     assert _sim_status(tmp_path)["standstill"], "the command returned while the axis still turned"
+
+
+# ---------------------------------------------------------------- item 20: what a user trips over on eip://
+def test_home_then_move_gives_the_real_reason_and_hints_name_what_the_target_has(served, tmp_path: Path) -> None:
+    target = served.target
+    home = akdctl(tmp_path, target, "-y", "home", "--mode", "0", timeout=3)
+    assert home.returncode == 0 and "True" not in home.stdout, home.stdout
+    move = akdctl(tmp_path, target, "-y", "move", "1")
+    assert move.returncode == 4 and "absolute moves are not possible over this link" in move.stderr, move.stderr
+    assert "not homed" not in move.stderr
+    for argv in (["pnu", "get", "1"], ["sdo", "read", "0x6041"]):
+        hint = akdctl(tmp_path, target, *argv)
+        assert hint.returncode == 2 and "this target offers 'cip' and 'eip' commands" in hint.stderr, hint.stderr
+        assert "use 'sdo' commands" not in hint.stderr and "use 'pnu' commands" not in hint.stderr
+
+
+def test_io_move_after_io_jog_works(served, tmp_path: Path) -> None:
+    io = ["--port", str(served.io_port)]
+    assert akdctl(tmp_path, served.target, "-y", "home", "--mode", "0", timeout=3).returncode == 0
+    jog = akdctl(tmp_path, served.target, "-y", "eip", "io", "jog", "327680", "--for", "0.5", *io)
+    assert jog.returncode == 0, jog.stderr
+    move = akdctl(tmp_path, served.target, "--json", "-y", "eip", "io", "move", "10000", "--velocity", "65536", *io)
+    assert move.returncode == 0, move.stderr
+    assert json.loads(move.stdout)["actual_position"] == 10000
+
+
+def test_io_position_on_an_unhomed_axis_says_home_first(served, tmp_path: Path) -> None:
+    refused = akdctl(tmp_path, served.target, "-y", "eip", "io", "position", "1000", "--port", str(served.io_port))
+    assert refused.returncode == 1 and "akdctl home" in refused.stderr, refused.stderr
