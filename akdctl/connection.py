@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from akdctl.drive.axis.base import Axis
     from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
     from akdctl.transport.base import LinkOptions, Transport
+    from akdctl.transport.eip_io import IoConnection
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -193,6 +194,18 @@ class Connection:
         """The CIP attribute channel; UsageError naming the alternative if the target has none."""
         self.transport()
         return self._offered(self._cip, "no CIP attribute channel (EtherNet/IP); use an eip://HOST target")
+
+    def io_connection(self, *, rpi_ms: float, port: int, local_port: int,
+                      timeout_multiplier: int) -> "IoConnection":
+        """A class-1 EtherNet/IP I/O connection (not opened: a context manager) over this target's explicit
+        session, traced like the session: the one place that builds it, so ``drive/eip_io`` never sees a
+        transport."""
+        from akdctl.transport.eip_io import IoConnection
+
+        channel = self.cip()
+        return IoConnection(channel.link, self.target.host, rpi_ms=rpi_ms, port=port, local_port=local_port,
+                            timeout=self.options.timeout, tracer=self.options.tracer,
+                            timeout_multiplier=timeout_multiplier)
 
     def parameters(self) -> "ParameterChannel":
         """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""

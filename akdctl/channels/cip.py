@@ -10,15 +10,11 @@ and attribute bytes into identity values is protocol meaning, written once here 
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING
 
 from akdctl.errors import CipRefused, MalformedReply
 from akdctl.links import MessageLink
 from akdctl.protocol import cip
 from akdctl.protocol.errors import CodecError
-
-if TYPE_CHECKING:
-    from akdctl.transport.eip_io import IoConnection
 
 
 class CipAttributes:
@@ -67,14 +63,3 @@ class CipAttributes:
         return {"vendor": ident.vendor, "vendor_name": cip_vendor_name(ident.vendor), "device_type": ident.device_type,
                 "product_code": ident.product_code, "revision": f"{ident.revision[0]}.{ident.revision[1]:03d}",
                 "status": ident.status, "serial": f"0x{ident.serial:08X}", "product_name": ident.product_name}
-
-    def open_io(self, host: str, *, rpi_ms: float, port: int, local_port: int, timeout: float,
-                tracer: object, timeout_multiplier: int) -> "IoConnection":
-        """A class-1 I/O connection over this channel's session (not opened: use it as a context manager).
-
-        Why here: the I/O connection is set up by a Forward_Open on the explicit session this channel speaks
-        over; ``drive/eip_io`` asks the channel for it and never sees the transport."""
-        from akdctl.transport.eip_io import IoConnection
-
-        return IoConnection(self.link, host, rpi_ms=rpi_ms, port=port, local_port=local_port, timeout=timeout,
-                            tracer=tracer, timeout_multiplier=timeout_multiplier)

@@ -218,10 +218,8 @@ def execute(conn: "Connection", accepted: IoPlan, stop: Callable[[], bool]) -> d
     from akdctl.drive.polling import pause_unless_stopped
 
     r = accepted.request
-    channel = conn.cip()
-    io = channel.open_io(conn.target.host, rpi_ms=r.rpi_ms, port=r.io_port, local_port=r.local_port,
-                         timeout=conn.options.timeout, tracer=conn.options.tracer,
-                         timeout_multiplier=accepted.multiplier)
+    io = conn.io_connection(rpi_ms=r.rpi_ms, port=r.io_port, local_port=r.local_port,
+                            timeout_multiplier=accepted.multiplier)
     with io:
         if io.connection_timeout_s > MAX_CONNECTION_TIMEOUT_S + 1e-9:  # the drive raised our RPI (its API)
             raise SafetyRefusal(f"refusing: the drive accepted the I/O connection with a timeout of "

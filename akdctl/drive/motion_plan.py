@@ -503,7 +503,7 @@ def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[
                             f"set it with 'akdctl task set {number} ...'")
     if task.relative and pos is None and limits.get("travel") is not None:
         raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
-    tasks.check_values(conn, number, task.position_rev, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s,
+    tasks.check_values(conn, int(number or 0), task.position_rev, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s,
                        task.relative, start_rev=pos)
     end = (pos or 0.0) + task.position_rev if task.relative else task.position_rev
     accepted.start_rev, accepted.end_rev = pos, end
