@@ -150,6 +150,9 @@ class EnipSession(MessageLink):
                     continue
                 self._trace("rx", head_raw + body, what)
                 self._confused = True
+                if head.command != command:
+                    raise MalformedReply(f"{self.label}: reply to {what} is a {enip.command_name(head.command)} "
+                                         "packet")
                 raise MalformedReply(f"{self.label}: reply to {what} carries a sender context akdctl never sent")
             self._trace("rx", head_raw + body, what)
             break
