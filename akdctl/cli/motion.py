@@ -80,7 +80,7 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
     consent, then execute under the stop signals; prints the final state."""
-    from akdctl.cli.consent import require_consent
+    from akdctl.cli.consent import own_axis, require_consent
     from akdctl.cli.progress import MotionProgress
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
@@ -88,9 +88,15 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 
     conn = app.connection
     motion_plan.check_request(conn, request, axis_class(conn))  # no drive needed: bad input exits 2 first
+    if app.yes:
+        # Consent is given: own the axis before the plan reads it, so the preparation may share the plan's
+        # status read (Axis.recent_status) - no other command can have moved the axis in between.
+        own_axis(app)
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
     require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
+    if not app.yes:
+        axis.forget_status()  # the owner lock came with the answer: the preparation reads the drive again
     with stop_signals() as stop, MotionProgress(plan, quiet=app.json or not wait) as progress:
         result = motion_plan.execute(axis, plan, stop, progress.update, wait=wait)
     extra = dict(extra or {})

@@ -278,7 +278,9 @@ class Axis(ABC):
 
     def recent_status(self) -> AxisStatus:
         """The status read within :data:`RECENT_S` with no write of ours since, else a new read: the one read the
-        planner and the preparation of a motion share (issue 22 item 6), instead of two back to back."""
+        planner and the preparation of a motion share (issue 22 item 6), instead of two back to back. Callers
+        share it only under the owner lock (cli/motion._plan_and_run takes it before the plan with --yes, and
+        calls :meth:`forget_status` after a prompt; a recipe holds it for its whole run)."""
         if self._last is not None and time.monotonic() - self._last[0] <= self.RECENT_S:
             return self._last[1]
         return self.read_status()
@@ -291,6 +293,11 @@ class Axis(ABC):
     def _forget(self) -> None:
         """A write of ours: the remembered status is no longer the drive's."""
         self._last = None
+
+    def forget_status(self) -> None:
+        """The remembered status may not stand for a new read (e.g. it was read before the owner lock was
+        taken: another command may have moved the axis since)."""
+        self._forget()
 
     @abstractmethod
     def _read_status(self) -> AxisStatus: ...
