@@ -84,3 +84,12 @@ def test_reading_the_table_of_a_moving_axis_is_refused(akd_inproc) -> None:
     code, _, err = akd_inproc("task", "list")
     assert code == 4 and "the axis is moving" in err, err
     akd_inproc("stop")
+
+
+def test_set_dry_run_shows_the_plan_and_writes_nothing(akd_inproc) -> None:
+    before = _writes()
+    plan = _ok(akd_inproc, "task", "set", "5", "--position", "1", "--velocity", "300", "--accel", "2000",
+               "--dry-run")["plan"]
+    assert [w["address"] for w in plan["writes"]][-1] == "0x3431:0 (MT.SET)"
+    assert any("MT.P" in text for text in plan["needs_consent"])      # set points: consent, as before
+    assert _writes() == before
