@@ -76,6 +76,14 @@ def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None
     app.emit(data, human)
 
 
+def _duration(text: str) -> float:
+    """Seconds from ``2``, ``2s``, ``500ms`` (the one parser, :func:`akdctl.cli.parsing.parse_duration`; this
+    name stays for its callers, e.g. ``scope --jog-for``)."""
+    from akdctl.cli.parsing import parse_duration
+
+    return parse_duration(text)
+
+
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
