@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import faults as catalog
-from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, UsageError
+from akdctl.errors import AkdError, CommError, DriveFault, UsageError
 from akdctl.profiles.statusword import SW_FAULT, SW_WARNING, ZSW1_FAULT, ZSW1_WARNING
 
 if TYPE_CHECKING:
@@ -165,15 +165,12 @@ def split_buffer(values: list[int]) -> tuple[list[FaultEntry], list[dict[str, An
 
 
 def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
-    from akdctl.drive.values import read_pnus
+    from akdctl.drive.values import pnu_refused, read_pnus
 
     readings = read_pnus(channel, specs)
     for reading in readings:
         if not reading.ok and reading.spec.pnu != PNU_ZSW1:
-            raise ParameterRefused(
-                f"drive refused to read PNU {reading.spec.label} ({reading.error_text}, error 0x{reading.error:02X})",
-                code=reading.error,
-            )
+            raise pnu_refused(reading, "read")
     return readings
 
 

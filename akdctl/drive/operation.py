@@ -100,7 +100,12 @@ class WritePlan:
         needing = self.needing_consent
         if not needing:
             return ""
-        return f"{self.operation}: write " + "; ".join(g.text() for g in needing)
+        by_reason: dict[str, list[str]] = {}  # one reason once, however many addresses share it (a PDO map)
+        for gated in needing:
+            addresses = by_reason.setdefault(gated.reason, [])
+            if gated.address not in addresses:
+                addresses.append(gated.address)
+        return "write " + "; ".join(f"{', '.join(a)}: {r}" for r, a in by_reason.items())
 
     # ------------------------------------------------------------ rendering
     def lines(self) -> list[str]:
@@ -136,6 +141,16 @@ def consent_needed(plan: WritePlan, ask: Callable[[str], None], *, given: bool =
         ask(plan.consent_text)
 
 
+def read_enabled(conn: Any, writes: Iterable[PlannedWrite]) -> bool | None:
+    """The power stage as a plan needs it: read (:func:`akdctl.drive.gate.drive_enabled`) only when a write is
+    gated only while enabled; ``False`` otherwise (nothing depends on it)."""
+    if not any(w.gated is not None and w.gated.when_enabled for w in writes):
+        return False
+    from akdctl.drive.gate import drive_enabled
+
+    return drive_enabled(conn)
+
+
 def check_readback(pairs: Iterable[tuple[str, Any, Any]]) -> None:
     """The one read-back comparison (exit 5): ``pairs`` of (address, written, read back).
 
@@ -165,4 +180,4 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-__all__ = ["PlannedWrite", "WritePlan", "check_readback", "consent_needed"]
+__all__ = ["PlannedWrite", "WritePlan", "check_readback", "consent_needed", "read_enabled"]

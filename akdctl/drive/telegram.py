@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from akdctl.catalog import telegrams as tc
-from akdctl.drive.values import pnu_spec, read_pnus, write_pnus
+from akdctl.drive.values import pnu_refused, pnu_spec, read_pnus, write_pnus
 from akdctl.errors import CheckFailed, MalformedReply, ParameterRefused, UsageError
 
 
@@ -61,21 +61,12 @@ def words_json(signals: Sequence[int]) -> list[dict[str, Any]]:
              "label": s.label, "text": s.signal.text} for s in tc.word_layout(signals)]
 
 
-def _refused(reading: Any, verb: str) -> ParameterRefused:
-    return ParameterRefused(
-        f"drive refused to {verb} PNU {reading.spec.label}: {reading.error_text} (error 0x{reading.error:02X})"
-        + (f", element {reading.additional}"
-           if reading.additional is not None and reading.spec.info is not None and reading.spec.info.is_array else ""),
-        code=reading.error, details={"pnu": reading.spec.pnu, "additional": reading.additional},
-    )
-
-
 def read_state(channel: Any) -> TelegramState:
     """PNU 922, 915, 916 and 923 in one batched read."""
     readings = read_pnus(channel, [pnu_spec(922), pnu_spec(915), pnu_spec(916), pnu_spec(923)])
     for reading in readings:
         if not reading.ok:
-            raise _refused(reading, "read")
+            raise pnu_refused(reading, "read")
     number, setpoint, actual, offered = (list(r.values or []) for r in readings)
     return TelegramState(number[0], setpoint, actual, offered)
 
@@ -129,7 +120,7 @@ def select_telegram(channel: Any, number: int) -> TelegramState:
     """Write PNU 922 and read back the whole telegram state; CheckFailed if 922 reads back differently."""
     result = write_pnus(channel, [(pnu_spec(922), [number])])[0]
     if not result.ok:
-        raise _refused(result, "change")
+        raise pnu_refused(result, "change")
     state = read_state(channel)
     if state.number != number:
         raise CheckFailed(f"PNU 922: wrote {number}, read back {state.number}")
@@ -148,7 +139,7 @@ def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int]
         raise UsageError(str(exc)) from None
     for result in write_pnus(channel, items):
         if not result.ok:
-            raise _refused(result, "change")
+            raise pnu_refused(result, "change")
     state = read_state(channel)
     differences = [f"PNU {spec.pnu}: wrote {words}, read back {got}"
                    for (spec, words), got in zip(items, [state.setpoint_words if s.pnu == 915 else state.actual_words

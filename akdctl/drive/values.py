@@ -395,8 +395,7 @@ def read_pnu_map(channel: Any, pnus: Sequence[int]) -> dict[int, list[int]]:
     out: dict[int, list[int]] = {}
     for reading in read_pnus(channel, [pnu_spec(p) for p in pnus]):
         if not reading.ok:
-            raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
-                                   code=reading.error)
+            raise pnu_refused(reading, "read")
         out[reading.spec.pnu] = list(reading.values or [])
     return out
 
@@ -405,5 +404,20 @@ def write_pnu_map(channel: Any, pairs: Sequence[tuple[int, int]]) -> None:
     """Single-element PNUs ``(pnu, value)`` in one batched change; a refusal raises ParameterRefused."""
     for result in write_pnus(channel, [(pnu_spec(pnu, count=1), [value]) for pnu, value in pairs]):
         if not result.ok:
-            raise ParameterRefused(f"drive refused to change PNU {result.spec.label}: {result.error_text}",
-                                   code=result.error)
+            raise pnu_refused(result, "change")
+
+
+def pnu_refused(reading: PnuReading, verb: str, *, more: int = 0) -> ParameterRefused:
+    """The one error for a PNU the drive refused to ``verb`` (read, change): "drive refused to read PNU 947[3]:
+    faulty subindex (error 0x03, subindex 99)" -- every caller (pnu get/set, telegrams, the fault buffer,
+    restores, recipes) words it here, as :func:`akdctl.channels.base.sdo_aborted` does for SDO aborts.
+    ``more``: how many further addresses of the same request were refused too."""
+    from akdctl.catalog.texts import profidrive_failure_detail
+
+    name = f" ({reading.spec.info.name})" if reading.spec.info is not None else ""
+    error = reading.error if reading.error is not None else 0
+    return ParameterRefused(
+        f"drive refused to {verb} PNU {reading.spec.label}{name}: {profidrive_failure_detail(error, reading.additional)}"
+        + (f" (and {more} more)" if more else ""),
+        code=error, details={"pnu": reading.spec.pnu, "subindex": reading.spec.subindex,
+                             "additional": reading.additional})
