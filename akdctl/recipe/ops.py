@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from akdctl.errors import CheckFailed, DriveFault, DriveError, UsageError
+from akdctl.errors import CheckFailed, DriveFault, UsageError
 from akdctl.recipe.schema import PlannedStep
 
 if TYPE_CHECKING:
@@ -73,12 +73,12 @@ class Session:
 
 # ---------------------------------------------------------------------------- reading and comparing
 def read_target(session: Session, target: dict[str, Any]) -> Any:
-    from akdctl.drive.values import read_pnus, read_snapshot_value
+    from akdctl.drive.values import pnu_refused, read_pnus, read_snapshot_value
 
     if target["kind"] == "pnu":
         (reading,) = read_pnus(session.conn.parameters(), [target["spec"]])
         if not reading.ok:
-            raise DriveError(f"drive refused to read {target['label']}: {reading.error_text}", code=reading.error)
+            raise pnu_refused(reading, "read")
         values = reading.values or []
         return values if target["spec"].count > 1 else (values[0] if values else None)
     return read_snapshot_value(session.conn.objects(), target["entry"])
@@ -103,30 +103,13 @@ def matches(value: Any, comparison: dict[str, Any]) -> bool:
 
 # ---------------------------------------------------------------------------- actions
 def do_set(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    from akdctl.drive.values import encode_object, write_pnus
+    """The raw-write operation ``pnu set``/``sdo write`` run (drive/raw_write.py): plan, execute, read back."""
+    from akdctl.drive import raw_write
 
-    pnu_targets = [t for t in params["targets"] if t["kind"] == "pnu"]
-    if pnu_targets:
-        assignments = [(t["spec"], t["value"] if isinstance(t["value"], list) else [t["value"]]) for t in pnu_targets]
-        for target, result in zip(pnu_targets, write_pnus(session.conn.parameters(), assignments)):
-            if not result.ok:
-                raise DriveError(f"drive refused {target['label']} = {target['value']}: {result.error_text} "
-                                 f"(error 0x{result.error:02X})", code=result.error)
-    for target in params["targets"]:
-        if target["kind"] == "object":
-            entry = target["entry"]
-            session.conn.objects().download(entry.index, entry.subindex, encode_object(entry, target["value"]))
-    readback = {}
-    if params["verify"]:
-        bad = []
-        for target in params["targets"]:
-            got = read_target(session, target)
-            readback[target["label"]] = got
-            if not matches(got, {"value": target["value"]}):
-                bad.append(f"{target['label']}: wrote {target['value']}, read back {got}")
-        if bad:
-            raise CheckFailed("read-back differs: " + "; ".join(bad))
-    return {"written": {t["label"]: t["value"] for t in params["targets"]}, "read_back": readback}
+    plan = raw_write.plan(session.conn, params["request"])
+    written = raw_write.execute(session.conn, plan)
+    return {"written": {t["label"]: t["value"] for t in params["targets"]}, "writes": written,
+            "plan": plan.to_json()}
 
 
 def do_expect(session: Session, params: dict[str, Any]) -> dict[str, Any]:
