@@ -57,6 +57,20 @@ CASES: list[tuple[str, str, tuple[tuple[str, ...], ...], list[str], dict[str, An
      {"action": "set", "object": "0x6081:0", "value": 1000}),
     ("sdo write mode while enabled", CIA402, (ENABLE,), ["sdo", "write", "0x6060:0", "3", "--verify"],
      {"action": "set", "object": "0x6060:0", "value": 3}),
+    ("telegram set", PROFIDRIVE, (), ["telegram", "set", "9"], {"action": "telegram", "telegram": 9}),
+    ("telegram set while enabled", PROFIDRIVE, (ENABLE,), ["telegram", "set", "1"],
+     {"action": "telegram", "telegram": 1}),
+    ("telegram map", PROFIDRIVE, (("telegram", "set", "0"),), ["telegram", "map", "--setpoint", "1,5",
+                                                              "--actual", "2,6,52"],
+     {"action": "map", "setpoint": ["STW1", "NSOLL_A"], "actual": ["2", "6", "52"]}),
+    ("pdo map fixed", CIA402, (), ["pdo", "map", "--rx", "0x1701", "--tx", "0x1B20"],
+     {"action": "map", "rx": ["0x1701"], "tx": ["0x1B20"]}),
+    ("pdo map flexible with mode", CIA402, (), ["pdo", "map", "--rx", "0x1600=0x6040:0/16,0x60C1:1/32",
+                                                "--tx", "0x1A00=0x6041:0/16,0x6063:0/32", "--opmode", "csp"],
+     {"action": "map", "rx": ["0x1600=0x6040:0/16,0x60C1:1/32"], "tx": ["0x1A00=0x6041:0/16,0x6063:0/32"],
+      "opmode": "csp"}),
+    ("pdo map while enabled", CIA402, (ENABLE,), ["pdo", "map", "--rx", "0x1701", "--tx", "0x1B20"],
+     {"action": "map", "rx": ["0x1701"], "tx": ["0x1B20"]}),
 ]
 
 
@@ -77,7 +91,8 @@ def test_cli_and_recipe_plan_the_same_writes(tmp_path: Path, name: str, target: 
     _prepare(target, prep)
     dry = run_akdctl("-T", target, "--json", *cli, "--dry-run")
     assert dry.code == 0, dry.err
-    cli_plan = json.loads(dry.out)["plan"]
+    document = json.loads(dry.out)
+    cli_plan = document.get("write_plan", document["plan"])  # pdo map keeps "plan" for its mapping
     _prepare(target, prep)
     code, recipe_plan, err = _recipe_plan(tmp_path, target, step, yes=True)
     assert code == 0, err

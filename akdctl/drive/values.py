@@ -412,12 +412,16 @@ def pnu_refused(reading: PnuReading, verb: str, *, more: int = 0) -> ParameterRe
     faulty subindex (error 0x03, subindex 99)" -- every caller (pnu get/set, telegrams, the fault buffer,
     restores, recipes) words it here, as :func:`akdctl.channels.base.sdo_aborted` does for SDO aborts.
     ``more``: how many further addresses of the same request were refused too."""
-    from akdctl.catalog.texts import profidrive_failure_detail
+    from akdctl.catalog.texts import profidrive_error_phrase, profidrive_failure_detail
 
-    name = f" ({reading.spec.info.name})" if reading.spec.info is not None else ""
+    info = reading.spec.info
+    name = f" ({info.name})" if info is not None else ""
     error = reading.error if reading.error is not None else 0
+    detail = profidrive_failure_detail(error, reading.additional)
+    if info is not None and info.is_array and reading.additional is not None:  # the element of an array refused
+        detail = f"{profidrive_error_phrase(error)} (error 0x{error:02X}, element {reading.additional})"
     return ParameterRefused(
-        f"drive refused to {verb} PNU {reading.spec.label}{name}: {profidrive_failure_detail(error, reading.additional)}"
+        f"drive refused to {verb} PNU {reading.spec.label}{name}: {detail}"
         + (f" (and {more} more)" if more else ""),
         code=error, details={"pnu": reading.spec.pnu, "subindex": reading.spec.subindex,
                              "additional": reading.additional})

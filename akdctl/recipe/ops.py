@@ -155,28 +155,24 @@ def do_wait(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
 def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     if "telegram_map" in params:
-        from akdctl.drive import telegram as dt
-
-        lists = params["telegram_map"]
-        state = dt.map_free(session.conn.parameters(), lists.get("setpoint"), lists.get("actual"))
-        return state.to_json()
+        return _telegram(session, params)
     from akdctl.drive import pdo as dp
 
-    plan = params["pdo"]
-    state = dp.al_state_of(session.transport)
-    if state is not None and state != "PREOP":
-        raise UsageError(f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)")
-    channel = session.conn.objects()
-    steps = dp.startup_list(plan)
-    written = dp.apply(channel, steps)
-    dp.check_verified(dp.verify(channel, plan))
-    return {"sdo_downloads": written, "plan": plan.to_json()}
+    plan = dp.plan(session.conn, params["request"])  # the one PDO operation 'pdo map' runs (PRE-OP included)
+    result = dp.execute(session.conn, plan)
+    return {"sdo_downloads": result["sdo_downloads"], "plan": plan.to_json()}
+
+
+def _telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """``telegram set``/``telegram map``'s one operation (drive/telegram.py): plan, execute, read back."""
+    from akdctl.drive import telegram as dt
+
+    plan = dt.plan(session.conn, params["request"])
+    return {**dt.execute(session.conn, plan).to_json(), "plan": plan.to_json()}
 
 
 def do_telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    from akdctl.drive import telegram as dt
-
-    return dt.select_telegram(session.conn.parameters(), params["telegram"]).to_json()
+    return _telegram(session, params)
 
 
 def _axis_with_timeout(session: Session, timeout: float | None) -> Any:

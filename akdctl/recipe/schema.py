@@ -349,13 +349,14 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
     if action == "map":
         return _check_map(data)
     if action == "telegram":
-        from akdctl.catalog.pnus import TELEGRAMS
+        from akdctl.drive import telegram as dt
 
         number = data["telegram"]
-        if number not in TELEGRAMS:
-            raise StepProblem(f"telegram {number} is not one the AKD offers; expected one of "
-                              f"{', '.join(str(t) for t in TELEGRAMS)}", "telegram")
-        return {"telegram": number}, f"select telegram {number} (PNU 922) and read it back"
+        try:
+            request = dt.select_request(number)  # the rule 'telegram set' applies
+        except UsageError as exc:
+            raise StepProblem(exc.message, "telegram") from None
+        return {"telegram": number, "request": request}, f"select telegram {number} (PNU 922) and read it back"
     if action == "enable":
         timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
         return _motion(ctx, {"kind": "enable"}, {"timeout": timeout})
@@ -435,7 +436,11 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         problems = dt.validate_free_map(lists.get("setpoint", []), lists.get("actual", []))
         if problems:
             raise StepProblem("; ".join(problems), tel_keys[0])
-        return {"telegram_map": lists}, ("map the free telegram: " + "; ".join(
+        try:
+            request = dt.map_request(lists.get("setpoint"), lists.get("actual"))
+        except UsageError as exc:
+            raise StepProblem(exc.message, tel_keys[0]) from None
+        return {"telegram_map": lists, "request": request}, ("map the free telegram: " + "; ".join(
             f"{k} signals {', '.join(str(s) for s in v)}" for k, v in lists.items()))
     if not module_available("akdctl.drive.pdo"):
         return {"pdo": None}, "map process data"
@@ -452,7 +457,7 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise StepProblem("; ".join(problems), pdo_keys[0])
     parts = [f"{d} {', '.join(f'0x{n:04X}' for n in plan.assign[d] or [])}" for d in ("rx", "tx")
              if plan.assign[d] is not None]
-    return {"pdo": plan}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
+    return {"pdo": plan, "request": dp.map_request(plan)}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
 
 
 # Which recipe key a planner refusal points at (for FILE:LINE).
@@ -553,16 +558,16 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
 
 
 def _gated(action: str, params: dict[str, Any]) -> list[Any]:
-    """The gated addresses a set/telegram/map step writes (akdctl.drive.gate): the recipe may then need consent."""
-    from akdctl.drive import gate
+    """The gated addresses a set/telegram/map step writes, as each operation classifies them (drive/raw_write,
+    drive/telegram, drive/pdo ``gated``): the recipe may then need consent."""
+    if action == "telegram" or (action == "map" and "telegram_map" in params):
+        from akdctl.drive import telegram as dt
 
-    if action == "telegram":
-        return [gate.classify_pnu(922, "Telegram selection")]
+        return dt.gated(params["request"]) if params.get("request") is not None else []
     if action == "map":
-        if "telegram_map" in params:
-            return [gate.classify_pnu(915, "PZD setpoint assignment"), gate.classify_pnu(916, "PZD actual value "
-                                                                                              "assignment")]
-        return [gate.classify_object(0x1C12, 0, "RxPDO assignment")]
+        from akdctl.drive import pdo as dp
+
+        return dp.gated(params["request"]) if params.get("request") is not None else []
     if action != "set":
         return []
     from akdctl.drive import raw_write
