@@ -105,3 +105,22 @@ def test_cli_and_recipe_plan_the_same_writes(tmp_path: Path, name: str, target: 
     rec_code, _, rec_err = _recipe_plan(tmp_path, target, step, yes=False)
     expected = 4 if cli_plan["needs_consent"] else 0
     assert (cli_run.code, rec_code) == (expected, expected), (name, cli_run.err, rec_err)
+
+
+def test_params_restore_plans_the_same_from_the_command_and_a_recipe(tmp_path: Path) -> None:
+    backup = tmp_path / "axis.toml"
+    assert run_akdctl("sim", "reset").code == 0
+    made = run_akdctl("-T", PROFIDRIVE, "params", "backup", "-o", str(backup), "--only", "930,1004,1001")
+    assert made.code == 0, made.err
+    change = (("pnu", "set", "930=2", "1004=-500", "1001=3"),)
+
+    _prepare(PROFIDRIVE, change)
+    dry = run_akdctl("-T", PROFIDRIVE, "--json", "params", "restore", str(backup), "--dry-run")
+    assert dry.code == 0, dry.err
+    cli_plan = json.loads(dry.out)["plan"]
+    assert sorted(w["address"].split()[0] for w in cli_plan["writes"]) == ["1001", "1004", "930"]
+
+    _prepare(PROFIDRIVE, change)
+    code, recipe_plan, err = _recipe_plan(tmp_path, PROFIDRIVE, {"action": "restore", "file": "axis.toml"}, yes=True)
+    assert code == 0, err
+    assert _essence(cli_plan) == _essence(recipe_plan)

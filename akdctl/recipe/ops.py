@@ -255,8 +255,8 @@ def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 def do_restore(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import snapshot
 
-    result = snapshot.restore(session.conn, params["snapshot"], force=params["force"])
-    return result.to_json()
+    plan = snapshot.plan(session.conn, snapshot.RestoreRequest(params["snapshot"], force=params["force"]))
+    return {**snapshot.execute(session.conn, plan).to_json(), "plan": plan.to_json()}
 
 
 ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
