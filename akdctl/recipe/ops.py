@@ -3,10 +3,11 @@
 Why a thin layer: the recipe must behave exactly like the commands a technician
 types (``pnu set --verify``, ``pdo map``, ``telegram set``, ``enable``, ``home``,
 ``move``, ``fault dump``, ``params backup``), so every action calls the same
-drive-layer function those commands call (:mod:`akdctl.drive.params`,
-:mod:`akdctl.drive.pdo`, :mod:`akdctl.drive.telegram`, :mod:`akdctl.drive.axis`,
-:mod:`akdctl.drive.faults`, :mod:`akdctl.drive.snapshot`) and never re-implements
-it. An action whose module is missing fails with "not available in this version".
+drive-layer function those commands call and never re-implements it. A writing
+step runs its operation's ``plan(conn, request)`` and ``execute(conn, plan)``
+(:mod:`akdctl.drive.raw_write`, :mod:`akdctl.drive.telegram`, :mod:`akdctl.drive.pdo`,
+:mod:`akdctl.drive.snapshot`; the request was built while validating) and reports
+the plan it ran, so ``tests/test_write_parity.py`` can hold it to the command's.
 """
 
 from __future__ import annotations
@@ -267,6 +268,4 @@ ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
 
 
 def run_step(session: Session, step: PlannedStep) -> dict[str, Any]:
-    if not step.available:
-        raise UsageError(step.unavailable_reason)
     return ACTIONS[step.action](session, step.params)

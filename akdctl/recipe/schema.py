@@ -10,7 +10,6 @@ what was expected. The result is a list of :class:`PlannedStep` whose
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,10 +47,6 @@ ACTIONS: dict[str, dict[str, Any]] = {
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
-MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
-           "enable": ("akdctl.drive.axis",), "disable": ("akdctl.drive.axis",), "stop": ("akdctl.drive.axis",),
-           "acknowledge": ("akdctl.drive.axis",), "home": ("akdctl.drive.axis",), "move": ("akdctl.drive.axis",),
-           "check_faults": ("akdctl.drive.faults",)}
 
 
 @dataclass
@@ -66,8 +61,6 @@ class PlannedStep:
     params: dict[str, Any]
     plan: str
     motion: bool = False
-    available: bool = True
-    unavailable_reason: str = ""
     gated: list[Any] = field(default_factory=list)  # gate.Gated addresses a set step writes (akdctl.drive.gate)
 
     @property
@@ -76,7 +69,7 @@ class PlannedStep:
 
     def to_json(self) -> dict[str, Any]:
         return {"step": self.number, "action": self.action, "name": self.name, "file": self.file, "line": self.line,
-                "plan": self.plan, "motion": self.motion, "available": self.available}
+                "plan": self.plan, "motion": self.motion}
 
 
 @dataclass
@@ -97,13 +90,6 @@ class StepProblem(Exception):
         super().__init__(message)
         self.message = message
         self.key = key
-
-
-def module_available(name: str) -> bool:
-    try:
-        return importlib.util.find_spec(name) is not None
-    except (ImportError, ValueError):
-        return False
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -422,8 +408,6 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise StepProblem("missing key: give 'rx'/'tx' (EtherCAT PDOs, e.g. rx = [\"0x1701\"]) or "
                           "'setpoint'/'actual' (PROFIdrive telegram 0 signals)")
     if tel_keys:
-        if not module_available("akdctl.drive.telegram"):
-            return {"telegram_map": None}, "map the free telegram (PNU 915/916)"
         from akdctl.drive import telegram as dt
 
         lists = {}
@@ -442,8 +426,6 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
             raise StepProblem(exc.message, tel_keys[0]) from None
         return {"telegram_map": lists, "request": request}, ("map the free telegram: " + "; ".join(
             f"{k} signals {', '.join(str(s) for s in v)}" for k, v in lists.items()))
-    if not module_available("akdctl.drive.pdo"):
-        return {"pdo": None}, "map process data"
     from akdctl.drive import pdo as dp
 
     try:
@@ -513,13 +495,6 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
     name = data.get("name") or plan
     step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION,
                        gated=_gated(action, params))
-    for module in MODULES.get(action, ()):
-        if action == "map" and module != _map_module(params):
-            continue
-        if not module_available(module):
-            step.available = False
-            step.unavailable_reason = f"the {action} step is not available in this version of akdctl " \
-                                      f"({module} is missing)"
     return step
 
 
@@ -573,10 +548,6 @@ def _gated(action: str, params: dict[str, Any]) -> list[Any]:
     from akdctl.drive import raw_write
 
     return raw_write.gated(params["request"])
-
-
-def _map_module(params: dict[str, Any]) -> str:
-    return "akdctl.drive.telegram" if "telegram_map" in params else "akdctl.drive.pdo"
 
 
 def _type_word(t: type) -> str:
