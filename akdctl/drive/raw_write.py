@@ -116,7 +116,7 @@ def execute(conn: "Connection", plan: WritePlan) -> list[dict[str, Any]]:
     pnus = [t for t in request.targets if t.kind == "pnu"]
     done: list[dict[str, Any]] = []
     if pnus:
-        results = write_pnus(conn.parameters(), [(t.spec, t.values) for t in pnus])
+        results = write_pnus(conn.parameters(), [(_spec(t), t.values) for t in pnus])
         failed = [r for r in results if not r.ok]
         if failed:
             raise pnu_refused(failed[0], "change", more=len(failed) - 1)
@@ -137,7 +137,7 @@ def read_back(conn: "Connection", targets: Sequence[WriteTarget]) -> list[tuple[
     pairs: list[tuple[str, Any, Any]] = []
     pnus = [t for t in targets if t.kind == "pnu"]
     if pnus:
-        for target, back in zip(pnus, read_pnus(conn.parameters(), [t.spec for t in pnus])):
+        for target, back in zip(pnus, read_pnus(conn.parameters(), [_spec(t) for t in pnus])):
             if not back.ok:
                 raise pnu_refused(back, "read")
             pairs.append((target.address, target.values, list(back.values or [])))
@@ -146,6 +146,11 @@ def read_back(conn: "Connection", targets: Sequence[WriteTarget]) -> list[tuple[
             got = decode(target.dtype, conn.objects().upload(target.index, target.subindex))
             pairs.append((target.address, decode(target.dtype, target.data), got))
     return pairs
+
+
+def _spec(target: WriteTarget) -> "PnuSpec":
+    assert target.spec is not None, "a PNU target always has its address"
+    return target.spec
 
 
 def _jsonable(value: Any) -> Any:
