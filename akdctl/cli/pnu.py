@@ -123,10 +123,13 @@ def set_(assignments: tuple[str, ...], verify: bool, dry_run: bool) -> None:
         return
     consent_plan(app, plan)
     raw_write.execute(app.connection, plan)
+    from akdctl.drive.values import PnuReading
+
     app.emit(
-        {"target": app.target.display, "written": [{**w.to_json(), "pnu": t.spec.pnu, "subindex": t.spec.subindex,
-                                                    "values": t.values}
-                                                   for w, t in zip(plan.writes, request.targets)],
+        {"target": app.target.display,
+         "written": [{**PnuReading(t.spec, values=t.values, format=t.spec.info.wire_format if t.spec.info else None)
+                      .to_json(), "gated": w.to_json().get("gated")}
+                     for w, t in zip(plan.writes, request.targets)],
          "verified": verify},
         lambda: Doc("PNU written", app.target.display).table(
             ["PNU", "name", "value", "result"],
