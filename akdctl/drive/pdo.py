@@ -675,6 +675,7 @@ def plan(conn: Any, request: MapRequest) -> Any:
     """The startup list as a write plan; reads the AL state (PRE-OP is the precondition unless forced)."""
     from akdctl.drive.operation import PlannedWrite, WritePlan, read_enabled
 
+    conn.objects()  # a target without SDO access is refused before any consent is asked
     state = al_state_of(conn.transport())
     notes = [f"--force: {p}" for p in request.problems]
     if state is not None and state != "PREOP":

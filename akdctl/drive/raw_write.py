@@ -101,7 +101,14 @@ def gated(request: SetRequest) -> list["Gated"]:
 
 
 def plan(conn: "Connection", request: SetRequest) -> WritePlan:
-    """The writes in order with the gate's verdict; reads the power stage only when a write depends on it."""
+    """The writes in order with the gate's verdict; reads the power stage only when a write depends on it.
+
+    A target without the channel a write needs is refused here, before any consent is asked."""
+    kinds = {t.kind for t in request.targets}
+    if "pnu" in kinds:
+        conn.parameters()
+    if "object" in kinds:
+        conn.objects()
     writes = [PlannedWrite(t.address, list(t.values) if t.kind == "pnu" else t.data, t.display(), t.gated())
               for t in request.targets]
     return WritePlan(request.operation, conn.target.display, writes, enabled=read_enabled(conn, writes),

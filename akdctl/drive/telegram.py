@@ -223,6 +223,7 @@ def plan(conn: "Connection", request: TelegramRequest) -> WritePlan:
 
     notes: list[str] = []
     preconditions: list[str] = []
+    conn.parameters()  # a target without PNU access is refused before any consent is asked
     if request.number is not None:
         if request.number not in (*tc.TELEGRAMS, tc.FREE_TELEGRAM):
             notes.append(f"--force: telegram {request.number} is not one the AKD documents; the drive answers")
