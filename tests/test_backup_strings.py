@@ -70,3 +70,27 @@ def test_a_backup_of_any_string_restores(tmp_path: Path, suffix: str) -> None:
         for address, text in chosen.items():
             read = run_akdctl("-T", TARGET, "--json", "sdo", "read", address)
             assert json.loads(read.out)["value"] == text, (address, text)
+
+
+@pytest.mark.slow  # runs the real CLI in subprocesses
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_a_string_object_holding_bytes_that_are_not_utf8_restores_byte_for_byte(tmp_path: Path, suffix: str) -> None:
+    """Decoding such bytes replaced them with U+FFFD, and the restore wrote EF BF BD and called it verified."""
+    from tests.harness import run_akdctl
+
+    assert run_akdctl("sim", "reset").code == 0
+    raw = {"0x2031:0": "41ff42", "0x2032:0": "e9c3", "0x3899:0": "80"}
+    for address, octets in raw.items():
+        assert run_akdctl("-T", TARGET, "--yes", "sdo", "write", address, "os", octets).code == 0
+    backup = tmp_path / f"bytes{suffix}"
+    assert run_akdctl("-T", TARGET, "params", "backup", "-o", str(backup), "--only", ",".join(raw)).code == 0
+    for address in raw:
+        assert run_akdctl("-T", TARGET, "--yes", "sdo", "write", address, "vs", "other").code == 0
+    dry = run_akdctl("-T", TARGET, "params", "restore", str(backup), "--dry-run")
+    assert dry.code == 0 and "not UTF-8 text" in dry.out, dry.err
+    restored = run_akdctl("-T", TARGET, "params", "restore", str(backup))
+    assert restored.code == 0, restored.err
+    for address, octets in raw.items():
+        read = run_akdctl("-T", TARGET, "--json", "sdo", "read", address, "os")
+        assert json.loads(read.out)["value"] == octets, address
+    assert run_akdctl("-T", TARGET, "params", "diff", str(backup)).code == 0

@@ -822,6 +822,8 @@ def restore(conn: "Connection", snapshot: Snapshot, *, dry_run: bool = False, fo
 def describe_value(value: Any) -> str:
     if value is None:
         return "-"
+    if isinstance(value, dict) and set(value) == {"hex"}:
+        return f"0x{value['hex']} (bytes, not UTF-8 text)"
     if isinstance(value, list):
         return "[" + ", ".join(str(v) for v in value) + "]"
     return str(value)

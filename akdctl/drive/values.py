@@ -32,8 +32,9 @@ from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.record import Record
 
-#: What a snapshot or recipe holds for one object or PNU.
-Value = int | float | str | list[int]
+#: What a snapshot or recipe holds for one object or PNU (``{"hex": ...}``: a string object's bytes that are not
+#: UTF-8 text, kept exactly; see :func:`snapshot_value`).
+Value = int | float | str | list[int] | dict[str, str]
 
 
 # ====================================================================== objects (SDO, little-endian)
@@ -209,7 +210,16 @@ def json_value(type_name: str, value: Any) -> Any:
 
 # ---------------------------------------------------------------------- the snapshot's form of object values
 def snapshot_value(entry: Any, data: bytes) -> Value:
-    """Upload bytes → the value a snapshot/recipe stores: numbers, text, octets (and undecodable data) as "0x…"."""
+    """Upload bytes → the value a snapshot/recipe stores: numbers, text, octets (and undecodable data) as "0x…".
+
+    A string object whose bytes are not UTF-8 text is stored as ``{"hex": "41ff42"}``: decoding it would replace
+    the bytes with U+FFFD, and a restore would then write other bytes than the drive held and read them back as
+    "equal" (issue 23 item 18: a backup always restores what it backed up)."""
+    if entry.short_type == "vs":
+        try:
+            bytes(data).rstrip(b"\x00").decode("utf-8")
+        except UnicodeDecodeError:
+            return {"hex": bytes(data).hex()}
     try:
         value = decode(entry.short_type, data)
     except MalformedReply:
@@ -231,6 +241,10 @@ def encode_object(entry: Any, value: Any) -> bytes:
 
     kind = entry.short_type
     try:
+        if isinstance(value, dict):
+            if kind not in ("vs", "os") or set(value) != {"hex"} or not isinstance(value["hex"], str):
+                raise DataTypeError('only a string object takes a table, and only as {hex = "..."}')
+            return bytes.fromhex(value["hex"])
         if kind == "os":
             if not isinstance(value, str):
                 raise DataTypeError("octet strings are written as hex text, e.g. \"0x0102\"")
