@@ -198,14 +198,12 @@ def map_request(setpoint: Sequence[int] | None, actual: Sequence[int] | None, *,
 
 def gated(request: TelegramRequest) -> list[Gated]:
     """What the request writes that the gate classifies (PNU 922, or 915/916): known without the drive."""
-    from akdctl.drive.gate import classify_pnu
-
     pnus = [922] if request.number is not None else [p for p, w in ((915, request.setpoint), (916, request.actual))
                                                      if w is not None]
-    return [g for g in (classify_pnu(p, tc_name(p)) for p in pnus) if g is not None]
+    return [g for g in (_gate(p) for p in pnus) if g is not None]
 
 
-def tc_name(pnu: int) -> str:
+def _pnu_name(pnu: int) -> str:
     spec = pnu_spec(pnu)
     return spec.info.name if spec.info is not None else ""
 
@@ -229,7 +227,7 @@ def plan(conn: "Connection", request: TelegramRequest) -> WritePlan:
             notes.append(f"--force: telegram {request.number} is not one the AKD documents; the drive answers")
         layout = tc.telegram(request.number)
         shown = f"{request.number} ({layout.text})" if layout else str(request.number)
-        writes = [PlannedWrite(f"PNU 922 ({tc_name(922)})", [request.number], shown, _gate(922))]
+        writes = [PlannedWrite(f"PNU 922 ({_pnu_name(922)})", [request.number], shown, _gate(922))]
     else:
         state = read_state(conn.parameters())
         problems = validate_free_map(request.setpoint or [], request.actual or [], state.signal_list)
@@ -240,7 +238,7 @@ def plan(conn: "Connection", request: TelegramRequest) -> WritePlan:
             raise refusal(problems)
         notes += [f"--force: {p}" for p in problems]
         preconditions.append(f"telegram {state.number} selected (PNU 922)")
-        writes = [PlannedWrite(f"PNU {spec.pnu} ({tc_name(spec.pnu)})", words,
+        writes = [PlannedWrite(f"PNU {spec.pnu} ({_pnu_name(spec.pnu)})", words,
                                ", ".join(_signal_text(n) for n in signals) or "(no words)",
                                _gate(spec.pnu))
                   for (spec, words), signals in zip(_map_items(request.setpoint, request.actual),
@@ -257,7 +255,7 @@ def _signal_text(number: int) -> str:
 def _gate(pnu: int) -> "Gated | None":
     from akdctl.drive.gate import classify_pnu
 
-    return classify_pnu(pnu, tc_name(pnu))
+    return classify_pnu(pnu, _pnu_name(pnu))
 
 
 def execute(conn: "Connection", plan: WritePlan) -> TelegramState:
