@@ -33,6 +33,7 @@ _akdctl() {
             ":cip") path="cip" ;;
             ":eip") path="eip" ;;
             ":sim") path="sim" ;;
+            ":firmware") path="firmware" ;;
             "task:list") path="task list" ;;
             "task:set") path="task set" ;;
             "task:show") path="task show" ;;
@@ -64,9 +65,20 @@ _akdctl() {
             "pn:scan") path="pn scan" ;;
             "pn:set-ip") path="pn set-ip" ;;
             "pn:set-name") path="pn set-name" ;;
+            "ecat:alias") path="ecat alias" ;;
+            "ecat:foe") path="ecat foe" ;;
+            "ecat:pdo") path="ecat pdo" ;;
+            "ecat:reg") path="ecat reg" ;;
             "ecat:scan") path="ecat scan" ;;
             "ecat:sii") path="ecat sii" ;;
             "ecat:state") path="ecat state" ;;
+            "ecat foe:read") path="ecat foe read" ;;
+            "ecat foe:write") path="ecat foe write" ;;
+            "ecat pdo:watch") path="ecat pdo watch" ;;
+            "ecat reg:read") path="ecat reg read" ;;
+            "ecat reg:write") path="ecat reg write" ;;
+            "ecat sii:read") path="ecat sii read" ;;
+            "ecat sii:write") path="ecat sii write" ;;
             "can:nmt") path="can nmt" ;;
             "can:scan") path="can scan" ;;
             "cip:get") path="cip get" ;;
@@ -83,10 +95,11 @@ _akdctl() {
             "sim:reset") path="sim reset" ;;
             "sim:serve") path="sim serve" ;;
             "sim:show") path="sim show" ;;
+            "firmware:update") path="firmware update" ;;
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -139,9 +152,20 @@ _akdctl() {
         "pn scan") COMPREPLY=($(compgen -W "--help --iface --wait -i" -- "$cur")) ;;
         "pn set-ip") COMPREPLY=($(compgen -W "--gateway --help --iface --netmask --temporary -i" -- "$cur")) ;;
         "pn set-name") COMPREPLY=($(compgen -W "--help --iface --temporary -i" -- "$cur")) ;;
-        "ecat") COMPREPLY=($(compgen -W "scan sii state --help" -- "$cur")) ;;
+        "ecat") COMPREPLY=($(compgen -W "alias foe pdo reg scan sii state --help" -- "$cur")) ;;
+        "ecat alias") COMPREPLY=($(compgen -W "--dry-run --help --via" -- "$cur")) ;;
+        "ecat foe") COMPREPLY=($(compgen -W "read write --help" -- "$cur")) ;;
+        "ecat foe read") COMPREPLY=($(compgen -W "--help --max-size --output --password -o" -- "$cur")) ;;
+        "ecat foe write") COMPREPLY=($(compgen -W "--dry-run --help --name --password --restart-timeout" -- "$cur")) ;;
+        "ecat pdo") COMPREPLY=($(compgen -W "watch --help" -- "$cur")) ;;
+        "ecat pdo watch") COMPREPLY=($(compgen -W "--dry-run --for --help --out --period" -- "$cur")) ;;
+        "ecat reg") COMPREPLY=($(compgen -W "read write --help" -- "$cur")) ;;
+        "ecat reg read") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "ecat reg write") COMPREPLY=($(compgen -W "--dry-run --force --help --hex --size" -- "$cur")) ;;
         "ecat scan") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "ecat sii") COMPREPLY=($(compgen -W "--help --raw" -- "$cur")) ;;
+        "ecat sii") COMPREPLY=($(compgen -W "read write --help --raw" -- "$cur")) ;;
+        "ecat sii read") COMPREPLY=($(compgen -W "--format --help --output -o" -- "$cur")) ;;
+        "ecat sii write") COMPREPLY=($(compgen -W "--dry-run --fix-crc --force --format --help" -- "$cur")) ;;
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "can") COMPREPLY=($(compgen -W "nmt scan --help" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
@@ -161,8 +185,10 @@ _akdctl() {
         "sim clear") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
-        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
+        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-foe-busy --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
+        "firmware") COMPREPLY=($(compgen -W "update --help" -- "$cur")) ;;
+        "firmware update") COMPREPLY=($(compgen -W "--dry-run --help --name --password --restart-timeout" -- "$cur")) ;;
     esac
 }
 complete -o default -F _akdctl akdctl

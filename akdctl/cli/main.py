@@ -48,6 +48,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "cip": ("akdctl.cli.cip", "cip", "Read and write CIP attributes (EtherNet/IP explicit messaging)."),
     "eip": ("akdctl.cli.eip", "eip", "EtherNet/IP: ListIdentity scan, AKD parameters by the Parameter object."),
     "sim": ("akdctl.cli.sim", "sim", "The simulated AKD: reset, show, inject faults, serve on the network."),
+    "firmware": ("akdctl.cli.firmware", "firmware", "Update the drive's firmware over EtherCAT (FoE in BOOT)."),
 }
 
 
