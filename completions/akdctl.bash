@@ -65,6 +65,7 @@ _akdctl() {
             "ecat:scan") path="ecat scan" ;;
             "ecat:sii") path="ecat sii" ;;
             "ecat:state") path="ecat state" ;;
+            "can:monitor") path="can monitor" ;;
             "can:nmt") path="can nmt" ;;
             "can:scan") path="can scan" ;;
             "cip:get") path="cip get" ;;
@@ -85,7 +86,7 @@ _akdctl() {
     done
     case "$path" in
         "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
-        "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
+        "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
@@ -139,7 +140,8 @@ _akdctl() {
         "ecat scan") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "ecat sii") COMPREPLY=($(compgen -W "--help --raw" -- "$cur")) ;;
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "can") COMPREPLY=($(compgen -W "nmt scan --help" -- "$cur")) ;;
+        "can") COMPREPLY=($(compgen -W "monitor nmt scan --help" -- "$cur")) ;;
+        "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --help --nodes" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
         "can scan") COMPREPLY=($(compgen -W "--help --nodes --wait" -- "$cur")) ;;
         "cip") COMPREPLY=($(compgen -W "get set --help" -- "$cur")) ;;
