@@ -54,6 +54,7 @@ _akdctl() {
             "fault:explain") path="fault explain" ;;
             "fault:list") path="fault list" ;;
             "support:bundle") path="support bundle" ;;
+            "support:diff") path="support diff" ;;
             "support:show") path="support show" ;;
             "params:backup") path="params backup" ;;
             "params:diff") path="params diff" ;;
@@ -121,9 +122,10 @@ _akdctl() {
         "fault dump") COMPREPLY=($(compgen -W "--format --help" -- "$cur")) ;;
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;
-        "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
+        "support") COMPREPLY=($(compgen -W "bundle diff show --help" -- "$cur")) ;;
         "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output -o" -- "$cur")) ;;
-        "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
+        "support diff") COMPREPLY=($(compgen -W "--all --help --other-drive" -- "$cur")) ;;
+        "support show") COMPREPLY=($(compgen -W "--format --help --html --trace-all" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;

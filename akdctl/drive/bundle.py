@@ -300,7 +300,11 @@ def load(path: str | os.PathLike[str]) -> dict[str, Any]:
                          .splitlines()[0][:300]) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UsageError(f"{name} is not an akdctl support bundle (format key missing or foreign)")
-    if data.get("format_version") != FORMAT_VERSION:
+    version = data.get("format_version")
+    if isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION:
+        raise UsageError(f"{name}: support bundle format version {version} comes from a newer akdctl (this one reads "
+                         f"version {FORMAT_VERSION}); update akdctl to open it")
+    if version != FORMAT_VERSION:
         raise UsageError(f"{name}: support bundle format version {str(data.get('format_version'))[:20]!r} is not "
                          f"supported (this akdctl reads version {FORMAT_VERSION})")
     missing = [k for k in REQUIRED_KEYS if k not in data]

@@ -41,7 +41,7 @@ def emcy_faults(code: int, data: bytes) -> list[dict[str, Any]]:
 class NodeState:
     """What the watch knows of one node: its last NMT state, when it last sent a heartbeat, its period."""
 
-    __slots__ = ("state", "last", "period", "lost")
+    __slots__ = ("last", "lost", "period", "state")
 
     def __init__(self) -> None:
         self.state: str | None = None
