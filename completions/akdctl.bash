@@ -23,6 +23,7 @@ _akdctl() {
             ":support") path="support" ;;
             ":params") path="params" ;;
             ":commission") path="commission" ;;
+            ":diagnose") path="diagnose" ;;
             ":info") path="info" ;;
             ":targets") path="targets" ;;
             ":pn") path="pn" ;;
@@ -80,13 +81,14 @@ _akdctl() {
             "sim:fault") path="sim fault" ;;
             "sim:clear") path="sim clear" ;;
             "sim:speed") path="sim speed" ;;
+            "sim:set") path="sim set" ;;
             "sim:reset") path="sim reset" ;;
             "sim:serve") path="sim serve" ;;
             "sim:show") path="sim show" ;;
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission diagnose info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -131,6 +133,7 @@ _akdctl() {
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;
         "params restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
+        "diagnose") COMPREPLY=($(compgen -W "--help --mode" -- "$cur")) ;;
         "info") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "targets") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pn") COMPREPLY=($(compgen -W "blink scan set-ip set-name --help" -- "$cur")) ;;
@@ -156,10 +159,11 @@ _akdctl() {
         "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip param set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip scan") COMPREPLY=($(compgen -W "--help --iface --port --wait" -- "$cur")) ;;
-        "sim") COMPREPLY=($(compgen -W "fault clear speed reset serve show --help" -- "$cur")) ;;
+        "sim") COMPREPLY=($(compgen -W "fault clear speed set reset serve show --help" -- "$cur")) ;;
         "sim fault") COMPREPLY=($(compgen -W "--after-reads --help --name --persist" -- "$cur")) ;;
         "sim clear") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
+        "sim set") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;

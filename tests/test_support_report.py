@@ -136,7 +136,7 @@ def test_diff_refuses_two_drives_and_a_future_format(akd_inproc: Any, tmp_path: 
     other = json.loads(json.dumps(data))
     other["identity"]["canopen"]["serial"] = 1234
     (tmp_path / "b.json").write_text(json.dumps(other))
-    code, out, err = akd_inproc("support", "diff", str(tmp_path / "a.json"), str(tmp_path / "b.json"))
+    code, _, err = akd_inproc("support", "diff", str(tmp_path / "a.json"), str(tmp_path / "b.json"))
     assert code == 2 and "different drives" in err and err.count("\n") == 1 and "Traceback" not in err
     code, _, err = akd_inproc("support", "diff", str(tmp_path / "a.json"), str(tmp_path / "b.json"), "--other-drive")
     assert code == 5, err
