@@ -24,6 +24,7 @@ _akdctl() {
             ":params") path="params" ;;
             ":commission") path="commission" ;;
             ":diagnose") path="diagnose" ;;
+            ":shell") path="shell" ;;
             ":info") path="info" ;;
             ":targets") path="targets" ;;
             ":pn") path="pn" ;;
@@ -88,7 +89,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission diagnose info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission diagnose shell info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -134,6 +135,7 @@ _akdctl() {
         "params restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
         "diagnose") COMPREPLY=($(compgen -W "--help --mode" -- "$cur")) ;;
+        "shell") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "info") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "targets") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pn") COMPREPLY=($(compgen -W "blink scan set-ip set-name --help" -- "$cur")) ;;

@@ -17,6 +17,7 @@ complete -c akdctl -n '__fish_use_subcommand' -a support -d 'Write a support bun
 complete -c akdctl -n '__fish_use_subcommand' -a params -d 'Back up, restore and compare drive parameters (TOML or JSON files).'
 complete -c akdctl -n '__fish_use_subcommand' -a commission -d 'Run a commissioning recipe (TOML): set/expect parameters, map proce...'
 complete -c akdctl -n '__fish_use_subcommand' -a diagnose -d 'Name every cause that keeps the axis from enabling or moving, most...'
+complete -c akdctl -n '__fish_use_subcommand' -a shell -d 'Type akdctl commands at a prompt over one open connection (history,...'
 complete -c akdctl -n '__fish_use_subcommand' -a info -d 'Identify the drive: vendor, model, firmware, serial, profile; then...'
 complete -c akdctl -n '__fish_use_subcommand' -a targets -d 'List the transports, their target syntax and whether their dependen...'
 complete -c akdctl -n '__fish_use_subcommand' -a pn -d 'PROFINET: discover (DCP), name, address and blink devices.'

@@ -38,6 +38,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "params": ("akdctl.cli.params", "params", "Back up, restore and compare drive parameters."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
     "diagnose": ("akdctl.cli.diagnose", "diagnose", "Why won't it enable, why did it stop: every cause, with its remedy."),
+    "shell": ("akdctl.cli.shell", "shell", "Type akdctl commands at a prompt over one open connection."),
     "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
     "targets": ("akdctl.cli.targets", "targets", "List the transports and whether their dependencies are present."),
     "pn": ("akdctl.cli.pn", "pn", "PROFINET: discover (DCP), name, address and blink devices."),
