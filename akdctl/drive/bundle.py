@@ -175,7 +175,14 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     else:
         sources = faults._sources(conn)
         bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(conn))
-        bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
+        if sources:
+            bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
+        elif conn.has_cip:  # eip://: what CIP offers (drive/eip_faults.py)
+            from akdctl.drive import eip_faults
+
+            bundle["faults"] = _guard(errors, "faults", lambda: eip_faults.dump(conn))
+        else:
+            bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
         params: dict[str, Any] = {"round_trips": {}}
         pnus = None
         if "profidrive" in sources:

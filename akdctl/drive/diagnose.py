@@ -220,6 +220,26 @@ def _profidrive_causes(f: Finder, conn: Connection) -> None:
                   evidence=f"STW1 = 0x{int(values[0]):04X}")
 
 
+def _eip_causes(f: Finder, conn: Connection) -> None:
+    """eip://: the fault numbers CIP offers (drive/eip_faults.py); what it does not offer is listed as not read."""
+    from akdctl.drive import eip_faults
+
+    eip = f.attempt("EtherNet/IP faults (0x24/1/5, DRV.FAULT1)", lambda: eip_faults.read(conn))
+    if eip is None:
+        return
+    named = [e for e in eip["active"] if e.get("code")]
+    if named:
+        f.causes = [c for c in f.causes if not (c["cause"] == "fault" and "names none" in c["text"])]
+    for entry in named:
+        f.add("fault", f"fault {entry['code']} active: {entry['name']}", _fault_remedy(entry["code"]).replace(
+              "; then akdctl fault ack", "; then acknowledge from the PLC or WorkBench (no CIP path)"),
+              evidence=f"DRV.FAULT1 = {entry['number']} (0x0F/{eip_faults.FAULT1_INSTANCE}, inferred instance)")
+    for what, why in eip["not_offered"].items():
+        if what != "acknowledge":
+            f.unread[what] = why
+    f.unread.update({f"eip {k}": v for k, v in eip["errors"].items()})
+
+
 def diagnose(conn: Connection, *, want_mode: str | None = None) -> dict[str, Any]:
     """Every cause found (``causes``, most likely first, blocking ones before the rest), what was read and what
     could not be read. Raises only when the drive does not answer at all."""
@@ -233,6 +253,8 @@ def diagnose(conn: Connection, *, want_mode: str | None = None) -> dict[str, Any
             _ethercat_causes(f, conn)
     if conn.has_parameters and conn.drive_profile != "cia402":
         _profidrive_causes(f, conn)
+    if conn.has_cip and not conn.has_objects and not conn.has_parameters:
+        _eip_causes(f, conn)
     causes = sorted(f.causes, key=lambda c: (not c["blocking"], c["rank"]))
     blocking = [c for c in causes if c["blocking"]]
     if status is not None and status.enabled and not blocking:
