@@ -83,9 +83,12 @@ def test_monitor_shows_the_simulators_emergency_and_lost_heartbeat() -> None:
         server = SimServer("--can", f"udp_multicast:{GROUP}:{NODE}", "--can-heartbeat", "100", netns=netns.name)
         server.start()
         try:
-            mon = start_akdctl("-T", target, "can", "monitor", "--for", "6", "--json", netns=netns.name)
+            mon = start_akdctl("-T", target, "can", "monitor", "--for", "9", "--json", netns=netns.name)
             time.sleep(1.5)  # the monitor is listening and has measured the heartbeat
             assert run_akdctl("sim", "fault", "F501").code == 0
+            time.sleep(1.0)
+            nmt = run_akdctl("-T", target, "can", "nmt", "reset", netns=netns.name)  # a boot-up follows
+            assert nmt.code == 0, nmt.stderr
             time.sleep(1.0)
         finally:
             server.stop()  # the node goes silent: its heartbeat is lost
@@ -97,6 +100,9 @@ def test_monitor_shows_the_simulators_emergency_and_lost_heartbeat() -> None:
     emcy = next(e for e in events if e["kind"] == "emergency")
     assert emcy["node"] == NODE and emcy["emcy"] == "0x3210"
     assert [f["code"] for f in emcy["faults"]] == ["F501"] and "over-voltage" in emcy["faults"][0]["text"].lower()
+    boot = next(e for e in events if e["kind"] == "boot-up")
+    assert boot["node"] == NODE and boot["time"] > emcy["time"]
+    assert any(e["kind"] == "nmt-command" and e["command"] == "reset" for e in events)
     lost = next(e for e in events if e["kind"] == "heartbeat-lost")
     assert lost["node"] == NODE and lost["time"] > emcy["time"]
 

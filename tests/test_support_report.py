@@ -156,3 +156,12 @@ def test_damaged_sections_still_give_a_page(tmp_path: Path) -> None:
             "mapping": {"canopen": {"rx": 5}}, "trace": [None, {"time": "t"}], "scope": {"error": "no trigger"}}
     page = render(bundle_report.build(data, "d.json"), "d")
     assert "not recorded: no trigger" in page and page.endswith("</html>\n")
+
+
+def test_a_scope_member_in_the_scope_format_is_drawn_with_channel_names() -> None:
+    recording = {"format": "akdctl-scope", "version": 1, "channels": [{"name": "VL.FB", "unit": "rpm"},
+                                                                     {"name": "<b>IL</b>", "unit": "A"}],
+                 "t": [0.0, 0.001, 0.002, 0.003], "values": [[0, 10, 20, 30], [0.1, 0.2, 0.1, 0.0]]}
+    section = bundle_report.scope({"scope": recording})
+    assert section is not None and section.svg is not None
+    assert "VL.FB" in section.svg and "<b>" not in section.svg and "&lt;b&gt;" in section.svg

@@ -250,7 +250,7 @@ def _value_words(path: list[str]) -> list[str]:
         from akdctl.catalog import objects as catalog
 
         words += [f"0x{index:04X}:{sub}" for index, sub in catalog.entries()]
-    if path[:1] in (["params"], ["eip"], ["sdo"]):
+    if path[:1] in (["param"], ["params"], ["cmd"], ["eip"], ["sdo"]):
         import importlib.util
 
         if importlib.util.find_spec("akdctl.catalog.akd_params") is not None:

@@ -304,8 +304,27 @@ def trace(data: dict[str, Any]) -> Section:
     return s
 
 
+def _scope_columns(value: Any) -> list[tuple[str, list[float]]] | None:
+    """An ``akdctl-scope`` recording (engineer "scope"'s bundle member: ``channels`` [{name, unit}], ``t``,
+    ``values`` one column per channel) as named columns; None for another layout."""
+    if not isinstance(value, dict) or value.get("format") != "akdctl-scope":
+        return None
+    channels, columns = value.get("channels"), value.get("values")
+    if not isinstance(channels, list) or not isinstance(columns, list):
+        return None
+    out = []
+    for channel, column in zip(channels, columns):
+        if isinstance(column, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in column):
+            name = f"{text(_dict(channel).get('name'))} [{text(_dict(channel).get('unit'))}]"
+            out.append((name, [float(v) for v in column]))
+    return out
+
+
 def _number_lists(value: Any, path: str = "", depth: int = 0) -> list[tuple[str, list[float]]]:
     """Every list of at least two numbers in the recording, named by its path (the channels to plot)."""
+    scope_columns = _scope_columns(value) if depth == 0 else None
+    if scope_columns is not None:
+        return scope_columns
     found: list[tuple[str, list[float]]] = []
     if depth > 5:
         return found
@@ -355,6 +374,23 @@ def scope_svg(recording: Any) -> str | None:
     return "".join(parts)
 
 
+def _their_svg(recording: Any) -> str | None:
+    """The scope engineer's picture (``drive/scope_svg.render_svg``: panels per unit, axes, trigger) when that
+    module ships and the member is its recording; it escapes every text it writes. None otherwise: ours is drawn.
+    (Written before that module reached this branch: the ImportError path is the branch without it.)"""
+    try:
+        from akdctl.drive.scope_model import Recording  # type: ignore[import-not-found,unused-ignore]
+        from akdctl.drive.scope_svg import render_svg  # type: ignore[import-not-found,unused-ignore]
+    except ImportError:
+        return None
+    try:
+        svg = render_svg(Recording.from_json(recording))
+    except (ValueError, TypeError, KeyError, ZeroDivisionError, OverflowError):
+        return None
+    svg = str(svg)
+    return svg[svg.index("<svg"):] if "<svg" in svg else None  # the element only (no XML prolog inside HTML)
+
+
 def scope(data: dict[str, Any]) -> Section | None:
     """The scope recording the bundle holds (member ``scope``), drawn; None when the bundle has none."""
     if "scope" not in data:
@@ -364,7 +400,7 @@ def scope(data: dict[str, Any]) -> Section | None:
     if isinstance(recording, dict) and "error" in recording:
         s.notes.append(f"not recorded: {text(recording['error'])}")
         return s
-    s.svg = scope_svg(recording)
+    s.svg = _their_svg(recording) or scope_svg(recording)
     if s.svg is None:
         s.notes.append("the recording holds no samples to draw")
     if isinstance(recording, dict):
