@@ -118,3 +118,26 @@ def test_silent_drive_is_one_line_exit_3(akd: Any) -> None:
     with closed_udp_port() as port:
         code, _, err = akd("-T", f"pn://127.0.0.1:{port}", "--timeout", "0.3", "diagnose")
     assert code == 3 and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_cycle_time_off_the_grid_and_below_the_minimum(akd_inproc: Any) -> None:
+    for value, words in (("3,-4", "62.5"), ("1,-4", "minimum")):
+        assert akd_inproc("sim", "set", f"cycle-time={value}", "al-state=SAFEOP")[0] == 0
+        (cause,) = [c for c in _diagnose(akd_inproc)["causes"] if c["cause"] == "cycle"]
+        assert words in cause["text"] and cause["blocking"]
+    assert akd_inproc("sim", "set", "cycle-time=x")[0] == 2
+
+
+def test_homed_note_in_position_mode(akd_inproc: Any) -> None:
+    assert akd_inproc("-y", "pnu", "set", "930=2")[0] == 0
+    result = _diagnose(akd_inproc, target="sim")
+    (homed,) = [c for c in result["causes"] if c["cause"] == "homed"]
+    assert not homed["blocking"] and homed["remedy"] == "akdctl home"
+
+
+def test_quick_stop_active(akd_inproc: Any) -> None:
+    assert akd_inproc("-T", CIA, "-y", "sdo", "write", "0x605A", "6")[0] == 0  # option 6: stay in quick stop
+    assert akd_inproc("-T", CIA, "-y", "enable")[0] == 0
+    assert akd_inproc("-T", CIA, "-y", "sdo", "write", "0x6040", "0x0002")[0] == 0
+    result = _diagnose(akd_inproc)
+    assert "quick-stop" in _kinds(result), result

@@ -23,6 +23,7 @@ SETTINGS: dict[str, str] = {
     "limit": "none | negative | positive | both: the limit switch inputs (0x60FD bits 0 and 1)",
     "al-state": "INIT | PREOP | SAFEOP | OP: the EtherCAT AL state",
     "mode": "N: the CiA 402 operation mode (0x6060), e.g. 1 profile position, 3 profile velocity, 8 CSP",
+    "cycle-time": "UNITS,EXPONENT: 0x60C2 as a master left it, off the drive's grid too (e.g. 3,-4 = 300 µs)",
 }
 LIMITS = {"none": 0, "negative": 1, "positive": 2, "both": 3}
 
@@ -68,6 +69,18 @@ def _apply(model: object, key: str, value: str) -> str:
             raise UsageError(f"mode={mode}: an operation mode is -128..127")
         m.object_write(0x6060, 0, struct.pack("<b", mode))  # type: ignore[attr-defined]
         return f"operation mode {mode}"
+    if key == "cycle-time":
+        units, comma, exponent = value.partition(",")
+        try:
+            pair = (int(units, 0), int(exponent, 0))
+        except ValueError:
+            raise UsageError(f"cycle-time={value!r}: expected UNITS,EXPONENT, e.g. 1,-3") from None
+        if not comma or not 0 <= pair[0] <= 255 or not -128 <= pair[1] <= 127:
+            raise UsageError(f"cycle-time={value!r}: UNITS 0..255, EXPONENT -128..127")
+        # stored directly: the drive's own write rule (the 62.5 µs grid) is what diagnose must catch afterwards
+        m.set_stored_object(0x60C2, 1, struct.pack("<B", pair[0]))  # type: ignore[attr-defined]
+        m.set_stored_object(0x60C2, 2, struct.pack("<b", pair[1]))  # type: ignore[attr-defined]
+        return f"cycle time {pair[0]}e{pair[1]} s"
     raise UsageError(f"unknown setting {key!r}; known: {', '.join(SETTINGS)}")
 
 
@@ -75,7 +88,7 @@ def _apply(model: object, key: str, value: str) -> str:
 @click.argument("settings", nargs=-1, required=True, metavar="NAME=VALUE...")
 @click.option("--name", help="Simulated drive name (default: the target's).")
 def set_(settings: tuple[str, ...], name: str | None) -> None:
-    """Set conditions of the simulated drive: hw-enable, dissources, limit, al-state, mode.
+    """Set conditions of the simulated drive: hw-enable, dissources, limit, al-state, mode, cycle-time.
 
     \b
     hw-enable=low|high      the hardware enable input (DRV.DISSOURCES bit 2)
@@ -83,6 +96,7 @@ def set_(settings: tuple[str, ...], name: str | None) -> None:
     limit=none|negative|positive|both   limit switch inputs (0x60FD)
     al-state=PREOP|SAFEOP|OP  the EtherCAT AL state
     mode=N                  the CiA 402 operation mode (0x6060)
+    cycle-time=U,E          0x60C2 (units, exponent), stored as given
 
     \b
     Examples:
