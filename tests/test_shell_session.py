@@ -196,3 +196,20 @@ def test_shell_refuses_session_wide_consent_and_nesting() -> None:
     assert result.code == 2 and "per command" in result.stderr
     result = run_akdctl("shell", input="shell\nstatus --json\n")
     assert "already in the shell" in result.stderr and json.loads(result.stdout)["status"]
+
+
+def test_consent_prompt_at_the_terminal_and_the_owner_lock_between_commands(cia402_shell: PtyShell) -> None:
+    cia402_shell.type("enable\n")
+    cia402_shell.read_until(lambda t: "Proceed?" in t)
+    cia402_shell.type("n\n")
+    out = cia402_shell.prompt()
+    assert "not confirmed" in out
+    cia402_shell.type("enable\n")
+    cia402_shell.read_until(lambda t: "Proceed?" in t)
+    cia402_shell.type("y\n")
+    out = cia402_shell.prompt()
+    assert "drive enabled" in out
+    # Between two commands the shell holds no axis: another process may take it, as between two CLI runs.
+    other = run_akdctl("-T", "sim?drive=cia402", "-y", "disable")
+    assert other.code == 0, other.stderr
+    assert "switch on disabled" in cia402_shell.run("status")
