@@ -148,7 +148,7 @@ _akdctl() {
         "ecat sii") COMPREPLY=($(compgen -W "--help --raw" -- "$cur")) ;;
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "can") COMPREPLY=($(compgen -W "monitor nmt scan --help" -- "$cur")) ;;
-        "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --help --nodes" -- "$cur")) ;;
+        "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --heartbeats --help --nodes" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
         "can scan") COMPREPLY=($(compgen -W "--help --nodes --wait" -- "$cur")) ;;
         "cip") COMPREPLY=($(compgen -W "get set --help" -- "$cur")) ;;

@@ -157,6 +157,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from can' -a scan -d 'List the nod
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from monitor' -l for -d 'Stop after this many seconds (default: until Ctrl-C).'
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from monitor' -l nodes -d 'Only these node ids, e.g. 1-10 or 2,5 (default: every node).'
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from monitor' -l heartbeat-timeout -d 'A node silent this long is reported lost (default: 3 of its measured h'
+complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from monitor' -l heartbeats -d 'Show every heartbeat too (default: only state changes, boot-ups and ti'
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from nmt' -l no-wait -d 'Do not wait for the node to confirm its new state.'
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from scan' -l nodes -d 'Node ids to ask, e.g. 1-127 or 1,3,5-9.'
 complete -c akdctl -n '__fish_seen_subcommand_from can && __fish_seen_subcommand_from scan' -l wait -d 'How long to listen for answers (default: the --timeout).'

@@ -119,3 +119,10 @@ def test_status_watch_count_and_for() -> None:
     assert time.monotonic() - started < 10
     bad = run_akdctl("status", "--count", "2")
     assert bad.code == 2 and "--watch" in bad.stderr
+
+
+def test_every_heartbeat_on_request() -> None:
+    watch = BusWatch(every_heartbeat=True)
+    assert [e["kind"] for e in watch.frame(0.0, 0x702, b"\x05")] == ["heartbeat", "nmt-state"]
+    (beat,) = watch.frame(0.1, 0x702, b"\x05")
+    assert beat["kind"] == "heartbeat" and describe(beat) == "node 2: heartbeat (OPERATIONAL)"

@@ -27,7 +27,10 @@ RECV_SLICE_S = 0.1
               help="Only these node ids, e.g. 1-10 or 2,5 (default: every node).")
 @click.option("--heartbeat-timeout", type=click.FloatRange(min=0.01, max=3600), metavar="SECONDS",
               help="A node silent this long is reported lost (default: 3 of its measured heartbeat periods).")
-def monitor(duration: float | None, nodes_text: str | None, heartbeat_timeout: float | None) -> None:
+@click.option("--heartbeats", "every_heartbeat", is_flag=True,
+              help="Show every heartbeat too (default: only state changes, boot-ups and timeouts).")
+def monitor(duration: float | None, nodes_text: str | None, heartbeat_timeout: float | None,
+            every_heartbeat: bool) -> None:
     """Show emergencies (as AKD faults), heartbeats and their timeouts, NMT state changes and boot-ups of every node.
 
     Listens only: nothing is sent. Emergencies are decoded to the AKD fault number and
@@ -39,6 +42,7 @@ def monitor(duration: float | None, nodes_text: str | None, heartbeat_timeout: f
       akdctl -T can://socketcan/can0/1 can monitor
       akdctl -T can://socketcan/can0/1 can monitor --for 10 --json
       akdctl -T can://socketcan/can0/1 can monitor --nodes 1-4 --heartbeat-timeout 0.5
+      akdctl -T can://socketcan/can0/1 can monitor --heartbeats --for 5
     """
     from akdctl.cli.can import parse_nodes
     from akdctl.cli.output import emit_json_line, inert
@@ -53,7 +57,7 @@ def monitor(duration: float | None, nodes_text: str | None, heartbeat_timeout: f
         raise UsageError(f"'akdctl can monitor' needs a can://INTERFACE/CHANNEL/NODE target; the target is {target.display}")
     nodes = set(parse_nodes(nodes_text)) if nodes_text is not None else None
     config = bus_config(target)
-    watch = BusWatch(heartbeat_timeout, nodes)
+    watch = BusWatch(heartbeat_timeout, nodes, every_heartbeat)
     bus = open_bus(config)
     started = time.monotonic()
     ends = started + duration if duration is not None else None

@@ -57,9 +57,11 @@ class BusWatch:
     :data:`LOST_AFTER_PERIODS` of them. *nodes* limits the events to those nodes (None: every node).
     """
 
-    def __init__(self, heartbeat_timeout: float | None = None, nodes: set[int] | None = None) -> None:
+    def __init__(self, heartbeat_timeout: float | None = None, nodes: set[int] | None = None,
+                 every_heartbeat: bool = False) -> None:
         self.heartbeat_timeout = heartbeat_timeout
         self.nodes = nodes
+        self.every_heartbeat = every_heartbeat
         self.known: dict[int, NodeState] = {}
 
     def _wanted(self, node: int) -> bool:
@@ -99,6 +101,8 @@ class BusWatch:
             events.append({"time": now, "kind": "heartbeat-back", "node": node, "silent_s": round(now - (known.last or now), 3)})
             known.lost = False
         state = state_name(code)
+        if self.every_heartbeat and code != 0:
+            events.append({"time": now, "kind": "heartbeat", "node": node, "state": state})
         if state != known.state:
             events.append({"time": now, "kind": "nmt-state", "node": node, "state": state, "was": known.state})
             known.state = state
@@ -144,6 +148,8 @@ def describe(event: dict[str, Any]) -> str:
         return f"node {node}: heartbeat lost (silent {event['silent_s']:g} s, limit {event['limit_s']:g} s)"
     if kind == "heartbeat-back":
         return f"node {node}: heartbeat back after {event['silent_s']:g} s"
+    if kind == "heartbeat":
+        return f"node {node}: heartbeat ({event['state']})"
     if kind == "nmt-command":
         return f"NMT command {event['command']} to {'all nodes' if node == 'all' else f'node {node}'}"
     return f"node {node}: {kind}"
