@@ -141,3 +141,17 @@ def test_quick_stop_active(akd_inproc: Any) -> None:
     assert akd_inproc("-T", CIA, "-y", "sdo", "write", "0x6040", "0x0002")[0] == 0
     result = _diagnose(akd_inproc)
     assert "quick-stop" in _kinds(result), result
+
+
+@pytest.mark.slow
+def test_over_the_ethercat_gateway_face(akd: Any) -> None:
+    """The same cause read over ETG.8200 (CoE SDO on a real socket); the AL state it cannot see is listed."""
+    from tests.harness import SimServer
+
+    assert akd("sim", "set", "hw-enable=low")[0] == 0
+    with SimServer("--ethercat-udp", "127.0.0.1:0") as server:
+        code, out, err = akd("-T", f"ecat-udp://127.0.0.1:{server.port}/1001", "--json", "diagnose")
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["causes"][0]["text"] == "hardware enable input is low"
+    assert "EtherCAT AL state" in result["not_read"]

@@ -167,6 +167,8 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
 
     al = f.attempt("EtherCAT AL state", lambda: al_state_of(conn.transport()))
     if al is None:
+        f.unread.setdefault("EtherCAT AL state", "this transport does not report it (an ETG.8200 gateway carries "
+                                                 "mailboxes only); the AL state and status code are not ruled out")
         return
     f.read.append(f"AL state {al}")
     if "ERR" in al:
