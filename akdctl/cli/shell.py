@@ -28,6 +28,7 @@ import contextlib
 import io
 import shlex
 import sys
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -151,6 +152,9 @@ def run_line(app: ShellApp, words: list[str]) -> int:
     )
 
     args = _root_args(app) + words
+    app._started = time.monotonic()  # -v: this command's time and frames, not the session's
+    if app._options is not None:
+        app._options.tracer.records.clear()
     error: AkdError | None = None
     hint: list[str] = []
     code = 0
@@ -343,6 +347,7 @@ def shell() -> None:
     if base.yes:
         raise UsageError("-y is given per command inside the shell (consent belongs to each command), not to the shell")
     app = ShellApp(base)
+    base.verbose = 0  # -v speaks per command; the shell's own invocation has nothing to add
     interactive = sys.stdin.isatty()
     save_history = _readline_setup() if interactive else (lambda: None)
     last = 0
