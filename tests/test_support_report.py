@@ -165,3 +165,11 @@ def test_a_scope_member_in_the_scope_format_is_drawn_with_channel_names() -> Non
     section = bundle_report.scope({"scope": recording})
     assert section is not None and section.svg is not None
     assert "VL.FB" in section.svg and "<b>" not in section.svg and "&lt;b&gt;" in section.svg
+
+
+def test_the_bundle_carries_the_diagnosis_and_the_page_shows_it(akd_inproc: Any, tmp_path: Path) -> None:
+    assert akd_inproc("sim", "set", "hw-enable=low")[0] == 0
+    data = _sim_bundle(akd_inproc, tmp_path / "b.json", "-T", "sim?drive=cia402")
+    assert data["diagnosis"]["causes"][0]["text"] == "hardware enable input is low"
+    md = bundle_report.markdown(bundle_report.build(data, "b.json"))
+    assert "## Diagnosis" in md and "| **!** | blocks | hardware enable input is low |" in md

@@ -10,7 +10,8 @@ Layout (``FORMAT`` / ``FORMAT_VERSION`` identify the file)::
 
     format, format_version, created (UTC ISO 8601), tool {name, version, python, platform},
     target {display, scheme}, identity, faults (the ``fault dump`` data), status,
-    parameters {pnus: [...], objects: [...], round_trips}, mapping, trace [...], errors {section: text}
+    parameters {pnus: [...], objects: [...], round_trips}, mapping, diagnosis (``akdctl diagnose --json``),
+    trace [...], errors {section: text}
 
 Written atomically (temporary file in the same directory, fsync, ``os.replace``),
 so an interrupted run never leaves half a bundle. ``.zip`` output holds the
@@ -170,7 +171,7 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     transport = _guard(errors, "transport", conn.transport)
     if isinstance(transport, dict):  # could not open: every section says why
         errors.pop(LINK_ERROR, None)  # "transport" says it
-        for key in ("identity", "faults", "status", "parameters", "mapping"):
+        for key in ("identity", "faults", "status", "parameters", "mapping", "diagnosis"):
             bundle[key] = {"error": errors["transport"]}
     else:
         sources = faults._sources(conn)
@@ -201,6 +202,9 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
         bundle["parameters"] = params
         bundle["status"] = _guard(errors, "status", lambda: status(conn))
         bundle["mapping"] = _guard(errors, "mapping", lambda: mapping(conn, sources, pnus))
+        from akdctl.drive.diagnose import diagnose
+
+        bundle["diagnosis"] = _guard(errors, "diagnosis", lambda: diagnose(conn))  # why it won't enable, ranked
     bundle["trace"] = [r.to_json() for r in conn.options.tracer.records]
     bundle["errors"] = errors
     return bundle

@@ -136,6 +136,26 @@ def status(data: dict[str, Any]) -> Section:
     return s
 
 
+def diagnosis(data: dict[str, Any]) -> Section | None:
+    """The bundle's diagnosis (``akdctl diagnose``): each cause with its remedy, blocking ones marked."""
+    if "diagnosis" not in data:
+        return None  # a bundle written before the diagnosis was collected
+    s = Section("diagnosis", "Diagnosis")
+    d = data.get("diagnosis")
+    if not isinstance(d, dict) or "error" in d:
+        s.notes.append(f"not readable: {text(_dict(d).get('error', 'missing'))}")
+        return s
+    s.kv("verdict", d.get("verdict"))
+    t = s.table("causes, most likely first", ["", "cause", "remedy", "evidence"])
+    for c in _list(d.get("causes")):
+        c = _dict(c)
+        t.add(["blocks" if c.get("blocking") else "note", c.get("text"), c.get("remedy"), c.get("evidence")],
+              marked=bool(c.get("blocking")))
+    for name, why in _dict(d.get("not_read")).items():
+        s.kv(f"not read: {name}", why)
+    return s
+
+
 def _fault_items(faults: dict[str, Any]) -> list[tuple[str, dict[str, Any], str]]:
     """(source, item, role) for every fault or warning the dump names: active first, then the history."""
     active, past = [], []
@@ -412,7 +432,11 @@ def scope(data: dict[str, Any]) -> Section | None:
 
 def build(data: dict[str, Any], name: str) -> list[Section]:
     """Every section of the report, in reading order."""
-    sections = [header(data, name), identity(data), status(data), faults(data), parameters(data), mapping(data)]
+    sections = [header(data, name), identity(data), status(data)]
+    diagnosed = diagnosis(data)
+    if diagnosed is not None:
+        sections.append(diagnosed)
+    sections += [faults(data), parameters(data), mapping(data)]
     recorded = scope(data)
     if recorded is not None:
         sections.append(recorded)
