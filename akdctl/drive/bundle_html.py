@@ -24,6 +24,7 @@ th,td{border:1px solid #ccc;padding:.2em .5em;text-align:left;vertical-align:top
 th{background:#e8eef7}
 td{white-space:pre-wrap;word-break:break-word;max-width:48em}
 table.kv td:first-child{font-weight:600;white-space:nowrap}
+td:first-child{white-space:nowrap}
 tr.mark td{background:#fff3c4}tr.mark td:first-child{border-left:4px solid #d18b00}
 .note{color:#8a2b2b;margin:.2em 0}.legend{font-size:.85em;color:#555}
 .mono td:nth-child(4){font-family:ui-monospace,monospace;font-size:.85em}

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from typing import Any
 
+#: PNUs whose value the selected telegram sets (PZD set point / actual value assignment): compared with nothing.
+FOLLOW_TELEGRAM = frozenset({915, 916})
 #: Trace rows shown at most (a long session's trace would make a page nobody can open).
 MAX_TRACE_ROWS = 5000
 
@@ -223,6 +225,8 @@ def _pnu_default(pnu: Any) -> tuple[list[int] | None, bool]:
         return None, False
     if info is None:
         return None, False
+    if info.pnu in FOLLOW_TELEGRAM:
+        return None, False  # the PZD lists follow the telegram (PNU 922): their catalogue 0s are no default
     return info.default_values(), "w" in info.access
 
 
