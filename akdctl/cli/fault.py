@@ -144,12 +144,13 @@ def dump(fmt: str) -> None:
       akdctl fault dump
       akdctl fault dump --format markdown > faults.md
     """
+    from akdctl.cli.fault_eip import eip_dump, eip_only
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.faults import dump as read_dump
 
     app = get_app()
-    if _eip_only(app):  # issue 28: what an eip:// target offers (drive/eip_faults.py)
-        return _eip_dump(app, fmt)
+    if eip_only(app):  # issue 28: what an eip:// target offers (cli/fault_eip.py)
+        return eip_dump(app, fmt)
     data = read_dump(app.connection)
     _warn_inconsistent(data)
     if app.json or fmt == "json":
@@ -177,11 +178,12 @@ def ack() -> None:
     Examples:
       akdctl fault ack
     """
+    from akdctl.cli.fault_eip import eip_ack, eip_only
     from akdctl.drive.faults import acknowledge
 
     app = get_app()
-    if _eip_only(app):  # issue 28: what an eip:// target offers (drive/eip_faults.py)
-        return _eip_ack(app)
+    if eip_only(app):  # issue 28: what an eip:// target offers (cli/fault_eip.py)
+        return eip_ack(app)
     result = acknowledge(app.connection)
     if result["acknowledged"]:
         text = f"acknowledged {', '.join(result['acknowledged'])}; no fault active"
@@ -303,60 +305,3 @@ def explain(code: str) -> None:
         return doc
 
     app.emit({"query": code, "faults": results}, human)
-
-
-# ---------------------------------------------------------------------------- eip:// (issue 28)
-def _eip_only(app: Any) -> bool:
-    conn = app.connection
-    return bool(conn.has_cip and not conn.has_parameters and not conn.has_objects)
-
-
-def _eip_doc(data: dict[str, Any]) -> Doc:
-    eip = data["eip"]
-    doc = Doc("fault dump (EtherNet/IP)", data["target"])
-    doc.kv("fault present", {True: "yes", False: "no", None: "unknown"}[eip["fault_present"]])
-    doc.table(["code", "name", "kind"], [[e["code"] or "?", e["name"], e["kind"]] for e in eip["active"]]
-              or [["-", "none active", ""]], title="active faults")
-    for key, text in eip["sources"].items():
-        doc.kv(f"source {key}", text)
-    for key, text in eip["errors"].items():
-        doc.kv(f"not read: {key}", text)
-    for key, text in eip["not_offered"].items():
-        doc.kv(f"not offered: {key}", text)
-    return doc
-
-
-def _eip_dump(app: Any, fmt: str) -> None:
-    from akdctl.cli.output import emit_json, render
-    from akdctl.drive.eip_faults import dump as eip_dump
-
-    data = eip_dump(app.connection)
-    if app.json or fmt == "json":
-        emit_json(data)
-    elif fmt == "markdown":
-        render(dump_markdown_eip(data))
-    else:
-        render(_eip_doc(data))
-
-
-def dump_markdown_eip(data: dict[str, Any]) -> str:
-    doc = _eip_doc(data)
-    lines = [f"## AKD fault dump — {_md_escape(data.get('target', ''))}", ""]
-    lines += _md_table(["item", "value"], [[k, v] for k, v in doc.pairs]) + [""]
-    for table in doc.tables:
-        lines += [f"### {_md_escape(table.title)}", ""] + _md_table(table.columns, table.rows) + [""]
-    return "\n".join(lines).rstrip() + "\n"
-
-
-def _eip_ack(app: Any) -> None:
-    from akdctl.drive.eip_faults import NOT_OFFERED, read
-    from akdctl.errors import UsageError
-
-    eip = read(app.connection)
-    if eip["fault_present"] is False:
-        result = {"target": app.target.display, "acknowledged": [], "still_active": [], "fault_present": False,
-                  "via": "eip", "note": "no active fault: nothing was written"}
-        app.emit(result, Doc("fault acknowledge", app.target.display).line("no active fault: nothing to acknowledge"))
-        return
-    active = ", ".join(e["code"] or "a fault" for e in eip["active"]) or "state unknown"
-    raise UsageError(f"cannot acknowledge over EtherNet/IP ({active} active): {NOT_OFFERED['acknowledge']}")
