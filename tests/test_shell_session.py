@@ -213,3 +213,12 @@ def test_consent_prompt_at_the_terminal_and_the_owner_lock_between_commands(cia4
     other = run_akdctl("-T", "sim?drive=cia402", "-y", "disable")
     assert other.code == 0, other.stderr
     assert "switch on disabled" in cia402_shell.run("status")
+
+
+def test_hostile_lines_get_one_line_each() -> None:
+    script = 'pnu get "930\n\x1b[31m\nstatus --count 0\n' + "x" * 5000 + "\n"
+    result = run_akdctl("--json", "shell", input=script)
+    documents = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [d["exit_code"] for d in documents] == [2, 2, 2, 2] and result.code == 2
+    assert "No closing quotation" in documents[0]["result"]["error"]["message"]
+    assert "\x1b" not in result.stderr and "Traceback" not in result.stderr

@@ -373,8 +373,15 @@ def shell() -> None:
             try:
                 words = shlex.split(line, comments=True)
             except ValueError as exc:
-                message(f"akdctl: error: cannot split the line: {exc}")
+                error = UsageError(f"cannot split the line: {exc}")
+                message(f"akdctl: error: {error.message}")
                 last = EXIT_USAGE
+                if app.session_json:  # a script still gets its one line for this command
+                    from akdctl.cli.output import emit_json_line
+
+                    number += 1
+                    emit_json_line({"line": number, "command": line.rstrip("\n"), "exit_code": last,
+                                    "result": {"error": error.to_json()}})
                 continue
             if not words:
                 continue
