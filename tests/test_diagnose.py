@@ -155,3 +155,30 @@ def test_over_the_ethercat_gateway_face(akd: Any) -> None:
     result = json.loads(out)
     assert result["causes"][0]["text"] == "hardware enable input is low"
     assert "EtherCAT AL state" in result["not_read"]
+
+
+def test_al_error_with_its_status_code_over_the_raw_master(tmp_path: Any) -> None:
+    """Our raw master against our simulated slave over a socketpair (no root, as tests/test_ecat_raw_inprocess):
+    a refused state change leaves PREOP+ERR and the AL status code, which diagnose names in words."""
+    from test_ecat_raw_inprocess import Wire, transport
+
+    from akdctl.connection import Connection
+    from akdctl.drive.diagnose import diagnose
+    from akdctl.errors import DriveError
+    from akdctl.protocol import ethercat as ec
+    from akdctl.sim.drive import SimDrive
+
+    wire = Wire(SimDrive("default", tmp_path))
+    t = transport(wire)
+    conn = Connection.over(t)
+    try:
+        conn.transport()
+        with pytest.raises(DriveError):
+            t.master.request_state(t.slave.station, ec.AlState.OP)  # type: ignore[union-attr]  # PREOP -> OP: refused
+        result = diagnose(conn)
+    finally:
+        conn.close()
+        wire.close()
+    (cause,) = [c for c in result["causes"] if c["cause"] == "al"]
+    assert cause["blocking"] and "PREOP+ERR" in cause["text"] and "0x0011" in cause["text"]
+    assert "0x0134 = 0x0011" in cause["evidence"]

@@ -172,10 +172,15 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
         return
     f.read.append(f"AL state {al}")
     if "ERR" in al:
-        f.add("al", f"EtherCAT AL state {al}: the drive reports an error (AL status code, e.g. 0x001B/0x0011 "
-                    "for missing cyclic frames or a bad sync setting)",
-              "check the master's cycle and sync settings against the drive, then acknowledge the AL error "
-              "(akdctl ecat state OP)", evidence=f"AL state {al}")
+        from akdctl.catalog.texts import al_status_text
+
+        code = _al_status_code(conn.transport())
+        said = (f"AL status code 0x{code:04X}: {al_status_text(code)}" if code is not None
+                else "the AL status code is not readable over this transport")
+        f.add("al", f"EtherCAT AL state {al}: the drive refused a state change or left the requested one ({said})",
+              "correct what the code names (sync manager, cycle, mapping), then request the state again "
+              "(akdctl ecat state ...), which acknowledges the error", evidence=f"AL state {al}"
+              + (f", 0x0134 = 0x{code:04X}" if code is not None else ""))
     mapping = f.attempt("PDO mapping", lambda: read_mapping(conn.objects()))
     if not mapping:
         return
@@ -204,6 +209,15 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
                        "(F706 'fieldbus cyclic set points missing')",
               "map the set point the mode needs (akdctl pdo map) or choose the mode the mapping serves",
               evidence=f"mode {mode}, RxPDO objects {sorted(f'0x{i:04X}' for i in rx_objects)}")
+
+
+def _al_status_code(transport: Any) -> int | None:
+    """The AL status code (register 0x0134) a raw master read with the AL state (``slave.al_code``), else None.
+
+    Probed as :func:`akdctl.drive.pdo.al_state_of` probes the state: only the raw master keeps it. (When the ESC
+    register access of ``ecat reg read`` reaches this branch, reading 0x0134 through it is the cleaner way.)"""
+    code = getattr(getattr(transport, "slave", None), "al_code", None)
+    return code if isinstance(code, int) and not isinstance(code, bool) else None
 
 
 def _profidrive_causes(f: Finder, conn: Connection) -> None:
