@@ -122,6 +122,7 @@ def test_completion_candidates() -> None:
     assert "--json" in candidates("status --j", "--j") and "--watch" in candidates("status --w", "--w")
     assert "930" in candidates("pnu get 93", "93") and "ZSW1" in candidates("pnu get ZS", "ZS")
     assert "0x6041:0" in candidates("sdo read 0x6041", "0x6041")
+    assert "F501" in candidates("fault explain F50", "F50") and candidates("sim set hw", "hw") == ["hw-enable="]
 
 
 def test_ctrl_c_during_a_jog_stops_the_axis_and_returns_the_prompt(cia402_shell: PtyShell) -> None:

@@ -254,6 +254,14 @@ def _value_words(path: list[str]) -> list[str]:
         from akdctl.catalog import objects as catalog
 
         words += [f"0x{index:04X}:{sub}" for index, sub in catalog.entries()]
+    elif path == ["fault", "explain"]:
+        from akdctl.catalog.faults import faults
+
+        words += [f.code for f in faults() if f.code]
+    elif path == ["sim", "set"]:
+        from akdctl.cli.sim_set import SETTINGS
+
+        words += [f"{name}=" for name in SETTINGS]
     if path[:1] in (["param"], ["params"], ["cmd"], ["eip"], ["sdo"]):
         import importlib.util
 
