@@ -355,7 +355,7 @@ def shell() -> None:
     if base.yes:
         raise UsageError("-y is given per command inside the shell (consent belongs to each command), not to the shell")
     app = ShellApp(base)
-    base.verbose = 0  # -v speaks per command; the shell's own invocation has nothing to add
+    verbose, base.verbose = base.verbose, 0  # -v speaks per command; after one, the shell has nothing to add
     interactive = sys.stdin.isatty()
     save_history = _readline_setup() if interactive else (lambda: None)
     last = 0
@@ -407,5 +407,7 @@ def shell() -> None:
     finally:
         save_history()
         app.end()
+        if number == 0:
+            base.verbose = verbose  # no command ran: -v ends as every command's does
     if last and not interactive:
         raise click.exceptions.Exit(last)
