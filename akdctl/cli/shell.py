@@ -58,6 +58,8 @@ class ShellApp(AppContext):
                          base.retries, False, base.verbose, base.trace, base.debug, base.pcap)
         self.session = {name: getattr(base, name) for name in SESSION_FIELDS}
         self.session_json = base.json
+        self.session_verbose = base.verbose
+        self.session_debug = base.debug
         self._session_cleanups: list[Callable[[], None]] = []
         self.axis_owner: Any = None
 
@@ -134,9 +136,9 @@ def _root_args(app: ShellApp) -> list[str]:
         args.append("--trace")
     if app.session_json:
         args.append("--json")
-    if app.verbose:
-        args.append("-" + "v" * app.verbose)
-    if app.debug:
+    if app.session_verbose:
+        args.append("-" + "v" * app.session_verbose)
+    if app.session_debug:
         args.append("--debug")
     return args
 
