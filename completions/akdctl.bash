@@ -21,6 +21,7 @@ _akdctl() {
             ":telegram") path="telegram" ;;
             ":fault") path="fault" ;;
             ":support") path="support" ;;
+            ":scope") path="scope" ;;
             ":params") path="params" ;;
             ":commission") path="commission" ;;
             ":diagnose") path="diagnose" ;;
@@ -90,7 +91,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission diagnose shell info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission diagnose shell info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -127,9 +128,10 @@ _akdctl() {
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;
         "support") COMPREPLY=($(compgen -W "bundle diff show --help" -- "$cur")) ;;
-        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output -o" -- "$cur")) ;;
+        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output --scope -o" -- "$cur")) ;;
         "support diff") COMPREPLY=($(compgen -W "--all --help --other-drive" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--format --help --html --trace-all" -- "$cur")) ;;
+        "scope") COMPREPLY=($(compgen -W "--accel --continuous --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --ring --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;

@@ -35,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "telegram": ("akdctl.cli.telegram", "telegram", "Show and select the PROFIdrive telegram."),
     "fault": ("akdctl.cli.fault", "fault", "Fault buffer dump, acknowledge, history and explanations."),
     "support": ("akdctl.cli.support", "support", "Write or show a support bundle."),
+    "scope": ("akdctl.cli.scope", "scope", "Record signals (poll, the drive's recorder, PDO) and plot them."),
     "params": ("akdctl.cli.params", "params", "Back up, restore and compare drive parameters."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
     "diagnose": ("akdctl.cli.diagnose", "diagnose", "Why won't it enable, why did it stop: every cause, with its remedy."),

@@ -399,14 +399,11 @@ def scope_svg(recording: Any) -> str | None:
 
 
 def _their_svg(recording: Any) -> str | None:
-    """The scope engineer's picture (``drive/scope_svg.render_svg``: panels per unit, axes, trigger) when that
-    module ships and the member is its recording; it escapes every text it writes. None otherwise: ours is drawn.
-    (Written before that module reached this branch: the ImportError path is the branch without it.)"""
-    try:
-        from akdctl.drive.scope_model import Recording  # type: ignore[import-not-found,unused-ignore]
-        from akdctl.drive.scope_svg import render_svg  # type: ignore[import-not-found,unused-ignore]
-    except ImportError:
-        return None
+    """The scope's own picture (``drive/scope_svg.render_svg``: panels per unit, axes, trigger; it escapes every
+    text it writes) when the member is an ``akdctl-scope`` recording; None otherwise, and ours is drawn."""
+    from akdctl.drive.scope_model import Recording
+    from akdctl.drive.scope_svg import render_svg
+
     try:
         svg = render_svg(Recording.from_json(recording))
     except (ValueError, TypeError, KeyError, ZeroDivisionError, OverflowError):

@@ -624,3 +624,25 @@ def wait_hint(conn: Any) -> str:
                 "the move must finish")
     return ("not waiting: the drive runs the finite positioning task to its end on its own (acyclic access has no "
             "watchdog on the AKD); check the result with 'akdctl status'")
+
+
+def start(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
+    """Start an accepted motion without waiting for it, for a caller that watches it itself (``scope`` records
+    during it): the same re-checks, mode and enable as :func:`execute`; a move is started as ``move --no-wait``;
+    a timed jog is started and left running: the caller ends it (``axis.end_jog()``) at its duration and stops
+    the axis (``axis.safe_stop()``) on any error or interrupt."""
+    from akdctl.drive.axis.base import JogSpec
+
+    r = accepted.request
+    if r.kind != "jog" or r.duration_s is None:
+        execute(axis, accepted, interrupted, wait=False)
+        return
+    if accepted.after_consent is not None:
+        accepted.after_consent()
+    _prepare(axis, accepted, interrupted)
+    assert accepted.velocity and accepted.accel and accepted.decel
+    try:
+        axis.start_jog(JogSpec(accepted.velocity.raw, accepted.accel.raw, accepted.decel.raw))
+    except BaseException:
+        axis.safe_stop()
+        raise
