@@ -97,13 +97,13 @@ _akdctl() {
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
         "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --units" -- "$cur")) ;;
-        "home") COMPREPLY=($(compgen -W "--help --mode --timeout" -- "$cur")) ;;
+        "home") COMPREPLY=($(compgen -W "--help --max-time --mode --timeout" -- "$cur")) ;;
         "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --no-wait --relative --units --velocity" -- "$cur")) ;;
         "task") COMPREPLY=($(compgen -W "list set show start --help" -- "$cur")) ;;
         "task list") COMPREPLY=($(compgen -W "--all --count --help" -- "$cur")) ;;
-        "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --position --relative --velocity" -- "$cur")) ;;
+        "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --dry-run --help --position --relative --velocity" -- "$cur")) ;;
         "task show") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "task start") COMPREPLY=($(compgen -W "--help --json --timeout --yes -y" -- "$cur")) ;;
+        "task start") COMPREPLY=($(compgen -W "--help --json --max-time --timeout --yes -y" -- "$cur")) ;;
         "pnu") COMPREPLY=($(compgen -W "describe get list set --help" -- "$cur")) ;;
         "pnu describe") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -159,7 +159,7 @@ _akdctl() {
         "cip get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "cip set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip") COMPREPLY=($(compgen -W "io param scan --help" -- "$cur")) ;;
-        "eip io") COMPREPLY=($(compgen -W "--accel --decel --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
+        "eip io") COMPREPLY=($(compgen -W "--accel --decel --dry-run --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
         "eip param") COMPREPLY=($(compgen -W "get run set --help" -- "$cur")) ;;
         "eip param get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

@@ -17,6 +17,7 @@ import click
 
 from akdctl import __version__
 from akdctl.cli.context import AppContext
+from akdctl.cli.parsing import Duration
 from akdctl.errors import EXIT_USAGE, AkdError, InternalError, Interrupted, UsageError
 
 # name -> (module, attribute, short help). Order is the order of `akdctl --help`.
@@ -116,9 +117,9 @@ EPILOG = (
 @click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
-@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS",
-              help="How long a request may wait for the drive, repeats included (default 2); a command "
-                   "against a silent drive gives up after about this long.")
+@click.option("--timeout", type=Duration(0.001, 3600), metavar="DURATION",
+              help="How long a request may wait for the drive, repeats included (default 2 s; 2, 2s, 500ms); a "
+                   "command against a silent drive gives up after about this long.")
 @click.option("--retries", type=click.IntRange(min=0, max=10), metavar="N",
               help="Repeats of a request that got no answer, within --timeout (default 2). A write is "
                    "repeated only where the drive recognises the repeat (PROFINET); elsewhere it is sent "
