@@ -14,6 +14,7 @@ import time
 import click
 
 from akdctl.cli.context import get_app
+from akdctl.cli.parsing import Duration
 from akdctl.errors import CommError, Interrupted, UsageError
 
 #: How long one receive waits, so heartbeat timeouts, --for and Ctrl-C are noticed within this.
@@ -21,11 +22,11 @@ RECV_SLICE_S = 0.1
 
 
 @click.command("monitor")
-@click.option("--for", "duration", type=click.FloatRange(min=0, max=86400, min_open=True), metavar="SECONDS",
-              help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--for", "duration", type=Duration(low=0.001, high=86400), metavar="DURATION",
+              help="Stop after this long, e.g. 10s, 500ms, 2min (default: until Ctrl-C).")
 @click.option("--nodes", "nodes_text", default=None, metavar="RANGE",
               help="Only these node ids, e.g. 1-10 or 2,5 (default: every node).")
-@click.option("--heartbeat-timeout", type=click.FloatRange(min=0.01, max=3600), metavar="SECONDS",
+@click.option("--heartbeat-timeout", type=Duration(low=0.01, high=3600), metavar="DURATION",
               help="A node silent this long is reported lost (default: 3 of its measured heartbeat periods).")
 @click.option("--heartbeats", "every_heartbeat", is_flag=True,
               help="Show every heartbeat too (default: only state changes, boot-ups and timeouts).")
@@ -40,8 +41,8 @@ def monitor(duration: float | None, nodes_text: str | None, heartbeat_timeout: f
     \b
     Examples:
       akdctl -T can://socketcan/can0/1 can monitor
-      akdctl -T can://socketcan/can0/1 can monitor --for 10 --json
-      akdctl -T can://socketcan/can0/1 can monitor --nodes 1-4 --heartbeat-timeout 0.5
+      akdctl -T can://socketcan/can0/1 can monitor --for 10s --json
+      akdctl -T can://socketcan/can0/1 can monitor --nodes 1-4 --heartbeat-timeout 500ms
       akdctl -T can://socketcan/can0/1 can monitor --heartbeats --for 5
     """
     from akdctl.cli.can import parse_nodes

@@ -121,8 +121,8 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
               help="Seconds between refreshes with --watch.")
 @click.option("--count", type=click.IntRange(min=1), metavar="N",
               help="With --watch: stop after N readings (a script watches for a while and goes on).")
-@click.option("--for", "duration", type=click.FloatRange(min=0, max=86400, min_open=True), metavar="SECONDS",
-              help="With --watch: stop after this many seconds.")
+@click.option("--for", "duration", type=Duration(low=0.001, high=86400), metavar="DURATION",
+              help="With --watch: stop after this long (2, 2s, 500ms, 1.5min).")
 def status(watch: bool, interval: float, count: int | None, duration: float | None) -> None:
     """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults.
 
@@ -132,7 +132,7 @@ def status(watch: bool, interval: float, count: int | None, duration: float | No
       akdctl status --watch --interval 0.2
       akdctl status --watch --json > status.jsonl
       akdctl status --watch --count 10 --json
-      akdctl status --watch --for 30
+      akdctl status --watch --for 30s
     """
     app = get_app()
     if (count is not None or duration is not None) and not watch:
