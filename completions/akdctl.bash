@@ -24,6 +24,8 @@ _akdctl() {
             ":scope") path="scope" ;;
             ":params") path="params" ;;
             ":commission") path="commission" ;;
+            ":diagnose") path="diagnose" ;;
+            ":shell") path="shell" ;;
             ":info") path="info" ;;
             ":discover") path="discover" ;;
             ":targets") path="targets" ;;
@@ -57,6 +59,7 @@ _akdctl() {
             "fault:explain") path="fault explain" ;;
             "fault:list") path="fault list" ;;
             "support:bundle") path="support bundle" ;;
+            "support:diff") path="support diff" ;;
             "support:show") path="support show" ;;
             "params:backup") path="params backup" ;;
             "params:diff") path="params diff" ;;
@@ -79,6 +82,7 @@ _akdctl() {
             "ecat reg:write") path="ecat reg write" ;;
             "ecat sii:read") path="ecat sii read" ;;
             "ecat sii:write") path="ecat sii write" ;;
+            "can:monitor") path="can monitor" ;;
             "can:nmt") path="can nmt" ;;
             "can:scan") path="can scan" ;;
             "cip:get") path="cip get" ;;
@@ -92,6 +96,7 @@ _akdctl() {
             "sim:fault") path="sim fault" ;;
             "sim:clear") path="sim clear" ;;
             "sim:speed") path="sim speed" ;;
+            "sim:set") path="sim set" ;;
             "sim:reset") path="sim reset" ;;
             "sim:serve") path="sim serve" ;;
             "sim:show") path="sim show" ;;
@@ -99,8 +104,8 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
-        "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission diagnose shell info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
@@ -135,15 +140,18 @@ _akdctl() {
         "fault dump") COMPREPLY=($(compgen -W "--format --help" -- "$cur")) ;;
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;
-        "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
+        "support") COMPREPLY=($(compgen -W "bundle diff show --help" -- "$cur")) ;;
         "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output --scope -o" -- "$cur")) ;;
-        "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
+        "support diff") COMPREPLY=($(compgen -W "--all --help --other-drive" -- "$cur")) ;;
+        "support show") COMPREPLY=($(compgen -W "--format --help --html --trace-all" -- "$cur")) ;;
         "scope") COMPREPLY=($(compgen -W "--accel --continuous --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --ring --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;
         "params restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
+        "diagnose") COMPREPLY=($(compgen -W "--help --mode" -- "$cur")) ;;
+        "shell") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "info") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "discover") COMPREPLY=($(compgen -W "--can --ecat --ecat-udp --eip --eip-iface --help --nodes --pn --pn-iface --sim --stations --tag --write-inventory" -- "$cur")) ;;
         "targets") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -167,7 +175,8 @@ _akdctl() {
         "ecat sii read") COMPREPLY=($(compgen -W "--format --help --output -o" -- "$cur")) ;;
         "ecat sii write") COMPREPLY=($(compgen -W "--dry-run --fix-crc --force --format --help" -- "$cur")) ;;
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "can") COMPREPLY=($(compgen -W "nmt scan --help" -- "$cur")) ;;
+        "can") COMPREPLY=($(compgen -W "monitor nmt scan --help" -- "$cur")) ;;
+        "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --heartbeats --help --nodes" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
         "can scan") COMPREPLY=($(compgen -W "--help --nodes --wait" -- "$cur")) ;;
         "cip") COMPREPLY=($(compgen -W "get set --help" -- "$cur")) ;;
@@ -180,10 +189,11 @@ _akdctl() {
         "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip param set") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "eip scan") COMPREPLY=($(compgen -W "--help --iface --port --wait" -- "$cur")) ;;
-        "sim") COMPREPLY=($(compgen -W "fault clear speed reset serve show --help" -- "$cur")) ;;
+        "sim") COMPREPLY=($(compgen -W "fault clear speed set reset serve show --help" -- "$cur")) ;;
         "sim fault") COMPREPLY=($(compgen -W "--after-reads --help --name --persist" -- "$cur")) ;;
         "sim clear") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
+        "sim set") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-foe-busy --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;

@@ -148,3 +148,8 @@ def nmt(command: str, node: str | None, no_wait: bool) -> None:
     expected = EXPECTED_STATE[command]
     if state is not None and state != expected:
         raise CheckFailed(f"node {target_node} reports {state} after NMT {command} (expected {expected})")
+
+
+from akdctl.cli.can_monitor import monitor as _monitor  # noqa: E402 - registered last: `can monitor`
+
+can.add_command(_monitor)

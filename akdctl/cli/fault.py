@@ -144,10 +144,13 @@ def dump(fmt: str) -> None:
       akdctl fault dump
       akdctl fault dump --format markdown > faults.md
     """
+    from akdctl.cli.fault_eip import eip_dump, eip_only
     from akdctl.cli.output import emit_json, render
     from akdctl.drive.faults import dump as read_dump
 
     app = get_app()
+    if eip_only(app):  # issue 28: what an eip:// target offers (cli/fault_eip.py)
+        return eip_dump(app, fmt)
     data = read_dump(app.connection)
     _warn_inconsistent(data)
     if app.json or fmt == "json":
@@ -178,9 +181,12 @@ def ack(dry_run: bool) -> None:
       akdctl fault ack --dry-run
     """
     from akdctl.cli.consent import render_dry_run
+    from akdctl.cli.fault_eip import eip_ack, eip_only
     from akdctl.drive import faults
 
     app = get_app()
+    if eip_only(app):  # issue 28: what an eip:// target offers (cli/fault_eip.py); it writes nothing, dry run or not
+        return eip_ack(app)
     plan = faults.plan(app.connection, faults.AckRequest())
     if dry_run:
         render_dry_run(app, plan)

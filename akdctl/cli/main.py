@@ -39,6 +39,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "scope": ("akdctl.cli.scope", "scope", "Record signals (poll, the drive's recorder, PDO) and plot them."),
     "params": ("akdctl.cli.params", "params", "Back up, restore and compare drive parameters."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
+    "diagnose": ("akdctl.cli.diagnose", "diagnose", "Why won't it enable, why did it stop: every cause, with its remedy."),
+    "shell": ("akdctl.cli.shell", "shell", "Type akdctl commands at a prompt over one open connection."),
     "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
     "discover": ("akdctl.cli.discover", "discover", "Find drives on every transport given and write an inventory of the line."),
     "targets": ("akdctl.cli.targets", "targets", "List the transports and whether their dependencies are present."),

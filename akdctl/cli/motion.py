@@ -116,10 +116,14 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 
 # ---------------------------------------------------------------------- commands
 @click.command()
-@click.option("--watch", is_flag=True, help="Refresh until Ctrl-C.")
+@click.option("--watch", is_flag=True, help="Refresh until Ctrl-C (or --count / --for).")
 @click.option("--interval", type=click.FloatRange(min=0.05), default=0.5, show_default=True,
               help="Seconds between refreshes with --watch.")
-def status(watch: bool, interval: float) -> None:
+@click.option("--count", type=click.IntRange(min=1), metavar="N",
+              help="With --watch: stop after N readings (a script watches for a while and goes on).")
+@click.option("--for", "duration", type=Duration(low=0.001, high=86400), metavar="DURATION",
+              help="With --watch: stop after this long (2, 2s, 500ms, 1.5min).")
+def status(watch: bool, interval: float, count: int | None, duration: float | None) -> None:
     """Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults.
 
     \b
@@ -127,8 +131,12 @@ def status(watch: bool, interval: float) -> None:
       akdctl status
       akdctl status --watch --interval 0.2
       akdctl status --watch --json > status.jsonl
+      akdctl status --watch --count 10 --json
+      akdctl status --watch --for 30s
     """
     app = get_app()
+    if (count is not None or duration is not None) and not watch:
+        raise UsageError("--count and --for need --watch")
     axis = _axis(app)
     if not watch:
         _emit_status(app, axis.read_status(), "axis status", bits=True)
@@ -136,13 +144,26 @@ def status(watch: bool, interval: float) -> None:
     from akdctl.cli.signals import stop_signals
     from akdctl.drive.polling import pause_unless_stopped
 
+    ends = time.monotonic() + duration if duration is not None else None
+    shown = 0
     with contextlib.suppress(Interrupted), stop_signals() as stop, LiveView(app.json) as view:
         while not stop():
             status, now = axis.read_status(), time.localtime()
             view.show({"time": time.strftime("%Y-%m-%dT%H:%M:%S", now), "target": app.target.display,
                        "status": status.to_json()},
                       lambda s=status, t=time.strftime("%H:%M:%S", now): _watch_doc(app, s, t))
-            pause_unless_stopped(interval, stop)
+            shown += 1
+            if count is not None and shown >= count:
+                break
+            pause = interval
+            if ends is not None:
+                left = ends - time.monotonic()
+                if left <= 0:
+                    break
+                pause = min(interval, left)
+            pause_unless_stopped(pause, stop)
+            if ends is not None and time.monotonic() >= ends:
+                break
 
 
 def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:

@@ -25,6 +25,7 @@ SIM_COMMANDS = {
     "fault": ("akdctl.cli.sim_fault", "fault", "Inject a fault (e.g. F501) into the simulated drive."),
     "clear": ("akdctl.cli.sim_fault", "clear", "Remove the cause of injected faults (they still need acknowledging)."),
     "speed": ("akdctl.cli.sim_time", "speed", "Set how fast virtual time runs (1 = real time)."),
+    "set": ("akdctl.cli.sim_set", "set_", "Set conditions: hardware enable, disable sources, limit switches, AL state, mode."),
 }
 
 

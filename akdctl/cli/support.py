@@ -47,10 +47,9 @@ def bundle(output: str, all_objects: bool, scope_file: str | None) -> None:
       akdctl -T pn://192.168.0.10 support bundle -o axis1.zip --all-objects
       akdctl support bundle -o bundle.zip --scope jog.json
     """
-    from akdctl.drive import bundle as bundle_mod
-
     from pathlib import Path
 
+    from akdctl.drive import bundle as bundle_mod
     from akdctl.io.atomic import require_directory
 
     app = get_app()
@@ -173,7 +172,7 @@ def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
     shown = trace if full else trace[:20]
     for rec in shown:
         arrow = "->" if rec.get("direction") == "tx" else "<-"
-        doc.line(f"{arrow} {str(rec.get('layer', '')):8s} {rec.get('hex', '')}")
+        doc.line(f"{arrow} {rec.get('layer', '')!s:8s} {rec.get('hex', '')}")
     if len(shown) < len(trace):
         doc.line(f"… {len(trace) - len(shown)} more frames (--trace-all shows them)")
     return doc
@@ -182,16 +181,25 @@ def _trace_doc(data: dict[str, Any], full: bool) -> Doc:
 @support.command("show")
 @click.argument("file", metavar="FILE")
 @click.option("--trace-all", is_flag=True, help="Show every frame of the session trace (default: the first 20).")
-def show(file: str, trace_all: bool) -> None:
+@click.option("--html", "html_file", metavar="OUT", type=click.Path(dir_okay=False),
+              help="Write one self-contained HTML page (no script, nothing loaded from the network) to OUT.")
+@click.option("--format", "fmt", type=click.Choice(["text", "markdown"]), default="text", show_default=True,
+              help="markdown: the report as Markdown tables for a ticket, on stdout.")
+def show(file: str, trace_all: bool, html_file: str | None, fmt: str) -> None:
     """Render a support bundle (no drive needed). A damaged or foreign file: one-line error, exit 2.
 
     Only a regular file is read (a FIFO or a device is refused at once), at most 32 MiB, and a zip's
-    members at most 64 MiB each unpacked (128 MiB together).
+    members at most 64 MiB each unpacked (128 MiB together). --html writes a page with identity,
+    status, faults with explanations and remedies, parameters (non-default values highlighted),
+    mapping, a scope recording when the bundle holds one, and the session trace; every field is
+    escaped. A bundle from a newer akdctl (a later format version) is refused (exit 2).
 
     \b
     Examples:
       akdctl support show bundle.zip
       akdctl support show bundle.zip --trace-all
+      akdctl support show bundle.zip --html bundle.html
+      akdctl support show bundle.zip --format markdown > ticket.md
     """
     from akdctl.cli.fault import dump_doc
     from akdctl.cli.output import emit_json, render
@@ -199,6 +207,9 @@ def show(file: str, trace_all: bool) -> None:
 
     app = get_app()
     data = load(file)
+    if html_file is not None or fmt == "markdown":
+        _report(app, data, file, html_file, fmt)
+        return
     if app.json:
         emit_json(data)
         return
@@ -221,6 +232,85 @@ def show(file: str, trace_all: bool) -> None:
             raise UsageError(f"{file}: damaged support bundle (section {name}: {type(exc).__name__})") from None
     for doc in docs:
         render(doc)
+
+
+def _report(app: Any, data: dict[str, Any], file: str, html_file: str | None, fmt: str) -> None:
+    """``--html`` and/or ``--format markdown``: the report model (drive/bundle_report.py) through its writers."""
+    from pathlib import Path
+
+    from akdctl.drive import bundle_report
+
+    try:
+        sections = bundle_report.build(data, file)
+    except (KeyError, TypeError, AttributeError, ValueError, IndexError, RecursionError) as exc:
+        raise UsageError(f"{file}: damaged support bundle ({type(exc).__name__})") from None
+    if html_file is not None:
+        from akdctl.drive import bundle_html
+        from akdctl.io.atomic import write_user_file
+
+        title = f"akdctl support bundle: {bundle_report.text((data.get('target') or {}).get('display'))}"
+        write_user_file(Path(html_file), bundle_html.render(sections, title).encode("utf-8"))
+        if fmt != "markdown":
+            app.emit({"file": file, "html": html_file, "sections": [s.key for s in sections]},
+                     Doc("support bundle page written", file).kv("html", html_file))
+    if fmt == "markdown":
+        import sys
+
+        sys.stdout.write(bundle_report.markdown(sections))
+        sys.stdout.flush()
+
+
+@support.command("diff")
+@click.argument("a", metavar="A")
+@click.argument("b", metavar="B")
+@click.option("--other-drive", is_flag=True, help="Compare bundles of two different drives (refused otherwise).")
+@click.option("--all", "include_all", is_flag=True,
+              help="Compare live parameter values too (status word, actual position and velocity).")
+def diff(a: str, b: str, other_drive: bool, include_all: bool) -> None:
+    """Compare two support bundles: identity, firmware, faults, mapping, parameters. Exit 0 if equal, 5 if not.
+
+    Bundles of two different drives (another serial number, or another target where the
+    identity lacks one) are refused with exit 2 unless --other-drive.
+
+    \b
+    Examples:
+      akdctl support diff before.zip after.zip
+      akdctl support diff axis1.zip axis2.zip --other-drive --json
+    """
+    from akdctl.drive.bundle import load
+    from akdctl.drive.bundle_diff import compare
+    from akdctl.errors import CheckFailed
+
+    app = get_app()
+    result = compare(load(a), load(b), names=(a, b), other_drive=other_drive, include_live=include_all)
+
+    def human() -> Doc:
+        doc = Doc(f"support bundles {a} vs {b}")
+        doc.kv("created", " vs ".join(str(c) for c in result["created"]))
+        if not result["same_drive"]:
+            doc.kv("drives", "different (--other-drive)")
+        for name, rows in result["sections"].items():
+            if rows:
+                doc.table(["key", "A", "B"], [[r["key"], _cell(r["a"]), _cell(r["b"])] for r in rows],
+                          title=f"{name}: {len(rows)} difference(s)")
+            else:
+                doc.kv(name, "equal")
+        return doc
+
+    app.emit(result, human)
+    if not result["equal"]:
+        exc = CheckFailed(f"the bundles differ in {result['differences']} value(s)")
+        exc.reported = True
+        raise exc
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return "(absent)"
+    if isinstance(value, list):
+        value = ", ".join(str(v) for v in value) or "none"
+    value = str(value)
+    return value if len(value) <= 60 else value[:57] + "..."
 
 
 def _scope_doc(recording: Any) -> Doc:

@@ -10,7 +10,8 @@ Layout (``FORMAT`` / ``FORMAT_VERSION`` identify the file)::
 
     format, format_version, created (UTC ISO 8601), tool {name, version, python, platform},
     target {display, scheme}, identity, faults (the ``fault dump`` data), status,
-    parameters {pnus: [...], objects: [...], round_trips}, mapping, trace [...], errors {section: text}
+    parameters {pnus: [...], objects: [...], round_trips}, mapping, diagnosis (``akdctl diagnose --json``),
+    trace [...], errors {section: text}
 
 Written atomically (temporary file in the same directory, fsync, ``os.replace``),
 so an interrupted run never leaves half a bundle. ``.zip`` output holds the
@@ -170,12 +171,19 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
     transport = _guard(errors, "transport", conn.transport)
     if isinstance(transport, dict):  # could not open: every section says why
         errors.pop(LINK_ERROR, None)  # "transport" says it
-        for key in ("identity", "faults", "status", "parameters", "mapping"):
+        for key in ("identity", "faults", "status", "parameters", "mapping", "diagnosis"):
             bundle[key] = {"error": errors["transport"]}
     else:
         sources = faults._sources(conn)
         bundle["identity"] = _guard(errors, "identity", lambda: identity.read_identity(conn))
-        bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
+        if sources:
+            bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
+        elif conn.has_cip:  # eip://: what CIP offers (drive/eip_faults.py)
+            from akdctl.drive import eip_faults
+
+            bundle["faults"] = _guard(errors, "faults", lambda: eip_faults.dump(conn))
+        else:
+            bundle["faults"] = _guard(errors, "faults", lambda: faults.dump(conn))
         params: dict[str, Any] = {"round_trips": {}}
         pnus = None
         if "profidrive" in sources:
@@ -194,6 +202,9 @@ def collect(conn: "Connection", *, all_objects: bool = False) -> dict[str, Any]:
         bundle["parameters"] = params
         bundle["status"] = _guard(errors, "status", lambda: status(conn))
         bundle["mapping"] = _guard(errors, "mapping", lambda: mapping(conn, sources, pnus))
+        from akdctl.drive.diagnose import diagnose
+
+        bundle["diagnosis"] = _guard(errors, "diagnosis", lambda: diagnose(conn))  # why it won't enable, ranked
     bundle["trace"] = [r.to_json() for r in conn.options.tracer.records]
     bundle["errors"] = errors
     return bundle
@@ -300,7 +311,11 @@ def load(path: str | os.PathLike[str]) -> dict[str, Any]:
                          .splitlines()[0][:300]) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UsageError(f"{name} is not an akdctl support bundle (format key missing or foreign)")
-    if data.get("format_version") != FORMAT_VERSION:
+    version = data.get("format_version")
+    if isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION:
+        raise UsageError(f"{name}: support bundle format version {version} comes from a newer akdctl (this one reads "
+                         f"version {FORMAT_VERSION}); update akdctl to open it")
+    if version != FORMAT_VERSION:
         raise UsageError(f"{name}: support bundle format version {str(data.get('format_version'))[:20]!r} is not "
                          f"supported (this akdctl reads version {FORMAT_VERSION})")
     missing = [k for k in REQUIRED_KEYS if k not in data]

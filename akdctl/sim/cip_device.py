@@ -45,6 +45,7 @@ HOMING_METHODS = {0: 35, 1: 17, 2: 1, 3: 19, 4: 3, 5: 34}   # AKD HOME.MODE -> a
 PC_MODES = {0: 1, 1: 3, 2: 4}            # Position Controller mode -> 0x6060
 PC_ATTRS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 17, 25, 58, 100, 101)
 SUPERVISOR_ATTRS = (1, 2, 3, 5)
+FAULT1_INSTANCE = 478  # DRV.FAULT1 in the Parameter object [I] (reference/ethernetip.md 1.9, EIP.RSPMAP ids)
 
 # simulated-model refusals (CiA 301 aborts) in CIP words
 _ABORT_TO_CIP = {0x08000022: cip.DEVICE_STATE_CONFLICT, 0x06090030: cip.INVALID_ATTRIBUTE_VALUE,
@@ -253,6 +254,8 @@ class CipDevice:
         instance = path.instance or 0
         modelled = {eip_parameters.by_name(name).instance: key  # type: ignore[union-attr]
                     for name, key in (("EIP.POSUNIT", "posunit"), ("EIP.PROFUNIT", "profunit"), ("HOME.MOVE", "home"))}
+        if instance == FAULT1_INSTANCE:
+            return self._fault1(service, path)
         if instance not in modelled:
             raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
         command = modelled[instance] == "home"
@@ -274,6 +277,19 @@ class CipDevice:
             raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE)
         setattr(self.pc, modelled[instance], value)
         return b""
+
+    def _fault1(self, service: int, path: cip.Path) -> bytes:
+        """DRV.FAULT1 (the first active fault number, 0 for none) at instance 478 [I: its EIP.RSPMAP id, M-34;
+        no source states the Parameter-object instance], read-only, 2-byte integer."""
+        with self._model() as model:
+            active = model.faults.situations[0]
+            number = active[0] if active else 0
+        attrs = {1: struct.pack("<H", number), 5: bytes([0xC7]), 6: bytes([2])}
+        if path.attribute not in attrs:
+            raise CipRefusal(cip.ATTRIBUTE_NOT_SUPPORTED)
+        if service != cip.GET_ATTRIBUTE_SINGLE:
+            raise CipRefusal(cip.ATTRIBUTE_NOT_SETTABLE)
+        return attrs[path.attribute]
 
     # ---------------------------------------------------------------- model access
     def _model(self) -> Any:

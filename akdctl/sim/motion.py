@@ -172,7 +172,27 @@ class MotionComponent(Component):
             self.axis.ramp_to_zero(COAST_RPM_S, "coast")
         self.state, self.stopping_to = SOD, None
 
+    def enable_blocked(self) -> bool:
+        """A cause outside the control word keeps the power stage off: a disable source injected into
+        DRV.DISSOURCES (``sim set``: hardware enable low, in-rush, ...) or STO low (warning n602)."""
+        return bool(self.injected_dissources()) or 602 in self.model.faults.warnings
+
+    def injected_dissources(self) -> int:
+        return int.from_bytes(self.model.stored_object(0x3443, 0), "little") & ~0b11
+
+    def dissources(self) -> int:
+        """DRV.DISSOURCES as the simulator shows it: bit 0 while not enabled (software disable), bit 1 while a
+        fault is present, plus the injected bits (reference/akd-ascii-channel.md, bits [G1]/[A1])."""
+        value = self.injected_dissources()
+        if self.state != ENABLED:
+            value |= 1
+        if self.fault_present:
+            value |= 2
+        return value
+
     def enter_enabled(self) -> None:
+        if self.enable_blocked():
+            return  # the drive stays where it was, as a real AKD with its enable input low does
         self.state = ENABLED
         self.stopping_to = None
         self.axis.internal_limit = False
@@ -314,6 +334,7 @@ class MotionComponent(Component):
         m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
         m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
+        m.bind_object(0x3443, read=obj_reader("<H", self.dissources))
 
     def _current_fraction(self) -> float:
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""
