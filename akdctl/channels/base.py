@@ -91,7 +91,10 @@ class ObjectChannel(ABC):
 
 class LazyObjectChannel(ObjectChannel):
     """An object channel built on first use, so commands that never use it never import its codecs
-    (a PNU-only command over the simulator does not load the CoE codecs)."""
+    (a PNU-only command over the simulator does not load the CoE codecs).
+
+    It forwards exactly the :class:`ObjectChannel` contract and nothing else: whoever needs more than the
+    contract declares it there (with a neutral default), so nothing falls through by name."""
 
     def __init__(self, build: Callable[[], ObjectChannel]) -> None:
         self._build = build
@@ -128,11 +131,6 @@ class LazyObjectChannel(ObjectChannel):
     def close(self) -> None:
         if self._channel is not None:
             self._channel.close()
-
-    def __getattr__(self, name: str) -> object:
-        if name.startswith("_"):
-            raise AttributeError(name)
-        return getattr(self.channel, name)
 
 
 def sdo_aborted(code: int, what: str, *, where: str | None = None, fallback: Mapping[int, str] | None = None,

@@ -50,26 +50,21 @@ def gate_write(app: Any, gated: list[Any]) -> None:
 
 
 def own_axis(app: Any) -> None:
-    """Own the target's axis until the command ends (released when the invocation closes, or when
-    the process dies); SafetyRefusal (exit 4) naming the owner when another command holds it."""
-    from akdctl.drive.gate import owner_key
-    from akdctl.io.owner_lock import OwnerBusy, OwnerLock
-    from akdctl.sim.drive import state_dir
+    """Own the target's axis until the command ends (:meth:`akdctl.connection.Connection.own_axis`:
+    released when the connection closes, or when the process dies); SafetyRefusal (exit 4) naming the
+    owner when another command holds it."""
+    from akdctl.io.owner_lock import OwnerBusy
 
-    if getattr(app, "axis_owner", None) is not None:
-        return
-    lock = OwnerLock(state_dir() / "owners" / f"{owner_key(app.target)}.lock")
+    conn = app.connection
     try:
-        lock.acquire(_command_line())
+        conn.own_axis(_command_line())
     except OwnerBusy as busy:
         raise SafetyRefusal(f"refusing: the axis of {app.target.display} is in use by {_owner_text(busy.owner)}; "
                             "wait until it ends, or stop it ('akdctl stop' is never refused); nothing was written",
                             details={"owner": busy.owner}) from None
     except OSError as exc:
-        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock {lock.path} "
+        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock in {exc.filename or 'the state directory'} "
                             f"({exc.strerror or exc}); nothing was written") from None
-    app.axis_owner = lock
-    app._cleanups.insert(0, lock.release)  # the last cleanup: after the connection is closed
 
 
 def _command_line() -> str:

@@ -64,7 +64,7 @@ def show() -> None:
     app = get_app()
     channel = app.objects()
     mapping = read_mapping(channel)
-    state = al_state_of(app.transport())
+    state = al_state_of(app.connection)
     data = {"target": app.target.display, "al_state": state, **{d: m.to_json() for d, m in mapping.items()}}
 
     def human() -> Doc:
@@ -190,7 +190,7 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
         app.emit(data, lambda: _startup_doc(steps, "startup list (dry run, nothing written)", "plan"))
         return
     if not force:
-        state = dp.al_state_of(app.transport())
+        state = dp.al_state_of(app.connection)
         if state is not None and state != "PREOP":
             raise UsageError(
                 f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18). "

@@ -316,8 +316,7 @@ def read_canopen_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> Ca
             break
     result.attempts = attempt
     result.consistent = before == after
-    take = getattr(channel, "take_emergencies", None)
-    result.emergencies = [decode_emergency(e) for e in (take() if take else [])]
+    result.emergencies = [decode_emergency(e) for e in channel.take_emergencies()]
     return result
 
 

@@ -85,9 +85,9 @@ def read_identity(conn: "Connection", *, pnus: bool = True, objects: bool = True
         result["canopen"] = _object_identity(conn.objects())
     if conn.has_cip:
         result["cip_identity"] = conn.cip().identity_json()
-    read_im0 = getattr(conn.transport(), "read_im0", None)
-    if im0 and read_im0 is not None:
-        result["im0"] = read_im0()
+    record = conn.read_im0() if im0 else None
+    if record is not None:
+        result["im0"] = record
     return result
 
 

@@ -584,8 +584,7 @@ def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) 
                              details={"expected_rev": round(expected, 6),
                                       "position_rev": round(status.position_rev, 6)})
         return status
-    issued = getattr(axis, "issued_target", None)
-    drive_target = issued() if issued is not None else None
+    drive_target = axis.issued_target()
     if drive_target is not None and drive_target != accepted.target_raw:
         raise DriveError(f"the drive reports target reached for set point {drive_target}, not for {accepted.target_raw} "
                          f"which this {what} wrote: another command or master loaded a task meanwhile",

@@ -21,11 +21,14 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog.objects import PdoEntry
 from akdctl.errors import CheckFailed, SdoAborted, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 DIRECTIONS = ("rx", "tx")
 ASSIGN_INDEX = {"rx": oc.RX_ASSIGN, "tx": oc.TX_ASSIGN}
@@ -610,17 +613,13 @@ def _numbers_text(numbers: Sequence[int]) -> str:
     return "[" + ", ".join(f"0x{n:04X}" for n in numbers) + "]" if numbers else "(none)"
 
 
-def al_state_of(transport: Any) -> str | None:
-    """The EtherCAT AL state if the transport can tell it ('PREOP', 'OP', ...), else None (unknown).
+def al_state_of(conn: "Connection") -> str | None:
+    """The EtherCAT AL state if the target can tell it ('PREOP', 'OP', ...), else None (unknown).
 
-    Transports that know it offer ``al_state() -> str | None``; the others (CANopen,
-    PROFINET) have no AL state, and the drive's own check answers.
+    The Connection declares it (:meth:`~akdctl.connection.Connection.al_state`, one spelling); targets
+    without one (CANopen, PROFINET) answer None, and the drive's own check answers.
     """
-    getter = getattr(transport, "al_state", None)
-    if getter is None or not callable(getter):
-        return None
-    state = getter()
-    return None if state is None else str(state).upper().replace("-", "")
+    return conn.al_state()
 
 
 def export_json(steps: Sequence[StartupEntry], plan: PdoPlan) -> dict[str, Any]:

@@ -180,7 +180,7 @@ def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import pdo as dp
 
     plan = params["pdo"]
-    state = dp.al_state_of(session.transport)
+    state = dp.al_state_of(session.conn)
     if state is not None and state != "PREOP":
         raise UsageError(f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)")
     channel = session.conn.objects()

@@ -43,6 +43,7 @@ from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
 from akdctl.io.atomic import atomic_open
+from akdctl.io.state_dir import state_dir  # re-exported: sim users name it here
 from akdctl.sim.model import DriveModel
 
 T = TypeVar("T")
@@ -58,15 +59,6 @@ class SimStateError(UsageError):
     """The state file or its directory cannot be used; the message says how to recover."""
 
     kind = "sim-state"
-
-
-def state_dir() -> Path:
-    """Where simulated drives keep their state: ``$AKDCTL_STATE_DIR``, else the XDG state dir."""
-    env = os.environ.get("AKDCTL_STATE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
-    return Path(base) / "akdctl"
 
 
 def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:

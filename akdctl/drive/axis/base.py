@@ -226,8 +226,8 @@ class Axis(ABC):
     NO_TASKS = ("the drive's manual documents no way to start a stored motion task over this profile; "
                 "use a PROFIdrive target (program mode) or 'akdctl move'")
 
-    #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the transport's
-    #: ``time_scale``, which only the simulator has); None: a real drive's 1.
+    #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the Connection's
+    #: declared ``time_scale``, above 1 only for the simulator); None: a real drive's 1.
     time_scale_source: Callable[[], float] | None = None
 
     def __init__(self, timeout: float = 2.0, target: str = "") -> None:
@@ -237,6 +237,11 @@ class Axis(ABC):
     def poll(self, deadline: float | None = None) -> Poll:
         """The pauses of one wait (drive/polling.py: fast after a command or a change, then steady)."""
         return Poll(self.time_scale_source() if self.time_scale_source is not None else 1.0, deadline)
+
+    def issued_target(self) -> int | None:
+        """The set point the drive holds, raw, to tell our target from another master's (motion_plan);
+        None where the profile cannot read it back (declared here, not probed)."""
+        return None
 
     # ---------------------------------------------------------------- primitives per profile
     @abstractmethod
