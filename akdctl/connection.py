@@ -129,14 +129,21 @@ class Connection:
     # target has none; nothing above asks a transport or channel with getattr (tests/test_layers.py).
 
     @property
-    def channels(self) -> "frozenset[Channel]":
-        """The channels this target offers: the registry's declaration for a built-in scheme (known
-        without connecting), else what the opened transport's links make."""
+    def declared_channels(self) -> "frozenset[Channel] | None":
+        """The channels the registry declares for this target's scheme (known without connecting), or None
+        for a scheme only its opened transport can tell (a third-party entry point)."""
         from akdctl.transport.registry import BUILTIN
 
         spec = BUILTIN.get(self.target.scheme)
-        if spec is not None:
-            return spec.channels
+        return spec.channels if spec is not None else None
+
+    @property
+    def channels(self) -> "frozenset[Channel]":
+        """The channels this target offers: :attr:`declared_channels`, else what the opened transport's links
+        make (opens it)."""
+        declared = self.declared_channels
+        if declared is not None:
+            return declared
         from akdctl.profiles.vocabulary import Channel
 
         self.transport()

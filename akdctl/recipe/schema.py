@@ -10,14 +10,17 @@ what was expected. The result is a list of :class:`PlannedStep` whose
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, UsageError
 from akdctl.recipe.loader import RawRecipe, RawStep, display_path, inside
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
+    from akdctl.profiles.vocabulary import Channel
 
 COMMON = {"action": str, "name": str}
 NUMBER = (int, float)
@@ -48,10 +51,6 @@ ACTIONS: dict[str, dict[str, Any]] = {
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
-MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
-           "enable": ("akdctl.drive.axis",), "disable": ("akdctl.drive.axis",), "stop": ("akdctl.drive.axis",),
-           "acknowledge": ("akdctl.drive.axis",), "home": ("akdctl.drive.axis",), "move": ("akdctl.drive.axis",),
-           "check_faults": ("akdctl.drive.faults",)}
 
 
 @dataclass
@@ -87,7 +86,7 @@ class Context:
 
     folder: Path
     allow_outside: bool = False
-    conn: Any = None
+    conn: "Connection | None" = None
 
 
 class StepProblem(Exception):
@@ -97,13 +96,6 @@ class StepProblem(Exception):
         super().__init__(message)
         self.message = message
         self.key = key
-
-
-def module_available(name: str) -> bool:
-    try:
-        return importlib.util.find_spec(name) is not None
-    except (ImportError, ValueError):
-        return False
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -410,8 +402,6 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise StepProblem("missing key: give 'rx'/'tx' (EtherCAT PDOs, e.g. rx = [\"0x1701\"]) or "
                           "'setpoint'/'actual' (PROFIdrive telegram 0 signals)")
     if tel_keys:
-        if not module_available("akdctl.drive.telegram"):
-            return {"telegram_map": None}, "map the free telegram (PNU 915/916)"
         from akdctl.drive import telegram as dt
 
         lists = {}
@@ -426,8 +416,6 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
             raise StepProblem("; ".join(problems), tel_keys[0])
         return {"telegram_map": lists}, ("map the free telegram: " + "; ".join(
             f"{k} signals {', '.join(str(s) for s in v)}" for k, v in lists.items()))
-    if not module_available("akdctl.drive.pdo"):
-        return {"pdo": None}, "map process data"
     from akdctl.drive import pdo as dp
 
     try:
@@ -497,32 +485,22 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
     name = data.get("name") or plan
     step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION,
                        gated=_gated(action, params))
-    for module in MODULES.get(action, ()):
-        if action == "map" and module != _map_module(params):
-            continue
-        if not module_available(module):
-            step.available = False
-            step.unavailable_reason = f"the {action} step is not available in this version of akdctl " \
-                                      f"({module} is missing)"
     return step
 
 
-CHANNEL_WORDS = {"parameters": "a PROFIdrive parameter channel (PNUs)", "objects": "an object channel (SDO)"}
-
-
-def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> set[str]:
+def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> "set[Channel]":
     """The channels a step uses on the drive, known from the step and the target alone."""
+    from akdctl.profiles.vocabulary import Channel
+
     if action in ("set", "expect", "wait"):
         targets = params.get("targets") or ([params["target"]] if "target" in params else [])
-        return {"parameters" if t["kind"] == "pnu" else "objects" for t in targets}
+        return {Channel.PARAMETERS if t["kind"] == "pnu" else Channel.OBJECTS for t in targets}
     if action == "map":
-        return {"parameters" if "telegram_map" in params else "objects"}
+        return {Channel.PARAMETERS if "telegram_map" in params else Channel.OBJECTS}
     if action == "telegram":
-        return {"parameters"}
+        return {Channel.PARAMETERS}
     if action in ("enable", "disable", "stop", "acknowledge", "home", "move"):
-        from akdctl.drive.axis.choice import profile_name
-
-        return {"parameters" if profile_name(ctx.conn) == "profidrive" else "objects"}
+        return {ctx.conn.axis_profile.channel}
     return set()
 
 
@@ -530,14 +508,12 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
     """Each step's channel must exist on the selected target — checked before the first write, dry runs too."""
     if ctx.conn is None:
         return
-    from akdctl.drive.axis.choice import target_channels
-
-    offered = target_channels(ctx.conn)
+    offered = ctx.conn.declared_channels
     if offered is None:
         return
     for channel in sorted(_needed_channels(action, params, ctx) - offered):
-        offers = " and ".join(CHANNEL_WORDS[c] for c in sorted(offered)) or "no channel"
-        raise StepProblem(f"this step needs {CHANNEL_WORDS[channel]}, which target {ctx.conn.target.display} does "
+        offers = " and ".join(c.words for c in sorted(offered)) or "no channel"
+        raise StepProblem(f"this step needs {channel.words}, which target {ctx.conn.target.display} does "
                           f"not offer (it has {offers})")
 
 
@@ -561,10 +537,6 @@ def _gated(action: str, params: dict[str, Any]) -> list[Any]:
         else:
             found.append(gate.classify_object(t["entry"].index, t["entry"].subindex, t["entry"].name))
     return [g for g in found if g is not None]
-
-
-def _map_module(params: dict[str, Any]) -> str:
-    return "akdctl.drive.telegram" if "telegram_map" in params else "akdctl.drive.pdo"
 
 
 def _type_word(t: type) -> str:
