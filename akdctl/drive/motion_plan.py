@@ -323,7 +323,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
     if r.kind == "task":
         from akdctl.drive.tasks import check_number
 
-        if not getattr(axis_cls, "TASKS", False):
+        if not axis_cls.TASKS:  # declared on Axis (False)
             raise UsageError(f"task start: {axis_cls.NO_TASKS}")
         check_number(r.task)  # type: ignore[arg-type]
         plan.mode_kind = "task"

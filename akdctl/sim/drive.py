@@ -318,7 +318,7 @@ class SimDrive:
         if server is None:
             from akdctl.sim.pnu_server import PnuServer
 
-            server = self._pnu_server = PnuServer(_OUTSIDE)
+            server = self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
         return self._serve(server, server.handle, request)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
@@ -332,7 +332,7 @@ class SimDrive:
         if server is None:
             from akdctl.sim.sdo_server import SdoServer
 
-            server = self._sdo_server = SdoServer(_OUTSIDE)
+            server = self._sdo_server = SdoServer(_OUTSIDE, files=True)
         return self._serve(server, self._answer_mailbox, mailbox)
 
     def _answer_mailbox(self, mailbox: bytes) -> list[bytes]:

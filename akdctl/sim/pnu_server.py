@@ -208,8 +208,11 @@ def header_refusal(request: bytes) -> int | None:
 class PnuServer:
     """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
 
-    def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,)) -> None:
+    def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,), raw_reads: bool = False) -> None:
+        """``raw_reads``: the access objects this server is handed also answer ``pnu_read_raw`` (DriveModel's
+        (format, unsigned values) without objects), and reads take that fast path; declared, not probed."""
         self.access = access
+        self.raw_reads = raw_reads
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
 
@@ -271,7 +274,8 @@ class PnuServer:
         checked alone already; packing once costs less than building, validating and encoding result objects.
         The blocks are those ``encode_value_block`` / ``encode_response`` write (tests/test_pnu_server.py).
         """
-        raw = getattr(self.access, "pnu_read_raw", None)  # DriveModel's: (format, unsigned values), no objects
+        raw: Callable[[int, int, int], tuple[int, list[int]]] | None = (
+            self.access.pnu_read_raw if self.raw_reads else None)  # type: ignore[attr-defined]
         blocks = []
         negative = False
         for i in range(n):

@@ -14,9 +14,9 @@ Behaviour, following ETG.1000.6 and SOEM/the Beckhoff slave stack:
   (0x05030000) and length checks (0x06070012/13) before anything is written;
 * unknown command specifiers (block transfer) abort with 0x05040001, complete
   access with 0x06010000 (the AKD's ESI does not declare it);
-* FoE mailboxes (type 4) go to the drive's file store when the access object
-  has one (``foe_read``/``foe_write``; :mod:`akdctl.sim.foe`): the AKD names
-  FoE as its firmware path;
+* FoE mailboxes (type 4) go to the drive's file store when the server was told
+  the access object has one (``files=True``: it is a :class:`akdctl.sim.foe.FileAccess`
+  as well; declared, not probed): the AKD names FoE as its firmware path;
 * a mailbox of another protocol, or whose header/size is broken, gets a
   mailbox error reply (type 0) instead of an SDO answer;
 * queued emergencies go out as CoE service-1 mailboxes ahead of the next reply.
@@ -127,10 +127,13 @@ class _Upload:
 class SdoServer:
     """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
 
-    def __init__(self, access: ObjectAccess, mailbox_size: int = 512) -> None:
+    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False) -> None:
+        """``files``: the access objects this server is handed also store files (``foe_read``/``foe_write``,
+        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused."""
         if mailbox_size < 32:
             raise ValueError("mailbox_size must be at least 32 bytes")
         self.access = access
+        self.files = files
         self.mailbox_size = mailbox_size
         self._download: _Download | None = None
         self._upload: _Upload | None = None
@@ -194,7 +197,7 @@ class SdoServer:
         request = _Request(address, counter)
         if mbx.HEADER_SIZE + len(data) > self.mailbox_size:
             return [self._error_reply(request, mbx.ERR_INVALID_SIZE)]
-        if mtype == mbx.MailboxType.FOE and hasattr(self.access, "foe_read"):
+        if mtype == mbx.MailboxType.FOE and self.files:
             return self._foe(request, data)
         if mtype != mbx.MailboxType.COE:
             return [self._error_reply(request, mbx.ERR_UNSUPPORTED_PROTOCOL)]
