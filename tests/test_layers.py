@@ -162,3 +162,12 @@ def test_the_probe_check_can_fail(tmp_path: Path) -> None:
     assert {f.split(": ", 1)[1] for f in found} == {
         "getattr(conn.transport(), 'read_im0')", "hasattr(transport, 'whatever')", "getattr(thing, 'al_state')",
         "__getattr__ lets any name fall through"}
+
+
+def test_no_module_getattr() -> None:
+    """No module hands out names it does not define (issue 22 item 8: protocol/coe.py, profiles/units.py did):
+    such names hide from readers, checkers and ``grep``; a user imports the module that defines them."""
+    found = [str(path.relative_to(ROOT.parent)) for path in sorted(ROOT.rglob("*.py"))
+             if any(isinstance(node, ast.FunctionDef) and node.name == "__getattr__"
+                    for node in ast.parse(path.read_text(encoding="utf-8")).body)]
+    assert found == []

@@ -15,8 +15,8 @@ The SDO command specifiers overlap between directions (0x60 is a client's
 needs to know who sent the frame: ``decode_sdo(payload, from_server=...)``.
 
 The SDO information service (CoE service 8) lists the object dictionary and
-describes objects and entries: :mod:`akdctl.protocol.coe_info`, whose names this
-module hands out on first use (an upload never loads it).
+describes objects and entries: :mod:`akdctl.protocol.coe_info`, which its users import
+themselves where they need it (so an upload never loads it); no name of it is re-exported here.
 """
 
 from __future__ import annotations
@@ -358,17 +358,3 @@ def decode_sdo(payload: bytes, *, from_server: bool) -> SdoMessage:
     if spec == 3:
         return SdoUploadSegment(command >> 4 & 0x01)
     raise CoeError(f"unknown SDO client command specifier in command byte 0x{command:02X}")
-
-
-# --- SDO information (CoE service 8): akdctl/protocol/coe_info.py, loaded on first use --------------------------
-
-def __getattr__(name: str) -> object:
-    """``coe.SdoInfo`` & co.: the SDO information service lives in coe_info.py, imported when first named."""
-    if name.startswith("__"):  # probes for module dunders (__path__, __all__ ...) must not load it
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from akdctl.protocol import coe_info
-
-    try:
-        return getattr(coe_info, name)
-    except AttributeError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None

@@ -30,7 +30,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
@@ -38,6 +38,9 @@ from akdctl.protocol.coe import CoeError, CoeService
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
+
+if TYPE_CHECKING:
+    from akdctl.protocol import coe_info
 
 
 MAX_TRANSFER = 1 << 20  # larger announced downloads abort with "out of memory"
@@ -220,7 +223,9 @@ class SdoServer:
             service = CoeService.SDO_REQUEST if isinstance(answer, coe.SdoAbort) else CoeService.SDO_RESPONSE
             return [self._reply(request, service, coe.encode_sdo(answer))] if answer else []
         if service == CoeService.SDO_INFO:
-            return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
+            from akdctl.protocol import coe_info  # the SDO information service: loaded on first use
+
+            return [self._reply(request, CoeService.SDO_INFO, coe_info.encode_sdo_info(f)) for f in self._info(payload)]
         return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
 
     def _upload_fast(self, request: _Request, payload: bytes) -> bytes:
@@ -370,54 +375,58 @@ class SdoServer:
 
     # --- SDO information --------------------------------------------------------------------
 
-    def _info(self, payload: bytes) -> list[coe.SdoInfo]:
+    def _info(self, payload: bytes) -> list[coe_info.SdoInfo]:
+        from akdctl.protocol import coe_info
+
         try:
-            frame = coe.decode_sdo_info(payload)
-            request = coe.unpack_info(frame)
+            frame = coe_info.decode_sdo_info(payload)
+            request = coe_info.unpack_info(frame)
         except CoeError:
-            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND))]
         access = self.access
         if not isinstance(access, ObjectInfoAccess):
-            return [coe.pack_info(coe.SdoInfoError(0x08000023))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(0x08000023))]
         try:
             answer = self._info_answer(access, request)
         except SdoAccessError as exc:
-            answer = coe.SdoInfoError(exc.code)
+            answer = coe_info.SdoInfoError(exc.code)
         except CodecError:
-            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
+            answer = coe_info.SdoInfoError(coe.ABORT_GENERAL)
         except Exception:
             log.exception("SDO information request %r failed", request)
-            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
-        room = self.mailbox_size - mbx.HEADER_SIZE - coe.COE_HEADER_SIZE - coe.SDO_INFO_HEADER_SIZE
+            answer = coe_info.SdoInfoError(coe.ABORT_GENERAL)
+        room = self.mailbox_size - mbx.HEADER_SIZE - coe.COE_HEADER_SIZE - coe_info.SDO_INFO_HEADER_SIZE
         try:
-            return coe.fragment_info(coe.pack_info(answer), room)
+            return coe_info.fragment_info(coe_info.pack_info(answer), room)
         except CodecError:
-            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_GENERAL))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(coe.ABORT_GENERAL))]
 
-    def _info_answer(self, access: ObjectInfoAccess, request: coe.SdoInfoMessage) -> coe.SdoInfoMessage:
-        if isinstance(request, coe.OdListRequest):
+    def _info_answer(self, access: ObjectInfoAccess, request: coe_info.SdoInfoMessage) -> coe_info.SdoInfoMessage:
+        from akdctl.protocol import coe_info
+
+        if isinstance(request, coe_info.OdListRequest):
             indices = sorted(int(i) for i in access.object_indices())
             if request.list_type == 0:
                 counts = [len(indices)] + [len(self._filtered(access, indices, t)) for t in (2, 3, 4, 5)]
-                return coe.OdListResponse(0, tuple(counts))
-            if request.list_type == coe.LIST_ALL:
-                return coe.OdListResponse(1, tuple(indices))
+                return coe_info.OdListResponse(0, tuple(counts))
+            if request.list_type == coe_info.LIST_ALL:
+                return coe_info.OdListResponse(1, tuple(indices))
             if request.list_type in _LIST_FILTER:
-                return coe.OdListResponse(request.list_type, tuple(self._filtered(access, indices, request.list_type)))
-            return coe.SdoInfoError(0x08000000)
-        if isinstance(request, coe.ObjectDescriptionRequest):
+                return coe_info.OdListResponse(request.list_type, tuple(self._filtered(access, indices, request.list_type)))
+            return coe_info.SdoInfoError(0x08000000)
+        if isinstance(request, coe_info.ObjectDescriptionRequest):
             info = access.object_info(request.index)
-            return coe.ObjectDescription(info.index, info.data_type, info.max_subindex, info.object_code, info.name)
-        if isinstance(request, coe.EntryDescriptionRequest):
+            return coe_info.ObjectDescription(info.index, info.data_type, info.max_subindex, info.object_code, info.name)
+        if isinstance(request, coe_info.EntryDescriptionRequest):
             info = access.object_info(request.index)
             entry = info.entries.get(request.subindex)
             if entry is None:
                 raise SdoAccessError(coe.ABORT_NO_SUBINDEX)
-            return coe.EntryDescription(
+            return coe_info.EntryDescription(
                 request.index, request.subindex, 0, entry.data_type, entry.bit_length, entry.access, entry.name
             )
         # a response opcode sent to the slave
-        return coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND)
+        return coe_info.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND)
 
     @staticmethod
     def _filtered(access: ObjectInfoAccess, indices: list[int], list_type: int) -> list[int]:
