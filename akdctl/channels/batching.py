@@ -231,6 +231,7 @@ def chunk_value(value: ParameterValue, limit: int) -> list[ParameterValue]:
     """Split a value into pieces of at most ``limit`` wire elements (strings split by character)."""
     if value.format in STRING_FORMATS:
         item = value.values[0]
+        assert isinstance(item, (str, bytes)), "a string format holds one str or bytes"
         if value.format == Format.UNICODE_STRING and isinstance(item, str):
             units = item.encode("utf-16-be", "surrogatepass")
             return [ParameterValue(value.format, (units[i:i + 2 * limit].decode("utf-16-be", "surrogatepass"),))

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, TypeVar, cast
 
 from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
@@ -270,7 +270,8 @@ class CoeObjectChannel(ObjectChannel):
              left: int, toggle: int | None = None) -> coe.SdoMessage:
         """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
         self._want = (wanted, index, subindex, verb, toggle)
-        return self._exchange(request, self._accept_sdo, deadline.share(left), deadline)
+        # (the checker joins the union's members to their base class when it infers T: name the type)
+        return cast("coe.SdoMessage", self._exchange(request, self._accept_sdo, deadline.share(left), deadline))
 
     def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
         """The server message if this reply answers the SDO request in ``self._want``, else None."""
@@ -290,12 +291,12 @@ class CoeObjectChannel(ObjectChannel):
                                   details={"index": index, "subindex": subindex})
             return None
         if segment:
-            if msg.toggle != toggle:  # type: ignore[attr-defined]
+            if msg.toggle != toggle:  # type: ignore[union-attr]
                 if mine:
-                    raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[attr-defined]
+                    raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[union-attr]
                                          f"of {_where(index, subindex)}")
                 return None  # a duplicate of the previous segment's answer
-        elif msg.index != index or msg.subindex != subindex:  # type: ignore[attr-defined]
+        elif msg.index != index or msg.subindex != subindex:  # type: ignore[union-attr]
             return None
         if service == _SDO_REQUEST:
             log.warning(

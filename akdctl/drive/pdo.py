@@ -28,6 +28,7 @@ from akdctl.catalog.objects import PdoEntry
 from akdctl.errors import CheckFailed, SdoAborted, UsageError
 
 if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
     from akdctl.connection import Connection
 
 DIRECTIONS = ("rx", "tx")
@@ -113,14 +114,14 @@ class DirectionMapping:
         }
 
 
-def _read_uint(channel: Any, index: int, sub: int) -> int:
+def _read_uint(channel: "ObjectChannel", index: int, sub: int) -> int:
     """A count, PDO number or mapping entry, typed by the catalogue (u8 / u16 / u32)."""
     from akdctl.drive.values import read_object
 
     return read_object(channel, index, sub)  # type: ignore[no-any-return]
 
 
-def read_pdo(channel: Any, pdo: int) -> tuple[PdoEntry, ...]:
+def read_pdo(channel: "ObjectChannel", pdo: int) -> tuple[PdoEntry, ...]:
     """A PDO's entries as the drive reports them (sub 0 count, then sub 1..n)."""
     count = _read_uint(channel, pdo, 0)
     if count > oc.MAX_MAPPING_ENTRIES * 2:  # fixed PDOs hold up to 10 entries; anything far beyond is garbage
@@ -130,7 +131,7 @@ def read_pdo(channel: Any, pdo: int) -> tuple[PdoEntry, ...]:
     return tuple(PdoEntry.from_mapping_value(_read_uint(channel, pdo, sub)) for sub in range(1, count + 1))
 
 
-def read_direction(channel: Any, direction: str) -> DirectionMapping:
+def read_direction(channel: "ObjectChannel", direction: str) -> DirectionMapping:
     index = ASSIGN_INDEX[direction]
     count = _read_uint(channel, index, 0)
     if count > oc.MAX_ASSIGNED_PDOS:
@@ -141,7 +142,7 @@ def read_direction(channel: Any, direction: str) -> DirectionMapping:
     return DirectionMapping(direction, [(n, read_pdo(channel, n)) for n in numbers])
 
 
-def read_mapping(channel: Any) -> dict[str, DirectionMapping]:
+def read_mapping(channel: "ObjectChannel") -> dict[str, DirectionMapping]:
     """Both directions: assignment -> PDOs -> entries."""
     return {d: read_direction(channel, d) for d in DIRECTIONS}
 
@@ -227,9 +228,9 @@ def parse_cycle_time(text: str) -> tuple[int, int]:
     if seconds <= 0:
         raise UsageError(f"cycle time {text!r} must be positive")
     for exponent in range(0, -10, -1):
-        units = seconds / (Decimal(10) ** exponent)
-        if units == units.to_integral_value() and 1 <= units <= 255:
-            return int(units), exponent
+        scaled = seconds / (Decimal(10) ** exponent)
+        if scaled == scaled.to_integral_value() and 1 <= scaled <= 255:
+            return int(scaled), exponent
     raise UsageError(f"cycle time {text!r} cannot be written as 1..255 units x 10^n s")
 
 
@@ -529,7 +530,7 @@ def startup_list(plan: PdoPlan) -> list[StartupEntry]:
 
 
 # --------------------------------------------------------------------------- applying and verifying
-def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
+def apply(channel: "ObjectChannel", steps: Sequence[StartupEntry]) -> int:
     """Download every step in order; returns the number written. An abort names the step and what is left."""
     steps = _cycle_time_in_drive_order(channel, steps)
     for number, step in enumerate(steps, start=1):
@@ -549,7 +550,7 @@ def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
     return len(steps)
 
 
-def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> list[StartupEntry]:
+def _cycle_time_in_drive_order(channel: "ObjectChannel", steps: Sequence[StartupEntry]) -> list[StartupEntry]:
     """The drive checks each 0x60C2 write against the other sub-index (docs/fidelity.md F5): write the exponent
     first when the new units with the current exponent would be refused (e.g. 250 us -> 2 ms)."""
     steps = list(steps)
@@ -569,7 +570,7 @@ def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> l
     return steps
 
 
-def verify(channel: Any, plan: PdoPlan) -> list[str]:
+def verify(channel: "ObjectChannel", plan: PdoPlan) -> list[str]:
     """Read everything the plan wrote back; one text per difference (empty: the drive holds the plan)."""
     differences: list[str] = []
     for d in DIRECTIONS:
@@ -592,10 +593,10 @@ def verify(channel: Any, plan: PdoPlan) -> list[str]:
         checks += [(0x60C2, 1, plan.cycle[0]), (0x60C2, 2, plan.cycle[1])]
     from akdctl.drive.values import read_object
 
-    for index, sub, want in checks:
-        got = read_object(channel, index, sub)
-        if got != want:
-            differences.append(f"0x{index:04X}:{sub:02X}: wrote {want}, read back {got}")
+    for index, sub, value in checks:
+        got_value = read_object(channel, index, sub)
+        if got_value != value:
+            differences.append(f"0x{index:04X}:{sub:02X}: wrote {value}, read back {got_value}")
     return differences
 
 

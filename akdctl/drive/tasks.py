@@ -13,12 +13,16 @@ consent when the drive is enabled. ``task start`` is a motion and goes through t
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import UsageError
 from akdctl.profiles import motion_tasks as mt
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
+    from akdctl.channels.base import ObjectChannel
 
 #: Why the table cannot be reached over a parameter channel alone (pn://): the manuals' PNU lists have no MT.*.
 NO_TABLE = ("the AKD's PROFINET manuals document no parameter for the motion task table; it is reached through "
@@ -54,7 +58,7 @@ def check_number(number: int) -> int:
     return number
 
 
-def objects_of(conn: Any) -> Any:
+def objects_of(conn: "Connection") -> Any:
     """The object channel the table lives behind; UsageError saying why on a parameter-only link."""
     if not conn.has_objects:
         raise UsageError(f"{conn.target.display}: {NO_TABLE}")
@@ -77,7 +81,7 @@ def gated_writes() -> list[Any]:
     return [gate.classify_object(index, 0, name) for index, name in names.items()]
 
 
-def read_task(objects: Any, number: int) -> Task:
+def read_task(objects: "ObjectChannel", number: int) -> Task:
     """MT.NUM = n, MT.LOAD, then the working parameters."""
     from akdctl.drive.values import read_object, write_object
 
@@ -91,7 +95,7 @@ def read_task(objects: Any, number: int) -> Task:
                 units.cia_rpm(raw["acc"]), units.cia_rpm(raw["dec"]), bool(raw["cntl"] & mt.CNTL_RELATIVE), raw)
 
 
-def write_task(objects: Any, number: int, position_rev: float, velocity_rpm: float, acc_rpm_s: float,
+def write_task(objects: "ObjectChannel", number: int, position_rev: float, velocity_rpm: float, acc_rpm_s: float,
                dec_rpm_s: float, relative: bool) -> Task:
     """Working parameters, then MT.NUM = n and MT.SET; returns the task as read back."""
     from akdctl.drive.values import write_object

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import telegrams as tc
 from akdctl.drive.values import pnu_spec, read_pnus, write_pnus
 from akdctl.errors import CheckFailed, MalformedReply, ParameterRefused, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ParameterChannel
 
 
 @dataclass
@@ -70,7 +73,7 @@ def _refused(reading: Any, verb: str) -> ParameterRefused:
     )
 
 
-def read_state(channel: Any) -> TelegramState:
+def read_state(channel: "ParameterChannel") -> TelegramState:
     """PNU 922, 915, 916 and 923 in one batched read."""
     readings = read_pnus(channel, [pnu_spec(922), pnu_spec(915), pnu_spec(916), pnu_spec(923)])
     for reading in readings:
@@ -125,7 +128,7 @@ def validate_free_map(setpoint: Sequence[int], actual: Sequence[int], offered: S
     return problems
 
 
-def select_telegram(channel: Any, number: int) -> TelegramState:
+def select_telegram(channel: "ParameterChannel", number: int) -> TelegramState:
     """Write PNU 922 and read back the whole telegram state; CheckFailed if 922 reads back differently."""
     result = write_pnus(channel, [(pnu_spec(922), [number])])[0]
     if not result.ok:
@@ -136,7 +139,7 @@ def select_telegram(channel: Any, number: int) -> TelegramState:
     return state
 
 
-def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
+def map_free(channel: "ParameterChannel", setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
     """Write PNU 915 and/or 916 (all ten words each, zero-padded) and verify by reading back."""
     items = []
     try:
@@ -159,7 +162,7 @@ def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int]
     return state
 
 
-def ensure_submode(channel: Any, submode: str) -> int | None:
+def ensure_submode(channel: "ParameterChannel", submode: str) -> int | None:
     """Make the selected telegram carry what a position submode reads (``program`` or ``mdi``).
 
     Why: the manuals require "Standard telegram 7 (program mode) / 9 (MDI) needs to be configured" (004
