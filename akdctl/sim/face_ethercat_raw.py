@@ -42,19 +42,14 @@ OPTIONS = (
 
 
 class SlaveWorker:
-    """The drive application behind the ESC's mailbox: SDO server + fault injection."""
+    """The drive application behind the ESC's mailbox: SDO server + fault injection (run on a thread of its
+    face, :meth:`serve`, until the face stops)."""
 
     def __init__(self, esc: Esc, drive: SimDrive, injector: Injector) -> None:
         self.esc, self.drive, self.injector = esc, drive, injector
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
 
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="ecat-raw-app", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
+    def serve(self, stop: threading.Event) -> None:
+        while not stop.is_set():
             request = self.esc.take_request(0.2)
             if request is None:
                 continue
@@ -79,11 +74,6 @@ class SlaveWorker:
         except Exception as exc:  # noqa: BLE001 - the slave must keep running; the master sees an abort
             request_failed("ethercat-raw", exc)
             return failure_reply(request), False
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
 
 
 class AlStateBinding:
@@ -139,6 +129,7 @@ class AlStateBinding:
 
 class EthercatRawFace(Face):
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None) -> None:
+        super().__init__()
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
         # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
@@ -149,16 +140,13 @@ class EthercatRawFace(Face):
         self.al = AlStateBinding(self.esc, drive) if drive is not None else None
         self.injector = injector
         self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
 
-    def start(self) -> None:
+    def open(self) -> None:
         self._sock = open_raw_socket(self.ifname, ec.ETHERTYPE_ECAT, f"--ethercat-raw {self.ifname}")
         warm_up(self.worker.drive)
         self._sock.settimeout(0.2)
-        self.worker.start()
-        self._thread = threading.Thread(target=self._serve, name="ecat-raw-face", daemon=True)
-        self._thread.start()
+        self.spawn(self.worker.serve, "ecat-raw-app", self._stop)
+        self.spawn(self._serve, "ecat-raw-face")
 
     def handle_frame(self, frame: bytes) -> bytes | None:
         """One received frame -> the frame to send back (None: not EtherCAT, or lost by injection)."""
@@ -197,11 +185,7 @@ class EthercatRawFace(Face):
                 with contextlib.suppress(OSError):
                     self._sock.send(reply)
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-        self.worker.stop()
+    def close(self) -> None:
         if self._sock is not None:
             self._sock.close()
             self._sock = None
