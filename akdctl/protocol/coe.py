@@ -358,3 +358,34 @@ def decode_sdo(payload: bytes, *, from_server: bool) -> SdoMessage:
     if spec == 3:
         return SdoUploadSegment(command >> 4 & 0x01)
     raise CoeError(f"unknown SDO client command specifier in command byte 0x{command:02X}")
+
+
+# --- the server's fast path, both layouts -----------------------------------------------------------------------
+# An upload initiate is the request every poll makes; the simulated drive's SDO server answers it without message
+# objects. The layouts it packs live here, beside decode_sdo/encode_sdo which they must equal
+# (tests/test_sdo_server.py holds both paths byte-equal).
+
+#: The command byte of an upload initiate request without complete access.
+UPLOAD_INITIATE_COMMAND = 0x40
+_INDEX = struct.Struct("<HB")
+_EXPEDITED_UPLOAD = struct.Struct("<BHB4s")  # command, index, subindex, 4 data bytes (struct pads a shorter value)
+_COE_HEADER = struct.Struct("<H")
+
+
+def coe_header(service: int) -> bytes:
+    """The 2-byte CoE header of a reply (number 0), without :func:`encode_coe`'s checks: ``service`` is a
+    :class:`CoeService` member."""
+    return _COE_HEADER.pack(service << 12)
+
+
+def sdo_address(payload: bytes) -> tuple[int, int]:
+    """(index, subindex) of an initiate SDO (bytes 1..3; the caller checked the length)."""
+    index, subindex = _INDEX.unpack_from(payload, 1)
+    return index, subindex
+
+
+def pack_expedited_upload_response(index: int, subindex: int, value: bytes) -> bytes:
+    """The SDO of an expedited upload response carrying 1..4 bytes: what
+    ``encode_sdo(SdoUploadResponse(index, subindex, value, expedited=True))`` writes."""
+    return _EXPEDITED_UPLOAD.pack(0x43 | (4 - len(value)) << 2, index, subindex, value)
+

@@ -27,7 +27,6 @@ an abort code, and undecodable bytes become mailbox error replies.
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
@@ -101,10 +100,7 @@ class _Request(NamedTuple):
     counter: int
 
 
-_COE_HEADER = struct.Struct("<H")
-_INDEX = struct.Struct("<HB")
-_EXPEDITED = struct.Struct("<BHB4s")  # command, index, subindex, 4 data bytes (struct pads a shorter value)
-_UPLOAD_INITIATE = 0x40  # command byte of an upload initiate request without complete access
+_UPLOAD_INITIATE = coe.UPLOAD_INITIATE_COMMAND
 
 # Object access bits behind the SDO information list types 2..5.
 _LIST_FILTER = {2: 0x0040, 3: 0x0080, 4: 0x0100, 5: 0x0200}
@@ -187,7 +183,7 @@ class SdoServer:
         return mbx.pack(mbx.MailboxType.ERROR, data, address, counter)
 
     def _reply(self, request: _Request, service: int, payload: bytes) -> bytes:
-        return mbx.pack(mbx.MailboxType.COE, _COE_HEADER.pack(service << 12) + payload, request.address,
+        return mbx.pack(mbx.MailboxType.COE, coe.coe_header(service) + payload, request.address,
                         request.counter)
 
     def _handle(self, raw: bytes) -> list[bytes]:
@@ -230,14 +226,14 @@ class SdoServer:
 
     def _upload_fast(self, request: _Request, payload: bytes) -> bytes:
         """An upload initiate without complete access (:meth:`_upload_initiate`'s rules), the expedited answer
-        packed directly in the layout ``coe.encode_sdo(SdoUploadResponse(..., expedited=True))`` writes."""
-        index, subindex = _INDEX.unpack_from(payload, 1)
+        packed by the codec's fast path (``coe.pack_expedited_upload_response``, byte-equal to ``encode_sdo``)."""
+        index, subindex = coe.sdo_address(payload)
         self._download = None
         self._upload = None
         value = self._read(index, subindex)
         if isinstance(value, bytes) and 1 <= len(value) <= 4:
             return self._reply(request, CoeService.SDO_RESPONSE,
-                               _EXPEDITED.pack(0x43 | (4 - len(value)) << 2, index, subindex, value))
+                               coe.pack_expedited_upload_response(index, subindex, value))
         if isinstance(value, coe.SdoAbort):
             return self._reply(request, CoeService.SDO_REQUEST, coe.encode_sdo(value))
         answer = self._upload_normal(index, subindex, value)
