@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from akdctl.errors import UsageError
 from akdctl.transport.target import Target, split_target
-from akdctl.profiles.vocabulary import Channel, drive_profile, profiles_text, usable_profiles
+from akdctl.profiles.vocabulary import Channel, drive_profile, usable_profiles
 from akdctl.protocol.record import Record
 
 if TYPE_CHECKING:
@@ -184,8 +184,8 @@ def _check_drive(target: Target, spec: TransportSpec) -> None:
     usable = usable_profiles(spec.channels)
     chosen = drive_profile(word)
     if chosen is None or chosen not in usable:
-        raise UsageError(f"malformed target {target.raw!r}: drive={word!r}; {spec.scheme}:// speaks "
-                         f"drive={profiles_text(usable)}")
+        choices = " or ".join(f"drive={p.value}" for p in usable)
+        raise UsageError(f"malformed target {target.raw!r}: drive={word!r}; {spec.scheme}:// speaks {choices}")
 
 
 def module_available(name: str) -> bool:
