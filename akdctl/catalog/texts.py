@@ -16,7 +16,7 @@ __all__ = [
     "SDO_ABORT_TEXTS", "sdo_abort_text",
     "PROFIDRIVE_ERROR_TEXTS", "profidrive_error_text", "profidrive_error_phrase", "profidrive_failure_detail",
     "PROFIDRIVE_SUBINDEX_INFO_ERRORS",
-    "RECORD_ERROR_TEXTS", "RECORD_RETRY_CODES", "PNIO_ERROR_CODE_TEXTS", "PNIO_ERROR_DECODE_TEXTS",
+    "RECORD_ERROR_TEXTS", "RECORD_RETRY_CODES", "PNIO_ERROR_CODE_TEXTS",
     "PNIO_CM_ERROR_CODE1_TEXTS", "pnio_status_text",
     "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text", "al_status_line",
     "ERROR_REGISTER_BITS", "error_register_text",
@@ -158,13 +158,6 @@ PNIO_ERROR_CODE_TEXTS: dict[int, str] = {
     0xDD: "control error",
     0xDE: "read error",
     0xDF: "write error",
-}
-
-PNIO_ERROR_DECODE_TEXTS: dict[int, str] = {
-    0x00: "no error",
-    0x80: "PNIORW",
-    0x81: "PNIO",
-    0x82: "manufacturer specific",
 }
 
 # ErrorCode1 with ErrorDecode 0x80 (PNIORW): the record-access layer's answer.
