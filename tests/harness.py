@@ -81,14 +81,15 @@ class CliResult(NamedTuple):
 
 
 def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None = None, timeout: float = 60,
-               netns: str | None = None, prefix: Sequence[str] = ()) -> CliResult:
+               netns: str | None = None, prefix: Sequence[str] = (), cwd: Path | None = None) -> CliResult:
     """The real CLI (``python -m akdctl ARGS``) in a subprocess, to completion or *timeout* seconds.
 
     stdin is *input* or empty (never the terminal pytest runs in), so a prompt cannot wait forever; *netns* runs it
-    inside that network namespace; *prefix* is a command that runs it (e.g. ``setpriv`` to drop privileges).
+    inside that network namespace; *prefix* is a command that runs it (e.g. ``setpriv`` to drop privileges); *cwd*
+    the directory it runs in (default: the checkout).
     """
     proc = subprocess.run(_argv(args, netns, prefix), input=input if input is not None else "", capture_output=True,
-                          text=True, env=akdctl_env(env), timeout=timeout, cwd=ROOT)
+                          text=True, env=akdctl_env(env), timeout=timeout, cwd=cwd or ROOT)
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
 
