@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.protocol import cip, enip
 
 
 class Deadline:
@@ -208,7 +211,7 @@ class MessageLink(ABC):
     """
 
     @abstractmethod
-    def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
+    def request(self, req: "cip.Request", extra_items: "tuple[enip.Item, ...]" = ()) -> "cip.Response": ...
 
 
 class CanopenSdoClient(Record):

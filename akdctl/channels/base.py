@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageError
 
@@ -28,6 +28,7 @@ from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageE
 MAX_UPLOAD = 1 << 20
 
 if TYPE_CHECKING:
+    from akdctl.protocol.coe_info import EntryDescription, ObjectDescription
     from akdctl.protocol.emcy import Emergency
     from akdctl.protocol.bmp import ParameterAddress, ParameterDescription, ParameterFailure, ParameterValue
 
@@ -77,11 +78,11 @@ class ObjectChannel(ABC):
         """Indices of the objects the drive has (SDO information service)."""
         raise UsageError("this link does not offer the SDO information service (object list)")
 
-    def object_description(self, index: int) -> Any:
+    def object_description(self, index: int) -> "ObjectDescription":
         """One object's description (SDO information service): name, object code, max subindex."""
         raise UsageError("this link does not offer the SDO information service (object description)")
 
-    def entry_description(self, index: int, subindex: int) -> Any:
+    def entry_description(self, index: int, subindex: int) -> "EntryDescription":
         """One entry's description (SDO information service): name, data type, bit length, access."""
         raise UsageError("this link does not offer the SDO information service (entry description)")
 
@@ -122,10 +123,10 @@ class LazyObjectChannel(ObjectChannel):
     def object_list(self) -> list[int]:
         return self.channel.object_list()
 
-    def object_description(self, index: int) -> Any:
+    def object_description(self, index: int) -> "ObjectDescription":
         return self.channel.object_description(index)
 
-    def entry_description(self, index: int, subindex: int) -> Any:
+    def entry_description(self, index: int, subindex: int) -> "EntryDescription":
         return self.channel.entry_description(index, subindex)
 
     def close(self) -> None:
