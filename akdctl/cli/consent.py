@@ -16,14 +16,17 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from akdctl.errors import SafetyRefusal
 
+if TYPE_CHECKING:
+    from akdctl.cli.context import AppContext
 
-def require_consent(app: Any, action: str) -> None:
+
+def require_consent(app: "AppContext", action: str) -> None:
     """Return when the user consents to ``action`` on this target; SafetyRefusal (exit 4) otherwise."""
     text = f"{action} on {app.target.display}"
     if not app.yes and not sys.stdin.isatty():
@@ -38,7 +41,7 @@ def require_consent(app: Any, action: str) -> None:
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 
-def gate_write(app: Any, gated: list[Any]) -> None:
+def gate_write(app: "AppContext", gated: list[Any]) -> None:
     """The write gate for raw write commands: consent when the addresses can power or move the axis
     (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive.
     A write touching a gated address owns the axis like a motion (also with ``--yes``)."""
@@ -49,7 +52,7 @@ def gate_write(app: Any, gated: list[Any]) -> None:
     gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)
 
 
-def own_axis(app: Any) -> None:
+def own_axis(app: "AppContext") -> None:
     """Own the target's axis until the command ends (:meth:`akdctl.connection.Connection.own_axis`:
     released when the connection closes, or when the process dies); SafetyRefusal (exit 4) naming the
     owner when another command holds it."""
