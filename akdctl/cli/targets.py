@@ -29,7 +29,7 @@ def targets() -> None:
         else:
             state = "available"
         rows.append({"scheme": spec.scheme, "syntax": spec.syntax,
-                     "channels": ", ".join(c.value for c in Channel if c in spec.channels),
+                     "channels": ", ".join(c.value for c in Channel.ALL if c in spec.channels),
                      "state": state, "available": not missing, "summary": spec.summary})
     app.emit(
         {"transports": rows},
