@@ -20,7 +20,7 @@ off), reading the homed state, and acknowledging faults (DRV.CLRFAULTS has no ci
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from akdctl.drive.axis.base import Axis, AxisStatus, JogSpec, MotionScales, MoveSpec, Scale
 from akdctl.errors import CipRefused, DriveError, MalformedReply, UsageError
