@@ -93,11 +93,18 @@ def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None 
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
 
-def start_akdctl(*args: str, env: dict[str, str] | None = None, netns: str | None = None) -> subprocess.Popen[str]:
+def start_akdctl(*args: str, env: dict[str, str] | None = None, netns: str | None = None,
+                 ignore_sigint: bool = False) -> subprocess.Popen[str]:
     """The real CLI started in the background (a move to interrupt, a lock to take meanwhile); end it with
-    :func:`finish`."""
+    :func:`finish`. ``ignore_sigint`` starts it as a shell's background job does (SIGINT inherited as ignored)."""
+    def background_job() -> None:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     return subprocess.Popen(_argv(args, netns), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, text=True, env=akdctl_env(env), cwd=ROOT)
+                            stdin=subprocess.DEVNULL, text=True, env=akdctl_env(env), cwd=ROOT,
+                            preexec_fn=background_job if ignore_sigint else None)
 
 
 def finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> CliResult:
