@@ -94,6 +94,7 @@ class Connection:
         self._cip: "CipAttributes | None" = None
         #: The axis's owner lock while this command owns the axis (:meth:`own_axis`), else None.
         self.axis_owner: "OwnerLock | None" = None
+        self._closed = False
 
     @classmethod
     def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
@@ -154,7 +155,10 @@ class Connection:
     @property
     def time_scale(self) -> float:
         """Seconds of the drive's time per wall second (1 for a real drive; the simulator under ``sim speed``
-        runs faster); asked again at every use, as ``sim speed`` may change it between transactions."""
+        runs faster); asked again at every use, as ``sim speed`` may change it between transactions. Once the
+        connection is closed the answer is 1 (a late wait must not open the target again)."""
+        if self._transport is None and self._closed:
+            return 1.0
         return float(self.transport().time_scale)
 
     def al_state(self) -> str | None:
@@ -209,6 +213,7 @@ class Connection:
                     transport.close()
                 raise
             self._transport = transport
+            self._closed = False
         return self._transport
 
     def _build_channels(self, transport: "Transport") -> None:
@@ -301,6 +306,7 @@ class Connection:
     def close(self) -> None:
         """Close the channels and the transport; safe to call twice and after a failed open."""
         transport, self._transport = self._transport, None
+        self._closed = True
         channels = [c for c in (self._objects, self._parameters) if c is not None]
         self._parameters = self._objects = self._cip = None
         self._record_link = None
