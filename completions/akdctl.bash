@@ -21,6 +21,7 @@ _akdctl() {
             ":telegram") path="telegram" ;;
             ":fault") path="fault" ;;
             ":support") path="support" ;;
+            ":scope") path="scope" ;;
             ":params") path="params" ;;
             ":commission") path="commission" ;;
             ":info") path="info" ;;
@@ -85,19 +86,19 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support params commission info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
         "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --units" -- "$cur")) ;;
-        "home") COMPREPLY=($(compgen -W "--help --mode --timeout" -- "$cur")) ;;
+        "home") COMPREPLY=($(compgen -W "--help --max-time --mode --timeout" -- "$cur")) ;;
         "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --no-wait --relative --units --velocity" -- "$cur")) ;;
         "task") COMPREPLY=($(compgen -W "list set show start --help" -- "$cur")) ;;
         "task list") COMPREPLY=($(compgen -W "--all --count --help" -- "$cur")) ;;
-        "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --position --relative --velocity" -- "$cur")) ;;
+        "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --dry-run --help --position --relative --velocity" -- "$cur")) ;;
         "task show") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "task start") COMPREPLY=($(compgen -W "--help --json --timeout --yes -y" -- "$cur")) ;;
+        "task start") COMPREPLY=($(compgen -W "--help --json --max-time --timeout --yes -y" -- "$cur")) ;;
         "pnu") COMPREPLY=($(compgen -W "describe get list set --help" -- "$cur")) ;;
         "pnu describe") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -122,8 +123,9 @@ _akdctl() {
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;
         "support") COMPREPLY=($(compgen -W "bundle show --help" -- "$cur")) ;;
-        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output -o" -- "$cur")) ;;
+        "support bundle") COMPREPLY=($(compgen -W "--all-objects --help --output --scope -o" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--help --trace-all" -- "$cur")) ;;
+        "scope") COMPREPLY=($(compgen -W "--accel --continuous --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --ring --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
         "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
         "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;
@@ -148,7 +150,7 @@ _akdctl() {
         "cip get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "cip set") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip") COMPREPLY=($(compgen -W "io param scan --help" -- "$cur")) ;;
-        "eip io") COMPREPLY=($(compgen -W "--accel --decel --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
+        "eip io") COMPREPLY=($(compgen -W "--accel --decel --dry-run --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
         "eip param") COMPREPLY=($(compgen -W "get run set --help" -- "$cur")) ;;
         "eip param get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

@@ -87,8 +87,9 @@ def _finish(app: Any, result: Any) -> None:
         exc = result.error
         if failed is not None:
             exc.message = f"step {failed.step.number} ({failed.step.name}) failed at {failed.step.where}: {exc.message}"
-            if result.safe_state:
-                exc.message += f"; {result.safe_state}"
+            said = [part for part in result.safe_state.split("; ") if part and part not in exc.message]
+            if said:  # what the step's own error already said ("axis stopped") is not said twice
+                exc.message += "; " + "; ".join(said)
         exc.reported = True
         raise exc
 

@@ -20,6 +20,7 @@ import click
 
 from akdctl import __version__
 from akdctl.cli.context import AppContext
+from akdctl.cli.parsing import Duration
 from akdctl.errors import EXIT_USAGE, AkdError, InternalError, Interrupted, UsageError
 
 # name -> (module, attribute). Order is the order of `akdctl --help`.
@@ -38,6 +39,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "telegram": ("akdctl.cli.telegram", "telegram"),
     "fault": ("akdctl.cli.fault", "fault"),
     "support": ("akdctl.cli.support", "support"),
+    "scope": ("akdctl.cli.scope", "scope"),
     "params": ("akdctl.cli.params", "params"),
     "commission": ("akdctl.cli.commission", "commission"),
     "info": ("akdctl.cli.info", "info"),
@@ -81,6 +83,8 @@ SHORT_HELP: dict[str, str] = {
         "Fault buffer dump, acknowledge, history and explanations (AKD F/n numbers).",
     "support":
         "Write a support bundle from a drive, or show one without a drive.",
+    "scope":
+        "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.",
     "params":
         "Back up, restore and compare drive parameters (TOML or JSON files).",
     "commission":
@@ -167,9 +171,9 @@ EPILOG = (
 @click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
-@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS",
-              help="How long a request may wait for the drive, repeats included (default 2); a command "
-                   "against a silent drive gives up after about this long.")
+@click.option("--timeout", type=Duration(0.001, 3600), metavar="DURATION",
+              help="How long a request may wait for the drive, repeats included (default 2 s; 2, 2s, 500ms); a "
+                   "command against a silent drive gives up after about this long.")
 @click.option("--retries", type=click.IntRange(min=0, max=10), metavar="N",
               help="Repeats of a request that got no answer, within --timeout (default 2). A write is "
                    "repeated only where the drive recognises the repeat (PROFINET); elsewhere it is sent "

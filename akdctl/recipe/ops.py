@@ -276,10 +276,47 @@ def do_restore(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     return result.to_json()
 
 
+def do_scope(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """Record (through the one scope operation the command uses: drive/scope.py), write the files the step names
+    below the output directory, then check the bounds (CheckFailed, exit 5). Consent for a recorded jog was given
+    for the recipe."""
+    from akdctl.drive import scope as op
+
+    plan = op.plan(session.conn, params["request"])
+    recording, failure = op.execute(session.conn, plan, stopped=session.interrupted)
+    for key, relative in params["files"].items():
+        from akdctl.io.atomic import atomic_open
+
+        path = session.output_file(relative, f"scope {key} file")
+        text = recording.to_csv() if key == "csv" else _svg(recording) if key == "svg" else \
+            _json_text(recording.to_json())
+        with atomic_open(path) as out:
+            out.write(text)
+        session.files.append(str(path))
+    if failure is not None:
+        raise failure
+    measured = op.check_bounds(recording, params["bounds"]) if params["bounds"].any else {}
+    return {"samples": len(recording), "rate_hz": recording.rate_achieved, "measured": measured,
+            "summary": recording.summary()}
+
+
+def _svg(recording: Any) -> str:
+    from akdctl.drive.scope_svg import render_svg
+
+    return render_svg(recording)
+
+
+def _json_text(data: Any) -> str:
+    import json
+
+    return json.dumps(data, indent=1) + "\n"
+
+
 ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
     "set": do_set, "expect": do_expect, "wait": do_wait, "map": do_map, "telegram": do_telegram,
     "enable": do_enable, "disable": do_disable, "stop": do_stop, "acknowledge": do_acknowledge, "home": do_home,
     "move": do_move, "check_faults": do_check_faults, "save": do_save, "backup": do_backup, "restore": do_restore,
+    "scope": do_scope,
 }
 
 

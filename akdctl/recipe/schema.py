@@ -47,8 +47,13 @@ ACTIONS: dict[str, dict[str, Any]] = {
     "save": {},
     "backup": {"file": str, "source": str, "groups": list, "only": list},
     "restore": {"file": str, "force": bool},
+    "scope": {"signals": list, "for": NUMBER, "samples": int, "rate": NUMBER, "source": str, "trigger": str,
+              "pretrigger": NUMBER, "timeout": NUMBER, "jog": NUMBER, "jog_for": NUMBER, "accel": NUMBER,
+              "csv": str, "svg": str, "json": str, "max_following_error": NUMBER, "max_settle_time": NUMBER,
+              "settle_band": NUMBER, "ring": int},
 }
-REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
+REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",),
+            "scope": ("signals",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
 
@@ -389,6 +394,8 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
             raise StepProblem(exc.message, "file") from None
         return {"file": str(full), "snapshot": snap, "force": data.get("force", False)}, \
             f"restore parameters from {data['file']} (write differences, verify)"
+    if action == "scope":
+        return _check_scope(data, ctx)
     raise StepProblem(f"unknown action {action!r}")  # pragma: no cover - filtered before
 
 
@@ -483,7 +490,8 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
     params, plan = _check(action, data, ctx)
     _check_channels(action, params, ctx)
     name = data.get("name") or plan
-    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION,
+    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan,
+                       motion=action in MOTION or bool(params.get("moves")),
                        gated=_gated(action, params))
     return step
 
@@ -562,3 +570,42 @@ def validate(recipe: RawRecipe, ctx: Context, structural: list[str]) -> list[Pla
     if problems:
         raise RecipeError(problems)
     return planned
+
+
+def _check_scope(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    """A scope step: the request the command line would build (drive/scope.build_request: CLI-recipe parity),
+    its drive-free checks, the bounds, and the motion planner's drive-free stage for a recorded jog."""
+    from akdctl.drive import scope as op
+
+    signals = data["signals"]
+    if not signals or not all(isinstance(s, str) for s in signals):
+        raise StepProblem("'signals' must be a non-empty list of signal names", "signals")
+    for key in ("csv", "svg", "json"):
+        if key in data:
+            path = Path(data[key])
+            if path.is_absolute() or ".." in path.parts:
+                raise StepProblem(f"{data[key]!r}: a scope file is written below the output directory; give a "
+                                  "relative path without '..'", key)
+    try:
+        request = op.build_request(signals, duration_s=data.get("for"), samples=data.get("samples"),
+                                   rate_hz=data.get("rate"), source=data.get("source", "auto"),
+                                   trigger=data.get("trigger"), pretrigger=float(data.get("pretrigger", 0.0)),
+                                   timeout_s=float(data.get("timeout", op.DEFAULT_TIMEOUT_S)),
+                                   jog_rpm=data.get("jog"), jog_s=data.get("jog_for"), accel=data.get("accel"),
+                                   ring=data.get("ring"))
+        op.check(request)
+        bounds = op.Bounds(data.get("max_following_error"), data.get("max_settle_time"), data.get("settle_band"))
+        bounds.check_request(request)
+    except UsageError as exc:
+        raise StepProblem(exc.message) from None
+    text = f"record {', '.join(signals)}"
+    if request.move is not None:
+        _motion(ctx, {"kind": "jog", "velocity": request.move.velocity, "duration_s": request.move.duration_s,
+                      "accel": request.move.accel})
+        text += f" during a jog at {request.move.velocity:g} rpm for {request.move.duration_s:g} s"
+    if bounds.any:
+        text += " and check " + ", ".join(f"{k} <= {v:g}" for k, v in (("following error", bounds.max_following_error),
+                                                                      ("settle time", bounds.max_settle_time))
+                                         if v is not None)
+    files = {key: data[key] for key in ("csv", "svg", "json") if key in data}
+    return {"request": request, "bounds": bounds, "files": files, "moves": request.move is not None}, text
