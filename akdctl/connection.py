@@ -172,6 +172,16 @@ class Connection:
         """The device's I&M0 (PROFINET), or None where the network defines none."""
         return self.transport().read_im0()
 
+    @property
+    def has_commands(self) -> bool:
+        """Whether the target offers the AKD's ASCII command link (the ``akd://`` transport, branch wip/names,
+        overrides this with its link); no built-in target offers one yet."""
+        return False
+
+    def commands(self) -> "object":
+        """The ASCII command link's factory; UsageError where the target has none (:attr:`has_commands`)."""
+        raise UsageError(f"target {self.target.display} offers no AKD ASCII command link")
+
     def own_axis(self, command: str) -> None:
         """Own this target's axis until :meth:`close` (the kernel frees it if the process dies).
 

@@ -84,7 +84,7 @@ SHORT_HELP: dict[str, str] = {
     "support":
         "Write a support bundle from a drive, or show one without a drive.",
     "scope":
-        "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.",
+        "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6 and more) and plot them.",
     "params":
         "Back up, restore and compare drive parameters (TOML or JSON files).",
     "commission":
