@@ -166,7 +166,11 @@ class Connection:
         """The EtherCAT AL state in one spelling ('INIT', 'PREOP', 'SAFEOP', 'OP', 'BOOT', '+ERR' appended
         when the slave flags an error), or None where the target has none or cannot tell."""
         state = self.transport().al_state()
-        return None if state is None else str(state).upper().replace("-", "").replace("_", "")
+        if state is None:
+            return None
+        from akdctl.protocol.ethercat import normal_al_state
+
+        return normal_al_state(state)
 
     def read_im0(self) -> dict[str, object] | None:
         """The device's I&M0 (PROFINET), or None where the network defines none."""

@@ -111,8 +111,7 @@ def _consent(app: Any, steps: list[Any]) -> None:
 def _plan_doc(result: object) -> Doc:
     doc = Doc(f"commissioning plan: {result.recipe} (dry run, nothing touched)", result.target)  # type: ignore[attr-defined]
     doc.table(["step", "action", "plan", "where"],
-              [[r.step.number, r.step.action, r.step.plan + ("" if r.step.available else
-                                                             f"  [{r.step.unavailable_reason}]"), r.step.where]
+              [[r.step.number, r.step.action, r.step.plan, r.step.where]
                for r in result.results])  # type: ignore[attr-defined]
     return doc
 

@@ -131,20 +131,30 @@ def param_get(name: str) -> None:
 @param.command("set")
 @click.argument("name", metavar="NAME|INSTANCE")
 @click.argument("value", metavar="VALUE")
-def param_set(name: str, value: str) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def param_set(name: str, value: str, dry_run: bool) -> None:
     """Write a parameter: its type and length are read first, floats travel x1000.
 
     \b
     Examples:
       akdctl -T eip://192.168.0.20 -y eip param set DRV.OPMODE 2
+      akdctl -T eip://192.168.0.20 eip param set EIP.PROFUNIT 65536 --dry-run
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
+    request = eip_params.parameter_request(ref, value)
     app = get_app()
-    channel = _channel(app)
-    _gate_parameter(app, ref)
-    result = eip_params.write(channel, ref, value)
+    _channel(app)  # a target without CIP is refused before anything else
+    plan = eip_params.plan(app.connection, request)  # plan -> consent -> execute (drive/eip_params.py)
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    consent_plan(app, plan)
+    eip_params.execute(app.connection, plan)
+    result = {"instance": ref.instance, "name": ref.name, "written": plan.data["bytes"].hex(),
+              "value": plan.data["value"], "length": plan.data["length"]}
     app.emit({"target": app.target.display, **result},
              lambda: Doc(f"parameter {ref.name or ref.instance} written", app.target.display)
              .kv("value", value).kv("bytes", result["written"]))

@@ -237,6 +237,18 @@ def _from_click(exc: click.ClickException) -> AkdError:
     return error
 
 
+def _message_lines(message: str) -> list[str]:
+    """A refusal listing its reasons ("...:\n  - reason") prints one reason per line, never a literal "\n"; only an
+    indented continuation breaks the line, so a newline inside quoted input stays escaped on its own line."""
+    lines: list[str] = []
+    for part in message.split("\n"):
+        if lines and not part.startswith("  "):
+            lines[-1] += "\n" + part
+        else:
+            lines.append(part)
+    return lines
+
+
 def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = False, hint: list[str] = ()) -> None:
     """The one error style: ``akdctl: error: <message> [target T]`` (plus click's usage hint for usage errors),
     and with ``--json`` the error document on stdout unless the command already printed its result."""
@@ -245,10 +257,11 @@ def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = F
     if exc.target is None and app is not None and app._target is not None:
         exc.target = app._target.display
     target = exc.target
-    line = f"akdctl: error: {exc.message}"
+    first, *more = _message_lines(exc.message)
+    line = f"akdctl: error: {first}"
     if target and target not in exc.message:
         line += f" [target {target}]"
-    sys.stderr.write("".join(inert(text) + "\n" for text in [line, *hint]))
+    sys.stderr.write("".join(inert(text) + "\n" for text in [line, *more, *hint]))
     if (json_wanted or (app is not None and app.json)) and not exc.reported:
         emit_json({"error": exc.to_json()})
 

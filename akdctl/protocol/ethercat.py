@@ -135,6 +135,12 @@ def al_state_name(status: int) -> str:
     return name + ("+ERR" if status & AL_ERROR_FLAG else "")
 
 
+def normal_al_state(state: object) -> str | None:
+    """The one spelling of an EtherCAT AL state: 'PREOP', 'SAFEOP', 'OP', 'INIT', 'BOOT' ('+ERR' kept; None stays
+    None) -- how the Connection reports it whatever the transport said ('Pre-Op', 'SAFE_OP')."""
+    return None if state is None else str(state).upper().replace("-", "").replace("_", "").replace(" ", "")
+
+
 def parse_al_state(text: str) -> AlState:
     """'preop', 'PRE-OP', 'PREOP', '2' -> AlState.PREOP; CodecError otherwise."""
     key = text.strip().upper().replace("-", "").replace("_", "")
