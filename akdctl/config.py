@@ -14,7 +14,7 @@ config dir (``$XDG_CONFIG_HOME/akdctl`` or ``~/.config/akdctl``)::
 
     [profiles.line3-axis1]
     target = "pn://192.168.0.21"
-    drive = "profidrive"       # or "cia402": which axis profile motion commands use
+    drive = "profidrive"       # or "cia402", "cip": which axis profile motion commands use
     [profiles.line3-axis1.limits]
     max_velocity = 600         # rpm
     max_acceleration = 5000    # rpm/s
@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from akdctl.errors import UsageError
+from akdctl.profiles.vocabulary import PROFILE_WORDS
 
 
 def default_config_path() -> Path:
@@ -64,7 +65,7 @@ TOP_KEYS = ("default_profile", "profiles")
 PROFILE_KEYS = ("target", "timeout", "drive", "limits", "units")
 LIMIT_KEYS = ("max_velocity", "max_acceleration", "max_jog_duration", "travel")
 UNIT_KEYS = ("name", "per_rev")
-DRIVE_PROFILES = ("profidrive", "cia402")
+DRIVE_PROFILES = PROFILE_WORDS  # the one vocabulary (profiles/vocabulary.py); a target may narrow it
 
 
 class _Where:

@@ -41,7 +41,9 @@ if TYPE_CHECKING:
     from akdctl.channels.cip import CipAttributes
     from akdctl.config import Profile
     from akdctl.drive.axis.base import Axis
+    from akdctl.io.owner_lock import OwnerLock
     from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
+    from akdctl.profiles.vocabulary import Channel, DriveProfile
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.eip_io import IoConnection
     from akdctl.transport.target import Target
@@ -91,6 +93,9 @@ class Connection:
         self._record_link: "RecordLink | None" = None  # the traced link, until parameters() builds its channel
         self._objects: "ObjectChannel | None" = None
         self._cip: "CipAttributes | None" = None
+        #: The axis's owner lock while this command owns the axis (:meth:`own_axis`), else None.
+        self.axis_owner: "OwnerLock | None" = None
+        self._closed = False
 
     @classmethod
     def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
@@ -100,11 +105,101 @@ class Connection:
     # ---------------------------------------------------------------- choices
     @property
     def drive_profile(self) -> str | None:
-        """Which axis profile motion uses: the target's ``?drive=``, else the config profile's ``drive``."""
+        """The axis profile someone chose: the target's ``?drive=``, else the config profile's ``drive``;
+        None when nobody chose (then :attr:`axis_profile` follows the channels)."""
         chosen = self.target.query.get("drive")
         if chosen is None and self.profile is not None:
             chosen = self.profile.drive
         return chosen
+
+    @property
+    def axis_profile(self) -> "DriveProfile":
+        """The axis profile motion uses: the chosen one (:attr:`drive_profile`), else the one the offered
+        channels make the default (:func:`akdctl.profiles.vocabulary.default_profile`)."""
+        from akdctl.profiles.vocabulary import default_profile, drive_profile, profiles_text
+
+        chosen = self.drive_profile
+        if chosen is None:
+            return default_profile(self.channels)
+        profile = drive_profile(chosen)
+        if profile is None:
+            raise UsageError(f"unknown drive profile {chosen!r}: use {profiles_text()}")
+        return profile
+
+    # ---------------------------------------------------------------- declared capabilities
+    # Everything a command may ask of a target is declared here, each with a neutral answer where the
+    # target has none; nothing above asks a transport or channel with getattr (tests/test_layers.py).
+
+    @property
+    def declared_channels(self) -> "frozenset[Channel] | None":
+        """The channels the registry declares for this target's scheme (known without connecting), or None
+        for a scheme only its opened transport can tell (a third-party entry point)."""
+        from akdctl.transport.registry import BUILTIN
+
+        spec = BUILTIN.get(self.target.scheme)
+        return spec.channels if spec is not None else None
+
+    @property
+    def channels(self) -> "frozenset[Channel]":
+        """The channels this target offers: :attr:`declared_channels`, else what the opened transport's links
+        make (opens it)."""
+        declared = self.declared_channels
+        if declared is not None:
+            return declared
+        from akdctl.profiles.vocabulary import Channel
+
+        self.transport()
+        offered = ((Channel.PARAMETERS, self._parameters is not None or self._record_link is not None),
+                   (Channel.OBJECTS, self._objects is not None), (Channel.ATTRIBUTES, self._cip is not None))
+        return frozenset(channel for channel, present in offered if present)
+
+    @property
+    def time_scale(self) -> float:
+        """Seconds of the drive's time per wall second (1 for a real drive; the simulator under ``sim speed``
+        runs faster); asked again at every use, as ``sim speed`` may change it between transactions. Once the
+        connection is closed the answer is 1 (a late wait must not open the target again)."""
+        if self._transport is None and self._closed:
+            return 1.0
+        return float(self.transport().time_scale)
+
+    def al_state(self) -> str | None:
+        """The EtherCAT AL state in one spelling ('INIT', 'PREOP', 'SAFEOP', 'OP', 'BOOT', '+ERR' appended
+        when the slave flags an error), or None where the target has none or cannot tell."""
+        state = self.transport().al_state()
+        if state is None:
+            return None
+        from akdctl.protocol.ethercat import normal_al_state
+
+        return normal_al_state(state)
+
+    def read_im0(self) -> dict[str, object] | None:
+        """The device's I&M0 (PROFINET), or None where the network defines none."""
+        return self.transport().read_im0()
+
+    @property
+    def has_commands(self) -> bool:
+        """Whether the target offers the AKD's ASCII command link (the ``akd://`` transport, branch wip/names,
+        overrides this with its link); no built-in target offers one yet."""
+        return False
+
+    def commands(self) -> "object":
+        """The ASCII command link's factory; UsageError where the target has none (:attr:`has_commands`)."""
+        raise UsageError(f"target {self.target.display} offers no AKD ASCII command link")
+
+    def own_axis(self, command: str) -> None:
+        """Own this target's axis until :meth:`close` (the kernel frees it if the process dies).
+
+        Raises :class:`~akdctl.io.owner_lock.OwnerBusy` naming the owner when another command holds it,
+        OSError when the lock's directory is unusable; a second call is a no-op."""
+        if self.axis_owner is not None:
+            return
+        from akdctl.drive.gate import owner_key
+        from akdctl.io.owner_lock import OwnerLock
+        from akdctl.io.state_dir import state_dir
+
+        lock = OwnerLock(state_dir() / "owners" / f"{owner_key(self.target)}.lock")
+        lock.acquire(command)
+        self.axis_owner = lock
 
     # ---------------------------------------------------------------- transport and channels
     def new_transport(self) -> "Transport":
@@ -133,6 +228,7 @@ class Connection:
                     transport.close()
                 raise
             self._transport = transport
+            self._closed = False
         return self._transport
 
     def _build_channels(self, transport: "Transport") -> None:
@@ -245,14 +341,20 @@ class Connection:
     def close(self) -> None:
         """Close the channels and the transport; safe to call twice and after a failed open."""
         transport, self._transport = self._transport, None
+        self._closed = True
         channels = [c for c in (self._objects, self._parameters) if c is not None]
         self._parameters = self._objects = self._cip = None
         self._record_link = None
         for channel in channels:
             with contextlib.suppress(Exception):
                 channel.close()
-        if transport is not None:
-            transport.close()
+        owner, self.axis_owner = self.axis_owner, None
+        try:
+            if transport is not None:
+                transport.close()
+        finally:
+            if owner is not None:  # the last: another command may move the axis only after we let go of it
+                owner.release()
 
 
 __all__ = ["Connection", "open_tracer"]

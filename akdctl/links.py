@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.protocol import cip, enip
 
 
 class Deadline:
@@ -169,6 +172,8 @@ class RecordLink(ABC):
     axis: int = 0
     #: Shown after each traced frame (which drive or record the bytes went to).
     trace_note: str = ""
+    #: A capture sink's hint about the wire (the simulator's links: there is none), or None.
+    trace_meta: dict[str, str] | None = None
 
     @abstractmethod
     def exchange(self, request: bytes) -> bytes: ...
@@ -182,6 +187,8 @@ class MailboxLink(ABC):
     mailbox_address: int = 0
     #: Shown after each traced frame.
     trace_note: str = ""
+    #: A capture sink's hint about the wire (the simulator's links: there is none), or None.
+    trace_meta: dict[str, str] | None = None
     #: True when the transport's own wire trace already shows every mailbox byte for byte (an ETG.8200
     #: datagram is the mailbox behind a 2-byte header), so the Connection does not trace it twice.
     traced_on_wire: ClassVar[bool] = False
@@ -204,7 +211,7 @@ class MessageLink(ABC):
     """
 
     @abstractmethod
-    def request(self, req: Any, extra_items: tuple[Any, ...] = ()) -> Any: ...
+    def request(self, req: "cip.Request", extra_items: "tuple[enip.Item, ...]" = ()) -> "cip.Response": ...
 
 
 class CanopenSdoClient(Record):

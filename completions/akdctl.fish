@@ -9,7 +9,7 @@ complete -c akdctl -n '__fish_use_subcommand' -a home -d 'Run the drive\'s homin
 complete -c akdctl -n '__fish_use_subcommand' -a move -d 'Move to TARGET and wait for target reached (a finite, acknowledged...'
 complete -c akdctl -n '__fish_use_subcommand' -a task -d 'Stored motion tasks: list, show, set, and start one (program mode).'
 complete -c akdctl -n '__fish_use_subcommand' -a pnu -d 'Read, write, describe and list PROFIdrive parameters (PNUs).'
-complete -c akdctl -n '__fish_use_subcommand' -a sdo -d 'Read and write CANopen/CoE objects by SDO (index:subindex, e.g.'
+complete -c akdctl -n '__fish_use_subcommand' -a sdo -d 'Read and write CANopen/CoE objects by SDO (index:subindex, such as...'
 complete -c akdctl -n '__fish_use_subcommand' -a pdo -d 'Show, plan and apply process-data (PDO) mapping (EtherCAT manual 5....'
 complete -c akdctl -n '__fish_use_subcommand' -a telegram -d 'Show and select the PROFIdrive telegram (PROFINET manual 5.8, 5.11).'
 complete -c akdctl -n '__fish_use_subcommand' -a fault -d 'Fault buffer dump, acknowledge, history and explanations (AKD F/n n...'

@@ -81,22 +81,30 @@ class CliResult(NamedTuple):
 
 
 def run_akdctl(*args: str, input: str | None = None, env: dict[str, str] | None = None, timeout: float = 60,
-               netns: str | None = None, prefix: Sequence[str] = ()) -> CliResult:
+               netns: str | None = None, prefix: Sequence[str] = (), cwd: Path | None = None) -> CliResult:
     """The real CLI (``python -m akdctl ARGS``) in a subprocess, to completion or *timeout* seconds.
 
     stdin is *input* or empty (never the terminal pytest runs in), so a prompt cannot wait forever; *netns* runs it
-    inside that network namespace; *prefix* is a command that runs it (e.g. ``setpriv`` to drop privileges).
+    inside that network namespace; *prefix* is a command that runs it (e.g. ``setpriv`` to drop privileges); *cwd*
+    the directory it runs in (default: the checkout).
     """
     proc = subprocess.run(_argv(args, netns, prefix), input=input if input is not None else "", capture_output=True,
-                          text=True, env=akdctl_env(env), timeout=timeout, cwd=ROOT)
+                          text=True, env=akdctl_env(env), timeout=timeout, cwd=cwd or ROOT)
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
 
-def start_akdctl(*args: str, env: dict[str, str] | None = None, netns: str | None = None) -> subprocess.Popen[str]:
+def start_akdctl(*args: str, env: dict[str, str] | None = None, netns: str | None = None,
+                 ignore_sigint: bool = False) -> subprocess.Popen[str]:
     """The real CLI started in the background (a move to interrupt, a lock to take meanwhile); end it with
-    :func:`finish`."""
+    :func:`finish`. ``ignore_sigint`` starts it as a shell's background job does (SIGINT inherited as ignored)."""
+    def background_job() -> None:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     return subprocess.Popen(_argv(args, netns), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, text=True, env=akdctl_env(env), cwd=ROOT)
+                            stdin=subprocess.DEVNULL, text=True, env=akdctl_env(env), cwd=ROOT,
+                            preexec_fn=background_job if ignore_sigint else None)
 
 
 def finish(proc: subprocess.Popen[str], timeout: float = 30.0) -> CliResult:

@@ -22,7 +22,6 @@ from akdctl.channels.batching import (
     plan_batches,
     read_cost,
     response_block_size,
-    split_requests,
 )
 from akdctl.channels.bmp import BmpParameterChannel
 from akdctl.protocol.bmp import (
@@ -32,12 +31,16 @@ from akdctl.protocol.bmp import (
     HEADER_SIZE,
     MAX_BLOCK,
     MAX_PARAMETERS,
+    REQ_CHANGE,
+    REQ_READ,
     BmpError,
     Format,
     ParameterAddress,
+    ParameterRequest,
     ParameterValue,
     decode_request,
     encode_request,
+    next_reference,
     request_size,
 )
 from akdctl.sim.pnu_server import PnuServer
@@ -51,6 +54,20 @@ def spans(batches: Sequence[Batch]) -> list[tuple[int, int]]:
         assert batch == list(range(batch[0], batch[-1] + 1)), f"batch {batch} is not consecutive"
         out.append((batch[0], batch[-1] + 1))
     return out
+
+
+def split_requests(addresses, values=None, *, reference_start=1, element_size=2):  # noqa: ANN001, ANN201
+    """The requests :func:`plan_batches` makes of the parameters (references counting up, wrapping past 255):
+    test-only since the channel builds its own (issue 22: the library copy was dead code)."""
+    requests, reference = [], reference_start
+    for batch in plan_batches(addresses, values, element_size=element_size):
+        picked = tuple(addresses[i] for i in batch)
+        if values is None:
+            requests.append(ParameterRequest(reference, REQ_READ, 0, picked))
+        else:
+            requests.append(ParameterRequest(reference, REQ_CHANGE, 0, picked, tuple(values[i] for i in batch)))
+        reference = next_reference(reference)
+    return requests
 
 
 # --- examples (moved from test_bmp_codec.py) --------------------------------------------------------------

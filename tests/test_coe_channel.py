@@ -10,7 +10,7 @@ import pytest
 
 from akdctl.channels.coe_sdo import CoeObjectChannel
 from akdctl.errors import CommError, MalformedReply, NoAnswer, SdoAborted
-from akdctl.protocol import coe
+from akdctl.protocol import coe, coe_info
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency
 from akdctl.protocol.mailbox import (
@@ -307,7 +307,7 @@ def test_inconsistent_segmented_upload_is_malformed(objects: DictObjects) -> Non
 def test_object_list_and_descriptions(objects: DictObjects) -> None:
     channel, _link = make(objects)
     assert channel.object_list() == [0x1008, 0x2100, 0x6041, 0x6060, 0x607A]
-    assert channel.entry_description(0x6041, 0) == coe.EntryDescription(0x6041, 0, 0, 0x0006, 16, 0x87, "value of 6041")
+    assert channel.entry_description(0x6041, 0) == coe_info.EntryDescription(0x6041, 0, 0, 0x0006, 16, 0x87, "value of 6041")
     assert channel.object_description(0x6060).name == "object 6060"
     with pytest.raises(SdoAborted) as info:
         channel.entry_description(0x6041, 3)

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from akdctl.protocol import coe
+from akdctl.protocol import coe, coe_info
 from akdctl.protocol.coe import (
     CoeError,
     CoeService,
@@ -290,35 +290,35 @@ def test_emcy_decode_needs_8_bytes() -> None:
 
 
 def test_sdo_info_od_list_request_matches_soem_layout() -> None:
-    frame = coe.encode_sdo_info(coe.pack_info(coe.OdListRequest()))
+    frame = coe_info.encode_sdo_info(coe_info.pack_info(coe_info.OdListRequest()))
     # opcode 1, reserved, 0 fragments left, list type 1 (all objects), as SOEM ecx_readODlist sends it
     assert frame == bytes.fromhex("010000000100")
 
 
 def test_sdo_info_fragments_reassemble() -> None:
     indices = tuple(range(0x1000, 0x1000 + 300))
-    whole = coe.pack_info(coe.OdListResponse(1, indices))
-    parts = coe.fragment_info(whole, 100)
+    whole = coe_info.pack_info(coe_info.OdListResponse(1, indices))
+    parts = coe_info.fragment_info(whole, 100)
     assert len(parts) > 1
     assert all(p.incomplete for p in parts[:-1]) and not parts[-1].incomplete
     assert [p.fragments_left for p in parts] == list(range(len(parts) - 1, -1, -1))
-    assembler = coe.InfoReassembler()
-    results = [assembler.add(coe.decode_sdo_info(coe.encode_sdo_info(p))) for p in parts]
+    assembler = coe_info.InfoReassembler()
+    results = [assembler.add(coe_info.decode_sdo_info(coe_info.encode_sdo_info(p))) for p in parts]
     assert results[:-1] == [None] * (len(parts) - 1)
-    assert coe.unpack_info(results[-1]) == coe.OdListResponse(1, indices)
+    assert coe_info.unpack_info(results[-1]) == coe_info.OdListResponse(1, indices)
 
 
 def test_sdo_info_reassembler_rejects_out_of_order() -> None:
-    parts = coe.fragment_info(coe.pack_info(coe.OdListResponse(1, tuple(range(200)))), 50)
-    assembler = coe.InfoReassembler()
+    parts = coe_info.fragment_info(coe_info.pack_info(coe_info.OdListResponse(1, tuple(range(200)))), 50)
+    assembler = coe_info.InfoReassembler()
     assembler.add(parts[0])
     with pytest.raises(CoeError):
         assembler.add(parts[2])
 
 
 def test_entry_description_layout_matches_soem_offsets() -> None:
-    msg = coe.EntryDescription(0x6041, 0, 0, 0x0006, 16, 0x0087, "Statusword")
-    frame = coe.encode_sdo_info(coe.pack_info(msg))
+    msg = coe_info.EntryDescription(0x6041, 0, 0, 0x0006, 16, 0x0087, "Statusword")
+    frame = coe_info.encode_sdo_info(coe_info.pack_info(msg))
     coe_data = encode_coe(CoeService.SDO_INFO, frame)
     # SOEM: name length = mailbox length - 16; data type at wdata[2], bit length wdata[3], access wdata[4]
     assert len(coe_data) - 16 == len("Statusword")
@@ -327,15 +327,15 @@ def test_entry_description_layout_matches_soem_offsets() -> None:
 
 
 def test_entry_description_with_values() -> None:
-    msg = coe.EntryDescription(0x6060, 0, coe.VALUE_INFO_MIN | coe.VALUE_INFO_MAX, 0x0002, 8, 0x3F, "Mode", b"\xff\x0a")
-    assert coe.unpack_info(coe.pack_info(msg)) == msg
+    msg = coe_info.EntryDescription(0x6060, 0, coe_info.VALUE_INFO_MIN | coe_info.VALUE_INFO_MAX, 0x0002, 8, 0x3F, "Mode", b"\xff\x0a")
+    assert coe_info.unpack_info(coe_info.pack_info(msg)) == msg
     with pytest.raises(CoeError):
-        coe.pack_info(coe.EntryDescription(0x6060, 0, coe.VALUE_INFO_MIN, 0x0002, 8, 0x3F, "Mode", b""))
+        coe_info.pack_info(coe_info.EntryDescription(0x6060, 0, coe_info.VALUE_INFO_MIN, 0x0002, 8, 0x3F, "Mode", b""))
 
 
 def test_object_description_nul_padded_name() -> None:
-    frame = coe.SdoInfo(coe.SdoInfoOpcode.OBJECT_RESPONSE, bytes.fromhex("1810 0900 04 09") + b"Identity\x00\x00")
-    assert coe.unpack_info(frame) == coe.ObjectDescription(0x1018, 0x0009, 4, 9, "Identity")
+    frame = coe_info.SdoInfo(coe_info.SdoInfoOpcode.OBJECT_RESPONSE, bytes.fromhex("1810 0900 04 09") + b"Identity\x00\x00")
+    assert coe_info.unpack_info(frame) == coe_info.ObjectDescription(0x1018, 0x0009, 4, 9, "Identity")
 
 
 # --- hypothesis: round trips ------------------------------------------------------------------------
@@ -421,36 +421,36 @@ names = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters
 
 
 @st.composite
-def entry_descriptions(draw: st.DrawFn) -> coe.EntryDescription:
+def entry_descriptions(draw: st.DrawFn) -> coe_info.EntryDescription:
     value_info = draw(st.sampled_from([0, 0x08, 0x10, 0x20 | 0x40, 0x78]))
     bit_length = draw(st.integers(1, 64))
-    size = coe._values_size(value_info, bit_length)
-    return coe.EntryDescription(
+    size = coe_info._values_size(value_info, bit_length)
+    return coe_info.EntryDescription(
         draw(u16), draw(u8), value_info, draw(u16), bit_length, draw(u16), draw(names),
         draw(st.binary(min_size=size, max_size=size)),
     )
 
 
 info_messages = st.one_of(
-    st.builds(coe.OdListRequest, u16),
-    st.builds(coe.OdListResponse, u16, st.lists(u16, max_size=300).map(tuple)),
-    st.builds(coe.ObjectDescriptionRequest, u16),
-    st.builds(coe.ObjectDescription, u16, u16, u8, u8, names),
-    st.builds(coe.EntryDescriptionRequest, u16, u8, u8),
+    st.builds(coe_info.OdListRequest, u16),
+    st.builds(coe_info.OdListResponse, u16, st.lists(u16, max_size=300).map(tuple)),
+    st.builds(coe_info.ObjectDescriptionRequest, u16),
+    st.builds(coe_info.ObjectDescription, u16, u16, u8, u8, names),
+    st.builds(coe_info.EntryDescriptionRequest, u16, u8, u8),
     entry_descriptions(),
-    st.builds(coe.SdoInfoError, st.integers(0, 0xFFFFFFFF)),
+    st.builds(coe_info.SdoInfoError, st.integers(0, 0xFFFFFFFF)),
 )
 
 
 @given(info_messages, st.integers(2, 600))
-def test_sdo_info_round_trip_through_fragments(msg: coe.SdoInfoMessage, room: int) -> None:
-    assembler = coe.InfoReassembler()
+def test_sdo_info_round_trip_through_fragments(msg: coe_info.SdoInfoMessage, room: int) -> None:
+    assembler = coe_info.InfoReassembler()
     done = None
-    for part in coe.fragment_info(coe.pack_info(msg), room):
+    for part in coe_info.fragment_info(coe_info.pack_info(msg), room):
         assert done is None
-        done = assembler.add(coe.decode_sdo_info(coe.encode_sdo_info(part)))
+        done = assembler.add(coe_info.decode_sdo_info(coe_info.encode_sdo_info(part)))
     assert done is not None
-    assert coe.unpack_info(done) == msg
+    assert coe_info.unpack_info(done) == msg
 
 
 # --- fuzz: arbitrary bytes raise only CodecError ------------------------------------------------------
@@ -467,8 +467,8 @@ def test_fuzz_decoders_raise_only_codec_error(data: bytes) -> None:
         decode_emcy,
         lambda d: decode_sdo(d, from_server=True),
         lambda d: decode_sdo(d, from_server=False),
-        lambda d: coe.unpack_info(coe.decode_sdo_info(d)),
-        lambda d: coe.InfoReassembler().add(coe.decode_sdo_info(d)),
+        lambda d: coe_info.unpack_info(coe_info.decode_sdo_info(d)),
+        lambda d: coe_info.InfoReassembler().add(coe_info.decode_sdo_info(d)),
     ]
     for decoder in decoders:
         try:
@@ -480,6 +480,6 @@ def test_fuzz_decoders_raise_only_codec_error(data: bytes) -> None:
 @given(st.integers(0, 7), st.binary(max_size=80))
 def test_fuzz_unpack_info_every_opcode(opcode: int, data: bytes) -> None:
     try:
-        coe.unpack_info(coe.SdoInfo(opcode, data))
+        coe_info.unpack_info(coe_info.SdoInfo(opcode, data))
     except CodecError:
         pass

@@ -92,7 +92,9 @@ def test_al_invalid_transitions_report_0x0011(path: list[int], code: int) -> Non
         assert al(e, state)[1] == 0
     status, got = al(e, path[-1])
     assert got == code and status & ec.AL_ERROR_FLAG
-    assert ec.describe_al(status, got).endswith("invalid requested state change")
+    from akdctl.catalog.texts import al_status_line
+
+    assert al_status_line(status, got).endswith("Invalid requested state change")
 
 
 def test_al_full_run_up_and_back() -> None:

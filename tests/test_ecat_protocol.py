@@ -45,9 +45,12 @@ def test_logical_address_split() -> None:
 
 def test_al_texts_for_akd_codes() -> None:
     # AKD EtherCAT manual 5.3.3; SPEC-NOTES 22
-    assert ec.al_status_text(0x0011) == "invalid requested state change"
-    assert ec.al_status_text(0x0017) == "invalid sync manager configuration"
-    assert ec.describe_al(0x12, 0x0011) == "PREOP+ERR, 0x0011 invalid requested state change"
+    from akdctl.catalog.texts import al_status_line, al_status_text  # the codec returns codes (issue 22 item 4)
+
+    assert al_status_text(0x0011) == "Invalid requested state change"
+    assert al_status_text(0x0017) == "Invalid sync manager configuration"
+    assert al_status_line(0x12, 0x0011) == "PREOP+ERR, 0x0011 Invalid requested state change"
+    assert not hasattr(ec, "AL_STATUS_TEXTS") and not hasattr(ec, "describe_al")
     assert ec.parse_al_state("pre-op") is ec.AlState.PREOP
     with pytest.raises(CodecError):
         ec.parse_al_state("running")

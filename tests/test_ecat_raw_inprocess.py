@@ -32,7 +32,7 @@ class Wire:
         self.silent = silent
         self.stop = threading.Event()
         self.slave_end.settimeout(0.05)
-        self.face.worker.start()
+        self.face.spawn(self.face.worker.serve, "ecat-raw-app", self.stop)  # the face's thread, our stop event
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
 
@@ -49,7 +49,7 @@ class Wire:
     def close(self) -> None:
         self.stop.set()
         self.thread.join(timeout=5)
-        self.face.worker.stop()
+        self.face.join(timeout=5)
         self.master_end.close()
         self.slave_end.close()
 

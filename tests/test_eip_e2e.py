@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import SimServer
+from tests.harness import CliResult, SimServer, run_akdctl
 
 pytestmark = pytest.mark.slow
 READY = re.compile(r"listening: ethernetip ([\d.]+):(\d+) \(class-1 I/O on udp [\d.]+:(\d+)\)")
@@ -82,9 +82,8 @@ def serve(tmp_path: Path) -> Iterator:
         server.stop()
 
 
-def akdctl(tmp_path: Path, target: str, *argv: str, timeout: float = 2.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "akdctl", "-T", target, "--timeout", str(timeout), *argv],
-                          capture_output=True, text=True, env=_env(tmp_path / "state"), timeout=120)
+def akdctl(tmp_path: Path, target: str, *argv: str, timeout: float = 2.0) -> CliResult:
+    return run_akdctl("-T", target, "--timeout", str(timeout), *argv, env=_env(tmp_path / "state"), timeout=120)
 
 
 # ------------------------------------------------------------------ commands over the simulator's face
@@ -190,8 +189,7 @@ def test_motion_over_the_position_controller_acts_on_the_one_drive(serve, tmp_pa
     assert move.returncode == 0, move.stderr
     assert json.loads(move.stdout)["status"]["position_counts"] == 98304
     # the same simulated drive, seen through the default (in-process) target
-    sim = subprocess.run([sys.executable, "-m", "akdctl", "--json", "status"], capture_output=True, text=True,
-                         env=_env(tmp_path / "state"), timeout=60)
+    sim = run_akdctl("--json", "status", env=_env(tmp_path / "state"), timeout=60)
     status = json.loads(sim.stdout)["status"]
     assert status["enabled"] and status["position_counts"] == 98304
     # no attribute tells the homed state over explicit messaging: absolute moves are refused (exit 4)
@@ -202,13 +200,12 @@ def test_motion_over_the_position_controller_acts_on_the_one_drive(serve, tmp_pa
 
 def test_eip_scan_unicast_and_never_broadcast_by_default(serve, tmp_path) -> None:
     server = serve()
-    result = subprocess.run([sys.executable, "-m", "akdctl", "--json", "eip", "scan", "127.0.0.1", "--port",
-                             str(server.port)], capture_output=True, text=True, env=_env(tmp_path / "state"), timeout=60)
+    result = run_akdctl("--json", "eip", "scan", "127.0.0.1", "--port", str(server.port),
+                        env=_env(tmp_path / "state"), timeout=60)
     assert result.returncode == 0, result.stderr
     devices = json.loads(result.stdout)["devices"]
     assert devices and devices[0]["vendor_name"] == "Kollmorgen"
-    refused = subprocess.run([sys.executable, "-m", "akdctl", "eip", "scan"], capture_output=True, text=True,
-                             env=_env(tmp_path / "state"), timeout=60)
+    refused = run_akdctl("eip", "scan", env=_env(tmp_path / "state"), timeout=60)
     assert refused.returncode == 2 and "never broadcasts" in refused.stderr
 
 

@@ -160,7 +160,7 @@ def test_profinet_face_survives_fuzz(drive: SimDrive, rng: random.Random, akd_in
                 datagram = datagram[:40] + rng.randbytes(16) + datagram[56:]
             sock.sendto(datagram, ("127.0.0.1", face.port))
         _quiet(receive)
-        assert face.stats.received and face._thread is not None and face._thread.is_alive()
+        assert face.stats.received and face.ready and face.error is None and all(t.is_alive() for t in face._threads)
         code, out, err = akd_inproc("-T", f"pn://127.0.0.1:{face.port}", "--timeout", "2", "pnu", "get", "930")
         assert code == 0 and "930" in out, err
     finally:

@@ -60,7 +60,9 @@ BUDGETS = {
     "--help": (("--help",), NEVER, 10, len(HELP_MODULES)),
     "pnu get 930": (("pnu", "get", "930"), NEVER | NO_MOTION | OBJECT_SIDE | {"akdctl.drive.axis"}, 80, 60),
     "sdo read 0x6041": (("sdo", "read", "0x6041"), NEVER | NO_MOTION | PARAMETER_SIDE | {"akdctl.drive.axis"}, 83, 63),
-    "status": (("status",), NEVER | NO_MOTION, 81, 61),
+    # status +2 (issue 22): profiles.vocabulary (the one list of channel/profile words) and io.state_dir (the
+    # owner locks' directory, so a real-drive client need not import the simulator to find it).
+    "status": (("status",), NEVER | NO_MOTION, 83, 63),
 }
 
 

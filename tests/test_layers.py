@@ -107,3 +107,67 @@ def test_the_check_sees_upward_imports(tmp_path: Path) -> None:
     assert len(found) == 2
     assert found[0].startswith("akdctl.protocol.probe imports akdctl.catalog")
     assert found[1].startswith("akdctl.sim.probe imports akdctl.transport.canopen_bus")
+
+
+# ---------------------------------------------------------------------------- capabilities are declared, not probed
+#: What only some transports, links, channels or drive models can do. Each is declared once with a neutral default
+#: (Transport: time_scale, al_state, read_im0; Connection: axis_owner; Axis: issued_target; ObjectChannel:
+#: take_emergencies; links: trace_meta; the simulator's servers: raw_reads=/files= at construction), so nobody asks
+#: ``getattr(x, "al_state", None)`` (issue 22 item 2).
+CAPABILITIES = {"al_state", "time_scale", "read_im0", "read_im0_record", "issued_target", "pnu_read_raw", "foe_read",
+                "foe_write", "axis_owner", "take_emergencies", "trace_meta", "object_list", "object_description",
+                "entry_description", "read_description", "wait_emergencies", "mailbox_size", "max_record"}
+#: Words naming what a probe must not be aimed at (the object expression's source): the wiring's own objects.
+_WIRED = ("transport", "conn", "channel", "link", "access", "axis", "objects", "parameters", "session", "app")
+
+
+def capability_probes(root: Path = ROOT) -> list[str]:
+    """``getattr(x, "name", ...)``/``hasattr(x, "name")`` of a capability or on a wired object, and a
+    ``__getattr__`` that lets any name fall through a channel, transport, link or the Connection."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        module, package = _package(path, root)
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr") \
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) \
+                    and isinstance(node.args[1].value, str):
+                name, target = node.args[1].value, ast.unparse(node.args[0])
+                words = set(target.replace(".", " ").replace("_", " ").replace("(", " ").replace(")", " ").split())
+                if name in CAPABILITIES or words & set(_WIRED):
+                    found.append(f"{module}:{node.lineno}: {node.func.id}({target}, {name!r})")
+            elif isinstance(node, ast.FunctionDef) and node.name == "__getattr__" \
+                    and package in ("channels", "transport", "links", "connection"):
+                found.append(f"{module}:{node.lineno}: __getattr__ lets any name fall through")
+    return found
+
+
+def test_no_capability_is_probed() -> None:
+    assert capability_probes() == []
+
+
+def test_the_probe_check_can_fail(tmp_path: Path) -> None:
+    root = tmp_path / "akdctl"
+    (root / "drive").mkdir(parents=True)
+    (root / "channels").mkdir(parents=True)
+    (root / "drive" / "probe.py").write_text(
+        "def f(conn, transport, thing):\n"
+        "    a = getattr(conn.transport(), 'read_im0', None)\n"
+        "    b = hasattr(transport, 'whatever')\n"
+        "    c = getattr(thing, 'al_state', None)\n"
+        "    d = getattr(thing, 'name', None)\n", encoding="utf-8")
+    (root / "channels" / "lazy.py").write_text(
+        "class C:\n    def __getattr__(self, name):\n        return 1\n", encoding="utf-8")
+    found = capability_probes(root)
+    assert {f.split(": ", 1)[1] for f in found} == {
+        "getattr(conn.transport(), 'read_im0')", "hasattr(transport, 'whatever')", "getattr(thing, 'al_state')",
+        "__getattr__ lets any name fall through"}
+
+
+def test_no_module_getattr() -> None:
+    """No module hands out names it does not define (issue 22 item 8: protocol/coe.py, profiles/units.py did):
+    such names hide from readers, checkers and ``grep``; a user imports the module that defines them."""
+    found = [str(path.relative_to(ROOT.parent)) for path in sorted(ROOT.rglob("*.py"))
+             if any(isinstance(node, ast.FunctionDef) and node.name == "__getattr__"
+                    for node in ast.parse(path.read_text(encoding="utf-8")).body)]
+    assert found == []

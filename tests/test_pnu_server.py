@@ -363,6 +363,6 @@ def test_reads_through_the_raw_access_answer_what_the_general_path_answers(seed:
     from akdctl.sim.model import DriveModel
 
     raw_model, general_model = DriveModel(), DriveModel()
-    raw, general = PnuServer(raw_model), PnuServer(_ObjectsOnly(general_model))
+    raw, general = PnuServer(raw_model, raw_reads=True), PnuServer(_ObjectsOnly(general_model))
     for request in _read_requests(seed, 400):
         assert raw.handle(request) == general.handle(request), request.hex(" ")

@@ -109,14 +109,10 @@ def test_the_first_setup_command_leaves_the_root_clean(tmp_path: Path) -> None:
 
 
 def _run_in(directory: Path, args: list[str]) -> tuple[int, str, str]:
-    import subprocess
-    import sys
+    from tests.harness import run_akdctl
 
-    from tests.harness import akdctl_env
-
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], cwd=directory, env=akdctl_env(),
-                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
-    return proc.returncode, proc.stdout, proc.stderr
+    code, out, err = run_akdctl(*args, cwd=directory, timeout=120)
+    return code, out, err
 
 
 def test_can_extra_brings_msgpack_and_readme_says_so() -> None:

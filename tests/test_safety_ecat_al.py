@@ -33,7 +33,7 @@ def test_raw_master_reports_al_state_and_the_planner_refuses_in_op(wire: Wire) -
     conn.transport()
     try:
         assert t.al_state() == "PREOP"
-        axis = Cia402Axis(conn.objects(), t, timeout=0.5)
+        axis = Cia402Axis(conn.objects(), conn.al_state, timeout=0.5)
         motion_plan.plan(conn, axis, motion_plan.MotionRequest("enable"))  # PRE-OP: SDO controlword obeyed
         for state in (ec.AlState.SAFEOP, ec.AlState.OP):
             t.master.request_state(t.slave.station, state)  # type: ignore[union-attr]

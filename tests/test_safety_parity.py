@@ -9,12 +9,11 @@ validating a recipe is "recipe invalid", exit 2, with FILE:LINE.)
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.harness import run_akdctl
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
 
@@ -22,11 +21,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def run(*args: str) -> tuple[int, str, str]:
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.run([sys.executable, "-m", "akdctl", *args], capture_output=True, text=True, env=env,
-                          timeout=60, cwd=ROOT, stdin=subprocess.DEVNULL)
-    return proc.returncode, proc.stdout, proc.stderr
+    code, out, err = run_akdctl(*args, timeout=60)
+    return code, out, err
 
 
 def _core(err: str) -> str:

@@ -9,9 +9,6 @@ standstill, disabled, and must never have received a control word with "enable o
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -19,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from akdctl.sim.drive import SimDrive
+from tests.harness import run_akdctl
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
 
@@ -71,10 +69,7 @@ def _run(line: list[str], target: str, folder: Path) -> int:
         recipe = folder / "prop.toml"
         recipe.write_text(line[1])
         line = ["commission", str(recipe)]
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.run([sys.executable, "-m", "akdctl", "-T", target, *line], capture_output=True, text=True,
-                          env=env, timeout=60, cwd=ROOT, stdin=subprocess.DEVNULL)
+    proc = run_akdctl("-T", target, *line, timeout=60)
     assert "internal error" not in proc.stderr and "Traceback" not in proc.stderr, (line, proc.stderr)
     return proc.returncode
 

@@ -12,13 +12,13 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from akdctl.sim.drive import SimDrive
+from tests.harness import start_akdctl
 from test_motion_cli import fast, finish, ok, realtime, run, wait_until  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
@@ -34,12 +34,7 @@ def _env() -> dict[str, str]:
 
 
 def popen(*args: str, ignore_sigint: bool = False) -> subprocess.Popen[str]:
-    def preexec() -> None:  # a background job: SIGINT inherited as ignored
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-    return subprocess.Popen([sys.executable, "-m", "akdctl", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=_env(), cwd=ROOT, stdin=subprocess.DEVNULL,
-                            preexec_fn=preexec if ignore_sigint else None)
+    return start_akdctl(*args, ignore_sigint=ignore_sigint)  # tests/harness.py: the one way to start akdctl
 
 
 def sim() -> dict:

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from akdctl.protocol import coe
+from akdctl.protocol import coe, coe_info
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
 from akdctl.protocol.mailbox import (
@@ -269,24 +269,24 @@ def test_queued_emergency_precedes_next_response(server: SdoServer) -> None:
 # --- SDO information ---------------------------------------------------------------------------
 
 
-def info_exchange(server: SdoServer, msg: coe.SdoInfoMessage) -> coe.SdoInfoMessage:
-    data = coe.encode_coe(CoeService.SDO_INFO, coe.encode_sdo_info(coe.pack_info(msg)))
+def info_exchange(server: SdoServer, msg: coe_info.SdoInfoMessage) -> coe_info.SdoInfoMessage:
+    data = coe.encode_coe(CoeService.SDO_INFO, coe_info.encode_sdo_info(coe_info.pack_info(msg)))
     replies = server.handle(encode_mailbox(Mailbox(MailboxType.COE, data, counter=1)))
-    assembler, done = coe.InfoReassembler(), None
+    assembler, done = coe_info.InfoReassembler(), None
     for frame in replies:
         assert len(frame) <= server.mailbox_size
         service, _n, payload = coe.decode_coe(decode_mailbox(frame).data)
         assert service == CoeService.SDO_INFO
         assert done is None
-        done = assembler.add(coe.decode_sdo_info(payload))
+        done = assembler.add(coe_info.decode_sdo_info(payload))
     assert done is not None
-    return coe.unpack_info(done)
+    return coe_info.unpack_info(done)
 
 
 def test_info_object_list(server: SdoServer) -> None:
-    assert info_exchange(server, coe.OdListRequest()) == coe.OdListResponse(1, (0x1008, 0x1018, 0x2100, 0x6041, 0x6060))
-    assert info_exchange(server, coe.OdListRequest(0)) == coe.OdListResponse(0, (5, 0, 1, 0, 0))
-    assert info_exchange(server, coe.OdListRequest(3)) == coe.OdListResponse(3, (0x6041,))
+    assert info_exchange(server, coe_info.OdListRequest()) == coe_info.OdListResponse(1, (0x1008, 0x1018, 0x2100, 0x6041, 0x6060))
+    assert info_exchange(server, coe_info.OdListRequest(0)) == coe_info.OdListResponse(0, (5, 0, 1, 0, 0))
+    assert info_exchange(server, coe_info.OdListRequest(3)) == coe_info.OdListResponse(3, (0x6041,))
 
 
 def test_info_object_list_fragmented() -> None:
@@ -294,24 +294,24 @@ def test_info_object_list_fragmented() -> None:
     for i in range(0x3000, 0x3000 + 100):
         objects.values[(i, 0)] = b"\x00"
     server = SdoServer(objects, mailbox_size=32)
-    reply = info_exchange(server, coe.OdListRequest())
-    assert isinstance(reply, coe.OdListResponse) and len(reply.indices) == 105
+    reply = info_exchange(server, coe_info.OdListRequest())
+    assert isinstance(reply, coe_info.OdListResponse) and len(reply.indices) == 105
 
 
 def test_info_descriptions(server: SdoServer) -> None:
-    assert info_exchange(server, coe.ObjectDescriptionRequest(0x1018)) == coe.ObjectDescription(
+    assert info_exchange(server, coe_info.ObjectDescriptionRequest(0x1018)) == coe_info.ObjectDescription(
         0x1018, 0x0007, 1, 7, "object 1018"
     )
-    assert info_exchange(server, coe.EntryDescriptionRequest(0x6041, 0, 7)) == coe.EntryDescription(
+    assert info_exchange(server, coe_info.EntryDescriptionRequest(0x6041, 0, 7)) == coe_info.EntryDescription(
         0x6041, 0, 0, 0x0007, 32, 0x87, "entry 0"
     )
-    assert info_exchange(server, coe.EntryDescriptionRequest(0x6041, 9)) == coe.SdoInfoError(0x06090011)
-    assert info_exchange(server, coe.ObjectDescriptionRequest(0x1234)) == coe.SdoInfoError(0x06020000)
-    assert info_exchange(server, coe.SdoInfoError(1)) == coe.SdoInfoError(0x05040001)
+    assert info_exchange(server, coe_info.EntryDescriptionRequest(0x6041, 9)) == coe_info.SdoInfoError(0x06090011)
+    assert info_exchange(server, coe_info.ObjectDescriptionRequest(0x1234)) == coe_info.SdoInfoError(0x06020000)
+    assert info_exchange(server, coe_info.SdoInfoError(1)) == coe_info.SdoInfoError(0x05040001)
 
 
 def test_info_without_model_support() -> None:
-    assert info_exchange(SdoServer(PlainObjects()), coe.OdListRequest()) == coe.SdoInfoError(0x08000023)
+    assert info_exchange(SdoServer(PlainObjects()), coe_info.OdListRequest()) == coe_info.SdoInfoError(0x08000023)
 
 
 # --- hostile input -------------------------------------------------------------------------------

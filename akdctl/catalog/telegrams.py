@@ -14,7 +14,12 @@ number. Ten elements = ten words, exactly telegram 9's set-point length.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
 
 __all__ = [
     "Signal", "SIGNALS", "TELEGRAMS", "TelegramLayout", "FREE_TELEGRAM", "PZD_MAX_WORDS", "SIGNAL_LIST_LENGTH",
@@ -216,7 +221,7 @@ class WordSlot(Record):
         return f"{self.signal.name} ({self.part} word)" if self.part else self.signal.name
 
 
-def word_layout(signals: list[int] | tuple[int, ...]) -> list[WordSlot]:
+def word_layout(signals: Sequence[int]) -> list[WordSlot]:
     """Signals in IO order -> word by word slots."""
     slots: list[WordSlot] = []
     for number in signals:

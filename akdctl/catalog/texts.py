@@ -16,9 +16,9 @@ __all__ = [
     "SDO_ABORT_TEXTS", "sdo_abort_text",
     "PROFIDRIVE_ERROR_TEXTS", "profidrive_error_text", "profidrive_error_phrase", "profidrive_failure_detail",
     "PROFIDRIVE_SUBINDEX_INFO_ERRORS",
-    "RECORD_ERROR_TEXTS", "RECORD_RETRY_CODES", "PNIO_ERROR_CODE_TEXTS", "PNIO_ERROR_DECODE_TEXTS",
+    "RECORD_ERROR_TEXTS", "RECORD_RETRY_CODES", "PNIO_ERROR_CODE_TEXTS",
     "PNIO_CM_ERROR_CODE1_TEXTS", "pnio_status_text",
-    "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text",
+    "AL_STATUS_CODE_TEXTS", "AKD_AL_STATUS_CODES", "al_status_text", "al_status_line",
     "ERROR_REGISTER_BITS", "error_register_text",
     "MAILBOX_ERROR_TEXTS", "mailbox_error_text",
     "FOE_ERROR_TEXTS", "foe_error_text",
@@ -160,13 +160,6 @@ PNIO_ERROR_CODE_TEXTS: dict[int, str] = {
     0xDF: "write error",
 }
 
-PNIO_ERROR_DECODE_TEXTS: dict[int, str] = {
-    0x00: "no error",
-    0x80: "PNIORW",
-    0x81: "PNIO",
-    0x82: "manufacturer specific",
-}
-
 # ErrorCode1 with ErrorDecode 0x80 (PNIORW): the record-access layer's answer.
 RECORD_ERROR_TEXTS: dict[int, str] = {
     0xA0: "application: read error",
@@ -179,19 +172,19 @@ RECORD_ERROR_TEXTS: dict[int, str] = {
     0xA7: "application: busy",
     0xA8: "application: version conflict",
     0xA9: "application: feature not supported",
-    0xB0: "access: invalid index",
+    0xB0: "access: invalid index (no such record)",
     0xB1: "access: write length error",
     0xB2: "access: invalid slot/subslot",
     0xB3: "access: type conflict",
     0xB4: "access: invalid area/API",
-    0xB5: "access: state conflict",
+    0xB5: "access: state conflict (parameter response not ready)",
     0xB6: "access: access denied",
-    0xB7: "access: invalid range",
+    0xB7: "access: invalid range (bad base-mode request header)",
     0xB8: "access: invalid parameter",
     0xB9: "access: invalid type",
     0xBA: "access: backup",
-    0xC0: "resource: read constrain conflict",
-    0xC1: "resource: write constrain conflict",
+    0xC0: "resource: read constraint conflict",
+    0xC1: "resource: write constraint conflict",
     0xC2: "resource: resource busy",
     0xC3: "resource: resource unavailable",
 }
@@ -255,7 +248,11 @@ PNIO_CM_ERROR_CODE1_TEXTS: dict[int, str] = {
 _BLOCK_FIELD_TEXTS: dict[int, str] = {
     0: "block type", 1: "block length", 2: "block version high", 3: "block version low",
 }
-_AR_BLOCK_FIELD_TEXTS: dict[int, str] = {4: "AR type not supported"}
+_AR_BLOCK_FIELD_TEXTS: dict[int, str] = {
+    4: "AR type not supported", 5: "AR UUID", 7: "CM initiator MAC address", 8: "CM initiator object UUID",
+    9: "AR properties not supported", 10: "CM initiator activity timeout factor", 11: "initiator UDP RT port",
+    12: "station name length", 13: "CM initiator station name",
+}
 _CMRPC_CODE2_TEXTS: dict[int, str] = {
     0x00: "ArgsLength invalid", 0x01: "unknown blocks", 0x02: "IOCR missing", 0x03: "wrong AlarmCRBlock count",
     0x04: "out of AR resources", 0x05: "AR UUID unknown", 0x06: "state conflict",
@@ -271,7 +268,7 @@ def _pnio_detail(decode: int, code1: int, code2: int) -> str:
                 text = f"user-specific record error 0x{code1:02X}"
             else:
                 text = f"unknown record error 0x{code1:02X}"
-        return text
+        return text + (f", vendor detail 0x{code2:02X}" if code2 else "")
     if decode == 0x81:
         text = PNIO_CM_ERROR_CODE1_TEXTS.get(code1, f"unknown PNIO error 0x{code1:02X}")
         if 0x01 <= code1 <= 0x0D:
@@ -388,6 +385,17 @@ def al_status_text(code: int) -> str:
     if 0x8000 <= code <= 0xFFFF:
         return f"vendor-specific AL status code 0x{code:04X}"
     return f"unknown AL status code 0x{code & 0xFFFF:04X}"
+
+
+def al_status_line(status: int, code: int = 0) -> str:
+    """The AL status word and status code in one line: 'PREOP+ERR, 0x0011 Invalid requested state change'
+    (the code only when the error flag is set or a code is given)."""
+    from akdctl.protocol.ethercat import AL_ERROR_FLAG, al_state_name
+
+    text = al_state_name(status)
+    if status & AL_ERROR_FLAG or code:
+        text += f", 0x{code:04X} {al_status_text(code)}"
+    return text
 
 
 # --- EtherCAT cycle time (0x60C2; EtherCAT manual 5.9/5.10, profiles/units.cycle_time_problem) ---------------

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageError
 
@@ -28,6 +28,7 @@ from akdctl.errors import AkdError, NoAnswer, SdoAborted, UnknownOutcome, UsageE
 MAX_UPLOAD = 1 << 20
 
 if TYPE_CHECKING:
+    from akdctl.protocol.coe_info import EntryDescription, ObjectDescription
     from akdctl.protocol.emcy import Emergency
     from akdctl.protocol.bmp import ParameterAddress, ParameterDescription, ParameterFailure, ParameterValue
 
@@ -77,11 +78,11 @@ class ObjectChannel(ABC):
         """Indices of the objects the drive has (SDO information service)."""
         raise UsageError("this link does not offer the SDO information service (object list)")
 
-    def object_description(self, index: int) -> Any:
+    def object_description(self, index: int) -> "ObjectDescription":
         """One object's description (SDO information service): name, object code, max subindex."""
         raise UsageError("this link does not offer the SDO information service (object description)")
 
-    def entry_description(self, index: int, subindex: int) -> Any:
+    def entry_description(self, index: int, subindex: int) -> "EntryDescription":
         """One entry's description (SDO information service): name, data type, bit length, access."""
         raise UsageError("this link does not offer the SDO information service (entry description)")
 
@@ -91,7 +92,10 @@ class ObjectChannel(ABC):
 
 class LazyObjectChannel(ObjectChannel):
     """An object channel built on first use, so commands that never use it never import its codecs
-    (a PNU-only command over the simulator does not load the CoE codecs)."""
+    (a PNU-only command over the simulator does not load the CoE codecs).
+
+    It forwards exactly the :class:`ObjectChannel` contract and nothing else: whoever needs more than the
+    contract declares it there (with a neutral default), so nothing falls through by name."""
 
     def __init__(self, build: Callable[[], ObjectChannel]) -> None:
         self._build = build
@@ -119,20 +123,15 @@ class LazyObjectChannel(ObjectChannel):
     def object_list(self) -> list[int]:
         return self.channel.object_list()
 
-    def object_description(self, index: int) -> Any:
+    def object_description(self, index: int) -> "ObjectDescription":
         return self.channel.object_description(index)
 
-    def entry_description(self, index: int, subindex: int) -> Any:
+    def entry_description(self, index: int, subindex: int) -> "EntryDescription":
         return self.channel.entry_description(index, subindex)
 
     def close(self) -> None:
         if self._channel is not None:
             self._channel.close()
-
-    def __getattr__(self, name: str) -> object:
-        if name.startswith("_"):
-            raise AttributeError(name)
-        return getattr(self.channel, name)
 
 
 def sdo_aborted(code: int, what: str, *, where: str | None = None, fallback: Mapping[int, str] | None = None,

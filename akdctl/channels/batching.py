@@ -40,17 +40,13 @@ from akdctl.protocol.bmp import (
     MAX_ELEMENTS,
     MAX_PARAMETERS,
     MAX_SUBINDEX,
-    REQ_CHANGE,
-    REQ_READ,
     STRING_FORMATS,
     BmpError,
     Format,
     ParameterAddress,
-    ParameterRequest,
     ParameterValue,
     encode_value_block,
     format_name,
-    next_reference,
 )
 
 #: Bytes per element of a value read: a fixed bound, or a function of the address (e.g. the catalogue's type).
@@ -181,32 +177,6 @@ def plan_reads(response_sizes: Sequence[int]) -> list[Batch]:
     return pack([Cost(ADDRESS_SIZE, size) for size in response_sizes])
 
 
-def split_requests(
-    addresses: Sequence[ParameterAddress],
-    values: Sequence[ParameterValue] | None = None,
-    *,
-    reference_start: int = 1,
-    axis: int = 0,
-    element_size: ElementSize = DEFAULT_ELEMENT_SIZE,
-) -> list[ParameterRequest]:
-    """Requests for reading (``values is None``) or changing the parameters, per :func:`plan_batches`.
-
-    References count up from ``reference_start`` (1..255, never 0).
-    """
-    if not 1 <= reference_start <= 255:
-        raise BmpError(f"request reference must be 1..255, not {reference_start!r}")
-    requests = []
-    reference = reference_start
-    for batch in plan_batches(addresses, values, element_size=element_size):
-        picked = tuple(addresses[i] for i in batch)
-        if values is None:
-            requests.append(ParameterRequest(reference, REQ_READ, axis, picked))
-        else:
-            requests.append(ParameterRequest(reference, REQ_CHANGE, axis, picked, tuple(values[i] for i in batch)))
-        reference = next_reference(reference)
-    return requests
-
-
 # --- one parameter larger than a block ---------------------------------------------------------------------------
 
 
@@ -231,6 +201,7 @@ def chunk_value(value: ParameterValue, limit: int) -> list[ParameterValue]:
     """Split a value into pieces of at most ``limit`` wire elements (strings split by character)."""
     if value.format in STRING_FORMATS:
         item = value.values[0]
+        assert isinstance(item, (str, bytes)), "a string format holds one str or bytes"
         if value.format == Format.UNICODE_STRING and isinstance(item, str):
             units = item.encode("utf-16-be", "surrogatepass")
             return [ParameterValue(value.format, (units[i:i + 2 * limit].decode("utf-16-be", "surrogatepass"),))

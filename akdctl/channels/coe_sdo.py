@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar, cast
 
 from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
@@ -46,6 +46,9 @@ from akdctl.protocol import coe, mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.protocol.emcy import Emergency, decode_emcy
 from akdctl.protocol.errors import CodecError
+
+if TYPE_CHECKING:
+    from akdctl.protocol import coe_info
 
 
 T = TypeVar("T")
@@ -132,15 +135,21 @@ class CoeObjectChannel(ObjectChannel):
                               f"the answer to the {what} may be the late answer to an earlier write")
 
     def object_list(self) -> list[int]:
-        reply = self._info(coe.OdListRequest(coe.LIST_ALL), coe.OdListResponse, "object list")
+        from akdctl.protocol import coe_info  # the SDO information service: loaded on first use
+
+        reply = self._info(coe_info.OdListRequest(coe_info.LIST_ALL), coe_info.OdListResponse, "object list")
         return list(reply.indices)
 
-    def object_description(self, index: int) -> coe.ObjectDescription:
-        return self._info(coe.ObjectDescriptionRequest(index), coe.ObjectDescription, f"description of 0x{index:04X}")
+    def object_description(self, index: int) -> coe_info.ObjectDescription:
+        from akdctl.protocol import coe_info
 
-    def entry_description(self, index: int, subindex: int) -> coe.EntryDescription:
+        return self._info(coe_info.ObjectDescriptionRequest(index), coe_info.ObjectDescription, f"description of 0x{index:04X}")
+
+    def entry_description(self, index: int, subindex: int) -> coe_info.EntryDescription:
+        from akdctl.protocol import coe_info
+
         return self._info(
-            coe.EntryDescriptionRequest(index, subindex), coe.EntryDescription, f"description of {_where(index, subindex)}"
+            coe_info.EntryDescriptionRequest(index, subindex), coe_info.EntryDescription, f"description of {_where(index, subindex)}"
         )
 
     # --- transfers --------------------------------------------------------------------------
@@ -261,7 +270,8 @@ class CoeObjectChannel(ObjectChannel):
              left: int, toggle: int | None = None) -> coe.SdoMessage:
         """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
         self._want = (wanted, index, subindex, verb, toggle)
-        return self._exchange(request, self._accept_sdo, deadline.share(left), deadline)
+        # (the checker joins the union's members to their base class when it infers T: name the type)
+        return cast("coe.SdoMessage", self._exchange(request, self._accept_sdo, deadline.share(left), deadline))
 
     def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
         """The server message if this reply answers the SDO request in ``self._want``, else None."""
@@ -281,12 +291,12 @@ class CoeObjectChannel(ObjectChannel):
                                   details={"index": index, "subindex": subindex})
             return None
         if segment:
-            if msg.toggle != toggle:  # type: ignore[attr-defined]
+            if msg.toggle != toggle:  # type: ignore[union-attr]
                 if mine:
-                    raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[attr-defined]
+                    raise MalformedReply(f"segment toggle {msg.toggle} (expected {toggle}) in the SDO {verb} "  # type: ignore[union-attr]
                                          f"of {_where(index, subindex)}")
                 return None  # a duplicate of the previous segment's answer
-        elif msg.index != index or msg.subindex != subindex:  # type: ignore[attr-defined]
+        elif msg.index != index or msg.subindex != subindex:  # type: ignore[union-attr]
             return None
         if service == _SDO_REQUEST:
             log.warning(
@@ -298,19 +308,21 @@ class CoeObjectChannel(ObjectChannel):
 
     # --- SDO information --------------------------------------------------------------------
 
-    def _info(self, request: coe.SdoInfoMessage, expect: type[T], what: str) -> T:
-        frame = coe.encode_sdo_info(coe.pack_info(request))
+    def _info(self, request: coe_info.SdoInfoMessage, expect: type[T], what: str) -> T:
+        from akdctl.protocol import coe_info
+
+        frame = coe_info.encode_sdo_info(coe_info.pack_info(request))
         data = coe.encode_coe(CoeService.SDO_INFO, frame)
 
         def once(deadline: Deadline, left: int) -> T:
-            assembler = coe.InfoReassembler()
-            result: list[coe.SdoInfo] = []
+            assembler = coe_info.InfoReassembler()
+            result: list[coe_info.SdoInfo] = []
 
             def accept(service: int, payload: bytes, mine: bool) -> bool | None:
                 if service != CoeService.SDO_INFO:
                     return None
                 try:
-                    part = coe.decode_sdo_info(payload)
+                    part = coe_info.decode_sdo_info(payload)
                     done = assembler.add(part)
                 except CodecError as exc:
                     raise MalformedReply(f"SDO information reply for the {what} does not decode: {exc}") from None
@@ -321,10 +333,10 @@ class CoeObjectChannel(ObjectChannel):
 
             self._exchange(data, accept, deadline.share(left), deadline, until=lambda value: value is True)
             try:
-                message = coe.unpack_info(result[0])
+                message = coe_info.unpack_info(result[0])
             except CodecError as exc:
                 raise MalformedReply(f"SDO information reply for the {what} does not decode: {exc}") from None
-            if isinstance(message, coe.SdoInfoError):
+            if isinstance(message, coe_info.SdoInfoError):
                 raise sdo_aborted(message.code, f"information request for the {what}")
             if not isinstance(message, expect):
                 raise MalformedReply(f"unexpected SDO information reply {type(message).__name__} for the {what}")

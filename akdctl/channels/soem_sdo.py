@@ -22,7 +22,9 @@ class SoemObjectChannel(ObjectChannel):
 
     def __init__(self, slave: Any, where: str, pysoem: Any = None) -> None:
         if pysoem is None:
-            import pysoem
+            import pysoem as module
+
+            pysoem = module
         self.slave, self.pysoem, self.where = slave, pysoem, where
         self.requests = 0
 

@@ -50,7 +50,7 @@ def commission(recipe: str, dry_run: bool, reports: tuple[str, ...], output_dir:
     for path in reports:
         report.kind_of(path)  # a bad suffix is a usage error before anything runs
     try:
-        raw, steps = load_and_validate(recipe, allow_outside=allow_outside, conn=app)
+        raw, steps = load_and_validate(recipe, allow_outside=allow_outside, conn=app.connection)
     except RecipeError as exc:
         if len(exc.problems) > 1:
             message("akdctl: the recipe has these problems:")

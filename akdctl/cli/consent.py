@@ -16,14 +16,17 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from akdctl.errors import SafetyRefusal
 
+if TYPE_CHECKING:
+    from akdctl.cli.context import AppContext
 
-def require_consent(app: Any, action: str) -> None:
+
+def require_consent(app: "AppContext", action: str) -> None:
     """Return when the user consents to ``action`` on this target; SafetyRefusal (exit 4) otherwise."""
     text = f"{action} on {app.target.display}"
     if not app.yes and not sys.stdin.isatty():
@@ -38,7 +41,7 @@ def require_consent(app: Any, action: str) -> None:
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 
-def gate_write(app: Any, gated: list[Any]) -> None:
+def gate_write(app: "AppContext", gated: list[Any]) -> None:
     """The write gate for raw write commands: consent when the addresses can power or move the axis
     (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive.
     A write touching a gated address owns the axis like a motion (also with ``--yes``)."""
@@ -49,7 +52,7 @@ def gate_write(app: Any, gated: list[Any]) -> None:
     gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)
 
 
-def consent_plan(app: Any, plan: Any) -> None:
+def consent_plan(app: "AppContext", plan: Any) -> None:
     """The consent a write plan asks for (:attr:`akdctl.drive.operation.WritePlan.consent_text`), decided by the
     plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``)."""
     from akdctl.drive.operation import consent_needed
@@ -59,7 +62,7 @@ def consent_plan(app: Any, plan: Any) -> None:
     consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
 
 
-def render_dry_run(app: Any, plan: Any) -> None:
+def render_dry_run(app: "AppContext", plan: Any) -> None:
     """``--dry-run``: the plan in words (or its JSON with ``--json``); nothing is written."""
     from akdctl.cli.output import Doc
 
@@ -70,27 +73,22 @@ def render_dry_run(app: Any, plan: Any) -> None:
     app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, doc)
 
 
-def own_axis(app: Any) -> None:
-    """Own the target's axis until the command ends (released when the invocation closes, or when
-    the process dies); SafetyRefusal (exit 4) naming the owner when another command holds it."""
-    from akdctl.drive.gate import owner_key
-    from akdctl.io.owner_lock import OwnerBusy, OwnerLock
-    from akdctl.sim.drive import state_dir
+def own_axis(app: "AppContext") -> None:
+    """Own the target's axis until the command ends (:meth:`akdctl.connection.Connection.own_axis`:
+    released when the connection closes, or when the process dies); SafetyRefusal (exit 4) naming the
+    owner when another command holds it."""
+    from akdctl.io.owner_lock import OwnerBusy
 
-    if getattr(app, "axis_owner", None) is not None:
-        return
-    lock = OwnerLock(state_dir() / "owners" / f"{owner_key(app.target)}.lock")
+    conn = app.connection
     try:
-        lock.acquire(_command_line())
+        conn.own_axis(_command_line())
     except OwnerBusy as busy:
         raise SafetyRefusal(f"refusing: the axis of {app.target.display} is in use by {_owner_text(busy.owner)}; "
                             "wait until it ends, or stop it ('akdctl stop' is never refused); nothing was written",
                             details={"owner": busy.owner}) from None
     except OSError as exc:
-        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock {lock.path} "
+        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock in {exc.filename or 'the state directory'} "
                             f"({exc.strerror or exc}); nothing was written") from None
-    app.axis_owner = lock
-    app._cleanups.insert(0, lock.release)  # the last cleanup: after the connection is closed
 
 
 def _command_line() -> str:

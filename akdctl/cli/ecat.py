@@ -135,10 +135,12 @@ def state(state: str | None) -> None:
                 if step <= wanted and master.al_status(slave.station)[0] & 0x0F < step:
                     master.request_state(slave.station, step)
     status, code = master.al_status(slave.station)
-    text = ec.describe_al(status, code)
+    from akdctl.catalog.texts import al_status_line, al_status_text
+
+    text = al_status_line(status, code)
     app.emit({"target": app.target.display, "position": slave.position, "station": slave.station,
               "al_state": ec.al_state_name(status), "al_status": status, "al_status_code": code,
-              "al_status_text": ec.al_status_text(code)},
+              "al_status_text": al_status_text(code)},
              Doc(f"AL state of slave {slave.position} (station 0x{slave.station:04X})", app.target.display)
              .kv("state", text))
 

@@ -132,7 +132,7 @@ def _validate_all(line: LineArgs, rest: list[str], drives: list[Any], per_drive:
         app = AppContext(target_text=drive.target, config_path=_root_value(rest, "--config"),
                          profile_name=_root_value(rest, "--profile"), yes=True)
         try:
-            _, steps = load_and_validate(per_drive[drive.name], allow_outside=allow_outside, conn=app)
+            _, steps = load_and_validate(per_drive[drive.name], allow_outside=allow_outside, conn=app.connection)
         except RecipeError as exc:
             first = exc.problems[0] if exc.problems else str(exc)
             more = f" (and {len(exc.problems) - 1} more)" if len(exc.problems) > 1 else ""

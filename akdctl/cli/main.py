@@ -2,12 +2,15 @@
 
 Subcommands live in their own modules and are imported only when invoked, so
 ``akdctl --help`` imports neither transports nor rich nor canopen. The short
-help shown in the command list is kept here for the same reason.
+help of the command list is written once, in each command's docstring; the copy in
+:data:`SHORT_HELP` is generated from them by ``tools/gen_docs.py`` (its ``--check``
+fails on drift), so ``--help`` lists them without importing a command module.
+A command module that is missing is an ImportError a test sees, never a command
+silently left out of the listing.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 import re
 import sys
@@ -20,44 +23,101 @@ from akdctl.cli.context import AppContext
 from akdctl.cli.parsing import Duration
 from akdctl.errors import EXIT_USAGE, AkdError, InternalError, Interrupted, UsageError
 
-# name -> (module, attribute, short help). Order is the order of `akdctl --help`.
-COMMANDS: dict[str, tuple[str, str, str]] = {
-    "status": ("akdctl.cli.motion", "status", "Show drive state, mode, status-word bits, position, velocity, faults."),
-    "enable": ("akdctl.cli.motion", "enable", "Bring the drive to operation enabled."),
-    "disable": ("akdctl.cli.motion", "disable", "Disable the power stage (ramp to standstill first)."),
-    "stop": ("akdctl.cli.motion", "stop", "Stop the axis (ramp; --quick for quick stop)."),
-    "jog": ("akdctl.cli.motion", "jog", "Jog at a velocity for a bounded time or distance."),
-    "home": ("akdctl.cli.motion", "home", "Run the homing procedure."),
-    "move": ("akdctl.cli.motion", "move", "Move to a position (absolute or relative) and wait for target reached."),
-    "task": ("akdctl.cli.task", "task", "List, show, set and start the drive's stored motion tasks."),
-    "pnu": ("akdctl.cli.pnu", "pnu", "Read, write, describe and list PROFIdrive parameters (PNUs)."),
-    "sdo": ("akdctl.cli.sdo", "sdo", "Read and write CANopen/CoE objects by SDO."),
-    "pdo": ("akdctl.cli.pdo", "pdo", "Show, plan and apply process-data (PDO) mapping."),
-    "telegram": ("akdctl.cli.telegram", "telegram", "Show and select the PROFIdrive telegram."),
-    "fault": ("akdctl.cli.fault", "fault", "Fault buffer dump, acknowledge, history and explanations."),
-    "support": ("akdctl.cli.support", "support", "Write or show a support bundle."),
-    "scope": ("akdctl.cli.scope", "scope", "Record signals (poll, the drive's recorder, PDO) and plot them."),
-    "params": ("akdctl.cli.params", "params", "Back up, restore and compare drive parameters."),
-    "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
-    "diagnose": ("akdctl.cli.diagnose", "diagnose", "Why won't it enable, why did it stop: every cause, with its remedy."),
-    "shell": ("akdctl.cli.shell", "shell", "Type akdctl commands at a prompt over one open connection."),
-    "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
-    "discover": ("akdctl.cli.discover", "discover", "Find drives on every transport given and write an inventory of the line."),
-    "targets": ("akdctl.cli.targets", "targets", "List the transports and whether their dependencies are present."),
-    "pn": ("akdctl.cli.pn", "pn", "PROFINET: discover (DCP), name, address and blink devices."),
-    "ecat": ("akdctl.cli.ecat", "ecat", "EtherCAT: scan slaves, change AL state, read the SII."),
-    "can": ("akdctl.cli.can", "can", "CANopen: scan nodes, send NMT commands."),
-    "cip": ("akdctl.cli.cip", "cip", "Read and write CIP attributes (EtherNet/IP explicit messaging)."),
-    "eip": ("akdctl.cli.eip", "eip", "EtherNet/IP: ListIdentity scan, AKD parameters by the Parameter object."),
-    "sim": ("akdctl.cli.sim", "sim", "The simulated AKD: reset, show, inject faults, serve on the network."),
-    "firmware": ("akdctl.cli.firmware", "firmware", "Update the drive's firmware over EtherCAT (FoE in BOOT)."),
+# name -> (module, attribute). Order is the order of `akdctl --help`.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "status": ("akdctl.cli.motion", "status"),
+    "enable": ("akdctl.cli.motion", "enable"),
+    "disable": ("akdctl.cli.motion", "disable"),
+    "stop": ("akdctl.cli.motion", "stop"),
+    "jog": ("akdctl.cli.motion", "jog"),
+    "home": ("akdctl.cli.motion", "home"),
+    "move": ("akdctl.cli.motion", "move"),
+    "task": ("akdctl.cli.task", "task"),
+    "pnu": ("akdctl.cli.pnu", "pnu"),
+    "sdo": ("akdctl.cli.sdo", "sdo"),
+    "pdo": ("akdctl.cli.pdo", "pdo"),
+    "telegram": ("akdctl.cli.telegram", "telegram"),
+    "fault": ("akdctl.cli.fault", "fault"),
+    "support": ("akdctl.cli.support", "support"),
+    "scope": ("akdctl.cli.scope", "scope"),
+    "params": ("akdctl.cli.params", "params"),
+    "commission": ("akdctl.cli.commission", "commission"),
+    "diagnose": ("akdctl.cli.diagnose", "diagnose"),
+    "shell": ("akdctl.cli.shell", "shell"),
+    "info": ("akdctl.cli.info", "info"),
+    "discover": ("akdctl.cli.discover", "discover"),
+    "targets": ("akdctl.cli.targets", "targets"),
+    "pn": ("akdctl.cli.pn", "pn"),
+    "ecat": ("akdctl.cli.ecat", "ecat"),
+    "can": ("akdctl.cli.can", "can"),
+    "cip": ("akdctl.cli.cip", "cip"),
+    "eip": ("akdctl.cli.eip", "eip"),
+    "sim": ("akdctl.cli.sim", "sim"),
+    "firmware": ("akdctl.cli.firmware", "firmware"),
 }
 
-
-def _module_present(module: str) -> bool:
-    import importlib.util
-
-    return importlib.util.find_spec(module) is not None
+# BEGIN generated by tools/gen_docs.py: each command's short help, from its docstring (edit the docstring).
+SHORT_HELP: dict[str, str] = {
+    "status":
+        "Show state, mode, every status-word bit in words, position, velocity, current, warnings, faults.",
+    "enable":
+        "Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded.",
+    "disable":
+        "Disable the power stage; a moving axis is brought to standstill along its ramp first.",
+    "stop":
+        "Stop the axis: ramp to standstill (a quick stop if the ramp is not obeyed).",
+    "jog":
+        "Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance).",
+    "home":
+        "Run the drive's homing procedure and wait until the home position is set.",
+    "move":
+        "Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move).",
+    "task":
+        "Stored motion tasks: list, show, set, and start one (program mode).",
+    "pnu":
+        "Read, write, describe and list PROFIdrive parameters (PNUs).",
+    "sdo":
+        "Read and write CANopen/CoE objects by SDO (index:subindex, such as 0x6041:0).",
+    "pdo":
+        "Show, plan and apply process-data (PDO) mapping (EtherCAT manual 5.5-5.7).",
+    "telegram":
+        "Show and select the PROFIdrive telegram (PROFINET manual 5.8, 5.11).",
+    "fault":
+        "Fault buffer dump, acknowledge, history and explanations (AKD F/n numbers).",
+    "support":
+        "Write a support bundle from a drive, or show one without a drive.",
+    "scope":
+        "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6 and more) and plot them.",
+    "params":
+        "Back up, restore and compare drive parameters (TOML or JSON files).",
+    "commission":
+        "Run a commissioning recipe (TOML): set/expect parameters, map process data, select a telegram, enable, home, move, wait, check faults, save, back up.",
+    "diagnose":
+        "Name every cause that keeps the axis from enabling or moving, most likely first, each with its remedy.",
+    "shell":
+        "Type akdctl commands at a prompt over one open connection (history, Tab completion).",
+    "info":
+        "Identify the drive: vendor, model, firmware, serial, profile; then PNU 964/965/975, 0x1018 and 0x1008-0x100A, I&M0 on PROFINET, the CIP identity on EtherNet/IP.",
+    "discover":
+        "Find drives on every transport given: one table of transport, target, vendor, model, firmware, serial, name and alias; --write-inventory writes the line's inventory.",
+    "targets":
+        "List the transports, their target syntax and whether their dependencies are present.",
+    "pn":
+        "PROFINET: discover (DCP), name, address and blink devices.",
+    "ecat":
+        "EtherCAT: scan slaves, read or change the AL state, read the SII (target ecat://IFNAME[/POSITION]).",
+    "can":
+        "CANopen network management (needs a can://INTERFACE/CHANNEL/NODE target).",
+    "cip":
+        "Read and write CIP attributes (EtherNet/IP explicit messaging, eip:// targets).",
+    "eip":
+        "EtherNet/IP: find drives (ListIdentity), AKD parameters by the Parameter object 0x0F.",
+    "sim":
+        "The simulated AKD (the default target): its state persists between invocations.",
+    "firmware":
+        "Drive firmware: update over EtherCAT (target ecat://IFNAME[/POS] or ecat+soem://IFNAME[/POS]).",
+}
+# END generated
 
 
 class LazyGroup(click.Group):
@@ -68,8 +128,7 @@ class LazyGroup(click.Group):
         self.lazy = dict(lazy or {})
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        present = [name for name, (module, _, _) in self.lazy.items() if _module_present(module)]
-        return present + sorted(set(self.commands) - set(present))
+        return [*self.lazy, *sorted(set(self.commands) - set(self.lazy))]
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         """The subcommand, imported on first use and adopted into the tree's parsing rules (cli/parsing.py)."""
@@ -78,9 +137,11 @@ class LazyGroup(click.Group):
         command = self.commands.get(name)
         if command is None:
             entry = self.lazy.get(name)
-            if entry is None or not _module_present(entry[0]):
+            if entry is None:
                 return None
-            command = getattr(importlib.import_module(entry[0]), entry[1])
+            import importlib
+
+            command = vars(importlib.import_module(entry[0]))[entry[1]]
             self.commands[name] = command
         return adopt(command, cli)  # the root of the tree, whichever context asked
 
@@ -113,7 +174,8 @@ EPILOG = (
 )
 
 
-@click.group(cls=LazyGroup, lazy=COMMANDS, epilog=EPILOG, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, lazy={name: (module, attr, SHORT_HELP.get(name, name))
+                                 for name, (module, attr) in COMMANDS.items()}, epilog=EPILOG, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-T", "--target", "target", metavar="TARGET", help="Drive to talk to (default: $AKDCTL_TARGET, config profile, sim).")
 @click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")

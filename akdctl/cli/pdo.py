@@ -64,7 +64,7 @@ def show() -> None:
     app = get_app()
     channel = app.objects()
     mapping = read_mapping(channel)
-    state = al_state_of(app.transport())
+    state = al_state_of(app.connection)
     data = {"target": app.target.display, "al_state": state, **{d: m.to_json() for d, m in mapping.items()}}
 
     def human() -> Doc:

@@ -61,7 +61,7 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
           jog_rpm: float | None, jog_for: str | None,
           accel: float | None, max_fe: float | None, max_settle: float | None, settle_band: float | None,
           dry_run: bool) -> None:
-    """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6, ...) and plot them.
+    """Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6 and more) and plot them.
 
     A recording that ends early (no answer, a rate the link does not sustain, a trigger that never fires, the
     recorder's overflow, Ctrl-C) is still written, marked PARTIAL in every output, and the command exits with

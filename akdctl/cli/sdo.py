@@ -33,7 +33,7 @@ def _hinting(address_text: str) -> Iterator[None]:
 
 @click.group()
 def sdo() -> None:
-    """Read and write CANopen/CoE objects by SDO (index:subindex, e.g. 0x6041:0).
+    """Read and write CANopen/CoE objects by SDO (index:subindex, such as 0x6041:0).
 
     \b
     Examples:

@@ -17,21 +17,20 @@ def targets() -> None:
       akdctl targets
       akdctl targets --json
     """
+    from akdctl.profiles.vocabulary import Channel
     from akdctl.transport.registry import BUILTIN, module_available
 
     app = get_app()
     rows = []
     for spec in BUILTIN.values():
-        implemented = module_available(spec.module)
-        missing = [m for m in spec.requires if not module_available(m)]
-        if not implemented:
-            state = "not in this version"
-        elif missing:
+        missing = [m for m in spec.requires if not module_available(m)]  # other projects' modules only
+        if missing:
             state = f"missing {', '.join(missing)}" + (f" (pip install 'akdctl[{spec.extra}]')" if spec.extra else "")
         else:
             state = "available"
-        rows.append({"scheme": spec.scheme, "syntax": spec.syntax, "channels": spec.channels,
-                     "state": state, "available": implemented and not missing, "summary": spec.summary})
+        rows.append({"scheme": spec.scheme, "syntax": spec.syntax,
+                     "channels": ", ".join(c.value for c in Channel.ALL if c in spec.channels),
+                     "state": state, "available": not missing, "summary": spec.summary})
     app.emit(
         {"transports": rows},
         lambda: Doc("transports").table(

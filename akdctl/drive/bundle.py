@@ -33,6 +33,8 @@ from akdctl.errors import AkdError, CommError, UsageError
 from akdctl.io.atomic import write_user_file
 
 if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.channels.base import ParameterChannel
     from akdctl.connection import Connection
 
 FORMAT = "akdctl-support-bundle"
@@ -87,7 +89,7 @@ def _tool() -> dict[str, Any]:
             "platform": f"{platform.system()} {platform.machine()}"}
 
 
-def pnu_snapshot(channel: Any) -> list[dict[str, Any]]:
+def pnu_snapshot(channel: "ParameterChannel") -> list[dict[str, Any]]:
     """Every readable catalogue PNU in ONE batched read call (the channel packs the fewest requests)."""
     from akdctl.catalog.pnus import pnu_table
     from akdctl.drive.values import PnuSpec, read_pnus
@@ -97,7 +99,7 @@ def pnu_snapshot(channel: Any) -> list[dict[str, Any]]:
     return [r.to_json() for r in read_pnus(channel, specs)]
 
 
-def object_snapshot(channel: Any, *, everything: bool = False) -> list[dict[str, Any]]:
+def object_snapshot(channel: "ObjectChannel", *, everything: bool = False) -> list[dict[str, Any]]:
     """Upload the core objects (or every readable catalogue object); aborts are recorded per object."""
     from akdctl.catalog import objects as catalog
     from akdctl.drive.values import decode, json_value

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import CommError, SdoAborted
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
 
 OBJECT_CODES = {7: "VAR", 8: "ARRAY", 9: "RECORD"}
 
@@ -66,7 +69,7 @@ def _pdo_text(bits: int) -> str:
     return ("R" if bits & 0x40 else "") + ("T" if bits & 0x80 else "")
 
 
-def read_dictionary(channel: Any, *, entries: bool = True, wanted: Callable[[int], bool] | None = None) -> list[ObjectRow]:
+def read_dictionary(channel: "ObjectChannel", *, entries: bool = True, wanted: Callable[[int], bool] | None = None) -> list[ObjectRow]:
     """The drive's own list (service 8): every object's description and, with ``entries``, each entry's."""
     rows = []
     for index in channel.object_list():

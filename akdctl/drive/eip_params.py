@@ -14,11 +14,14 @@ Rules from the manual [M-25], [M-26] (reference/ethernetip.md 1.9), kept in this
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import eip_parameters as table
 from akdctl.errors import MalformedReply, UsageError
 from akdctl.protocol import cip
+
+if TYPE_CHECKING:
+    from akdctl.channels.cip import CipAttributes
 
 FLOAT_SCALE = 1000
 
@@ -47,7 +50,7 @@ def resolve(text: str) -> ParameterRef:
     return ParameterRef(instance, entry.name if entry else "", entry.kind if entry else "?")
 
 
-def describe(channel: Any, ref: ParameterRef) -> tuple[int, int]:
+def describe(channel: "CipAttributes", ref: ParameterRef) -> tuple[int, int]:
     """(CIP type code, length in bytes) from attributes 5 and 6."""
     type_raw = channel.get(cip.PARAMETER, ref.instance, 5)
     size_raw = channel.get(cip.PARAMETER, ref.instance, 6)
@@ -61,7 +64,7 @@ def _signed(type_code: int) -> bool:
     return type_code in (0xC2, 0xC3, 0xC4, 0xC5)
 
 
-def read(channel: Any, ref: ParameterRef) -> dict[str, Any]:
+def read(channel: "CipAttributes", ref: ParameterRef) -> dict[str, Any]:
     type_code, size = describe(channel, ref)
     raw = channel.get(cip.PARAMETER, ref.instance, 1)
     if not raw or len(raw) > 8:
@@ -73,7 +76,7 @@ def read(channel: Any, ref: ParameterRef) -> dict[str, Any]:
             f"0x{type_code:02X}", "length": size, "raw": raw.hex(), "value": value}
 
 
-def encode_parameter(channel: Any, ref: ParameterRef, text: str) -> tuple[Any, bytes, int]:
+def encode_parameter(channel: "CipAttributes", ref: ParameterRef, text: str) -> tuple[Any, bytes, int]:
     """(value, bytes, length) for a Parameter-object write: the type and length are read first (attributes 5, 6),
     floats travel x1000; a value that does not fit is refused before anything is written."""
     if ref.kind == "command":
@@ -107,7 +110,7 @@ def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
     return {"instance": ref.instance, "name": ref.name, "written": data.hex(), "value": value, "length": size}
 
 
-def run_command(channel: Any, ref: ParameterRef) -> dict[str, Any]:
+def run_command(channel: "CipAttributes", ref: ParameterRef) -> dict[str, Any]:
     if ref.kind not in ("command", "?"):
         raise UsageError(f"{ref.name} is not a command parameter")
     channel.set(cip.PARAMETER, ref.instance, 1, b"\x01")

@@ -31,6 +31,8 @@ from akdctl.errors import AkdError, CommError, DriveFault, UsageError
 from akdctl.profiles.statusword import SW_FAULT, SW_WARNING, ZSW1_FAULT, ZSW1_WARNING
 
 if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.channels.base import ParameterChannel
     from akdctl.connection import Connection
     from akdctl.drive.operation import WritePlan
 
@@ -165,7 +167,7 @@ def split_buffer(values: list[int]) -> tuple[list[FaultEntry], list[dict[str, An
     return active, acknowledged
 
 
-def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
+def _read_one(channel: "ParameterChannel", specs: list[Any]) -> list[Any]:
     from akdctl.drive.values import pnu_refused, read_pnus
 
     readings = read_pnus(channel, specs)
@@ -175,7 +177,7 @@ def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
     return readings
 
 
-def read_profidrive_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> ProfidriveFaults:
+def read_profidrive_faults(channel: "ParameterChannel", *, max_attempts: int = MAX_ATTEMPTS) -> ProfidriveFaults:
     """944 (+ ZSW1), 947, 944 again; repeat while the counter moved (at most ``max_attempts`` times)."""
     from akdctl.drive.values import pnu_spec
 
@@ -240,7 +242,7 @@ class CanopenFaults:
         }
 
 
-def _upload_int(channel: Any, index: int, sub: int) -> int:
+def _upload_int(channel: "ObjectChannel", index: int, sub: int) -> int:
     """One integer object, typed by the catalogue (drive/values.py)."""
     from akdctl.drive.values import read_object
 
@@ -258,7 +260,7 @@ def _section(result: CanopenFaults, name: str, func: Any) -> Any:
         return None
 
 
-def _read_list(channel: Any, index: int, limit: int, *, stop_at_zero: bool) -> list[int]:
+def _read_list(channel: "ObjectChannel", index: int, limit: int, *, stop_at_zero: bool) -> list[int]:
     """Sub 1..n of an array object; n from sub 0 (bounded by ``limit``); optionally stop at the first 0."""
     count = min(_upload_int(channel, index, 0), limit)
     values = []
@@ -270,7 +272,7 @@ def _read_list(channel: Any, index: int, limit: int, *, stop_at_zero: bool) -> l
     return values
 
 
-def _marker(channel: Any) -> tuple[Any, ...]:
+def _marker(channel: "ObjectChannel") -> tuple[Any, ...]:
     """What changes whenever a new fault or emergency is recorded (newest entries and counts)."""
     out: list[Any] = []
     for index, sub in ((0x1003, 0), (0x1003, 1), (0x2012, 1), (0x2013, 1)):
@@ -283,7 +285,7 @@ def _marker(channel: Any) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def _read_canopen_once(channel: Any) -> CanopenFaults:
+def _read_canopen_once(channel: "ObjectChannel") -> CanopenFaults:
     result = CanopenFaults()
     result.error_register = _section(result, "0x1001", lambda: _upload_int(channel, 0x1001, 0))
     result.statusword = _section(result, "0x6041", lambda: _upload_int(channel, 0x6041, 0))
@@ -302,7 +304,7 @@ def _read_canopen_once(channel: Any) -> CanopenFaults:
     return result
 
 
-def read_canopen_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> CanopenFaults:
+def read_canopen_faults(channel: "ObjectChannel", *, max_attempts: int = MAX_ATTEMPTS) -> CanopenFaults:
     """Read every fault object; repeat while the newest entries changed during the read (bounded)."""
     attempt = 0
     while True:
@@ -314,8 +316,7 @@ def read_canopen_faults(channel: Any, *, max_attempts: int = MAX_ATTEMPTS) -> Ca
             break
     result.attempts = attempt
     result.consistent = before == after
-    take = getattr(channel, "take_emergencies", None)
-    result.emergencies = [decode_emergency(e) for e in (take() if take else [])]
+    result.emergencies = [decode_emergency(e) for e in channel.take_emergencies()]
     return result
 
 

@@ -34,11 +34,13 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from akdctl.catalog.pnus import PnuInfo
+    from akdctl.connection import Connection
 
 _CONTROL = "the control word powers and moves the axis"
 _SETPOINT = "a set point the drive acts on"
@@ -167,12 +169,12 @@ def classify_cip(class_id: int, instance: int, attribute: int, name: str = "") -
     return None
 
 
-def needing_consent(gated: list[Gated | None], enabled: bool | None) -> list[Gated]:
+def needing_consent(gated: Sequence[Gated | None], enabled: bool | None) -> list[Gated]:
     """The gated addresses that need consent now; ``enabled`` None (unknown) counts as enabled."""
     return [g for g in gated if g is not None and (not g.when_enabled or enabled is not False)]
 
 
-def drive_enabled(conn: Any) -> bool | None:
+def drive_enabled(conn: "Connection") -> bool | None:
     """Is the power stage enabled? Reads only; None when the drive's state cannot be read.
 
     The one answer to that question for raw writes, recipes and parameter restores.
@@ -190,7 +192,7 @@ def consent_action(needing: list[Gated]) -> str:
     return "write " + "; ".join(g.text() for g in needing)
 
 
-def check_write(conn: Any, gated: list[Gated | None], consent: Any, given: bool = False) -> None:
+def check_write(conn: "Connection", gated: list[Gated | None], consent: Any, given: bool = False) -> None:
     """Ask ``consent(action)`` when a write touches gated addresses (the drive's state read only if it matters).
 
     ``given``: consent was already given (``--yes``), so nothing needs to be read or asked.

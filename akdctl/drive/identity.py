@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 from akdctl.errors import AkdError, CommError, MalformedReply
 
 if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.channels.base import ParameterChannel
     from akdctl.connection import Connection
 
 #: Identity PNUs: drive unit (964), profile (965), drive object (975).
@@ -36,7 +38,7 @@ def drive_unit(values: list[int]) -> dict[str, Any]:
             "firmware_date": f"{v[4] // 100:02d}.{v[4] % 100:02d}.{v[3]}", "raw": list(values)}
 
 
-def _pnu_identity(channel: Any) -> dict[str, Any]:
+def _pnu_identity(channel: "ParameterChannel") -> dict[str, Any]:
     from akdctl.drive.values import pnu_spec, read_pnus
 
     du, profile, do = read_pnus(channel, [pnu_spec(PNU_DRIVE_UNIT), pnu_spec(PNU_PROFILE), pnu_spec(PNU_DRIVE_OBJECT)])
@@ -56,7 +58,7 @@ def _pnu_identity(channel: Any) -> dict[str, Any]:
     return out
 
 
-def _object_identity(channel: Any) -> dict[str, Any]:
+def _object_identity(channel: "ObjectChannel") -> dict[str, Any]:
     """Each identity object, or None where the drive refuses it or answers what its type cannot hold."""
     from akdctl.drive.values import decode, object_type
 
@@ -85,9 +87,9 @@ def read_identity(conn: "Connection", *, pnus: bool = True, objects: bool = True
         result["canopen"] = _object_identity(conn.objects())
     if conn.has_cip:
         result["cip_identity"] = conn.cip().identity_json()
-    read_im0 = getattr(conn.transport(), "read_im0", None)
-    if im0 and read_im0 is not None:
-        result["im0"] = read_im0()
+    record = conn.read_im0() if im0 else None
+    if record is not None:
+        result["im0"] = record
     return result
 
 

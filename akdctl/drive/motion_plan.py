@@ -34,10 +34,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.drive.axis.base import Axis
+    from akdctl.connection import Connection
 
 #: A request within this fraction above a representable value is executed as that value.
 REL_TOL = 0.02
@@ -193,22 +197,22 @@ def finite(value: Any, what: str) -> float:
     return float(value)
 
 
-def limits_of(conn: Any) -> dict[str, Any]:
+def limits_of(conn: "Connection") -> dict[str, Any]:
     profile = conn.profile
     return dict(profile.limits) if profile is not None else {}
 
 
-def per_rev_of(conn: Any) -> float | None:
+def per_rev_of(conn: "Connection") -> float | None:
     profile = conn.profile
     value = profile.units.get("per_rev") if profile is not None else None
     return float(value) if value else None
 
 
-def default_unit(conn: Any) -> str:
+def default_unit(conn: "Connection") -> str:
     return "user" if per_rev_of(conn) else "rev"
 
 
-def to_rev(conn: Any, value: float, unit: str, counts_per_rev: int | None) -> float:
+def to_rev(conn: "Connection", value: float, unit: str, counts_per_rev: int | None) -> float:
     """A position or distance in ``unit`` → motor revolutions (the one conversion)."""
     if unit == "rev":
         return value
@@ -276,7 +280,7 @@ def check_travel(limits: dict[str, Any], end_rev: float, how: str = "would end a
     _check_travel(limits, end_rev, how)
 
 
-def check_executed_limits(conn: Any, *, rpm: float | None = None, acc_rpm_s: float | None = None,
+def check_executed_limits(conn: "Connection", *, rpm: float | None = None, acc_rpm_s: float | None = None,
                           end_rev: float | None = None, executed_by: str = "") -> None:
     """The profile's limits for a motion whose raw values a caller built itself (``eip io``): the
     same rules and words as a planned motion, applied to what the drive will execute."""
@@ -311,7 +315,7 @@ def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float
 
 
 # ====================================================================== stage 1: no drive needed
-def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
+def check_request(conn: "Connection", request: MotionRequest, axis_cls: Any,
                   scales_of: Callable[[str], Any] | None = None) -> MotionPlan:
     """Everything that can be decided without the drive (module docstring); exit 2 / 4 on a problem.
 
@@ -345,7 +349,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
     if r.kind == "task":
         from akdctl.drive.tasks import check_number
 
-        if not getattr(axis_cls, "TASKS", False):
+        if not axis_cls.TASKS:  # declared on Axis (False)
             raise UsageError(f"task start: {axis_cls.NO_TASKS}")
         check_number(r.task)  # type: ignore[arg-type]
         plan.mode_kind = "task"
@@ -358,6 +362,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
     plan.mode_text = axis_cls.mode_name(kind)
     scales = (scales_of or axis_cls.motion_scales)(kind)
     vmax, amax = _limit(limits, "max_velocity"), _limit(limits, "max_acceleration")
+    velocity: float | None
     if r.kind == "jog":
         if (r.duration_s is None) == (r.distance is None):
             raise UsageError("jog needs exactly one of --for DURATION or --distance D, so the motion is bounded")
@@ -417,7 +422,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
 
 
 # ====================================================================== stage 2: the drive's state (reads only)
-def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
+def plan(conn: "Connection", axis: "Axis", request: MotionRequest) -> MotionPlan:
     """:func:`check_request`, then the drive's state (module docstring); nothing is written."""
     accepted = check_request(conn, request, type(axis), axis.drive_motion_scales)
     r = request
@@ -479,7 +484,7 @@ def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
     return accepted
 
 
-def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[str, Any]) -> MotionPlan:
+def _plan_task(conn: "Connection", accepted: MotionPlan, pos: float | None, limits: dict[str, Any]) -> MotionPlan:
     """A stored task: read (MT.LOAD, the working parameters restored) and held to the rules ``task set`` applied
     (:func:`akdctl.drive.tasks.check_values`) before consent, so the consent names its target and speed; a link
     that cannot read the table refuses when the profile sets limits, because they could not be checked
@@ -517,7 +522,7 @@ def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[
     return accepted
 
 
-def _not_homed_text(axis: Any, request: MotionRequest) -> str:
+def _not_homed_text(axis: "Axis", request: MotionRequest) -> str:
     if axis.RELATIVE_MOVES_NEED_HOME:
         return ("refusing: the axis is not homed; the drive runs positioning tasks (absolute and relative) only on a "
                 f"homed axis ({axis.HOMED_SOURCE}); run 'akdctl home' first")
@@ -526,7 +531,7 @@ def _not_homed_text(axis: Any, request: MotionRequest) -> str:
 
 
 # ====================================================================== running an accepted plan
-def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
+def execute(axis: "Axis", accepted: MotionPlan, interrupted: Callable[[], bool],
             progress: Callable[[Any], None] | None = None, wait: bool = True) -> Any:
     """Carry out an accepted plan (after consent): mode, enable, set points, wait; stops the axis on errors.
 
@@ -546,7 +551,10 @@ def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
         return run.run(lambda: axis.start_home(r.home_mode), axis.home_finished, deadline_s=accepted.deadline_s,
                        what="homing")
     if r.kind == "task":
-        return run.run(lambda: axis.start_task(r.task), lambda s: True if s.target_reached and s.standstill else None,
+        number = r.task
+        if number is None:  # check_request refuses it first; never start "task 0" by accident
+            raise UsageError("task start needs a task number")
+        return run.run(lambda: axis.start_task(number), lambda s: True if s.target_reached and s.standstill else None,
                        deadline_s=accepted.deadline_s, what=f"motion task {r.task}")
     assert accepted.velocity and accepted.accel and accepted.decel
     if r.kind == "jog" and r.duration_s is not None:
@@ -578,7 +586,7 @@ def execute(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool],
 TARGET_TOLERANCE_REV = 0.01
 
 
-def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) -> Any:
+def confirm_own_target(axis: "Axis", accepted: MotionPlan, status: Any, what: str) -> Any:
     """"Target reached" only for the set point this command issued (issue 17.7).
 
     The drive's target-reached bit says that *a* positioning task ended, not that it was ours: a task
@@ -599,8 +607,7 @@ def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) 
                              details={"expected_rev": round(expected, 6),
                                       "position_rev": round(status.position_rev, 6)})
         return status
-    issued = getattr(axis, "issued_target", None)
-    drive_target = issued() if issued is not None else None
+    drive_target = axis.issued_target()
     if drive_target is not None and drive_target != accepted.target_raw:
         raise DriveError(f"the drive reports target reached for set point {drive_target}, not for {accepted.target_raw} "
                          f"which this {what} wrote: another command or master loaded a task meanwhile",
@@ -608,7 +615,7 @@ def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) 
     return status
 
 
-def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
+def _prepare(axis: "Axis", accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
     """Re-check under the owner lock (the drive may have changed since the plan), confirm homed,
     switch the mode, enable. A relative move is measured from the position read here. With no prompt between
     (``--yes``) the plan's own read is recent enough to stand for this one (Axis.recent_status)."""
@@ -632,7 +639,7 @@ def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -
         raise Interrupted(f"interrupted before the motion started; {outcome}")
 
 
-def wait_hint(conn: Any) -> str:
+def wait_hint(conn: "Connection") -> str:
     """What happens to a move the tool does not wait for (``move --no-wait``), in words."""
     if conn.target.scheme == "sim":
         return ("not waiting: the simulated drive's watchdog stops the axis about 'sim speed --watchdog' seconds "

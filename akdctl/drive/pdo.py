@@ -21,11 +21,15 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog.objects import PdoEntry
 from akdctl.errors import SdoAborted, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.connection import Connection
 
 DIRECTIONS = ("rx", "tx")
 ASSIGN_INDEX = {"rx": oc.RX_ASSIGN, "tx": oc.TX_ASSIGN}
@@ -110,14 +114,14 @@ class DirectionMapping:
         }
 
 
-def _read_uint(channel: Any, index: int, sub: int) -> int:
+def _read_uint(channel: "ObjectChannel", index: int, sub: int) -> int:
     """A count, PDO number or mapping entry, typed by the catalogue (u8 / u16 / u32)."""
     from akdctl.drive.values import read_object
 
     return read_object(channel, index, sub)  # type: ignore[no-any-return]
 
 
-def read_pdo(channel: Any, pdo: int) -> tuple[PdoEntry, ...]:
+def read_pdo(channel: "ObjectChannel", pdo: int) -> tuple[PdoEntry, ...]:
     """A PDO's entries as the drive reports them (sub 0 count, then sub 1..n)."""
     count = _read_uint(channel, pdo, 0)
     if count > oc.MAX_MAPPING_ENTRIES * 2:  # fixed PDOs hold up to 10 entries; anything far beyond is garbage
@@ -127,7 +131,7 @@ def read_pdo(channel: Any, pdo: int) -> tuple[PdoEntry, ...]:
     return tuple(PdoEntry.from_mapping_value(_read_uint(channel, pdo, sub)) for sub in range(1, count + 1))
 
 
-def read_direction(channel: Any, direction: str) -> DirectionMapping:
+def read_direction(channel: "ObjectChannel", direction: str) -> DirectionMapping:
     index = ASSIGN_INDEX[direction]
     count = _read_uint(channel, index, 0)
     if count > oc.MAX_ASSIGNED_PDOS:
@@ -138,7 +142,7 @@ def read_direction(channel: Any, direction: str) -> DirectionMapping:
     return DirectionMapping(direction, [(n, read_pdo(channel, n)) for n in numbers])
 
 
-def read_mapping(channel: Any) -> dict[str, DirectionMapping]:
+def read_mapping(channel: "ObjectChannel") -> dict[str, DirectionMapping]:
     """Both directions: assignment -> PDOs -> entries."""
     return {d: read_direction(channel, d) for d in DIRECTIONS}
 
@@ -224,9 +228,9 @@ def parse_cycle_time(text: str) -> tuple[int, int]:
     if seconds <= 0:
         raise UsageError(f"cycle time {text!r} must be positive")
     for exponent in range(0, -10, -1):
-        units = seconds / (Decimal(10) ** exponent)
-        if units == units.to_integral_value() and 1 <= units <= 255:
-            return int(units), exponent
+        scaled = seconds / (Decimal(10) ** exponent)
+        if scaled == scaled.to_integral_value() and 1 <= scaled <= 255:
+            return int(scaled), exponent
     raise UsageError(f"cycle time {text!r} cannot be written as 1..255 units x 10^n s")
 
 
@@ -526,7 +530,7 @@ def startup_list(plan: PdoPlan) -> list[StartupEntry]:
 
 
 # --------------------------------------------------------------------------- applying and verifying
-def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
+def apply(channel: "ObjectChannel", steps: Sequence[StartupEntry]) -> int:
     """Download every step in order; returns the number written. An abort names the step and what is left."""
     steps = _cycle_time_in_drive_order(channel, steps)
     for number, step in enumerate(steps, start=1):
@@ -546,7 +550,7 @@ def apply(channel: Any, steps: Sequence[StartupEntry]) -> int:
     return len(steps)
 
 
-def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> list[StartupEntry]:
+def _cycle_time_in_drive_order(channel: "ObjectChannel", steps: Sequence[StartupEntry]) -> list[StartupEntry]:
     """The drive checks each 0x60C2 write against the other sub-index (docs/fidelity.md F5): write the exponent
     first when the new units with the current exponent would be refused (e.g. 250 us -> 2 ms)."""
     steps = list(steps)
@@ -566,7 +570,7 @@ def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> l
     return steps
 
 
-def readback_pairs(channel: Any, plan: PdoPlan) -> list[tuple[str, str, str]]:
+def readback_pairs(channel: "ObjectChannel", plan: PdoPlan) -> list[tuple[str, str, str]]:
     """(address, written, read back) for everything the plan wrote, in words (PDO contents, assignments, the
     init commands), for the one comparison :func:`akdctl.drive.operation.check_readback`."""
     pairs: list[tuple[str, str, str]] = []
@@ -609,20 +613,19 @@ PREOP_ONLY = "the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)"
 
 
 def normal_al_state(state: Any) -> str | None:
-    """The one spelling of an EtherCAT AL state: 'PREOP', 'SAFEOP', 'OP', 'INIT', 'BOOT' (None stays None)."""
-    return None if state is None else str(state).upper().replace("-", "").replace("_", "").replace(" ", "")
+    """The one spelling of an EtherCAT AL state (:func:`akdctl.protocol.ethercat.normal_al_state`)."""
+    from akdctl.protocol.ethercat import normal_al_state as spelled
+
+    return spelled(state)
 
 
-def al_state_of(transport: Any) -> str | None:
-    """The EtherCAT AL state if the transport can tell it ('PREOP', 'OP', ...), else None (unknown).
+def al_state_of(conn: "Connection") -> str | None:
+    """The EtherCAT AL state if the target can tell it ('PREOP', 'OP', ...), else None (unknown).
 
-    Transports that know it offer ``al_state() -> str | None``; the others (CANopen,
-    PROFINET) have no AL state, and the drive's own check answers.
+    The Connection declares it (:meth:`~akdctl.connection.Connection.al_state`, one spelling); targets
+    without one (CANopen, PROFINET) answer None, and the drive's own check answers.
     """
-    getter = getattr(transport, "al_state", None)
-    if getter is None or not callable(getter):
-        return None
-    return normal_al_state(getter())
+    return conn.al_state()
 
 
 def export_json(steps: Sequence[StartupEntry], plan: PdoPlan) -> dict[str, Any]:
@@ -676,7 +679,7 @@ def plan(conn: Any, request: MapRequest) -> Any:
     from akdctl.drive.operation import PlannedWrite, WritePlan, read_enabled
 
     conn.objects()  # a target without SDO access is refused before any consent is asked
-    state = al_state_of(conn.transport())
+    state = al_state_of(conn)
     notes = [f"--force: {p}" for p in request.problems]
     if state is not None and state != "PREOP":
         if not request.force:

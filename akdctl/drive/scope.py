@@ -124,10 +124,9 @@ def command_link_factory(conn: Connection) -> Callable[[], Any] | None:
     """A factory of the target's ASCII command link (:class:`~akdctl.drive.scope_recorder.CommandLink`), or None:
     the ``akd://`` transport's ``Connection.commands()`` once it is merged (engineer "names"), the in-process
     simulated recorder for ``sim`` targets (transport/sim_commands.py)."""
-    # Connection.has_commands / commands() arrive with the akd:// transport (branch wip/names); until both are
-    # merged this probes for them (at merge: `if conn.has_commands: return conn.commands`)
-    if getattr(type(conn), "has_commands", None) is not None and conn.has_commands:  # type: ignore[attr-defined]
-        return conn.commands  # type: ignore[attr-defined, no-any-return]
+    # Connection.has_commands is declared (False) until the akd:// transport (branch wip/names) offers the link
+    if conn.has_commands:
+        return conn.commands  # type: ignore[return-value]
     if conn.target.scheme == "sim":
         from akdctl.transport.sim_commands import SimCommandLink
 
@@ -197,9 +196,8 @@ def _poll_signals(conn: Connection, names: Sequence[str], trigger: Trigger) -> t
 
     from akdctl.drive.axis.choice import profile_name
 
-    # akd:// (Connection.has_commands arrives with branch wip/names)
-    has_commands = bool(getattr(type(conn), "has_commands", None) is not None
-                        and conn.has_commands)  # type: ignore[attr-defined]
+    # akd:// (Connection.has_commands is declared; the link arrives with branch wip/names)
+    has_commands = conn.has_commands
     resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits,
                         prefer_objects=not has_commands and profile_name(conn) == "cia402", has_commands=has_commands)
     signals = [resolver.resolve(name) for name in names]

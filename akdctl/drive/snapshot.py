@@ -45,6 +45,8 @@ from akdctl.errors import AkdError, CommError, SafetyRefusal, SdoAborted, UsageE
 from akdctl.io.atomic import write_user_file
 
 if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.channels.base import ParameterChannel
     from akdctl.connection import Connection
     from akdctl.drive.operation import WritePlan
 
@@ -233,7 +235,7 @@ def choose_sources(conn: "Connection", source: str) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- reading
-def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+def read_pnu_values(channel: "ParameterChannel", items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
     """Every PNU item in one batched read; (values by key, refusals by key)."""
 
     specs = [PnuSpec(i.index, 0, i.info.length, i.info) for i in items if i.kind == "pnu"]
@@ -249,12 +251,13 @@ def read_pnu_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Valu
             errors[key] = f"{reading.error_text} (error 0x{reading.error:02X})"
             continue
         got = [int(v) for v in reading.values or []]
-        values[key] = got if reading.spec.info.is_array else (got[0] if got else 0)
+        is_array = reading.spec.info is not None and reading.spec.info.is_array
+        values[key] = got if is_array else (got[0] if got else 0)
     order = {str(s.pnu): n for n, s in enumerate(specs)}
     return dict(sorted(values.items(), key=lambda kv: order[kv[0]])), errors
 
 
-def read_object_values(channel: Any, items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
+def read_object_values(channel: "ObjectChannel", items: Sequence[Item]) -> tuple[dict[str, Value], dict[str, str]]:
     """One SDO upload per object item; refusals recorded, a broken link raises."""
     values: dict[str, Value] = {}
     errors: dict[str, str] = {}

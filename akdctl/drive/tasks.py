@@ -15,12 +15,15 @@ through the one planner (drive/motion_plan.py, kind ``task``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import UsageError
 from akdctl.profiles import motion_tasks as mt
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 #: Why the table cannot be reached over a parameter channel alone (pn://): the manuals' PNU lists have no MT.*.
 NO_TABLE = ("the AKD's PROFINET manuals document no parameter for the motion task table; it is reached through "
@@ -56,7 +59,7 @@ def check_number(number: int) -> int:
     return number
 
 
-def objects_of(conn: Any) -> Any:
+def objects_of(conn: "Connection") -> Any:
     """The object channel the table lives behind; UsageError saying why on a parameter-only link."""
     if not conn.has_objects:
         raise UsageError(f"{conn.target.display}: {NO_TABLE}")

@@ -24,6 +24,9 @@ if TYPE_CHECKING:
     from akdctl.connection import Connection
     from akdctl.drive.gate import Gated
 
+if TYPE_CHECKING:
+    from akdctl.channels.base import ParameterChannel
+
 
 @dataclass
 class TelegramState:
@@ -67,7 +70,7 @@ def words_json(signals: Sequence[int]) -> list[dict[str, Any]]:
              "label": s.label, "text": s.signal.text} for s in tc.word_layout(signals)]
 
 
-def read_state(channel: Any) -> TelegramState:
+def read_state(channel: "ParameterChannel") -> TelegramState:
     """PNU 922, 915, 916 and 923 in one batched read."""
     readings = read_pnus(channel, [pnu_spec(922), pnu_spec(915), pnu_spec(916), pnu_spec(923)])
     for reading in readings:
@@ -122,7 +125,7 @@ def validate_free_map(setpoint: Sequence[int], actual: Sequence[int], offered: S
     return problems
 
 
-def select_telegram(channel: Any, number: int) -> TelegramState:
+def select_telegram(channel: "ParameterChannel", number: int) -> TelegramState:
     """Write PNU 922 and read back the whole telegram state; CheckFailed if 922 reads back differently."""
     result = write_pnus(channel, [(pnu_spec(922), [number])])[0]
     if not result.ok:
@@ -132,7 +135,7 @@ def select_telegram(channel: Any, number: int) -> TelegramState:
     return state
 
 
-def map_free(channel: Any, setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
+def map_free(channel: "ParameterChannel", setpoint: Sequence[int] | None, actual: Sequence[int] | None) -> TelegramState:
     """Write PNU 915 and/or 916 (all ten words each, zero-padded) and verify by reading back."""
     items = _map_items(setpoint, actual)
     for result in write_pnus(channel, items):
@@ -266,7 +269,7 @@ def execute(conn: "Connection", plan: WritePlan) -> TelegramState:
     return map_free(conn.parameters(), request.setpoint, request.actual)
 
 
-def ensure_submode(channel: Any, submode: str) -> int | None:
+def ensure_submode(channel: "ParameterChannel", submode: str) -> int | None:
     """Make the selected telegram carry what a position submode reads (``program`` or ``mdi``).
 
     Why: the manuals require "Standard telegram 7 (program mode) / 9 (MDI) needs to be configured" (004

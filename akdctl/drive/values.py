@@ -26,11 +26,15 @@ sent; decoding a reply that does not fit its type is a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+    from akdctl.channels.base import ParameterChannel
 
 #: What a snapshot or recipe holds for one object or PNU (``{"hex": ...}``: a string object's bytes that are not
 #: UTF-8 text, kept exactly; see :func:`snapshot_value`).
@@ -152,7 +156,7 @@ def encode(type_name: str, text: str) -> tuple[Any, bytes]:
         raise UsageError(f"bad value {text!r} for type {type_name}: {exc}") from None
 
 
-def read_object(channel: Any, index: int, subindex: int, type_name: str | None = None) -> Any:
+def read_object(channel: "ObjectChannel", index: int, subindex: int, type_name: str | None = None) -> Any:
     """Upload one object and decode it by the catalogue's type (or ``type_name``)."""
     kind = type_name if type_name is not None else object_type(index, subindex)
     data = channel.upload(index, subindex)
@@ -162,7 +166,7 @@ def read_object(channel: Any, index: int, subindex: int, type_name: str | None =
         raise MalformedReply(f"object {object_label(index, subindex)}: {exc.message}") from None
 
 
-def write_object(channel: Any, index: int, subindex: int, value: Any, type_name: str | None = None) -> None:
+def write_object(channel: "ObjectChannel", index: int, subindex: int, value: Any, type_name: str | None = None) -> None:
     """Encode ``value`` by the catalogue's type (or ``type_name``), range-checked, and download it."""
     kind = type_name if type_name is not None else object_type(index, subindex)
     channel.download(index, subindex, encode_value(kind, value, f"object {object_label(index, subindex)}"))
@@ -231,7 +235,7 @@ def snapshot_value(entry: Any, data: bytes) -> Value:
     return value  # type: ignore[no-any-return]
 
 
-def read_snapshot_value(channel: Any, entry: Any) -> Value:
+def read_snapshot_value(channel: "ObjectChannel", entry: Any) -> Value:
     return snapshot_value(entry, channel.upload(entry.index, entry.subindex))
 
 
@@ -361,7 +365,7 @@ def pnu_to_wire(info: PnuInfo, values: Sequence[int]) -> Any:
     return ParameterValue(info.wire_format, tuple(v & mask for v in values))
 
 
-def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
+def read_pnus(channel: "ParameterChannel", specs: Sequence[PnuSpec]) -> list[PnuReading]:
     """Read every spec in one batched channel call; values signed per the catalogue type."""
     from akdctl.protocol.bmp import ParameterAddress, ParameterFailure
 
@@ -378,7 +382,7 @@ def read_pnus(channel: Any, specs: Sequence[PnuSpec]) -> list[PnuReading]:
     return readings
 
 
-def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -> list[PnuReading]:
+def write_pnus(channel: "ParameterChannel", assignments: Sequence[tuple[PnuSpec, list[int]]]) -> list[PnuReading]:
     """Write every assignment in one batched channel call; one reading per assignment (values = written).
 
     Values outside a PNU's limits are refused (UsageError) before anything is sent.
@@ -404,7 +408,7 @@ def write_pnus(channel: Any, assignments: Sequence[tuple[PnuSpec, list[int]]]) -
     return out
 
 
-def read_pnu_map(channel: Any, pnus: Sequence[int]) -> dict[int, list[int]]:
+def read_pnu_map(channel: "ParameterChannel", pnus: Sequence[int]) -> dict[int, list[int]]:
     """Whole catalogue PNUs in one batched read, by number; a refusal raises ParameterRefused."""
     out: dict[int, list[int]] = {}
     for reading in read_pnus(channel, [pnu_spec(p) for p in pnus]):
@@ -414,7 +418,7 @@ def read_pnu_map(channel: Any, pnus: Sequence[int]) -> dict[int, list[int]]:
     return out
 
 
-def write_pnu_map(channel: Any, pairs: Sequence[tuple[int, int]]) -> None:
+def write_pnu_map(channel: "ParameterChannel", pairs: Sequence[tuple[int, int]]) -> None:
     """Single-element PNUs ``(pnu, value)`` in one batched change; a refusal raises ParameterRefused."""
     for result in write_pnus(channel, [(pnu_spec(pnu, count=1), [value]) for pnu, value in pairs]):
         if not result.ok:

@@ -87,27 +87,28 @@ def cia_per_s(rpm: float) -> int:
 
 
 #: EtherCAT cycle time (EtherCAT manual 5.9/5.10, SPEC-NOTES 20): FBUS.SAMPLEPERIOD counts 62.5 µs ticks, and the
-#: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque). ``CYCLE_TICK_S`` (1/16000 s)
-#: and ``MIN_CYCLE_S`` (1/4000 s) are exact fractions, made on first use: ``fractions`` (with ``decimal``) costs every
-#: start that imports this module more than the few commands that check a cycle time spend.
-_CYCLE_FRACTIONS = {"CYCLE_TICK_S": (1, 16000), "MIN_CYCLE_S": (1, 4000)}
+#: drive's minimum cycle time is 250 µs in every interface (position, velocity, torque). :func:`cycle_tick_s`
+#: (1/16000 s) and :func:`min_cycle_s` (1/4000 s) are exact fractions, made on first use: ``fractions`` (with
+#: ``decimal``) costs every start that imports this module more than the few commands that check a cycle time spend.
+#: (Functions, not a module ``__getattr__``: a name that exists only when asked hides from readers and checkers.)
+_CYCLE_TICK = (1, 16000)
+_MIN_CYCLE = (1, 4000)
 CYCLE_TOO_SHORT = "too-short"
 CYCLE_OFF_GRID = "off-grid"
 
 
-def _cycle_fraction(name: str) -> Fraction:
-    value = globals().get(name)
-    if value is None:
-        from fractions import Fraction
+def cycle_tick_s() -> Fraction:
+    """One FBUS.SAMPLEPERIOD tick, 62.5 µs, exactly."""
+    from fractions import Fraction
 
-        value = globals()[name] = Fraction(*_CYCLE_FRACTIONS[name])
-    return value
+    return Fraction(*_CYCLE_TICK)
 
 
-def __getattr__(name: str) -> Fraction:
-    if name in _CYCLE_FRACTIONS:
-        return _cycle_fraction(name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+def min_cycle_s() -> Fraction:
+    """The AKD's shortest EtherCAT cycle time, 250 µs, exactly."""
+    from fractions import Fraction
+
+    return Fraction(*_MIN_CYCLE)
 
 
 def cycle_time_s(units: int, exponent: int) -> Fraction:
@@ -121,9 +122,9 @@ def cycle_time_problem(units: int, exponent: int) -> str | None:
     """Why ``units`` × 10^``exponent`` s is not an AKD cycle time (:data:`CYCLE_TOO_SHORT`,
     :data:`CYCLE_OFF_GRID`), or None; the words are ``catalog.texts.cycle_time_text``."""
     period = cycle_time_s(units, exponent)
-    if period < _cycle_fraction("MIN_CYCLE_S"):
+    if period < min_cycle_s():
         return CYCLE_TOO_SHORT
-    if (period / _cycle_fraction("CYCLE_TICK_S")).denominator != 1:
+    if (period / cycle_tick_s()).denominator != 1:
         return CYCLE_OFF_GRID
     return None
 

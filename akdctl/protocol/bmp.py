@@ -438,11 +438,18 @@ def encode_value_block(value: ParameterValue) -> bytes:
 def _encode_failure(failure: ParameterFailure) -> bytes:
     if not isinstance(failure.error, int) or not 0 <= failure.error <= 0xFFFF:
         raise BmpError(f"error value must be 0..0xFFFF, not {failure.error!r}")
-    if failure.additional is None:
-        return struct.pack(">BBH", Format.ERROR, 1, failure.error)
-    if not isinstance(failure.additional, int) or not 0 <= failure.additional <= 0xFFFF:
+    if failure.additional is not None and (not isinstance(failure.additional, int)
+                                           or not 0 <= failure.additional <= 0xFFFF):
         raise BmpError(f"additional info must be 0..0xFFFF, not {failure.additional!r}")
-    return struct.pack(">BBHH", Format.ERROR, 2, failure.error, failure.additional)
+    return pack_failure_block(failure.error, failure.additional)
+
+
+def pack_failure_block(error: int, additional: int | None = None) -> bytes:
+    """An error block (format 0x44): the error value, and the additional information when there is one
+    (values masked to 16 bits: the server's fast path passes what the model raised)."""
+    if additional is None:
+        return struct.pack(">BBH", Format.ERROR, 1, error & 0xFFFF)
+    return struct.pack(">BBHH", Format.ERROR, 2, error & 0xFFFF, additional & 0xFFFF)
 
 
 _ZERO_FORMATS = (0x00, int(Format.ZERO))
@@ -522,11 +529,14 @@ def decode_header(data: bytes) -> tuple[int, int, int, int]:
     return data[0], data[1], data[2], data[3]
 
 
+_ADDRESS = struct.Struct(">BBHH")  # attribute, number of elements, PNU, subindex
+
+
 def decode_address(data: bytes, offset: int) -> ParameterAddress:
     """The 6-byte parameter address at ``offset`` (limits not checked: the server answers them per parameter)."""
     if offset + ADDRESS_SIZE > len(data):
         raise BmpError(f"parameter address at byte {offset} is cut short")
-    attribute, count, pnu, subindex = struct.unpack_from(">BBHH", data, offset)
+    attribute, count, pnu, subindex = _ADDRESS.unpack_from(data, offset)
     return ParameterAddress(pnu, subindex, count, attribute)
 
 
@@ -893,3 +903,39 @@ def description_element(description: ParameterDescription, subindex: int) -> Par
 def next_reference(reference: int) -> int:
     """The reference after ``reference``: 1..255, wrapping past 255 to 1 (0 is reserved)."""
     return reference % 255 + 1
+
+
+# ---------------------------------------------------------------------------- the server's fast path, both layouts
+# A read is the request every poll makes; the simulated drive answers it straight from the model's raw values
+# instead of building, checking and encoding result objects. The layouts it packs are written here, beside the
+# general encoders they must equal (tests/test_pnu_server.py holds both paths byte-equal), not in the server.
+
+def iter_read_addresses(data: bytes, n: int) -> "Iterator[tuple[int, int, int, int]]":
+    """(attribute, number of elements, PNU, subindex) of the ``n`` addresses after the header (limits not
+    checked; the caller checked the request's length)."""
+    unpack = _ADDRESS.unpack_from
+    for i in range(n):
+        yield unpack(data, HEADER_SIZE + ADDRESS_SIZE * i)
+
+
+_RAW_CODES = {Format.BYTE: "B", Format.WORD: "H", Format.DWORD: "I"}  # the untyped formats a raw read answers with
+_RAW_BLOCKS: dict[tuple[int, int], struct.Struct] = {}  # (format, count) -> the value block's layout, built once
+
+
+def raw_block_layout(fmt: int, count: int) -> struct.Struct | None:
+    """The value block of ``count`` unsigned elements of Byte/Word/DWord (format, count, values, pad byte if
+    odd) -- the layout :func:`encode_value_block` writes for them; None for any other format."""
+    block = _RAW_BLOCKS.get((fmt, count))
+    if block is None:
+        code = _RAW_CODES.get(fmt)
+        if code is None:
+            return None
+        pad = "x" if count * format_size(fmt) & 1 else ""
+        block = _RAW_BLOCKS[(fmt, count)] = struct.Struct(f">BB{count}{code}{pad}")
+    return block
+
+
+def pack_read_response(request: bytes, blocks: "list[bytes]", negative: bool) -> bytes:
+    """A read response to ``request`` from its value/error blocks, already packed: the request's reference,
+    axis and number of parameters, the response ID (negative when any block is an error block)."""
+    return bytes((request[0], RESP_READ_NAK if negative else RESP_READ_OK, request[2], len(blocks))) + b"".join(blocks)

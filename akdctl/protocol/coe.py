@@ -15,8 +15,8 @@ The SDO command specifiers overlap between directions (0x60 is a client's
 needs to know who sent the frame: ``decode_sdo(payload, from_server=...)``.
 
 The SDO information service (CoE service 8) lists the object dictionary and
-describes objects and entries: :mod:`akdctl.protocol.coe_info`, whose names this
-module hands out on first use (an upload never loads it).
+describes objects and entries: :mod:`akdctl.protocol.coe_info`, which its users import
+themselves where they need it (so an upload never loads it); no name of it is re-exported here.
 """
 
 from __future__ import annotations
@@ -360,15 +360,32 @@ def decode_sdo(payload: bytes, *, from_server: bool) -> SdoMessage:
     raise CoeError(f"unknown SDO client command specifier in command byte 0x{command:02X}")
 
 
-# --- SDO information (CoE service 8): akdctl/protocol/coe_info.py, loaded on first use --------------------------
+# --- the server's fast path, both layouts -----------------------------------------------------------------------
+# An upload initiate is the request every poll makes; the simulated drive's SDO server answers it without message
+# objects. The layouts it packs live here, beside decode_sdo/encode_sdo which they must equal
+# (tests/test_sdo_server.py holds both paths byte-equal).
 
-def __getattr__(name: str) -> object:
-    """``coe.SdoInfo`` & co.: the SDO information service lives in coe_info.py, imported when first named."""
-    if name.startswith("__"):  # probes for module dunders (__path__, __all__ ...) must not load it
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from akdctl.protocol import coe_info
+#: The command byte of an upload initiate request without complete access.
+UPLOAD_INITIATE_COMMAND = 0x40
+_INDEX = struct.Struct("<HB")
+_EXPEDITED_UPLOAD = struct.Struct("<BHB4s")  # command, index, subindex, 4 data bytes (struct pads a shorter value)
+_COE_HEADER = struct.Struct("<H")
 
-    try:
-        return getattr(coe_info, name)
-    except AttributeError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+
+def coe_header(service: int) -> bytes:
+    """The 2-byte CoE header of a reply (number 0), without :func:`encode_coe`'s checks: ``service`` is a
+    :class:`CoeService` member."""
+    return _COE_HEADER.pack(service << 12)
+
+
+def sdo_address(payload: bytes) -> tuple[int, int]:
+    """(index, subindex) of an initiate SDO (bytes 1..3; the caller checked the length)."""
+    index, subindex = _INDEX.unpack_from(payload, 1)
+    return index, subindex
+
+
+def pack_expedited_upload_response(index: int, subindex: int, value: bytes) -> bytes:
+    """The SDO of an expedited upload response carrying 1..4 bytes: what
+    ``encode_sdo(SdoUploadResponse(index, subindex, value, expedited=True))`` writes."""
+    return _EXPEDITED_UPLOAD.pack(0x43 | (4 - len(value)) << 2, index, subindex, value)
+

@@ -129,11 +129,6 @@ def _endian(endian: str) -> str:
     return endian
 
 
-def check_range(type_name: str, value: object) -> None:
-    """Raise DataTypeError unless ``value`` fits the type (without encoding it)."""
-    pack(type_name, value)
-
-
 def pack(type_name: str, value: object, endian: str = "<") -> bytes:
     """Encode a value; out-of-range or wrongly typed values raise DataTypeError."""
     t = get_type(type_name)

@@ -126,41 +126,8 @@ class AlState(IntEnum):
 AL_ERROR_FLAG = 0x10  # AL status: error indication / AL control: acknowledge
 
 AL_STATE_NAMES: dict[int, str] = {1: "INIT", 2: "PREOP", 3: "BOOT", 4: "SAFEOP", 8: "OP"}
-
-# ETG.1000.6 table 11 (subset a technician meets); the AKD itself reports only 0x0000, 0x0011, 0x0017
-# (AKD EtherCAT manual 5.3.3, SPEC-NOTES 22).
-AL_STATUS_TEXTS: dict[int, str] = {
-    0x0000: "no error",
-    0x0001: "unspecified error",
-    0x0002: "no memory",
-    0x0011: "invalid requested state change",
-    0x0012: "unknown requested state",
-    0x0013: "bootstrap not supported",
-    0x0014: "no valid firmware",
-    0x0015: "invalid mailbox configuration (bootstrap)",
-    0x0016: "invalid mailbox configuration",
-    0x0017: "invalid sync manager configuration",
-    0x0018: "no valid inputs available",
-    0x0019: "no valid outputs",
-    0x001A: "synchronization error",
-    0x001B: "sync manager watchdog",
-    0x001D: "invalid output configuration",
-    0x001E: "invalid input configuration",
-    0x0020: "slave needs cold start",
-    0x0021: "slave needs INIT",
-    0x0022: "slave needs PREOP",
-    0x0023: "slave needs SAFEOP",
-    0x0024: "invalid input mapping",
-    0x0025: "invalid output mapping",
-    0x0026: "inconsistent settings",
-    0x0027: "free-run not supported",
-    0x0028: "sync mode not supported",
-    0x002C: "fatal sync error",
-    0x002D: "no sync error",
-    0x0030: "invalid DC sync configuration",
-    0x0035: "invalid sync cycle time",
-}
-
+# AL status codes (register 0x0134) are returned as numbers; their words are akdctl.catalog.texts.al_status_text
+# and the state-and-code line akdctl.catalog.texts.al_status_line (issue 22: codecs return codes).
 
 def al_state_name(status: int) -> str:
     """'PREOP', 'SAFEOP+ERR', or 'UNKNOWN(0x5)' for an AL status word."""
@@ -168,10 +135,10 @@ def al_state_name(status: int) -> str:
     return name + ("+ERR" if status & AL_ERROR_FLAG else "")
 
 
-def al_status_text(code: int) -> str:
-    """An AL status code in words (ETG.1000.6); unknown codes are named by number."""
-    text = AL_STATUS_TEXTS.get(code)
-    return text if text is not None else f"AL status code 0x{code:04X} (not in the ETG table)"
+def normal_al_state(state: object) -> str | None:
+    """The one spelling of an EtherCAT AL state: 'PREOP', 'SAFEOP', 'OP', 'INIT', 'BOOT' ('+ERR' kept; None stays
+    None) -- how the Connection reports it whatever the transport said ('Pre-Op', 'SAFE_OP')."""
+    return None if state is None else str(state).upper().replace("-", "").replace("_", "").replace(" ", "")
 
 
 def parse_al_state(text: str) -> AlState:
@@ -399,11 +366,3 @@ class SyncManager:
     def writes_to_slave(self) -> bool:
         """Direction bits 2-3: 01 = ECAT writes (master -> slave)."""
         return (self.control & 0x0C) == 0x04
-
-
-def describe_al(status: int, code: int = 0) -> str:
-    """AL status word + status code in words: 'PREOP+ERR, 0x0011 invalid requested state change'."""
-    text = al_state_name(status)
-    if status & AL_ERROR_FLAG or code:
-        text += f", 0x{code:04X} {al_status_text(code)}"
-    return text

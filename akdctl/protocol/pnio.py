@@ -82,30 +82,6 @@ def object_uuid(vendor_id: int, device_id: int, instance: int = 1) -> uuid.UUID:
 
 # ---------------------------------------------------------------- PNIOStatus
 
-ERROR_CODE_NAMES = {0x00: "", 0x81: "PNIO", 0xCF: "RTA error", 0xDA: "alarm acknowledge", 0xDB: "connect",
-                    0xDC: "release", 0xDD: "control", 0xDE: "read", 0xDF: "write"}
-PNIORW_CODES = {
-    0xA0: "application: read error", 0xA1: "application: write error", 0xA2: "application: module failure",
-    0xA3: "application: not specified", 0xA4: "application: not specified", 0xA5: "application: not specified",
-    0xA6: "application: not specified", 0xA7: "application: busy", 0xA8: "application: version conflict",
-    0xA9: "application: feature not supported",
-    0xB0: "access: invalid index (no such record)", 0xB1: "access: write length error",
-    0xB2: "access: invalid slot/subslot", 0xB3: "access: type conflict", 0xB4: "access: invalid area/API",
-    0xB5: "access: state conflict (busy, parameter response not ready)", 0xB6: "access: access denied",
-    0xB7: "access: invalid range (bad base-mode request header)", 0xB8: "access: invalid parameter",
-    0xB9: "access: invalid type", 0xBA: "access: backup",
-    0xC0: "resource: read constraint conflict", 0xC1: "resource: write constraint conflict",
-    0xC2: "resource: resource busy", 0xC3: "resource: resource unavailable",
-}
-AR_BLOCK_FIELDS = {0: "block type", 1: "block length", 2: "block version high", 3: "block version low",
-                   4: "AR type", 5: "AR UUID", 7: "CM initiator MAC address", 8: "CM initiator object UUID",
-                   9: "AR properties", 10: "CM initiator activity timeout factor", 11: "initiator UDP RT port",
-                   12: "station name length", 13: "CM initiator station name"}
-PNIO_CODE1 = {0x01: "faulty ARBlockReq", 0x02: "faulty IOCRBlockReq", 0x03: "faulty ExpectedSubmoduleBlockReq",
-              0x04: "faulty AlarmCRBlockReq", 0x05: "faulty PrmServerBlockReq", 0x08: "faulty IODControlReq",
-              0x14: "faulty IODReleaseBlock", 0x3C: "RPC: faulty or unknown opnum", 0x3D: "CM: state conflict",
-              0x3F: "RMPM: argument length invalid", 0x40: "CMRPC", 0x41: "RMPM: invalid state"}
-
 #: ``DB 81 01 04``: the device does not accept this AR type.
 AR_TYPE_REFUSED = (0xDB, 0x81, 0x01, 0x04)
 AR_PROPERTIES_REFUSED = (0xDB, 0x81, 0x01, 0x09)
@@ -115,7 +91,9 @@ OUT_OF_AR_RESOURCES = (0xDB, 0x81, 0x40, 0x04)
 
 @dataclass(frozen=True)
 class PnioStatus:
-    """PNIOStatus: ErrorCode, ErrorDecode, ErrorCode1, ErrorCode2 (a byte sequence, no byte order)."""
+    """PNIOStatus: ErrorCode, ErrorDecode, ErrorCode1, ErrorCode2 (a byte sequence, no byte order).
+
+    Codes only: the words are :func:`akdctl.catalog.texts.pnio_status_text` (``*status.encode()``)."""
 
     code: int = 0
     decode: int = 0
@@ -148,27 +126,6 @@ class PnioStatus:
 
     def hex(self) -> str:
         return self.encode().hex(" ").upper()
-
-    def describe(self) -> str:
-        """The status in words, e.g. ``read error, PNIORW: access: invalid index (DE 80 B0 00)``."""
-        if self.ok:
-            return "OK (00 00 00 00)"
-        service = ERROR_CODE_NAMES.get(self.code, f"error code 0x{self.code:02X}")
-        if self.decode == 0x80:
-            what = PNIORW_CODES.get(self.code1, f"record error 0x{self.code1:02X}")
-            if self.code2:
-                what += f", vendor detail 0x{self.code2:02X}"
-        elif self.decode == 0x81:
-            what = PNIO_CODE1.get(self.code1, f"PNIO error 0x{self.code1:02X}")
-            if self.code1 == 0x01:
-                what += f" (field: {AR_BLOCK_FIELDS.get(self.code2, f'#{self.code2}')})"
-            elif self.code2:
-                what += f" (detail 0x{self.code2:02X})"
-        elif self.decode == 0x82:
-            what = f"manufacturer specific 0x{self.code1:02X}{self.code2:02X}"
-        else:
-            what = f"decode 0x{self.decode:02X}, codes 0x{self.code1:02X}/0x{self.code2:02X}"
-        return f"{service} error: {what} ({self.hex()})" if service else f"{what} ({self.hex()})"
 
 
 OK = PnioStatus()

@@ -10,7 +10,7 @@ so the master and the simulator cannot disagree. Only :class:`CodecError` escape
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from akdctl.protocol.errors import CodecError
 
@@ -520,9 +520,6 @@ def _dc_category(sync_name: int, off_name: int) -> bytes:
 def _padded(raw: bytes) -> bytes:
     return raw + b"\0" if len(raw) % 2 else raw
 
-
-def with_serial(image: SiiImage, serial: int) -> SiiImage:
-    return replace(image, serial=serial)
 
 
 # ---------------------------------------------------------------------- Intel HEX (ecat sii read/write)

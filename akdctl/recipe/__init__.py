@@ -9,10 +9,13 @@ steps and makes the axis safe on failure, ``report`` writes JSON and JUnit XML.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
 
 
-def load_and_validate(path: str | Path, *, allow_outside: bool = False, conn: Any = None) -> tuple[Any, list[Any]]:
+def load_and_validate(path: str | Path, *, allow_outside: bool = False, conn: "Connection | None" = None) -> tuple[Any, list[Any]]:
     """(RawRecipe, [PlannedStep]); raises RecipeError listing every problem.
 
     ``conn`` (the connection; nothing is read from the drive) gives the config profile's limits and units and

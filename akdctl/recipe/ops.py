@@ -39,10 +39,6 @@ class Session:
         self._axis: Any = None
         self.files: list[str] = []
 
-    @property
-    def transport(self) -> Any:
-        return self.conn.transport()
-
     def axis(self) -> Any:
         if self._axis is None:
             self._axis = self.conn.axis()

@@ -13,10 +13,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import AkdError, UsageError
 from akdctl.recipe.loader import RawRecipe, RawStep, display_path, inside
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
+    from akdctl.profiles.vocabulary import Channel
 
 COMMON = {"action": str, "name": str}
 NUMBER = (int, float)
@@ -85,7 +89,7 @@ class Context:
 
     folder: Path
     allow_outside: bool = False
-    conn: Any = None
+    conn: "Connection | None" = None
 
 
 class StepProblem(Exception):
@@ -506,22 +510,19 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
     return step
 
 
-CHANNEL_WORDS = {"parameters": "a PROFIdrive parameter channel (PNUs)", "objects": "an object channel (SDO)"}
-
-
-def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> set[str]:
+def _needed_channels(action: str, params: dict[str, Any], ctx: Context) -> "set[Channel]":
     """The channels a step uses on the drive, known from the step and the target alone."""
+    from akdctl.profiles.vocabulary import Channel
+
     if action in ("set", "expect", "wait"):
         targets = params.get("targets") or ([params["target"]] if "target" in params else [])
-        return {"parameters" if t["kind"] == "pnu" else "objects" for t in targets}
+        return {Channel.PARAMETERS if t["kind"] == "pnu" else Channel.OBJECTS for t in targets}
     if action == "map":
-        return {"parameters" if "telegram_map" in params else "objects"}
+        return {Channel.PARAMETERS if "telegram_map" in params else Channel.OBJECTS}
     if action == "telegram":
-        return {"parameters"}
+        return {Channel.PARAMETERS}
     if action in ("enable", "disable", "stop", "acknowledge", "home", "move"):
-        from akdctl.drive.axis.choice import profile_name
-
-        return {"parameters" if profile_name(ctx.conn) == "profidrive" else "objects"}
+        return {ctx.conn.axis_profile.channel}
     return set()
 
 
@@ -529,14 +530,12 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
     """Each step's channel must exist on the selected target — checked before the first write, dry runs too."""
     if ctx.conn is None:
         return
-    from akdctl.drive.axis.choice import target_channels
-
-    offered = target_channels(ctx.conn)
+    offered = ctx.conn.declared_channels
     if offered is None:
         return
     for channel in sorted(_needed_channels(action, params, ctx) - offered):
-        offers = " and ".join(CHANNEL_WORDS[c] for c in sorted(offered)) or "no channel"
-        raise StepProblem(f"this step needs {CHANNEL_WORDS[channel]}, which target {ctx.conn.target.display} does "
+        offers = " and ".join(c.words for c in sorted(offered)) or "no channel"
+        raise StepProblem(f"this step needs {channel.words}, which target {ctx.conn.target.display} does "
                           f"not offer (it has {offers})")
 
 

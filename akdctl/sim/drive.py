@@ -43,6 +43,7 @@ from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
 from akdctl.io.atomic import atomic_open
+from akdctl.io.state_dir import state_dir  # re-exported: sim users name it here
 from akdctl.sim.model import DriveModel
 
 T = TypeVar("T")
@@ -58,15 +59,6 @@ class SimStateError(UsageError):
     """The state file or its directory cannot be used; the message says how to recover."""
 
     kind = "sim-state"
-
-
-def state_dir() -> Path:
-    """Where simulated drives keep their state: ``$AKDCTL_STATE_DIR``, else the XDG state dir."""
-    env = os.environ.get("AKDCTL_STATE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
-    return Path(base) / "akdctl"
 
 
 def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
@@ -326,7 +318,7 @@ class SimDrive:
         if server is None:
             from akdctl.sim.pnu_server import PnuServer
 
-            server = self._pnu_server = PnuServer(_OUTSIDE)
+            server = self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
         return self._serve(server, server.handle, request)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
@@ -340,7 +332,7 @@ class SimDrive:
         if server is None:
             from akdctl.sim.sdo_server import SdoServer
 
-            server = self._sdo_server = SdoServer(_OUTSIDE)
+            server = self._sdo_server = SdoServer(_OUTSIDE, files=True)
         return self._serve(server, self._answer_mailbox, mailbox)
 
     def _answer_mailbox(self, mailbox: bytes) -> list[bytes]:

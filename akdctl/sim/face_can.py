@@ -127,47 +127,37 @@ class CanFace(Face):
     """The CANopen face: one node on one bus, started and stopped by ``sim serve``."""
 
     def __init__(self, drive: "SimDrive", spec: CanSpec, heartbeat_ms: int | None = None) -> None:
+        super().__init__()
         self.drive = drive
         self.spec = spec
         self.heartbeat_ms = heartbeat_ms
         self.bus: "can.BusABC | None" = None
         self.network: "canopen.Network | None" = None
         self.node: Any = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._pdo_dirty = True
         self._tpdos: list[Any] = []
         self._rpdos: dict[int, Any] = {}
         self._guard_toggle = 0
         self._lock = threading.RLock()
 
-    # -- life cycle -------------------------------------------------------------------------------------------
-    def start(self) -> None:
+    # -- life cycle (Face: start, stop) --------------------------------------------------------------------------
+    def open(self) -> None:
         import canopen
 
         if self.heartbeat_ms is not None:
             self.drive.object_write(0x1017, 0, struct.pack("<H", self.heartbeat_ms))
         self.bus = _open_face_bus(self.spec)
-        try:
-            self.network = canopen.Network(self.bus)
-            self.network.NOTIFIER_CYCLE = 0.2
-            self.network.listeners.append(_RemoteFrameListener(self))
-            self.network.connect()
-            self.node = _make_node(self)
-            self.network[self.node.id] = self.node
-            self.network.subscribe(0x080, self._on_sync)
-            self.node.nmt.boot()
-        except BaseException:
-            self.stop()
-            raise
-        self._thread = threading.Thread(target=self._work, name="akdctl-can-face", daemon=True)
-        self._thread.start()
+        self.network = canopen.Network(self.bus)
+        self.network.NOTIFIER_CYCLE = 0.2
+        self.network.listeners.append(_RemoteFrameListener(self))
+        self.network.connect()
+        self.node = _make_node(self)
+        self.network[self.node.id] = self.node
+        self.network.subscribe(0x080, self._on_sync)
+        self.node.nmt.boot()
+        self.spawn(self._work, "akdctl-can-face")
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+    def close(self) -> None:
         if self.node is not None:
             try:
                 self.node.nmt.stop_heartbeat()

@@ -69,7 +69,8 @@ OPTIONS = (
 
 
 class SlaveWorker:
-    """The drive application behind the ESC's mailbox: SDO server + fault injection.
+    """The drive application behind the ESC's mailbox: SDO server + fault injection (run on a thread of its
+    face, :meth:`serve`, until the face stops).
 
     ``foe_busy``: in BOOT, each FoE DATA packet is answered that many times with BUSY (done/entire = the
     packets so far) before the drive takes it -- ETG.1000.6's way for a slave that is still flashing; a master
@@ -80,15 +81,9 @@ class SlaveWorker:
         self.esc, self.drive, self.injector = esc, drive, injector
         self.foe_busy = max(0, foe_busy)
         self._busy_left: tuple[int, int] | None = None  # (packet number, BUSY answers still to give)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
 
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="ecat-raw-app", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
+    def serve(self, stop: threading.Event) -> None:
+        while not stop.is_set():
             request = self.esc.take_request(0.2)
             if request is None:
                 continue
@@ -139,11 +134,6 @@ class SlaveWorker:
             return None
         self._busy_left = (number, left - 1)
         return mbx.pack(mbx.MailboxType.FOE, foe.encode_foe(foe.busy(number - 1, number)), address, counter)
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
 
 
 class AlStateBinding:
@@ -226,7 +216,8 @@ class ProcessData:
         self._served = -1
 
     def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="ecat-raw-pd", daemon=True)
+        """Run on a thread of its own (tests; the face runs :meth:`serve` on one of its threads instead)."""
+        self._thread = threading.Thread(target=self.serve, args=(self._stop,), name="ecat-raw-pd", daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
@@ -234,10 +225,11 @@ class ProcessData:
         if self._thread is not None:
             self._thread.join(timeout=5)
 
-    def _run(self) -> None:
+    def serve(self, stop: threading.Event) -> None:
+        """The cyclic task, every :data:`CYCLE_SECONDS` until ``stop`` is set."""
         seen, last = -1, time.monotonic()
         said = ""
-        while not self._stop.wait(CYCLE_SECONDS):
+        while not stop.wait(CYCLE_SECONDS):
             state = self.esc.al_status & 0x0F
             if state not in (ec.AlState.SAFEOP, ec.AlState.OP) or self.esc.al_status & ec.AL_ERROR_FLAG:
                 seen, last = self.esc.outputs_written, time.monotonic()
@@ -302,6 +294,7 @@ class ProcessData:
 class EthercatRawFace(Face):
     def __init__(self, ifname: str, drive: SimDrive, injector: Injector, serial: int | None = None,
                  foe_busy: int = 0) -> None:
+        super().__init__()
         self.ifname = ifname
         self.serial = serial
         self.drive = drive
@@ -315,18 +308,15 @@ class EthercatRawFace(Face):
         self.pd = ProcessData(self.esc, drive, self._watchdog_expired) if drive is not None else None
         self._silent_until = 0.0  # the drive restarts after BOOT -> INIT: no frame is answered until then
         self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
 
-    def start(self) -> None:
+    def open(self) -> None:
         self._sock = open_raw_socket(self.ifname, ec.ETHERTYPE_ECAT, f"--ethercat-raw {self.ifname}")
         warm_up(self.worker.drive)
         self._sock.settimeout(0.2)
-        self.worker.start()
+        self.spawn(self.worker.serve, "ecat-raw-app", self._stop)
         if self.pd is not None:
-            self.pd.start()
-        self._thread = threading.Thread(target=self._serve, name="ecat-raw-face", daemon=True)
-        self._thread.start()
+            self.spawn(self.pd.serve, "ecat-raw-pd", self._stop)
+        self.spawn(self._serve, "ecat-raw-face")
 
     def _sii_image(self) -> SiiImage:
         """The SII the ESC powers up with: the AKD's, without EoE (:data:`SIM_MAILBOX_PROTOCOLS`), with the
@@ -431,13 +421,7 @@ class EthercatRawFace(Face):
                 with contextlib.suppress(OSError):
                     self._sock.send(reply)
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-        self.worker.stop()
-        if self.pd is not None:
-            self.pd.stop()
+    def close(self) -> None:
         if self._sock is not None:
             self._sock.close()
             self._sock = None

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import socket
-import threading
 
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
@@ -117,13 +116,12 @@ class EthercatUdpFace(Face):
     """A UDP socket served by one thread; ``stop`` closes it and joins."""
 
     def __init__(self, host: str, port: int, handler: GatewayHandler) -> None:
+        super().__init__()
         self.host, self.port = host, port
         self.handler = handler
         self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
 
-    def start(self) -> None:
+    def open(self) -> None:
         for drive in set(self.handler.stations.values()):
             warm_up(drive)
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -135,8 +133,7 @@ class EthercatUdpFace(Face):
         sock.settimeout(0.2)
         self.host, self.port = sock.getsockname()[:2]  # the ready line names what was bound (port 0 -> real)
         self._sock = sock
-        self._thread = threading.Thread(target=self._serve, name="ecat-udp-face", daemon=True)
-        self._thread.start()
+        self.spawn(self._serve, "ecat-udp-face")
 
     def _serve(self) -> None:
         assert self._sock is not None
@@ -156,10 +153,7 @@ class EthercatUdpFace(Face):
                 with contextlib.suppress(OSError):
                     self._sock.sendto(reply, peer)
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+    def close(self) -> None:
         if self._sock is not None:
             self._sock.close()
             self._sock = None

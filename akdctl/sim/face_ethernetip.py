@@ -132,10 +132,9 @@ class EthernetIpFace(Face):
         self.host, self.port, self.io_port = host, port, io_port
         self.injection = injection or Injection()
         self.refuse_session = refuse_session
+        super().__init__()
         self.device = CipDevice(drive, identity, (host, port))
         self.stats = FaceStats()
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
         self._clients: set[socket.socket] = set()
         self._lock = threading.Lock()
         self._sessions: set[int] = set()
@@ -145,8 +144,8 @@ class EthernetIpFace(Face):
         self.udp: socket.socket | None = None
         self.io_sock: socket.socket | None = None
 
-    # ------------------------------------------------------------- lifecycle
-    def start(self) -> None:
+    # ------------------------------------------------------------- lifecycle (Face: start, stop)
+    def open(self) -> None:
         try:
             self.tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
             self.tcp.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -160,16 +159,12 @@ class EthernetIpFace(Face):
             self.io_sock.bind((self.host, self.io_port))
             self.io_port = self.io_sock.getsockname()[1]
         except OSError as exc:
-            self.stop()
             raise UsageError(f"--ethernetip {self.host}:{self.port}: cannot listen ({exc.strerror})") from None
         for name, target in (("eip-accept", self._accept_loop), ("eip-udp", self._udp_loop),
                              ("eip-io", self._io_loop)):
-            thread = threading.Thread(target=target, name=name, daemon=True)
-            thread.start()
-            self._threads.append(thread)
+            self.spawn(target, name)
 
-    def stop(self) -> None:
-        self._stop.set()
+    def interrupt(self) -> None:
         if self.io is not None:
             self._close_io("face stopped")
         for sock in (self.tcp, self.udp, self.io_sock):
@@ -185,8 +180,6 @@ class EthernetIpFace(Face):
                 client.shutdown(socket.SHUT_RDWR)
             except OSError:
                 pass
-        for thread in self._threads:
-            thread.join(timeout=2)
 
     def describe(self) -> str:
         return f"ethernetip {self.host}:{self.port} (class-1 I/O on udp {self.host}:{self.io_port})"
@@ -204,9 +197,7 @@ class EthernetIpFace(Face):
                 return
             with self._lock:
                 self._clients.add(client)
-            thread = threading.Thread(target=self._serve_client, args=(client, peer), name="eip-client", daemon=True)
-            thread.start()
-            self._threads = [t for t in self._threads if t.is_alive()] + [thread]
+            self.spawn(self._serve_client, "eip-client", client, peer)
 
     def _serve_client(self, client: socket.socket, peer: tuple[str, int]) -> None:
         sessions: set[int] = set()

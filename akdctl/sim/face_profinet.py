@@ -20,7 +20,6 @@ import os
 import select
 import socket
 import sys
-import threading
 import time
 import uuid
 from collections import OrderedDict
@@ -194,6 +193,7 @@ class ProfinetFace(Face):
                  station_name: str = "akd-sim", dcp_iface: str | None = None,
                  mac: bytes = b"\x02\x00\x00\x00\xAD\x01", max_ars: int = MAX_ARS,
                  ar_timeout: float | None = None) -> None:
+        super().__init__()
         self.drive = drive
         self.host, self.port = host, port
         self.delay = max(0.0, delay)
@@ -215,13 +215,11 @@ class ProfinetFace(Face):
         self._tie = itertools.count()
         self._tx_count = 0
         self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
         self._wake_r, self._wake_w = -1, -1
         self._dcp: Any = None
 
-    # ------------------------------------------------------------- lifecycle
-    def start(self) -> None:
+    # ------------------------------------------------------------- lifecycle (Face: start, stop)
+    def open(self) -> None:
         self.vendor_id, self.device_id = _read_identity(self.drive)
         family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_DGRAM)
@@ -233,21 +231,18 @@ class ProfinetFace(Face):
         self._sock = sock
         self.host, self.port = sock.getsockname()[:2]  # the ready line names what was bound (port 0 -> real)
         self._wake_r, self._wake_w = os.pipe()
-        self._thread = threading.Thread(target=self._run, name="pn-face", daemon=True)
-        self._thread.start()
+        self.spawn(self._run, "pn-face")
         if self.dcp_iface:
             from akdctl.sim.dcp_responder import DcpResponder
 
             self._dcp = DcpResponder(self, self.dcp_iface)
             self._dcp.start()
 
-    def stop(self) -> None:
-        self._stop.set()
+    def interrupt(self) -> None:
         if self._wake_w >= 0:
             os.write(self._wake_w, b"x")
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+
+    def close(self) -> None:
         if self._dcp is not None:
             self._dcp.stop()
             self._dcp = None

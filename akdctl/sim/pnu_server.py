@@ -88,8 +88,6 @@ from akdctl.protocol.bmp import (
     REQ_READ,
     RESP_CHANGE_NAK,
     RESP_CHANGE_OK,
-    RESP_READ_NAK,
-    RESP_READ_OK,
     BmpError,
     Format,
     ParameterAddress,
@@ -104,6 +102,10 @@ from akdctl.protocol.bmp import (
     encode_response,
     encode_value_block,
     format_size,
+    iter_read_addresses,
+    pack_failure_block,
+    pack_read_response,
+    raw_block_layout,
     to_signed,
     to_unsigned,
 )
@@ -161,28 +163,6 @@ def convert_value(value: ParameterValue, data_type: int) -> ParameterValue:
                                                 f"of type 0x{data_type:02X}")
 
 
-_ADDRESS = struct.Struct(">BBHH")  # attribute, number of elements, PNU, subindex (bmp.decode_address's layout)
-_RAW_CODES = {Format.BYTE: "B", Format.WORD: "H", Format.DWORD: "I"}  # the formats pnu_read_raw answers with
-_BLOCKS: dict[tuple[int, int], struct.Struct] = {}  # (format, count) -> the value block's layout, built once
-
-
-def _block_struct(fmt: int, count: int) -> struct.Struct | None:
-    """A value block of ``count`` elements of a raw format: format, count, the values, a pad byte if odd."""
-    code = _RAW_CODES.get(fmt)
-    if code is None:
-        return None
-    pad = "x" if count * format_size(fmt) & 1 else ""
-    block = _BLOCKS[(fmt, count)] = struct.Struct(f">BB{count}{code}{pad}")
-    return block
-
-
-def _failure_block(error: int, additional: int | None = None) -> bytes:
-    """An error block (format 0x44): the error value, and the additional information when there is one."""
-    if additional is None:
-        return struct.pack(">BBH", Format.ERROR, 1, error & 0xFFFF)
-    return struct.pack(">BBHH", Format.ERROR, 2, error & 0xFFFF, additional & 0xFFFF)
-
-
 class _WholeRequest(Exception):
     """A refusal of the entire request (header or structure), answered with one error for every parameter."""
 
@@ -208,8 +188,11 @@ def header_refusal(request: bytes) -> int | None:
 class PnuServer:
     """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
 
-    def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,)) -> None:
+    def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,), raw_reads: bool = False) -> None:
+        """``raw_reads``: the access objects this server is handed also answer ``pnu_read_raw`` (DriveModel's
+        (format, unsigned values) without objects), and reads take that fast path; declared, not probed."""
         self.access = access
+        self.raw_reads = raw_reads
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
 
@@ -271,11 +254,11 @@ class PnuServer:
         checked alone already; packing once costs less than building, validating and encoding result objects.
         The blocks are those ``encode_value_block`` / ``encode_response`` write (tests/test_pnu_server.py).
         """
-        raw = getattr(self.access, "pnu_read_raw", None)  # DriveModel's: (format, unsigned values), no objects
+        raw: Callable[[int, int, int], tuple[int, list[int]]] | None = (
+            self.access.pnu_read_raw if self.raw_reads else None)  # type: ignore[attr-defined]
         blocks = []
         negative = False
-        for i in range(n):
-            attribute, count, pnu, subindex = _ADDRESS.unpack_from(data, HEADER_SIZE + ADDRESS_SIZE * i)
+        for attribute, count, pnu, subindex in iter_read_addresses(data, n):
             if raw is not None and attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu \
                     and subindex <= MAX_SUBINDEX:
                 block = self._read_raw(raw, pnu, subindex, count)
@@ -283,7 +266,7 @@ class PnuServer:
                 block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
             negative = negative or block[0] == Format.ERROR
             blocks.append(block)
-        out = bytes((data[0], RESP_READ_NAK if negative else RESP_READ_OK, data[2], n)) + b"".join(blocks)
+        out = pack_read_response(data, blocks, negative)
         if len(out) > MAX_BLOCK:
             raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
         return out
@@ -294,29 +277,27 @@ class PnuServer:
         try:
             fmt, values = raw(pnu, subindex, count)
         except PnuAccessError as exc:
-            return _failure_block(exc.error, exc.additional)
+            return pack_failure_block(exc.error, exc.additional)
         except Exception as exc:  # noqa: BLE001 - a model bug refuses this parameter only
             self.last_exception = exc
-            return _failure_block(ERR_OPERATING_STATE)
-        block = _BLOCKS.get((fmt, count))
-        if block is None:
-            block = _block_struct(fmt, count)
+            return pack_failure_block(ERR_OPERATING_STATE)
+        block = raw_block_layout(fmt, count)
         if block is None or len(values) != count:
             self.last_exception = ValueError(f"pnu_read_raw({pnu}) returned format {fmt} with {len(values)} values "
                                              f"for {count} elements")
-            return _failure_block(ERR_OPERATING_STATE)
+            return pack_failure_block(ERR_OPERATING_STATE)
         if block.size > MAX_BLOCK - HEADER_SIZE:
-            return _failure_block(ERR_RESPONSE_TOO_LONG)
+            return pack_failure_block(ERR_RESPONSE_TOO_LONG)
         try:
             return block.pack(fmt, count, *values)
         except struct.error as exc:
             self.last_exception = exc
-            return _failure_block(ERR_OPERATING_STATE)
+            return pack_failure_block(ERR_OPERATING_STATE)
 
     @staticmethod
     def _block(result: ParameterResult) -> bytes:
         if isinstance(result, ParameterFailure):
-            return _failure_block(result.error, result.additional)
+            return pack_failure_block(result.error, result.additional)
         assert isinstance(result, ParameterValue)  # _read_one answers a value or a failure
         return b"\x40\x00" if result.format == Format.ZERO else encode_value_block(result)
 

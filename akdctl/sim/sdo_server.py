@@ -14,9 +14,9 @@ Behaviour, following ETG.1000.6 and SOEM/the Beckhoff slave stack:
   (0x05030000) and length checks (0x06070012/13) before anything is written;
 * unknown command specifiers (block transfer) abort with 0x05040001, complete
   access with 0x06010000 (the AKD's ESI does not declare it);
-* FoE mailboxes (type 4) go to the drive's file store when the access object
-  has one (``foe_read``/``foe_write``; :mod:`akdctl.sim.foe`): the AKD names
-  FoE as its firmware path;
+* FoE mailboxes (type 4) go to the drive's file store when the server was told
+  the access object has one (``files=True``: it is a :class:`akdctl.sim.foe.FileAccess`
+  as well; declared, not probed): the AKD names FoE as its firmware path;
 * a mailbox of another protocol, or whose header/size is broken, gets a
   mailbox error reply (type 0) instead of an SDO answer;
 * queued emergencies go out as CoE service-1 mailboxes ahead of the next reply.
@@ -27,10 +27,9 @@ an abort code, and undecodable bytes become mailbox error replies.
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
@@ -38,6 +37,9 @@ from akdctl.protocol.coe import CoeError, CoeService
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
+
+if TYPE_CHECKING:
+    from akdctl.protocol import coe_info
 
 
 MAX_TRANSFER = 1 << 20  # larger announced downloads abort with "out of memory"
@@ -98,10 +100,7 @@ class _Request(NamedTuple):
     counter: int
 
 
-_COE_HEADER = struct.Struct("<H")
-_INDEX = struct.Struct("<HB")
-_EXPEDITED = struct.Struct("<BHB4s")  # command, index, subindex, 4 data bytes (struct pads a shorter value)
-_UPLOAD_INITIATE = 0x40  # command byte of an upload initiate request without complete access
+_UPLOAD_INITIATE = coe.UPLOAD_INITIATE_COMMAND
 
 # Object access bits behind the SDO information list types 2..5.
 _LIST_FILTER = {2: 0x0040, 3: 0x0080, 4: 0x0100, 5: 0x0200}
@@ -127,10 +126,13 @@ class _Upload:
 class SdoServer:
     """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
 
-    def __init__(self, access: ObjectAccess, mailbox_size: int = 512) -> None:
+    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False) -> None:
+        """``files``: the access objects this server is handed also store files (``foe_read``/``foe_write``,
+        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused."""
         if mailbox_size < 32:
             raise ValueError("mailbox_size must be at least 32 bytes")
         self.access = access
+        self.files = files
         self.mailbox_size = mailbox_size
         self._download: _Download | None = None
         self._upload: _Upload | None = None
@@ -181,7 +183,7 @@ class SdoServer:
         return mbx.pack(mbx.MailboxType.ERROR, data, address, counter)
 
     def _reply(self, request: _Request, service: int, payload: bytes) -> bytes:
-        return mbx.pack(mbx.MailboxType.COE, _COE_HEADER.pack(service << 12) + payload, request.address,
+        return mbx.pack(mbx.MailboxType.COE, coe.coe_header(service) + payload, request.address,
                         request.counter)
 
     def _handle(self, raw: bytes) -> list[bytes]:
@@ -194,7 +196,7 @@ class SdoServer:
         request = _Request(address, counter)
         if mbx.HEADER_SIZE + len(data) > self.mailbox_size:
             return [self._error_reply(request, mbx.ERR_INVALID_SIZE)]
-        if mtype == mbx.MailboxType.FOE and hasattr(self.access, "foe_read"):
+        if mtype == mbx.MailboxType.FOE and self.files:
             return self._foe(request, data)
         if mtype != mbx.MailboxType.COE:
             return [self._error_reply(request, mbx.ERR_UNSUPPORTED_PROTOCOL)]
@@ -217,19 +219,21 @@ class SdoServer:
             service = CoeService.SDO_REQUEST if isinstance(answer, coe.SdoAbort) else CoeService.SDO_RESPONSE
             return [self._reply(request, service, coe.encode_sdo(answer))] if answer else []
         if service == CoeService.SDO_INFO:
-            return [self._reply(request, CoeService.SDO_INFO, coe.encode_sdo_info(f)) for f in self._info(payload)]
+            from akdctl.protocol import coe_info  # the SDO information service: loaded on first use
+
+            return [self._reply(request, CoeService.SDO_INFO, coe_info.encode_sdo_info(f)) for f in self._info(payload)]
         return [self._error_reply(request, mbx.ERR_SERVICE_NOT_SUPPORTED)]
 
     def _upload_fast(self, request: _Request, payload: bytes) -> bytes:
         """An upload initiate without complete access (:meth:`_upload_initiate`'s rules), the expedited answer
-        packed directly in the layout ``coe.encode_sdo(SdoUploadResponse(..., expedited=True))`` writes."""
-        index, subindex = _INDEX.unpack_from(payload, 1)
+        packed by the codec's fast path (``coe.pack_expedited_upload_response``, byte-equal to ``encode_sdo``)."""
+        index, subindex = coe.sdo_address(payload)
         self._download = None
         self._upload = None
         value = self._read(index, subindex)
         if isinstance(value, bytes) and 1 <= len(value) <= 4:
             return self._reply(request, CoeService.SDO_RESPONSE,
-                               _EXPEDITED.pack(0x43 | (4 - len(value)) << 2, index, subindex, value))
+                               coe.pack_expedited_upload_response(index, subindex, value))
         if isinstance(value, coe.SdoAbort):
             return self._reply(request, CoeService.SDO_REQUEST, coe.encode_sdo(value))
         answer = self._upload_normal(index, subindex, value)
@@ -367,54 +371,58 @@ class SdoServer:
 
     # --- SDO information --------------------------------------------------------------------
 
-    def _info(self, payload: bytes) -> list[coe.SdoInfo]:
+    def _info(self, payload: bytes) -> list[coe_info.SdoInfo]:
+        from akdctl.protocol import coe_info
+
         try:
-            frame = coe.decode_sdo_info(payload)
-            request = coe.unpack_info(frame)
+            frame = coe_info.decode_sdo_info(payload)
+            request = coe_info.unpack_info(frame)
         except CoeError:
-            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND))]
         access = self.access
         if not isinstance(access, ObjectInfoAccess):
-            return [coe.pack_info(coe.SdoInfoError(0x08000023))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(0x08000023))]
         try:
             answer = self._info_answer(access, request)
         except SdoAccessError as exc:
-            answer = coe.SdoInfoError(exc.code)
+            answer = coe_info.SdoInfoError(exc.code)
         except CodecError:
-            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
+            answer = coe_info.SdoInfoError(coe.ABORT_GENERAL)
         except Exception:
             log.exception("SDO information request %r failed", request)
-            answer = coe.SdoInfoError(coe.ABORT_GENERAL)
-        room = self.mailbox_size - mbx.HEADER_SIZE - coe.COE_HEADER_SIZE - coe.SDO_INFO_HEADER_SIZE
+            answer = coe_info.SdoInfoError(coe.ABORT_GENERAL)
+        room = self.mailbox_size - mbx.HEADER_SIZE - coe.COE_HEADER_SIZE - coe_info.SDO_INFO_HEADER_SIZE
         try:
-            return coe.fragment_info(coe.pack_info(answer), room)
+            return coe_info.fragment_info(coe_info.pack_info(answer), room)
         except CodecError:
-            return [coe.pack_info(coe.SdoInfoError(coe.ABORT_GENERAL))]
+            return [coe_info.pack_info(coe_info.SdoInfoError(coe.ABORT_GENERAL))]
 
-    def _info_answer(self, access: ObjectInfoAccess, request: coe.SdoInfoMessage) -> coe.SdoInfoMessage:
-        if isinstance(request, coe.OdListRequest):
+    def _info_answer(self, access: ObjectInfoAccess, request: coe_info.SdoInfoMessage) -> coe_info.SdoInfoMessage:
+        from akdctl.protocol import coe_info
+
+        if isinstance(request, coe_info.OdListRequest):
             indices = sorted(int(i) for i in access.object_indices())
             if request.list_type == 0:
                 counts = [len(indices)] + [len(self._filtered(access, indices, t)) for t in (2, 3, 4, 5)]
-                return coe.OdListResponse(0, tuple(counts))
-            if request.list_type == coe.LIST_ALL:
-                return coe.OdListResponse(1, tuple(indices))
+                return coe_info.OdListResponse(0, tuple(counts))
+            if request.list_type == coe_info.LIST_ALL:
+                return coe_info.OdListResponse(1, tuple(indices))
             if request.list_type in _LIST_FILTER:
-                return coe.OdListResponse(request.list_type, tuple(self._filtered(access, indices, request.list_type)))
-            return coe.SdoInfoError(0x08000000)
-        if isinstance(request, coe.ObjectDescriptionRequest):
+                return coe_info.OdListResponse(request.list_type, tuple(self._filtered(access, indices, request.list_type)))
+            return coe_info.SdoInfoError(0x08000000)
+        if isinstance(request, coe_info.ObjectDescriptionRequest):
             info = access.object_info(request.index)
-            return coe.ObjectDescription(info.index, info.data_type, info.max_subindex, info.object_code, info.name)
-        if isinstance(request, coe.EntryDescriptionRequest):
+            return coe_info.ObjectDescription(info.index, info.data_type, info.max_subindex, info.object_code, info.name)
+        if isinstance(request, coe_info.EntryDescriptionRequest):
             info = access.object_info(request.index)
             entry = info.entries.get(request.subindex)
             if entry is None:
                 raise SdoAccessError(coe.ABORT_NO_SUBINDEX)
-            return coe.EntryDescription(
+            return coe_info.EntryDescription(
                 request.index, request.subindex, 0, entry.data_type, entry.bit_length, entry.access, entry.name
             )
         # a response opcode sent to the slave
-        return coe.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND)
+        return coe_info.SdoInfoError(coe.ABORT_UNKNOWN_COMMAND)
 
     @staticmethod
     def _filtered(access: ObjectInfoAccess, indices: list[int], list_type: int) -> list[int]:

@@ -77,6 +77,26 @@ class Transport(ABC):
     @abstractmethod
     def open(self) -> None: ...
 
+    # ---------------------------------------------------------------- declared capabilities, neutral defaults
+    # What only some transports can tell is declared here with the answer of a transport that cannot
+    # (as python-can's BusABC declares ``state``), so nobody asks ``getattr(transport, ...)``: the
+    # Connection reads these and hands them up; drive/ never sees a transport.
+
+    @property
+    def time_scale(self) -> float:
+        """Seconds of the drive's time per wall-clock second: 1 for every real drive (the simulator
+        under ``sim speed`` runs faster, and the axis polls faster with it)."""
+        return 1.0
+
+    def al_state(self) -> str | None:
+        """The EtherCAT AL state as the slave reports it now ('PREOP', 'OP', 'SAFEOP+ERR'), or None
+        where there is none or it is unknown (PROFINET, CANopen, EtherNet/IP)."""
+        return None
+
+    def read_im0(self) -> dict[str, object] | None:
+        """The device's I&M0 record in JSON form where the network defines one (PROFINET), else None."""
+        return None
+
     @abstractmethod
     def close(self) -> None: ...
 

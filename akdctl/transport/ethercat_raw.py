@@ -62,7 +62,9 @@ class SlaveInfo:
 
     @property
     def state_text(self) -> str:
-        return ec.describe_al(self.al_status, self.al_code)
+        from akdctl.catalog.texts import al_status_line
+
+        return al_status_line(self.al_status, self.al_code)
 
 
 class EcatMaster:
@@ -318,9 +320,11 @@ class EcatMaster:
         while True:
             status, code = self.al_status(station)
             if status & ec.AL_ERROR_FLAG:
+                from akdctl.catalog.texts import al_status_text
+
                 raise DriveError(
                     f"slave 0x{station:04X} refused {ec.AL_STATE_NAMES.get(state, hex(state))}: "
-                    f"AL status code 0x{code:04X} {ec.al_status_text(code)} (now {ec.al_state_name(status)})",
+                    f"AL status code 0x{code:04X} {al_status_text(code)} (now {ec.al_state_name(status)})",
                     code=code, details={"al_status": status, "al_status_code": code})
             if status & 0x0F == state:
                 return status, code

@@ -30,6 +30,7 @@ import time
 import uuid
 from typing import TYPE_CHECKING
 
+from akdctl.catalog.texts import pnio_status_text
 from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UsageError
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
@@ -211,7 +212,7 @@ class PnioRecordLink(RecordLink):
                 return data
             if pause > deadline.remaining():
                 raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
-                               f"({what} record: {status.describe()})", code=status.value)
+                               f"({what} record: {pnio_status_text(*status.encode())})", code=status.value)
             time.sleep(pause)
             pause = min(BUSY_BACKOFF[1], pause * 2)
 
@@ -290,7 +291,7 @@ class ProfinetTransport(Transport):
             if not status.ok:
                 if status.code == 0xDB and status.decode == 0x81 and status.code1 == 0x01 and status.code2 in (4, 9):
                     raise RecordError(
-                        f"{self.label}: device refuses device-access AR ({status.describe()}); the device does not "
+                        f"{self.label}: device refuses device-access AR ({pnio_status_text(*status.encode())}); the device does not "
                         "allow a supervisor/device-access connection, which cannot be changed from akdctl",
                         code=status.value)
                 if (status.code, status.decode, status.code1, status.code2) == pnio.OUT_OF_AR_RESOURCES:
@@ -298,7 +299,7 @@ class ProfinetTransport(Transport):
 
                     raise RecordError(f"{self.label}: device refuses the connection, out of AR resources "
                                       f"({status.hex()}): {PN_OUT_OF_ARS_HINT}", code=status.value)
-                raise RecordError(f"{self.label}: device refuses the connection: {status.describe()}",
+                raise RecordError(f"{self.label}: device refuses the connection: {pnio_status_text(*status.encode())}",
                                   code=status.value)
             try:
                 res = pnio.ARBlockRes.decode(blocks)
@@ -373,7 +374,7 @@ class ProfinetTransport(Transport):
             except CodecError as exc:
                 raise MalformedReply(f"{self.label}: malformed Write response: {exc}") from None
         if not status.ok and not status.busy:
-            raise RecordError(f"{self.label}: write record {self.address.describe()} refused: {status.describe()}",
+            raise RecordError(f"{self.label}: write record {self.address.describe()} refused: {pnio_status_text(*status.encode())}",
                               code=status.value)
         return status, b""
 
@@ -396,7 +397,7 @@ class ProfinetTransport(Transport):
         if not status.ok:
             if status.busy:
                 return status, b""
-            raise RecordError(f"{self.label}: read record {address.describe()} refused: {status.describe()}",
+            raise RecordError(f"{self.label}: read record {address.describe()} refused: {pnio_status_text(*status.encode())}",
                               code=status.value)
         try:
             got_seq, got_index, data = pnio.read_response(blocks)

@@ -9,13 +9,12 @@ scheme that is not built in.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from akdctl.errors import UsageError
 from akdctl.transport.target import Target, split_target
+from akdctl.profiles.vocabulary import Channel, drive_profile, usable_profiles
 from akdctl.protocol.record import Record
 
 if TYPE_CHECKING:
@@ -57,9 +56,6 @@ def _check_can(target: Target) -> None:
 
 
 def _check_sim(target: Target) -> None:
-    drive = target.query.get("drive")
-    if drive is not None and drive not in ("profidrive", "cia402"):
-        raise UsageError(f"malformed target {target.raw!r}: drive={drive!r}; use drive=profidrive or drive=cia402")
     name = target.host or "default"
     if not name.replace("-", "").replace("_", "").isalnum():
         raise UsageError(f"malformed target {target.raw!r}: simulator name {name!r} may use letters, digits, - and _")
@@ -79,7 +75,7 @@ class TransportSpec(Record):
     __slots__ = ("scheme", "module", "cls", "summary", "syntax", "channels", "requires", "check", "extra", "notes",
                  "query")
 
-    def __init__(self, scheme: str, module: str, cls: str, summary: str, syntax: str, channels: str,
+    def __init__(self, scheme: str, module: str, cls: str, summary: str, syntax: str, channels: frozenset[Channel],
                  requires: tuple[str, ...] = (), check: Callable[[Target], None] | None = None, extra: str = "",
                  notes: tuple[str, ...] = (), query: tuple[str, ...] | None = ()) -> None:
         self.scheme = scheme
@@ -87,6 +83,7 @@ class TransportSpec(Record):
         self.cls = cls
         self.summary = summary
         self.syntax = syntax
+        #: What the Connection can build over this transport's links (known without importing it).
         self.channels = channels
         self.requires = requires
         self.check = check
@@ -96,35 +93,38 @@ class TransportSpec(Record):
         self.query = query
 
 
+_PARAMETERS = frozenset({Channel.PARAMETERS})
+_OBJECTS = frozenset({Channel.OBJECTS})
+
 BUILTIN: dict[str, TransportSpec] = {
     spec.scheme: spec
     for spec in (
         TransportSpec("sim", "akdctl.transport.sim", "SimTransport",
                       "built-in simulated AKD (state kept between invocations)",
-                      "sim | sim://NAME[?drive=profidrive|cia402]", "parameters, objects",
+                      "sim | sim://NAME[?drive=profidrive|cia402]", _PARAMETERS | _OBJECTS,
                       check=_check_sim),
         TransportSpec("pn", "akdctl.transport.profinet", "ProfinetTransport",
                       "PROFINET record data: PROFIdrive base-mode parameter access over PNIO DCE/RPC/UDP",
-                      "pn://HOST[:34964][?slot=1&subslot=1&api=0x3A00&index=47]", "parameters",
+                      "pn://HOST[:34964][?slot=1&subslot=1&api=0x3A00&index=47]", _PARAMETERS,
                       check=_need_host, query=("slot", "subslot", "api", "index", "axis", "vendor", "device",
                                                "instance", "ar_timeout", "iface")),
         TransportSpec("ecat-udp", "akdctl.transport.ethercat_udp", "EthercatUdpTransport",
                       "EtherCAT mailbox (CoE SDO) through a master's ETG.8200 mailbox gateway",
-                      "ecat-udp://HOST[:34980]/STATION", "objects", check=_check_ecat_udp, query=("mailbox",)),
+                      "ecat-udp://HOST[:34980]/STATION", _OBJECTS, check=_check_ecat_udp, query=("mailbox",)),
         TransportSpec("ecat", "akdctl.transport.ethercat_raw", "EthercatRawTransport",
                       "EtherCAT: akdctl as master on a raw interface (needs CAP_NET_RAW)",
-                      "ecat://IFNAME[/POSITION]", "objects", check=_check_ecat_raw),
+                      "ecat://IFNAME[/POSITION]", _OBJECTS, check=_check_ecat_raw),
         TransportSpec("ecat+soem", "akdctl.transport.ethercat_soem", "EthercatSoemTransport",
                       "EtherCAT through pysoem (optional extra akdctl[soem])",
-                      "ecat+soem://IFNAME[/POSITION]", "objects", requires=("pysoem",),
+                      "ecat+soem://IFNAME[/POSITION]", _OBJECTS, requires=("pysoem",),
                       check=_check_ecat_raw, extra="soem"),
         TransportSpec("can", "akdctl.transport.canopen_bus", "CanopenTransport",
                       "CANopen over any python-can interface (socketcan, slcan, pcan, kvaser, virtual, ...)",
-                      "can://INTERFACE/CHANNEL/NODE[?bitrate=500000]", "objects",
+                      "can://INTERFACE/CHANNEL/NODE[?bitrate=500000]", _OBJECTS,
                       requires=("can", "canopen"), check=_check_can, query=None),
         TransportSpec("eip", "akdctl.transport.ethernetip", "EthernetIpTransport",
                       "EtherNet/IP: CIP explicit messaging (UCMM over TCP), Parameter and Position Controller objects",
-                      "eip://HOST[:44818]", "attributes", check=_need_host),
+                      "eip://HOST[:44818]", frozenset({Channel.ATTRIBUTES}), check=_need_host),
     )
 }
 
@@ -151,6 +151,7 @@ def parse_target(text: str, source: str = "--target") -> Target:
             )
         return target
     _check_query(target, spec)
+    _check_drive(target, spec)
     if spec.check is not None:
         spec.check(target)
     return target
@@ -175,7 +176,25 @@ def _check_query(target: Target, spec: TransportSpec) -> None:
                              f"{', '.join(known)}")
 
 
+def _check_drive(target: Target, spec: TransportSpec) -> None:
+    """``?drive=`` names a profile whose channel this scheme offers (one rule for every scheme)."""
+    word = target.query.get("drive")
+    if word is None:
+        return
+    usable = usable_profiles(spec.channels)
+    chosen = drive_profile(word)
+    if chosen is None or chosen not in usable:
+        choices = " or ".join(f"drive={p.value}" for p in usable)
+        raise UsageError(f"malformed target {target.raw!r}: drive={word!r}; {spec.scheme}:// speaks {choices}")
+
+
 def module_available(name: str) -> bool:
+    """Whether a third-party module a transport needs (python-can, pysoem) is installed.
+
+    Only for other projects' modules: akdctl's own transports are imported plainly, so a packaging
+    slip is an ImportError a test sees (tests/test_registry_wiring.py), not a scheme silently missing."""
+    import importlib.util
+
     try:
         return importlib.util.find_spec(name) is not None
     except (ImportError, ValueError):
@@ -184,6 +203,8 @@ def module_available(name: str) -> bool:
 
 def transport_class(target: Target) -> "type[Transport]":
     """Import and return the transport class for a parsed target."""
+    import importlib
+
     spec = BUILTIN.get(target.scheme)
     if spec is None:
         value = _entry_points().get(target.scheme)
@@ -195,8 +216,6 @@ def transport_class(target: Target) -> "type[Transport]":
         if missing:
             hint = f" (pip install 'akdctl[{spec.extra}]')" if spec.extra else ""
             raise UsageError(f"{spec.scheme}:// needs the Python module(s) {', '.join(missing)}{hint}")
-        if not module_available(spec.module):
-            raise UsageError(f"{spec.scheme}:// is reserved but its transport is not part of this version of akdctl")
         module_name, cls_name = spec.module, spec.cls
-    module = importlib.import_module(module_name)
-    return getattr(module, cls_name)
+    cls: type[Transport] = vars(importlib.import_module(module_name))[cls_name]
+    return cls

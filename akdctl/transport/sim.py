@@ -32,11 +32,12 @@ class SimRecordLink(RecordLink):
         try:
             return self.drive.handle_bmp(request)
         except RecordRefused as exc:  # the record write itself is refused, as over pn:// (docs/fidelity.md F1)
+            from akdctl.catalog.texts import pnio_status_text
             from akdctl.errors import RecordError
             from akdctl.protocol import pnio
 
             status = pnio.rw_error(True, exc.code1)
-            raise RecordError(f"sim:{self.drive.name}: write record 47 refused: {status.describe()}",
+            raise RecordError(f"sim:{self.drive.name}: write record 47 refused: {pnio_status_text(*status.encode())}",
                               code=status.value) from None
 
 

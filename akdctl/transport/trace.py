@@ -144,7 +144,7 @@ class TracedRecordLink(RecordLink):
         self.max_record = link.max_record
         self.axis = link.axis
         self.trace_note = link.trace_note
-        self.trace_meta = getattr(link, "trace_meta", None)  # a capture sink's hint (the sim: no wire)
+        self.trace_meta = link.trace_meta  # a capture sink's hint (the sim: no wire)
 
     def exchange(self, request: bytes) -> bytes:
         tracer = self.tracer
@@ -165,7 +165,7 @@ class TracedMailboxLink(MailboxLink):
         self.tracer = tracer
         self.mailbox_address = link.mailbox_address
         self.trace_note = link.trace_note
-        self.trace_meta = getattr(link, "trace_meta", None)
+        self.trace_meta = link.trace_meta
 
     @property
     def mailbox_size(self) -> int:  # type: ignore[override]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.polling import Poll
 from akdctl.drive.values import read_object
@@ -18,9 +18,13 @@ from akdctl.errors import (
     DriveError,
     DriveFault,
     SafetyRefusal,
+    UsageError,
 )
 from akdctl.profiles import statusword as sw
 from akdctl.protocol.record import Record
+
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
 
 
 class AxisStatus(Record):
@@ -197,7 +201,7 @@ def _fault_entries(numbers: list[int], *, warning: bool = False) -> list[dict[st
 OBJ_WARNINGS, WARNING_SLOTS = 0x2000, 3
 
 
-def _warning_entries(objects: Any) -> list[dict[str, Any]]:
+def _warning_entries(objects: "ObjectChannel") -> list[dict[str, Any]]:
     """The warnings the drive names in 0x2000 sub 1..3 (zeros are empty slots); [] when it cannot tell."""
     numbers = []
     try:
@@ -252,8 +256,8 @@ class Axis(ABC):
     NO_TASKS = ("the drive's manual documents no way to start a stored motion task over this profile; "
                 "use a PROFIdrive target (program mode) or 'akdctl move'")
 
-    #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the transport's
-    #: ``time_scale``, which only the simulator has); None: a real drive's 1.
+    #: Seconds of the drive's time per wall second, asked when a wait starts (open_axis: the Connection's
+    #: declared ``time_scale``, above 1 only for the simulator); None: a real drive's 1.
     time_scale_source: Callable[[], float] | None = None
 
     def __init__(self, timeout: float = 2.0, target: str = "") -> None:
@@ -263,6 +267,16 @@ class Axis(ABC):
     def poll(self, deadline: float | None = None) -> Poll:
         """The pauses of one wait (drive/polling.py: fast after a command or a change, then steady)."""
         return Poll(self.time_scale_source() if self.time_scale_source is not None else 1.0, deadline)
+
+    def start_task(self, number: int) -> None:
+        """Start stored motion task ``number`` where the profile can (``TASKS``); refused otherwise
+        (the planner refuses first: declared here so no caller probes for it)."""
+        raise UsageError(f"task start: {self.NO_TASKS}")
+
+    def issued_target(self) -> int | None:
+        """The set point the drive holds, raw, to tell our target from another master's (motion_plan);
+        None where the profile cannot read it back (declared here, not probed)."""
+        return None
 
     # ---------------------------------------------------------------- primitives per profile
     #: How old a status may be to stand in for a new read (:meth:`recent_status`): no human prompt fits in it,

@@ -7,7 +7,8 @@ See akdctl.drive.axis for the modes and scaling it assumes.
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.axis.base import (
     Axis,
@@ -30,14 +31,20 @@ from akdctl.errors import (
 from akdctl.profiles import statusword as sw
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel
+
 
 class Cia402Axis(Axis):
     profile = "cia402"
 
-    def __init__(self, objects: Any, transport: Any = None, timeout: float = 2.0, target: str = "") -> None:
+    def __init__(self, objects: "ObjectChannel", al_state: "Callable[[], str | None] | None" = None,
+                 timeout: float = 2.0, target: str = "") -> None:
+        """``al_state`` is the Connection's declared AL state (:meth:`akdctl.connection.Connection.al_state`,
+        None where the target has none): whether process data owns the controlword (SPEC-NOTES 23)."""
         super().__init__(timeout, target)
         self.objects = objects
-        self.transport = transport
+        self.al_state_source = al_state
         self._mapping: list[int] | None = None  # RxPDOs holding 0x6040, read once (_refuse_pdo_override)
 
     def _up(self, index: int, sub: int) -> int:
@@ -107,14 +114,12 @@ class Cia402Axis(Axis):
         return found
 
     def _al_state(self) -> str | None:
-        probe = getattr(self.transport, "al_state", None)
-        if probe is None:
+        if self.al_state_source is None:
             return None
         try:
-            state = probe()
+            return self.al_state_source()
         except AkdError:
             return None
-        return None if state is None else str(state).upper()
 
     def _refuse_pdo_override(self, observed: bool) -> None:
         # The mapping is read once per command (five SDOs; plan and enable both ask): only an SDO write or the

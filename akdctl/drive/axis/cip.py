@@ -20,12 +20,15 @@ off), reading the homed state, and acknowledging faults (DRV.CLRFAULTS has no ci
 from __future__ import annotations
 
 import struct
-from typing import Any
+from typing import TYPE_CHECKING
 
 from akdctl.drive.axis.base import Axis, AxisStatus, JogSpec, MotionScales, MoveSpec, Scale
 from akdctl.errors import CipRefused, DriveError, MalformedReply, UsageError
 from akdctl.profiles import statusword as sw
 from akdctl.protocol import cip
+
+if TYPE_CHECKING:
+    from akdctl.channels.cip import CipAttributes
 
 PC = cip.POSITION_CONTROLLER
 MODES = {0: "position (0x25 attribute 3 = 0)", 1: "velocity (0x25 attribute 3 = 1)", 2: "torque (0x25 attribute 3 = 2)"}
@@ -42,7 +45,7 @@ DEFAULT_UNITS = 65536
 class CipAxis(Axis):
     profile = "cip"
 
-    def __init__(self, channel: Any, timeout: float = 2.0, target: str = "") -> None:
+    def __init__(self, channel: "CipAttributes", timeout: float = 2.0, target: str = "") -> None:
         super().__init__(timeout, target)
         self.channel = channel
 

@@ -6,7 +6,7 @@ See akdctl.drive.axis for the SPEC-NOTES each part follows.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.drive.axis.base import (
     Axis,
@@ -30,13 +30,17 @@ from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 
+if TYPE_CHECKING:
+    from akdctl.channels.base import ObjectChannel, ParameterChannel
+
 
 class ProfidriveAxis(Axis):
     profile = "profidrive"
 
     BASE = sw.STW1_CONTROL_BY_PLC | sw.STW1_NO_COAST_STOP | sw.STW1_NO_QUICK_STOP  # 0x0406
 
-    def __init__(self, params: Any, objects: Any = None, timeout: float = 2.0, target: str = "") -> None:
+    def __init__(self, params: "ParameterChannel", objects: "ObjectChannel | None" = None, timeout: float = 2.0,
+                 target: str = "") -> None:
         super().__init__(timeout, target)
         self.params = params
         self.objects = objects

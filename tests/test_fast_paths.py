@@ -1,0 +1,53 @@
+"""The simulator's fast paths keep no copy of a wire layout: the codec owns both layouts (issue 22, item 7).
+
+The servers answer the poll's requests (a PNU read, an SDO upload) without message objects; the layouts they pack
+are the codec's (``bmp.iter_read_addresses``/``raw_block_layout``/``pack_read_response``,
+``coe.pack_expedited_upload_response``), held here equal to the general encoders. The servers' own byte-equality
+tests (tests/test_pnu_server.py, tests/test_sdo_server.py) hold the two paths through the servers equal.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from akdctl.protocol import bmp, coe
+
+ROOT = Path(__file__).resolve().parent.parent / "akdctl"
+
+
+def test_the_servers_hold_no_wire_layout() -> None:
+    for name in ("sim/pnu_server.py", "sim/sdo_server.py"):
+        text = (ROOT / name).read_text(encoding="utf-8")
+        assert not re.search(r"struct\.(Struct|pack|unpack)", text), name
+
+
+@given(st.sampled_from([bmp.Format.BYTE, bmp.Format.WORD, bmp.Format.DWORD]), st.data())
+def test_raw_value_blocks_equal_the_general_encoder(fmt: int, data: st.DataObject) -> None:
+    count = data.draw(st.integers(1, 20))
+    top = (1 << (8 * bmp.format_size(fmt))) - 1
+    values = data.draw(st.lists(st.integers(0, top), min_size=count, max_size=count))
+    layout = bmp.raw_block_layout(fmt, count)
+    assert layout is not None
+    assert layout.pack(fmt, count, *values) == bmp.encode_value_block(bmp.ParameterValue(fmt, tuple(values)))
+
+
+def test_addresses_and_read_response_equal_the_general_codec() -> None:
+    addresses = [bmp.ParameterAddress(964, 0, 2), bmp.ParameterAddress(930, 0, 1)]
+    request = bmp.encode_request(bmp.ParameterRequest(7, bmp.REQ_READ, 0, tuple(addresses)))
+    assert [bmp.ParameterAddress(p, s, c, a) for a, c, p, s in bmp.iter_read_addresses(request, 2)] == addresses
+    results = (bmp.ParameterValue(bmp.Format.WORD, (0x100, 1)), bmp.ParameterFailure(0x14, 3))
+    blocks = [bmp.encode_value_block(results[0]), bmp.pack_failure_block(0x14, 3)]
+    general = bmp.encode_response(bmp.ParameterResponse(7, bmp.RESP_READ_NAK, 0, results))
+    assert bmp.pack_read_response(request, blocks, negative=True) == general
+
+
+@given(st.integers(0, 0xFFFF), st.integers(0, 0xFF), st.binary(min_size=1, max_size=4))
+def test_expedited_upload_response_equals_the_general_encoder(index: int, subindex: int, value: bytes) -> None:
+    general = coe.encode_sdo(coe.SdoUploadResponse(index, subindex, value, len(value), True))
+    assert coe.pack_expedited_upload_response(index, subindex, value) == general
+    request = coe.encode_sdo(coe.SdoUploadInitiate(index, subindex))
+    assert request[0] == coe.UPLOAD_INITIATE_COMMAND and coe.sdo_address(request) == (index, subindex)
