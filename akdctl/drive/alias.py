@@ -39,7 +39,7 @@ CHANGES_ALIAS = Gated("0x36E7:0 (FBUS.PARAM03)", "changes the drive's station al
 def raw_bus(conn: "Connection") -> Any:
     """The raw master's transport (open, slave in PRE-OP or higher); the alias needs SII and register access."""
     transport = conn.transport()
-    if getattr(transport, "scheme", "") != "ecat":
+    if conn.target.scheme != "ecat":
         raise UsageError(f"'ecat alias' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
                          f"{conn.target.display} gives no access to the slave's registers and SII")
     return transport

@@ -165,7 +165,7 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
     from akdctl.drive.pdo import al_state_of, read_mapping
     from akdctl.profiles.units import cycle_time_problem
 
-    al = f.attempt("EtherCAT AL state", lambda: al_state_of(conn.transport()))
+    al = f.attempt("EtherCAT AL state", lambda: al_state_of(conn))
     if al is None:
         f.unread.setdefault("EtherCAT AL state", "this transport does not report it (an ETG.8200 gateway carries "
                                                  "mailboxes only); the AL state and status code are not ruled out")
@@ -174,7 +174,7 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
     if "ERR" in al:
         from akdctl.catalog.texts import al_status_text
 
-        code = _al_status_code(conn.transport())
+        code = _al_status_code(conn)
         said = (f"AL status code 0x{code:04X}: {al_status_text(code)}" if code is not None
                 else "the AL status code is not readable over this transport")
         f.add("al", f"EtherCAT AL state {al}: the drive refused a state change or left the requested one ({said})",
@@ -211,13 +211,17 @@ def _ethercat_causes(f: Finder, conn: Connection) -> None:
               evidence=f"mode {mode}, RxPDO objects {sorted(f'0x{i:04X}' for i in rx_objects)}")
 
 
-def _al_status_code(transport: Any) -> int | None:
-    """The AL status code (register 0x0134) a raw master read with the AL state (``slave.al_code``), else None.
+def _al_status_code(conn: Connection) -> int | None:
+    """The AL status code (register 0x0134), read through the raw master's register access (``ecat reg read``'s
+    one path); None where the target gives no register access (an ETG.8200 gateway, SOEM)."""
+    if conn.target.scheme != "ecat":
+        return None
+    from akdctl.drive.ecat_registers import read_registers
 
-    Probed as :func:`akdctl.drive.pdo.al_state_of` probes the state: only the raw master keeps it. (When the ESC
-    register access of ``ecat reg read`` reaches this branch, reading 0x0134 through it is the cleaner way.)"""
-    code = getattr(getattr(transport, "slave", None), "al_code", None)
-    return code if isinstance(code, int) and not isinstance(code, bool) else None
+    try:
+        return int.from_bytes(read_registers(conn, 0x0134, 2), "little")
+    except AkdError:
+        return None
 
 
 def _profidrive_causes(f: Finder, conn: Connection) -> None:

@@ -26,13 +26,13 @@ def read_file(conn: "Connection", name: str, password: int, max_size: int,
     if not name or len(name.encode("latin-1", "replace")) > 255 or "\0" in name:
         raise UsageError(f"FoE file name {name!r} is not usable: 1..255 characters, no NUL")
     transport = conn.transport()
-    scheme = getattr(transport, "scheme", "")
+    scheme = conn.target.scheme
     timeout = max(PACKET_TIMEOUT, float(conn.options.timeout))
     if scheme == "ecat+soem":
         return transport.foe_read(name, password, max_size, timeout)  # type: ignore[attr-defined, no-any-return]
-    link = getattr(transport, "link", None)
-    if scheme != "ecat" or link is None:
+    if scheme != "ecat":
         raise UsageError(f"FoE needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS] or "
                          f"ecat+soem://IFNAME[/POS]); {conn.target.display} has no slave mailbox of its own")
+    link = transport.link  # type: ignore[attr-defined]  # the raw master's mailbox link (scheme ecat)
     client = FoeClient(link, link.sm0.length, timeout, who=f"slave {transport.position}")  # type: ignore[attr-defined]
     return client.read(name, password, max_size, progress)

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
+from akdctl.catalog.texts import al_status_line
 from akdctl.drive.gate import classify_object
 from akdctl.drive.operation import PlannedWrite, WritePlan
 from akdctl.errors import CommError, DriveError, UsageError
@@ -89,8 +90,7 @@ class Layout:
 def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
     from akdctl.drive.pdo import read_mapping
 
-    transport = conn.transport()
-    if getattr(transport, "scheme", "") != "ecat":
+    if conn.target.scheme != "ecat":
         raise UsageError(f"'ecat pdo watch' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
                          f"{conn.target.display} cannot take the slave to OP")
     mapping = read_mapping(conn.objects())
@@ -154,7 +154,7 @@ def execute(conn: "Connection", plan: WritePlan, duration: float, period: float,
             if al is not None and (al & 0x0F != ec.AlState.OP or al & ec.AL_ERROR_FLAG):
                 code = master.al_status(slave.station)[1]
                 ended = "left-op"
-                raise DriveError(f"the slave left OP at cycle {cycle.cycles}: now {ec.describe_al(al, code)}",
+                raise DriveError(f"the slave left OP at cycle {cycle.cycles}: now {al_status_line(al, code)}",
                                  code=code, details={"al_status": al, "al_status_code": code})
             if wkc != cycle.expected_wkc:
                 on_sample(last_values, wkc, cycle.expected_wkc, cycle.cycles)

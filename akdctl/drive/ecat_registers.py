@@ -50,7 +50,7 @@ def guarded(address: int, size: int) -> list[str]:
 
 def raw_bus(conn: "Connection") -> Any:
     transport = conn.transport()
-    if getattr(transport, "scheme", "") != "ecat":
+    if conn.target.scheme != "ecat":
         raise UsageError(f"register and SII access need akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
                          f"{conn.target.display} offers no register access")
     return transport

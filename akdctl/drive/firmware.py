@@ -79,7 +79,7 @@ def check_file(data: bytes, name: str, path: str) -> str:
 
 def _need_bus(conn: "Connection") -> Any:
     transport = conn.transport()
-    if getattr(transport, "scheme", "") not in ("ecat", "ecat+soem"):
+    if conn.target.scheme not in ("ecat", "ecat+soem"):
         raise UsageError(f"a firmware download needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS] or "
                          f"ecat+soem://IFNAME[/POS]); {conn.target.display} cannot put the drive in BOOT")
     return transport
@@ -97,8 +97,7 @@ def drive_state(conn: "Connection") -> dict[str, Any]:
     except AkdError:
         sw = None
     powered = None if sw is None else ((sw & 0x6F) in (0x27, 0x07) or (sw & 0x4F) == 0x0F)
-    transport = conn.transport()
-    al = transport.al_state() if hasattr(transport, "al_state") else None
+    al = conn.al_state()
     return {"identity": identity, "firmware": identity.get("software_version"), "statusword": sw,
             "powered": powered, "al_state": al}
 
@@ -139,9 +138,11 @@ def execute(conn: "Connection", plan: WritePlan, progress: "Progress | None" = N
     transfer = write_in_boot(transport, request, progress)
     restart_s = transfer.pop("restart_s")
     transport.open_mailbox()
-    if getattr(transport, "scheme", "") == "ecat+soem":
+    if conn.target.scheme == "ecat+soem":
+        from akdctl.channels.soem_sdo import SoemObjectChannel
+
         channel = conn.objects()
-        if hasattr(channel, "slave"):  # the restarted slave, for the reads after
+        if isinstance(channel, SoemObjectChannel):  # the restarted slave, for the reads after
             channel.slave = transport.sdo_client.slave
     after = drive_state(conn)
     before = plan.data["before"]
@@ -163,8 +164,8 @@ def write_in_boot(transport: Any, request: FirmwareRequest, progress: "Progress 
     the slave is still sent to INIT (a known state) before the error goes up."""
     from akdctl.channels.foe_client import FoeClient
 
-    timeout = max(PACKET_TIMEOUT, float(getattr(transport.options, "timeout", 0) or 0))
-    if getattr(transport, "scheme", "") == "ecat+soem":
+    timeout = max(PACKET_TIMEOUT, float(transport.options.timeout or 0))
+    if transport.target.scheme == "ecat+soem":
         return transport.foe_write_in_boot(request.name, request.data, request.password, timeout,
                                            request.restart_timeout, progress)
     link = transport.enter_boot()
