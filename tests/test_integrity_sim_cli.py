@@ -21,3 +21,24 @@ def test_nine_faults_at_once_are_refused_not_silently_cut_to_eight(akd_inproc) -
     assert code == 2 and "inject at most 0 more" in err
     code, out, err = akd_inproc("sim", "fault", "n503")  # a warning never enters PNU 947
     assert code == 0, err
+
+
+def test_sim_serve_serves_the_target_drive_not_default(akd) -> None:
+    """Issue 23.9: ``-T sim://axis2 sim serve`` served 'default'."""
+    code, out, err = akd("-T", "sim://axis2", "sim", "serve", "--ethernetip", "127.0.0.1:0", "--eip-io-port", "0",
+                         "--duration", "0.2")
+    assert code == 0, err
+    assert "serving simulated drive 'axis2'" in err
+    code, out, err = akd("-T", "sim://axis2", "sim", "serve", "--name", "other", "--ethernetip", "127.0.0.1:0",
+                         "--eip-io-port", "0", "--duration", "0.2")
+    assert code == 0 and "serving simulated drive 'other'" in err
+
+
+def test_a_face_option_without_its_face_is_refused(akd_inproc) -> None:
+    """Issue 23.12: ``sim serve --dcp IF`` without ``--profinet`` was silently ignored."""
+    code, out, err = akd_inproc("sim", "serve", "--ethernetip", "127.0.0.1:0", "--dcp", "lo", "--duration", "0")
+    assert code == 2
+    assert "--dcp needs --profinet" in err and err.count("\n") == 1
+    code, out, err = akd_inproc("sim", "serve", "--ethernetip", "127.0.0.1:0", "--pn-ars", "3", "--ecat-serial", "7",
+                                "--duration", "0")
+    assert code == 2 and "--pn-ars needs --profinet" in err and "--ecat-serial needs --ethercat-raw" in err
