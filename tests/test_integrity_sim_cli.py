@@ -42,3 +42,56 @@ def test_a_face_option_without_its_face_is_refused(akd_inproc) -> None:
     code, out, err = akd_inproc("sim", "serve", "--ethernetip", "127.0.0.1:0", "--pn-ars", "3", "--ecat-serial", "7",
                                 "--duration", "0")
     assert code == 2 and "--pn-ars needs --profinet" in err and "--ecat-serial needs --ethercat-raw" in err
+
+
+def test_a_state_file_that_is_a_directory_gets_advice_that_works(akd_inproc, isolated_env) -> None:
+    """Issue 23.22: 'run sim reset' was the advice, and 'sim reset' then failed on the directory."""
+    isolated_env.mkdir(parents=True, exist_ok=True)
+    (isolated_env / "sim-default.json").mkdir()
+    code, _, err = akd_inproc("pnu", "get", "930")
+    assert code == 2 and "run 'akdctl sim reset'" in err and err.count("\n") == 1
+    code, _, err = akd_inproc("sim", "reset")
+    assert code == 0, err
+    assert akd_inproc("pnu", "get", "930")[0] == 0
+    # A directory with files in it is the user's: the advice is to move it, and reset does not delete it.
+    (isolated_env / "sim-default.json").unlink()
+    (isolated_env / "sim-default.json").mkdir()
+    (isolated_env / "sim-default.json" / "keep.txt").write_text("mine")
+    code, _, err = akd_inproc("pnu", "get", "930")
+    assert code == 2 and "move it away" in err and "sim reset" not in err
+    code, _, err = akd_inproc("sim", "reset")
+    assert code == 2 and "move it away" in err
+    assert (isolated_env / "sim-default.json" / "keep.txt").read_text() == "mine"
+
+
+def test_a_full_state_disk_while_taking_the_owner_lock_is_exit_2_naming_the_way_out(akd_inproc, monkeypatch) -> None:
+    """Issue 23.22: ``jog`` on a full state disk was exit 4 'cannot take the axis's owner lock'; README promises
+    exit 2 naming the way out for a full or read-only state directory."""
+    import errno
+    import os
+
+    from akdctl.io import owner_lock
+
+    def full(self: object, command: str) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(owner_lock.OwnerLock, "acquire", full)
+    code, _, err = akd_inproc("-y", "jog", "100", "--for", "0.2s")
+    assert code == 2, err
+    assert "No space left on device" in err and "AKDCTL_STATE_DIR" in err and "nothing was written" in err
+    assert err.count("\n") == 1
+
+
+def test_a_change_whose_reply_came_late_is_an_unknown_outcome(akd) -> None:
+    """Issue 23.22: the write landed but its answer came after --timeout: "no answer" was wrong; say
+    "unknown outcome" and what to check. The face delays its 3rd datagram (the Read record of the change)."""
+    from tests.harness import SimServer
+
+    with SimServer("--profinet", "127.0.0.1:0", "--pn-inject", "delay=3:0.8") as server:
+        target = f"pn://{server.host}:{server.port}"
+        result = akd("-T", target, "--timeout", "0.5", "--retries", "0", "-y", "pnu", "set", "930=2", timeout=30)
+        assert result.returncode == 3, result.stderr
+        assert "unknown outcome" in result.stderr and "check with 'akdctl pnu get 930'" in result.stderr
+        assert result.stderr.count("\n") == 1
+        result = akd("-T", target, "--json", "pnu", "get", "930", timeout=30)
+        assert json.loads(result.stdout)["parameters"][0]["values"] == [2]  # it had landed

@@ -65,9 +65,12 @@ def own_axis(app: Any) -> None:
         raise SafetyRefusal(f"refusing: the axis of {app.target.display} is in use by {_owner_text(busy.owner)}; "
                             "wait until it ends, or stop it ('akdctl stop' is never refused); nothing was written",
                             details={"owner": busy.owner}) from None
-    except OSError as exc:
-        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock {lock.path} "
-                            f"({exc.strerror or exc}); nothing was written") from None
+    except OSError as exc:  # the state directory, not the drive: exit 2 naming the way out (README, issue 23.22)
+        from akdctl.errors import UsageError
+
+        raise UsageError(f"cannot take the axis's owner lock {lock.path} ({exc.strerror or exc}); check that "
+                         f"{lock.path.parent.parent} is a writable directory with free space (set AKDCTL_STATE_DIR "
+                         "to use another); nothing was written") from None
     app.axis_owner = lock
     app._cleanups.insert(0, lock.release)  # the last cleanup: after the connection is closed
 

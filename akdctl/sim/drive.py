@@ -177,6 +177,30 @@ class SimDrive:
         return SimStateError(f"simulator state file {self.path} is corrupt ({why}); "
                              "run 'akdctl sim reset' to restore factory state")
 
+    def _directory_error(self) -> SimStateError:
+        """The state file's path is a directory: 'sim reset' replaces an empty one; one with files in it is
+        the user's to move, never deleted by us (issue 23.22: the advice must work when followed)."""
+        try:
+            empty = not any(os.scandir(self.path))
+        except OSError:
+            empty = False
+        if empty:
+            return self._corrupt("an empty directory, not a regular file")
+        return SimStateError(f"simulator state file {self.path} is a directory with files in it, not a state file; "
+                             "move it away (akdctl never deletes it), then the drive starts in factory state")
+
+    def _clear_directory(self) -> None:
+        """For :meth:`reset`: an empty directory where the state file belongs is removed; any other is refused."""
+        try:
+            os.rmdir(self.path)
+        except FileNotFoundError:
+            pass
+        except NotADirectoryError:
+            pass
+        except OSError:
+            if self.path.is_dir():
+                raise self._directory_error() from None
+
     def _clean_temporaries(self) -> None:
         """Remove temporary state files a killed writer left (any one present while we hold the lock is stale)."""
         with contextlib.suppress(OSError), os.scandir(self.directory) as entries:
@@ -197,6 +221,8 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot read simulator state", self.path, exc) from None
         except FileRefused as refused:
+            if refused.kind == "a directory":
+                raise self._directory_error() from None
             if refused.kind is not None:
                 raise self._corrupt(f"{refused.kind}, not a regular file") from None
             raise self._corrupt(f"{refused.size or 'grew beyond ' + str(MAX_STATE_BYTES)} bytes, "
@@ -302,6 +328,8 @@ class SimDrive:
         with self._locked() as lock_fd:
             self._held = None
             self._clean_temporaries()
+            if self.path.is_dir() and not self.path.is_symlink():
+                self._clear_directory()
             self._new_token(lock_fd)
             self._save(DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
 
