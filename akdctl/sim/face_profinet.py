@@ -145,6 +145,58 @@ def _ar_timeout(value: Any) -> float | None:
     return float(value)
 
 
+# ---------------------------------------------------------------- refusals, reported once per cause
+
+#: How many AR holders a refusal line names (the rest are counted): a device with 64 ARs must not print 64.
+REPORTED_HOLDERS = 3
+
+
+class RefusalReport:
+    """Refused requests on a face's stderr: one line per cause, then counts instead of copies.
+
+    Why: a client that retries a refused Connect in a loop made the face write a long warning per datagram. The
+    first refusal of a cause is printed in full; later ones of the same cause are counted and summarised in one
+    line at most every ``interval`` seconds, and once more when the face stops, so nothing is hidden and the
+    log stays readable.
+    """
+
+    def __init__(self, face: str, interval: float = 10.0, write: Any = None) -> None:
+        self.face = face
+        self.interval = interval
+        self._write = write or self._stderr
+        self._lock = threading.Lock()
+        self._printed: dict[str, float] = {}
+        self._pending: dict[str, int] = {}
+
+    @staticmethod
+    def _stderr(line: str) -> None:
+        sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+
+    def refused(self, cause: str, text: str) -> bool:
+        """Report one refusal; True when this one was printed in full (the first of its cause, or the first
+        after ``interval`` seconds, carrying the count of those in between)."""
+        now = time.monotonic()
+        with self._lock:
+            last = self._printed.get(cause)
+            if last is not None and now - last < self.interval:
+                self._pending[cause] = self._pending.get(cause, 0) + 1
+                return False
+            self._printed[cause] = now
+            more = self._pending.pop(cause, 0)
+        suffix = f" [{more} more refused for this cause since the last report]" if more else ""
+        self._write(f"akdctl: warning: {self.face}: {text}{suffix}")
+        return True
+
+    def flush(self) -> None:
+        """Print the counts not reported yet (when the face stops)."""
+        with self._lock:
+            pending, self._pending = self._pending, {}
+        for cause, count in pending.items():
+            self._write(f"akdctl: warning: {self.face}: {count} more Connect(s) refused ({cause}) "
+                        "since the last report")
+
+
 # ---------------------------------------------------------------- AR state
 
 @dataclass
@@ -201,6 +253,7 @@ class ProfinetFace(Face):
         self.slot, self.subslot, self.api = slot, subslot, api
         self.fragment = fragment
         self.refuse_ar = refuse_ar
+        self.refusals = RefusalReport("profinet")
         self.station_name = station_name
         self.dcp_iface = dcp_iface
         self.max_ars = max_ars
@@ -243,6 +296,7 @@ class ProfinetFace(Face):
 
     def stop(self) -> None:
         self._stop.set()
+        self.refusals.flush()
         if self._wake_w >= 0:
             os.write(self._wake_w, b"x")
         if self._thread is not None:
@@ -471,16 +525,19 @@ class ProfinetFace(Face):
 
     def _report_full(self, peer: tuple[str, int]) -> None:
         """Name the ARs holding every slot: the refused client cannot learn it from the device (PROFINET has no
-        field for it), the person running the simulator can."""
+        field for it), the person running the simulator can. Through :class:`RefusalReport`: one line per cause,
+        repeats counted (issue 23.16: a client retrying in a loop wrote 853 KB in 4 minutes)."""
         now = time.monotonic()
+        ars = list(self._ars.values())
         holders = "; ".join(
             f"AR {ar.ar_uuid} of {ar.station or '?'} at {ar.peer[0]}:{ar.peer[1]}, idle {now - ar.last_activity:.1f} s, "
             f"dropped in {max(0.0, ar.timeout - (now - ar.last_activity)):.1f} s without a request"
-            for ar in self._ars.values())
-        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(self._ars)} held: {holders})"
-        self.stats.log.append(text)
-        sys.stderr.write(f"akdctl: warning: profinet: {text}\n")
-        sys.stderr.flush()
+            for ar in ars[:REPORTED_HOLDERS])
+        if len(ars) > REPORTED_HOLDERS:
+            holders += f"; and {len(ars) - REPORTED_HOLDERS} more"
+        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(ars)} held: {holders})"
+        if self.refusals.refused("out of AR resources", text):
+            self.stats.log.append(text)
 
     def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
         rel = pnio.ReleaseBlock.decode(blocks)
