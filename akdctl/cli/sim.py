@@ -111,7 +111,10 @@ def _serve_callback(**kwargs: Any) -> None:
     from akdctl.sim.drive import SimDrive
 
     duration = kwargs.pop("duration")
+    from akdctl.sim.drive import FACE_LOCK_TIMEOUT
+
     drive = _sim_drive(kwargs.pop("name"))  # the target's drive unless --name says otherwise (issue 23.9)
+    drive.lock_timeout = FACE_LOCK_TIMEOUT  # a face answers "busy" before its client's timeout (issue 23.15)
     name = drive.name
     faces = []
     orphans: list[str] = []

@@ -48,6 +48,10 @@ from akdctl.sim.model import DriveModel
 T = TypeVar("T")
 
 LOCK_TIMEOUT = 5.0
+#: How long a network face waits for the state lock before it answers "busy" in its protocol's words: less than
+#: one attempt of a client with the default --timeout (2 s over 3 attempts), so the client hears the answer instead
+#: of giving up first (issue 23.15). A transaction holds the lock for milliseconds; 0.5 s means something is stuck.
+FACE_LOCK_TIMEOUT = 0.5
 DEFAULT_TIME_SCALE = 1.0
 MAX_STATE_BYTES = 64 << 20  # far above any real state; a bigger file is not ours
 TOKEN_BYTES = 32
@@ -96,6 +100,7 @@ class SimDrive:
         self._sdo_server: Any = None
         self._pnu_server: Any = None
         self._lock_fd = -1
+        self.lock_timeout = LOCK_TIMEOUT  # sim serve lowers it to FACE_LOCK_TIMEOUT for its faces
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
         self._held: _Held | None = None
@@ -116,7 +121,7 @@ class SimDrive:
 
     # ------------------------------------------------------------------ locking
     def _locked_text(self) -> str:
-        return f"simulated drive {self.name!r} is locked by another process for more than {LOCK_TIMEOUT:g} s"
+        return f"simulated drive {self.name!r} is locked by another process for more than {self.lock_timeout:g} s"
 
     def _open_lock(self) -> int:
         try:
@@ -128,7 +133,7 @@ class SimDrive:
     def _acquire(self) -> int:
         """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file; returns
         the lock file's descriptor. :meth:`_release` lets go of both."""
-        if not self._mutex.acquire(timeout=LOCK_TIMEOUT):
+        if not self._mutex.acquire(timeout=self.lock_timeout):
             raise CommError(self._locked_text())
         try:
             deadline = None
@@ -139,7 +144,7 @@ class SimDrive:
                     fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError as exc:
                     now = time.monotonic()
-                    deadline = deadline or now + LOCK_TIMEOUT
+                    deadline = deadline or now + self.lock_timeout
                     if exc.errno not in (errno.EAGAIN, errno.EACCES) or now > deadline:
                         raise CommError(self._locked_text()) from None
                     time.sleep(0.005)

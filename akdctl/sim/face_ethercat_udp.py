@@ -48,7 +48,7 @@ def parse_stations(text: str | None, drive: SimDrive) -> dict[int, SimDrive]:
             addr = -1
         if not sep or not 1 <= addr <= 0xFFFF or not name.replace("-", "").replace("_", "").isalnum():
             raise UsageError(f"--ecat-stations: {part!r} is not STATION=NAME (station 1..65535, e.g. 1001=default)")
-        stations[addr] = drive if name == drive.name else SimDrive(name, drive.directory)
+        stations[addr] = drive if name == drive.name else _face_drive(SimDrive(name, drive.directory), drive)
     return stations
 
 
@@ -179,3 +179,9 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatUdpFace | None:
     stations = parse_stations(kwargs.get("ecat_stations") or None, drive)  # type: ignore[arg-type]
     injector = Injector.parse(kwargs.get("ecat_inject") or None, "--ecat-inject")  # type: ignore[arg-type]
     return EthercatUdpFace(host, port, GatewayHandler(stations, injector))
+
+
+def _face_drive(new: "SimDrive", like: "SimDrive") -> "SimDrive":
+    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout)."""
+    new.lock_timeout = like.lock_timeout
+    return new

@@ -212,10 +212,19 @@ class PnioRecordLink(RecordLink):
 
     def _until_not_busy(self, deadline: Deadline, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
         pause = BUSY_BACKOFF[0]
+        busy: pnio.PnioStatus | None = None
         while True:
-            status, data = action()
+            try:
+                status, data = action()
+            except NoAnswer:
+                if busy is None:
+                    raise
+                # The drive did answer: busy, until the time ran out. Say that, not "no answer" (issue 23.15).
+                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
+                               f"({what} record: {busy.describe()})", code=busy.value) from None
             if not status.busy:
                 return data
+            busy = status
             if pause > deadline.remaining():
                 raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
                                f"({what} record: {status.describe()})", code=status.value)
