@@ -326,7 +326,7 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         assert result.returncode == 0, result.stderr
         data = json.loads(result.stdout)
         assert data["query"] == "10.213.0.255"
-        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
+        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00606-NBCC-E000"]  # sim/identity.py
     finally:
         if server is not None:
             server.stop()

@@ -29,13 +29,14 @@ from __future__ import annotations
 
 import struct
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from akdctl.catalog import eip_parameters
 from akdctl.protocol import akd_assembly as asm
 from akdctl.protocol import cip
 from akdctl.protocol.errors import CodecError
+from akdctl.sim import identity as _identity
 from akdctl.sim.errors import SdoAccessError
 
 CIA_COUNTS = 65536
@@ -65,9 +66,10 @@ class IdentitySettings:
     vendor: int = 452                    # "Kollmorgen" in pycomm3's vendor table [I]
     device_type: int = 0x10              # position controller [I]
     product_code: int = 1                # [I]
-    revision: tuple[int, int] = (1, 18)
-    serial: int = 0x00AD0001
-    product_name: str = "AKD-P00306-NBEI-0000 (simulated)"
+    # Revision, serial and name from the drive's one identity record (sim/identity.py, issue 23.8).
+    revision: tuple[int, int] = field(default_factory=lambda: _identity.firmware_numbers()[:2])
+    serial: int = _identity.SERIAL
+    product_name: str = _identity.ORDER_CODE
 
     @classmethod
     def parse(cls, text: str | None) -> "IdentitySettings":

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import threading
+from typing import Any
 
 from akdctl.io.raw_socket import open_raw_socket
 from akdctl.protocol import ethercat as ec
@@ -142,7 +143,7 @@ class EthercatRawFace(Face):
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
         # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
-        image = akd_sii_image(mailbox_size=SIM_MAILBOX, **({"serial": serial} if serial is not None else {}))
+        image = sim_sii_image(serial)
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
         # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
@@ -232,3 +233,12 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
     injector = Injector.parse(kwargs.get("ecat_raw_inject") or None, "--ecat-raw-inject")  # type: ignore[arg-type]
     serial = kwargs.get("ecat_serial")
     return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None)  # type: ignore[arg-type]
+
+
+def sim_sii_image(serial: int | None = None) -> Any:
+    """The raw slave's SII: order code, firmware and serial from the drive's one identity record (issue 23.8);
+    ``--ecat-serial`` overrides the serial for a bus of several simulated slaves."""
+    from akdctl.sim import identity
+
+    return akd_sii_image(mailbox_size=SIM_MAILBOX, serial=identity.SERIAL if serial is None else serial,
+                         revision=identity.COE_REVISION, order=identity.ORDER_CODE, firmware=identity.FIRMWARE)

@@ -614,8 +614,12 @@ class ProfinetFace(Face):
         return pnio_record.read_res(req, response[: max(0, req.length)])
 
     def im0(self) -> pnio.IM0:
-        return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
-                        hardware_revision=4, sw_revision=("V", 1, 13, 0), revision_counter=0,
+        from akdctl.sim import identity  # the drive's one identity record (issue 23.8)
+
+        major, minor, patch, _ = identity.firmware_numbers()
+        return pnio.IM0(vendor_id=self.vendor_id, order_id=identity.ORDER_CODE, serial_number=str(identity.SERIAL),
+                        hardware_revision=identity.hardware_revision_number(), sw_revision=("V", major, minor, patch),
+                        revision_counter=0,
                         profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)
 
 

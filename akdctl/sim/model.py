@@ -39,6 +39,7 @@ from akdctl.sim.component import (
 )
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
 from akdctl.sim.faults import FaultComponent
+from akdctl.sim import identity as _identity
 from akdctl.sim.foe import FoeFiles
 from akdctl.sim.motion import MotionComponent
 from akdctl.sim.pdo import PdoComponent
@@ -349,14 +350,15 @@ class DriveModel:
 # Identity of the simulated drive where the ESI gives no default (a real drive reports its own).
 SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
     (0x1008, 0): b"AKD",
-    (0x1009, 0): b"E",
-    (0x100A, 0): b"M_01-20-00-001",
+    (0x1009, 0): _identity.HARDWARE_REVISION.encode(),  # the one identity record (sim/identity.py, issue 23.8)
+    (0x100A, 0): f"M_{_identity.FIRMWARE}".encode(),
+    (0x2033, 0): _identity.ORDER_CODE.encode(),  # DRV.MODEL
     (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
     (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
     # Revision and serial as the simulated ESC's SII reports them (protocol/sii.py akd_sii_image, taken from a real
     # AKD's SII dump): one identity over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
-    (0x1018, 3): (0x00000002).to_bytes(4, "little"),
-    (0x1018, 4): (2575499411).to_bytes(4, "little"),
+    (0x1018, 3): _identity.COE_REVISION.to_bytes(4, "little"),
+    (0x1018, 4): _identity.SERIAL.to_bytes(4, "little"),
     # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the ESI
     # gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
     (0x36E8, 0): (1).to_bytes(4, "little"),
