@@ -46,7 +46,10 @@ class SlaveWorker:
     """The drive application behind the ESC's mailbox: SDO server + fault injection."""
 
     def __init__(self, esc: Esc, drive: SimDrive, injector: Injector) -> None:
+        from akdctl.sim.mailbox_repeat import MailboxRepeats
+
         self.esc, self.drive, self.injector = esc, drive, injector
+        self.repeats = MailboxRepeats()  # the ESC's one mailbox: a repeated counter is not executed twice
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -72,7 +75,7 @@ class SlaveWorker:
                 return [mailbox_error_reply(request)], False
             if fault == "abort" and (abort := sdo_abort_reply(request)) is not None:
                 return [abort], False
-            return self.drive.handle_mailbox(request), fault == "drop"
+            return self.repeats.answer("sm0", request, self.drive.handle_mailbox), fault == "drop"
         except CodecError:
             with contextlib.suppress(CodecError):
                 return [mailbox_error_reply(request, 1)], False  # syntax of the mailbox protocol header wrong

@@ -69,10 +69,13 @@ class GatewayHandler:
     """
 
     def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
+        from akdctl.sim.mailbox_repeat import MailboxRepeats
+
         self.stations = stations
         self.injector = injector or Injector()
+        self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
 
-    def handle(self, datagram: bytes) -> list[bytes]:
+    def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
@@ -96,7 +99,7 @@ class GatewayHandler:
             replies = [abort]
         else:
             try:
-                replies = drive.handle_mailbox(raw)
+                replies = self.repeats.answer((peer, station), raw, drive.handle_mailbox)
             except CodecError:
                 replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
@@ -148,7 +151,7 @@ class EthercatUdpFace(Face):
             except OSError:
                 break
             try:
-                replies = self.handler.handle(data)
+                replies = self.handler.handle(data, peer)
             except Exception as exc:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
                 request_failed("ethercat-udp", exc)
                 replies = []
