@@ -241,7 +241,7 @@ def test_pycomm3_as_client_of_the_face(serve, tmp_path) -> None:
                             text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout)
-    assert out["name"].endswith("(simulated)") and out["set"] is None and out["read"] == 4096
+    assert out["name"].endswith("AKD-P00606-NBCC-E000") and out["set"] is None and out["read"] == 4096  # sim/identity.py
     assert "Object does not exist" in out["missing"] and "not settable" in out["readonly"].lower()
 
 
