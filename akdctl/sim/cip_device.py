@@ -37,7 +37,9 @@ from akdctl.protocol import akd_assembly as asm
 from akdctl.protocol import cip
 from akdctl.protocol.errors import CodecError
 from akdctl.sim import identity as _identity
+from akdctl.sim.drive import SimStateError
 from akdctl.sim.errors import SdoAccessError
+from akdctl.sim.face import request_failed
 
 CIA_COUNTS = 65536
 DEFAULT_UNIT = 65536
@@ -96,6 +98,10 @@ class IdentitySettings:
         return settings
 
 
+#: The Parameter object's unit parameters, by their _PcState attribute: kept in the drive model by AKD name.
+_UNIT_PARAMETERS = {"posunit": "EIP.POSUNIT", "profunit": "EIP.PROFUNIT"}
+
+
 @dataclass
 class _PcState:
     """Position Controller attributes that live in the EtherNet/IP interface (volatile, per face)."""
@@ -132,6 +138,7 @@ class CipDevice:
         self.pc = _PcState()
         self.io = IoState()
         self.requests = 0
+        self._units_loaded = False
 
     # ================================================================ explicit messages
     def handle(self, message: bytes) -> bytes:
@@ -148,10 +155,14 @@ class CipDevice:
         try:
             with self.lock:
                 self.requests += 1
+                self._load_units()
                 data = self._dispatch(req.service, path, req.data)
             return cip.Response(req.service, cip.SUCCESS, (), data).encode()
         except CipRefusal as exc:
             return cip.Response(req.service, exc.status, exc.extended).encode()
+        except SimStateError as exc:  # the drive cannot keep what it was told: "resource unavailable" (issue 23.11)
+            request_failed("ethernetip", exc)
+            return cip.Response(req.service, cip.RESOURCE_UNAVAILABLE).encode()
         except Exception:  # noqa: BLE001 - a face survives any per-request error
             return cip.Response(req.service, cip.DEVICE_STATE_CONFLICT).encode()
 
@@ -274,8 +285,19 @@ class CipDevice:
         value = struct.unpack("<I", data)[0]
         if not 1 <= value <= 1 << 31:        # range 0..2^31 [M-21]; 0 would divide by zero
             raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE)
+        with self._model() as model:  # kept with the drive's state: saved before the reply, or refused
+            model.set_named_value(_UNIT_PARAMETERS[modelled[instance]], value)
         setattr(self.pc, modelled[instance], value)
         return b""
+
+    def _load_units(self) -> None:
+        """EIP.POSUNIT/EIP.PROFUNIT as the drive keeps them (once per face: only this face writes them)."""
+        if self._units_loaded:
+            return
+        with self._model() as model:
+            for key, name in _UNIT_PARAMETERS.items():
+                setattr(self.pc, key, model.named_value(name, DEFAULT_UNIT))
+        self._units_loaded = True
 
     # ---------------------------------------------------------------- model access
     def _model(self) -> Any:

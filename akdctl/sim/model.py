@@ -75,6 +75,9 @@ class DriveModel:
         self.time_scale = 1.0  # virtual seconds per wall second (SimDrive sets it; the watchdog counts wall time)
         self.pnu_values: dict[int, list[int]] = {}
         self.object_values: dict[tuple[int, int], bytes] = {}
+        # AKD parameters a face keeps that have no PNU or object address (EtherNet/IP's EIP.POSUNIT, EIP.PROFUNIT):
+        # kept with the rest, so a write over any face survives a restart (issue 23.11)
+        self.named_values: dict[str, int] = {}
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
         # Bumped by every change of persisted state: the stored values here, every component's (component.Tracked);
         # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
@@ -312,6 +315,15 @@ class DriveModel:
         self.writes += 1
         self.revision += 1
 
+    def named_value(self, name: str, default: int) -> int:
+        """An AKD parameter kept by name (a face's parameter without a PNU or object), ``default`` until written."""
+        return self.named_values.get(name, default)
+
+    def set_named_value(self, name: str, value: int) -> None:
+        self.named_values[name] = int(value)
+        self.writes += 1
+        self.revision += 1
+
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:
         return {
@@ -320,6 +332,7 @@ class DriveModel:
             "writes": self.writes,
             "pnus": {str(k): v for k, v in sorted(self.pnu_values.items())},
             "objects": {f"{i:04X}:{s:02X}": d.hex() for (i, s), d in sorted(self.object_values.items())},
+            "named": dict(sorted(self.named_values.items())),
             "components": {c.name: c.to_state() for c in self.components},
         }
 
@@ -339,6 +352,10 @@ class DriveModel:
             for key, hexdata in dict(state.get("objects", {})).items():
                 index, _, sub = str(key).partition(":")
                 model.object_values[(int(index, 16), int(sub, 16))] = bytes.fromhex(hexdata)
+            for name, value in dict(state.get("named", {})).items():
+                if not isinstance(value, int) or isinstance(value, bool):
+                    raise ValueError(f"parameter {name}: the value must be an integer")
+                model.named_values[str(name)] = value
             comp_states = dict(state.get("components", {}))
             for comp in model.components:
                 comp.load_state(dict(comp_states.get(comp.name, {})))
