@@ -9,7 +9,6 @@ and compares the views of each quantity at one instant, and reads them through t
 from __future__ import annotations
 
 import json
-import time
 
 import pytest
 

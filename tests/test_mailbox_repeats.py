@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from akdctl.protocol import coe, mailbox as mbx
+from akdctl.protocol import coe
+from akdctl.protocol import mailbox as mbx
 from akdctl.sim import face_ethercat_udp
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.mailbox_repeat import REPEAT_WINDOW_S, MailboxRepeats
@@ -46,7 +47,7 @@ def test_a_repeat_is_only_recognised_within_its_window(monkeypatch: pytest.Monke
     calls: list[bytes] = []
     repeats = MailboxRepeats()
     request = mbx.pack(mbx.MailboxType.COE, coe.upload_request(0x6041, 0), 0, 1)
-    handle = lambda data: calls.append(data) or [b"reply"]  # noqa: E731
+    handle = lambda data: calls.append(data) or [b"reply"]
     repeats.answer("link", request, handle)
     repeats.answer("link", request, handle)
     assert len(calls) == 1

@@ -193,16 +193,26 @@ class EthernetIpFace(Face):
     # ------------------------------------------------------------- TCP
     def _accept_loop(self) -> None:
         assert self.tcp is not None
-        while not self._stop.is_set():
-            try:
-                ready, _, _ = select.select([self.tcp], [], [], 0.2)
-                if not ready:
+        from akdctl.sim.tcp_clients import TcpClients
+
+        # A cap on clients, refused in ENIP's words, EMFILE survived (sim/tcp_clients.py, issue 23.10)
+        self.clients = TcpClients("ethernetip", _refuse_client)
+        try:
+            while not self._stop.is_set():
+                try:
+                    accepted = self.clients.accept(self.tcp)
+                except (OSError, ValueError):
+                    return  # the listening socket was closed: the face stops
+                if accepted is None:
                     continue
-                client, peer = self.tcp.accept()
-            except OSError:
-                return
-            with self._lock:
-                self._clients.add(client)
+                client, peer = accepted
+                self._start_client(client, peer)
+        finally:
+            self.clients.close()
+
+    def _start_client(self, client: socket.socket, peer: tuple[str, int]) -> None:
+        with self._lock:
+            self._clients.add(client)
             thread = threading.Thread(target=self._serve_client, args=(client, peer), name="eip-client", daemon=True)
             thread.start()
             self._threads = [t for t in self._threads if t.is_alive()] + [thread]
@@ -232,6 +242,7 @@ class EthernetIpFace(Face):
         except (OSError, CodecError):
             return
         finally:
+            self.clients.release()
             with self._lock:
                 self._clients.discard(client)
                 self._sessions -= sessions
@@ -490,3 +501,13 @@ def _recv_exact(sock: socket.socket, size: int) -> bytes | None:
             return None
         data += chunk
     return bytes(data)
+
+
+def _refuse_client(sock: socket.socket) -> None:
+    """A client over the cap: its first request is answered with encapsulation status 0x0002 "insufficient
+    memory" (the receiver lacks the resources for the command), in that request's command and context."""
+    head = sock.recv(enip.HEADER_SIZE)
+    if len(head) < enip.HEADER_SIZE:
+        return
+    header = enip.decode_header(head)
+    sock.sendall(enip.Packet(header.command, b"", header.session, enip.STATUS_NO_MEMORY, header.context).encode())

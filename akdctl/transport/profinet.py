@@ -30,10 +30,17 @@ import time
 import uuid
 from typing import TYPE_CHECKING
 
-from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UnknownOutcome, UsageError
+from akdctl.errors import (
+    CommError,
+    MalformedReply,
+    NoAnswer,
+    RecordError,
+    UnknownOutcome,
+    UsageError,
+)
+from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.links import Deadline, RecordLink
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
