@@ -136,7 +136,7 @@ _akdctl() {
         "pn set-ip") COMPREPLY=($(compgen -W "--gateway --help --iface --netmask --temporary -i" -- "$cur")) ;;
         "pn set-name") COMPREPLY=($(compgen -W "--help --iface --temporary -i" -- "$cur")) ;;
         "ecat") COMPREPLY=($(compgen -W "scan sii state --help" -- "$cur")) ;;
-        "ecat scan") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "ecat scan") COMPREPLY=($(compgen -W "--help --iface" -- "$cur")) ;;
         "ecat sii") COMPREPLY=($(compgen -W "--help --raw" -- "$cur")) ;;
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "can") COMPREPLY=($(compgen -W "nmt scan --help" -- "$cur")) ;;

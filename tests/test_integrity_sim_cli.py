@@ -95,3 +95,22 @@ def test_a_change_whose_reply_came_late_is_an_unknown_outcome(akd) -> None:
         assert result.stderr.count("\n") == 1
         result = akd("-T", target, "--json", "pnu", "get", "930", timeout=30)
         assert json.loads(result.stdout)["parameters"][0]["values"] == [2]  # it had landed
+
+
+def test_every_scan_takes_the_target_or_iface(akd, akd_inproc) -> None:
+    """Issue 23.22: the four scan commands chose what to scan four ways. One rule now: the target (-T), or
+    --iface IFNAME to broadcast on a link (never by default). ``eip scan`` asks the target's host; ``ecat scan``
+    takes --iface as it takes -T ecat://IFNAME; ``pn scan`` (DCP is link-level) and ``can scan`` (the target's bus)
+    already followed it."""
+    from tests.harness import SimServer
+
+    with SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0") as server:
+        address = next(line.split()[1] for line in server.ready if line.startswith("ethernetip"))
+        by_target = akd("-T", f"eip://{address}", "--json", "eip", "scan", timeout=60)
+        assert by_target.returncode == 0, by_target.stderr
+        assert [d["product_name"] for d in json.loads(by_target.stdout)["devices"]] == ["AKD-P00606-NBCC-E000"]
+    code, _, err = akd_inproc("eip", "scan")
+    assert code == 2 and "-T eip://HOST" in err and "--iface" in err
+    via_iface = akd_inproc("ecat", "scan", "--iface", "nosuchif0")
+    via_target = akd_inproc("-T", "ecat://nosuchif0", "ecat", "scan")
+    assert via_iface[0] == via_target[0] == 2 and via_iface[2] == via_target[2]
