@@ -54,3 +54,9 @@ def test_the_raw_slaves_sii_carries_the_same_identity() -> None:
     categories = dict(decoded.categories)
     assert categories[0x0800].rstrip(b"\0").decode() == identity.ORDER_CODE
     assert categories[0x0801].rstrip(b"\0").decode() == identity.FIRMWARE
+
+
+def test_the_preset_keys_are_the_defaults_keys() -> None:
+    from akdctl.sim import model
+
+    assert model._PRESET_KEYS == set(model.sim_object_defaults())

@@ -4,7 +4,7 @@ Why one record: the simulated drive used to report three serial numbers, firmwar
 depending on the face asked (issue 23.8: PROFINET I&M0 / PNU 964, CoE 0x1018/0x100A and the SII, the CIP
 Identity object), which a real drive never does. The values come from the one real AKD the project has data
 of, its SII EEPROM dump (reference/akd_sii_eeprom_dump.decoded.txt): order code, firmware string and serial
-number. How each protocol spells them is the face's business (``face_profinet.im0``, ``model.SIM_OBJECT_DEFAULTS``,
+number. How each protocol spells them is the face's business (``face_profinet.im0``, ``model.sim_object_defaults``,
 ``cip_device.IdentitySettings``, ``face_ethercat_raw``'s SII image); the facts are here, once.
 """
 

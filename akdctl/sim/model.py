@@ -39,7 +39,6 @@ from akdctl.sim.component import (
 )
 from akdctl.sim.errors import PnuAccessError, SdoAccessError
 from akdctl.sim.faults import FaultComponent
-from akdctl.sim import identity as _identity
 from akdctl.sim.foe import FoeFiles
 from akdctl.sim.motion import MotionComponent
 from akdctl.sim.pdo import PdoComponent
@@ -364,22 +363,34 @@ class DriveModel:
         return model
 
 
-# Identity of the simulated drive where the ESI gives no default (a real drive reports its own).
-SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
-    (0x1008, 0): b"AKD",
-    (0x1009, 0): _identity.HARDWARE_REVISION.encode(),  # the one identity record (sim/identity.py, issue 23.8)
-    (0x100A, 0): f"M_{_identity.FIRMWARE}".encode(),
-    (0x2033, 0): _identity.ORDER_CODE.encode(),  # DRV.MODEL
-    (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
-    (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
-    # Revision and serial as the simulated ESC's SII reports them (protocol/sii.py akd_sii_image, taken from a real
-    # AKD's SII dump): one identity over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
-    (0x1018, 3): _identity.COE_REVISION.to_bytes(4, "little"),
-    (0x1018, 4): _identity.SERIAL.to_bytes(4, "little"),
-    # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the ESI
-    # gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
-    (0x36E8, 0): (1).to_bytes(4, "little"),
-}
+# Identity of the simulated drive where the ESI gives no default (a real drive reports its own), built on first use:
+# the identity record is imported only when an identity object is read (the PNU path never needs it).
+_sim_object_defaults: dict[tuple[int, int], bytes] | None = None
+_PRESET_KEYS = frozenset({(0x1008, 0), (0x1009, 0), (0x100A, 0), (0x2033, 0), (0x1018, 1), (0x1018, 2), (0x1018, 3),
+                          (0x1018, 4), (0x36E8, 0)})  # the keys of sim_object_defaults(), known without building it
+
+
+def sim_object_defaults() -> dict[tuple[int, int], bytes]:
+    global _sim_object_defaults
+    if _sim_object_defaults is None:
+        from akdctl.sim import identity  # the one identity record (sim/identity.py, issue 23.8)
+
+        _sim_object_defaults = {
+            (0x1008, 0): b"AKD",
+            (0x1009, 0): identity.HARDWARE_REVISION.encode(),
+            (0x100A, 0): f"M_{identity.FIRMWARE}".encode(),
+            (0x2033, 0): identity.ORDER_CODE.encode(),  # DRV.MODEL
+            (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
+            (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
+            # Revision and serial as the simulated ESC's SII reports them (the real AKD's SII dump): one identity
+            # over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
+            (0x1018, 3): identity.COE_REVISION.to_bytes(4, "little"),
+            (0x1018, 4): identity.SERIAL.to_bytes(4, "little"),
+            # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the
+            # ESI gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
+            (0x36E8, 0): (1).to_bytes(4, "little"),
+        }
+    return _sim_object_defaults
 
 
 def _entry_size(entry: Any) -> int | None:
@@ -394,7 +405,8 @@ def _entry_signed(entry: Any) -> bool:
 
 
 def _default_bytes(entry: Any) -> bytes:
-    preset = SIM_OBJECT_DEFAULTS.get((entry.index, entry.subindex))
+    key = (entry.index, entry.subindex)
+    preset = sim_object_defaults().get(key) if key in _PRESET_KEYS else None
     if preset is not None:
         return preset
     size = _entry_size(entry)
