@@ -114,3 +114,18 @@ def test_every_scan_takes_the_target_or_iface(akd, akd_inproc) -> None:
     via_iface = akd_inproc("ecat", "scan", "--iface", "nosuchif0")
     via_target = akd_inproc("-T", "ecat://nosuchif0", "ecat", "scan")
     assert via_iface[0] == via_target[0] == 2 and via_iface[2] == via_target[2]
+
+
+def test_a_cip_set_whose_reply_came_late_is_an_unknown_outcome(akd) -> None:
+    """Issue 23.22 over eip://: the face answers the set (its 2nd request) 0.8 s late, after --timeout 0.5; the
+    set landed. Not "no answer": an unknown outcome naming the read to check."""
+    from tests.harness import SimServer
+
+    with SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0", "--eip-inject", "delay=2:0.8") as server:
+        target = "eip://" + next(line.split()[1] for line in server.ready if line.startswith("ethernetip"))
+        result = akd("-T", target, "--timeout", "0.5", "--retries", "0", "-y", "cip", "set", "0x0F/796/1", "u32",
+                     "70000", timeout=60)
+        assert result.returncode == 3, result.stderr
+        assert "unknown outcome" in result.stderr and "check with 'akdctl cip get 0x0F/796/1'" in result.stderr
+        back = akd("-T", target, "--json", "cip", "get", "0x0F/796/1", "u32", timeout=60)
+        assert json.loads(back.stdout)["value"] == 70000  # it had landed
