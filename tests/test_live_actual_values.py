@@ -90,3 +90,18 @@ def test_the_cli_reads_the_akd_names_live(jogging, akd_inproc) -> None:
     assert read["0x2077"] != 0 and read["0x3558"] != 0
     assert read["0x3618"] == pytest.approx(read["0x606C"], rel=0.01)
     assert read["0x3618"] / CIA_COUNTS_PER_REV * 60 == pytest.approx(300, rel=0.02)
+
+
+@pytest.mark.slow
+def test_the_cip_view_of_the_same_motion(jogging, akd) -> None:
+    """The Position Controller's actual velocity (0x25/1/14, in PROFUNIT counts per revolution per second) over
+    the EtherNet/IP face shows the same 300 rpm as 0x606C and VL.FB."""
+    from akdctl.sim.cip_device import DEFAULT_UNIT
+    from tests.harness import SimServer
+
+    with SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0") as server:
+        target = "eip://" + next(line.split()[1] for line in server.ready if line.startswith("ethernetip"))
+        result = akd("-T", target, "--json", "cip", "get", "0x25/1/14", "i32", timeout=60)
+    assert result.returncode == 0, result.stderr
+    rev_per_s = json.loads(result.stdout)["value"] / DEFAULT_UNIT
+    assert rev_per_s * 60 == pytest.approx(300, rel=0.02)

@@ -43,7 +43,6 @@ from akdctl.sim.face import request_failed
 
 CIA_COUNTS = 65536
 DEFAULT_UNIT = 65536
-SIM_RATED_MA = 3000                      # the simulated motor's rated current (for response type 5)
 HOMING_METHODS = {0: 35, 1: 17, 2: 1, 3: 19, 4: 3, 5: 34}   # AKD HOME.MODE -> a CiA 402 method of the same procedure
 PC_MODES = {0: 1, 1: 3, 2: 4}            # Position Controller mode -> 0x6060
 PC_ATTRS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 17, 25, 58, 100, 101)
@@ -400,7 +399,7 @@ class CipDevice:
                     "position": model.object_value(0x6064, 0), "velocity": model.object_value(0x606C, 0),
                     "homed": axis.homed, "homing": axis.homing is not None, "activity": axis.activity,
                     "task": axis.task is not None, "at_rest": axis.standstill,
-                    "current": model.object_value(0x6077, 0)}
+                    "current": model.object_value(0x6077, 0), "current_ma": model.object_value(0x2077, 0)}
 
     def _pc_mode(self, cia_mode: int) -> int:
         return {1: 0, 3: 1, 4: 2, 6: 0}.get(cia_mode, 0)
@@ -501,7 +500,7 @@ class CipDevice:
         status2 = asm.ST2_LOAD_COMPLETE if self.io.load_complete else 0
         motionstat = (1 if snap["task"] else 0) | (0b110 if snap["homed"] else 0) | (0b1000 if snap["homing"] else 0)
         rtype = command.response_type if command is not None else asm.RSP_NONE
-        value = round(snap["current"] * SIM_RATED_MA / 1000) if rtype == asm.RSP_TORQUE else 0
+        value = snap["current_ma"] if rtype == asm.RSP_TORQUE else 0  # the actual current of 0x2077 (issue 23.7)
         return asm.Response(status1=status1, status2=status2, response_axis=command.response_axis if command else 1,
                             response_type=rtype, data=asm.value_data(value),
                             actual_position=self._eip_pos(snap["position"]),
