@@ -60,3 +60,17 @@ def test_the_preset_keys_are_the_defaults_keys() -> None:
     from akdctl.sim import model
 
     assert model._PRESET_KEYS == set(model.sim_object_defaults())
+
+
+@pytest.mark.slow
+def test_a_named_drive_reports_its_own_serial_on_every_face(akd) -> None:
+    """A simulated drive other than 'default' has its own serial (0x1018:4, ``serial_for``); PROFINET's I&M0 and the
+    CIP Identity object report that one too, not the record's."""
+    from akdctl.sim.drive import serial_for
+
+    with SimServer("--name", "axis2", "--profinet", "127.0.0.1:0", "--ethernetip", "127.0.0.1:0",
+                   "--eip-io-port", "0", faces=2) as server:
+        pn = "pn://{}:{}".format(*server.address_of("profinet"))
+        eip = "eip://" + next(line.split()[1] for line in server.ready if line.startswith("ethernetip"))
+        serials = {json.loads(akd("-T", t, "--json", "info", timeout=60).stdout)["summary"]["serial"] for t in (pn, eip)}
+    assert serials == {str(serial_for("axis2"))} and serial_for("axis2") != identity.SERIAL

@@ -69,7 +69,7 @@ class IdentitySettings:
     product_code: int = 1                # [I]
     # Revision, serial and name from the drive's one identity record (sim/identity.py, issue 23.8).
     revision: tuple[int, int] = field(default_factory=lambda: _identity.firmware_numbers()[:2])
-    serial: int = _identity.SERIAL
+    serial: int | None = None            # None: the drive's own (0x1018:4), as every face reports it
     product_name: str = _identity.ORDER_CODE
 
     @classmethod
@@ -206,8 +206,9 @@ class CipDevice:
         # bits 4-7 extended status (3 = no I/O connection, 6 = an I/O connection in run), bit 10 major
         # recoverable fault while the drive reports a fault
         status = 0x0004 | (0x0060 if self.io.last_control is not None else 0x0030) | (0x0400 if self._fault() else 0)
+        serial = ident.serial if ident.serial is not None else self.drive.serial()
         return cip.IdentityAttributes(ident.vendor, ident.device_type, ident.product_code, ident.revision,
-                                      status, ident.serial, ident.product_name)
+                                      status, serial, ident.product_name)
 
     def _identity(self, service: int, path: cip.Path, data: bytes) -> bytes:
         attrs = self.identity_attributes()

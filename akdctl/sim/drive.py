@@ -405,6 +405,10 @@ class SimDrive:
         with self.transaction() as model:
             model.object_write(index, subindex, data)
 
+    def serial(self) -> int:
+        """This drive's serial number (0x1018:4): every face reports this one (sim/identity.py, issue 23.8)."""
+        return int.from_bytes(self.object_read(0x1018, 4)[:4], "little")
+
     def take_emergencies(self) -> list[Any]:
         """Emergencies the drive raised since the last call (for the CANopen face)."""
         with self.transaction() as model:
@@ -417,8 +421,10 @@ def serial_for(name: str) -> int:
     drives (``discover`` keys an inventory on the serial)."""
     import zlib
 
+    from akdctl.sim import identity
+
     if name == "default":
-        return 2575499411
+        return identity.SERIAL
     return 0x80000000 | (zlib.crc32(name.encode("utf-8")) & 0x7FFFFFFF)
 
 

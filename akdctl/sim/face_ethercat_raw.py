@@ -146,7 +146,7 @@ class EthercatRawFace(Face):
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
         # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
-        image = sim_sii_image(serial)
+        image = sim_sii_image(drive.serial() if serial is None else serial)
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
         # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
@@ -239,8 +239,8 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
 
 
 def sim_sii_image(serial: int | None = None) -> Any:
-    """The raw slave's SII: order code, firmware and serial from the drive's one identity record (issue 23.8);
-    ``--ecat-serial`` overrides the serial for a bus of several simulated slaves."""
+    """The raw slave's SII: order code and firmware from the drive's one identity record (issue 23.8), the serial
+    the drive reports in 0x1018:4 (``--ecat-serial`` overrides it for a bus of several simulated slaves)."""
     from akdctl.sim import identity
 
     return akd_sii_image(mailbox_size=SIM_MAILBOX, serial=identity.SERIAL if serial is None else serial,
