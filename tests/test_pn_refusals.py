@@ -14,6 +14,7 @@ import pytest
 
 from akdctl.sim import face_profinet
 from akdctl.sim.drive import SimDrive
+from akdctl.sim.refusals import RefusalReport
 
 
 def _connect(port: int, station: bytes) -> bool:
@@ -50,9 +51,9 @@ def test_repeated_refusals_are_one_line_then_a_count(tmp_path: Path, capsys: pyt
 
 def test_the_report_counts_per_cause_and_prints_again_after_its_interval() -> None:
     out: list[str] = []
-    report = face_profinet.RefusalReport("profinet", interval=0.0, write=out.append)
+    report = RefusalReport("profinet", interval=0.0, write=out.append)
     assert report.refused("out of AR resources", "first") and report.refused("out of AR resources", "second")
-    slow = face_profinet.RefusalReport("profinet", interval=3600, write=out.append)
+    slow = RefusalReport("profinet", interval=3600, write=out.append)
     assert slow.refused("a", "x") and not slow.refused("a", "x") and slow.refused("b", "y")
     slow.flush()
     assert out == ["akdctl: warning: profinet: first", "akdctl: warning: profinet: second",

@@ -19,7 +19,6 @@ import itertools
 import os
 import select
 import socket
-import sys
 import threading
 import time
 import uuid
@@ -29,6 +28,7 @@ from typing import Any, Protocol
 
 from akdctl.errors import CommError, UsageError
 from akdctl.protocol import dcerpc, pnio, pnio_record
+from akdctl.protocol.errors import CodecError
 from akdctl.protocol.pnio import (
     BT_READ_REQ,
     BT_WRITE_REQ,
@@ -39,10 +39,10 @@ from akdctl.protocol.pnio import (
     OP_READ_IMPLICIT,
     OP_WRITE,
 )
-from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import RecordRefused
 from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
+from akdctl.sim.refusals import RefusalReport
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
@@ -151,52 +151,6 @@ def _ar_timeout(value: Any) -> float | None:
 REPORTED_HOLDERS = 3
 
 
-class RefusalReport:
-    """Refused requests on a face's stderr: one line per cause, then counts instead of copies.
-
-    Why: a client that retries a refused Connect in a loop made the face write a long warning per datagram. The
-    first refusal of a cause is printed in full; later ones of the same cause are counted and summarised in one
-    line at most every ``interval`` seconds, and once more when the face stops, so nothing is hidden and the
-    log stays readable.
-    """
-
-    def __init__(self, face: str, interval: float = 10.0, write: Any = None) -> None:
-        self.face = face
-        self.interval = interval
-        self._write = write or self._stderr
-        self._lock = threading.Lock()
-        self._printed: dict[str, float] = {}
-        self._pending: dict[str, int] = {}
-
-    @staticmethod
-    def _stderr(line: str) -> None:
-        sys.stderr.write(line + "\n")
-        sys.stderr.flush()
-
-    def refused(self, cause: str, text: str) -> bool:
-        """Report one refusal; True when this one was printed in full (the first of its cause, or the first
-        after ``interval`` seconds, carrying the count of those in between)."""
-        now = time.monotonic()
-        with self._lock:
-            last = self._printed.get(cause)
-            if last is not None and now - last < self.interval:
-                self._pending[cause] = self._pending.get(cause, 0) + 1
-                return False
-            self._printed[cause] = now
-            more = self._pending.pop(cause, 0)
-        suffix = f" [{more} more refused for this cause since the last report]" if more else ""
-        self._write(f"akdctl: warning: {self.face}: {text}{suffix}")
-        return True
-
-    def flush(self) -> None:
-        """Print the counts not reported yet (when the face stops)."""
-        with self._lock:
-            pending, self._pending = self._pending, {}
-        for cause, count in pending.items():
-            self._write(f"akdctl: warning: {self.face}: {count} more Connect(s) refused ({cause}) "
-                        "since the last report")
-
-
 # ---------------------------------------------------------------- AR state
 
 @dataclass
@@ -253,7 +207,7 @@ class ProfinetFace(Face):
         self.slot, self.subslot, self.api = slot, subslot, api
         self.fragment = fragment
         self.refuse_ar = refuse_ar
-        self.refusals = RefusalReport("profinet")
+        self.refusals = RefusalReport("profinet")  # one line per cause (sim/refusals.py)
         self.station_name = station_name
         self.dcp_iface = dcp_iface
         self.max_ars = max_ars

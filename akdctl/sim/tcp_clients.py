@@ -13,7 +13,7 @@ now; the ASCII and Modbus faces to come) accepts through :class:`TcpClients`:
 * **EMFILE/ENFILE/ENOBUFS/ENOMEM** from ``accept()``: the loop backs off (50 ms doubling to 1 s) instead of
   ending or spinning, and says so once per episode on stderr; the pending connection stays in the listen
   backlog until a descriptor is free;
-* repeated refusals are reported once per cause with counts (``face_profinet.RefusalReport``).
+* repeated refusals are reported once per cause with counts (``sim/refusals.py``).
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+
+from akdctl.sim.refusals import RefusalReport
 
 #: Clients a TCP face serves at once.
 DEFAULT_LIMIT = 32
@@ -46,8 +48,6 @@ class TcpClients:
 
     def __init__(self, face: str, refuse: Callable[[socket.socket], None], limit: int | None = None,
                  write: Callable[[str], None] | None = None) -> None:
-        from akdctl.sim.face_profinet import RefusalReport
-
         self.face = face
         self.limit = DEFAULT_LIMIT if limit is None else limit
         self.refuse = refuse
@@ -57,7 +57,7 @@ class TcpClients:
         self._refusing: dict[socket.socket, float] = {}
         self._backoff = 0.0
         self._write = write or _stderr
-        self.report = RefusalReport(face, write=self._write)
+        self.report = RefusalReport(face, write=self._write, what="connection(s)")
 
     def accept(self, listener: socket.socket, wait: float = 0.2) -> tuple[socket.socket, tuple[str, int]] | None:
         """Wait up to ``wait`` s for a client; return it when it may be served (count it: :meth:`release` when it
