@@ -206,7 +206,7 @@ class CipDevice:
         # bits 4-7 extended status (3 = no I/O connection, 6 = an I/O connection in run), bit 10 major
         # recoverable fault while the drive reports a fault
         status = 0x0004 | (0x0060 if self.io.last_control is not None else 0x0030) | (0x0400 if self._fault() else 0)
-        serial = ident.serial if ident.serial is not None else self.drive.serial()
+        serial = ident.serial if ident.serial is not None else _identity.serial_of(self.drive)
         return cip.IdentityAttributes(ident.vendor, ident.device_type, ident.product_code, ident.revision,
                                       status, serial, ident.product_name)
 

@@ -146,7 +146,7 @@ class EthercatRawFace(Face):
         self.ifname = ifname
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
         # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
-        image = sim_sii_image(drive.serial() if serial is None else serial)
+        image = sim_sii_image(serial, drive)
         self.esc = Esc(image)
         self.worker = SlaveWorker(self.esc, drive, injector)
         # A bare ESC (no drive model behind it, as the frame fuzzer builds it) keeps its AL state to itself.
@@ -238,10 +238,10 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
     return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None)  # type: ignore[arg-type]
 
 
-def sim_sii_image(serial: int | None = None) -> Any:
+def sim_sii_image(serial: int | None = None, drive: object = None) -> Any:
     """The raw slave's SII: order code and firmware from the drive's one identity record (issue 23.8), the serial
     the drive reports in 0x1018:4 (``--ecat-serial`` overrides it for a bus of several simulated slaves)."""
     from akdctl.sim import identity
 
-    return akd_sii_image(mailbox_size=SIM_MAILBOX, serial=identity.SERIAL if serial is None else serial,
+    return akd_sii_image(mailbox_size=SIM_MAILBOX, serial=serial if serial is not None else identity.serial_of(drive),
                          revision=identity.COE_REVISION, order=identity.ORDER_CODE, firmware=identity.FIRMWARE)

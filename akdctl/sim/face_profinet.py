@@ -571,7 +571,7 @@ class ProfinetFace(Face):
         from akdctl.sim import identity  # the drive's one identity record (issue 23.8)
 
         major, minor, patch, _ = identity.firmware_numbers()
-        return pnio.IM0(vendor_id=self.vendor_id, order_id=identity.ORDER_CODE, serial_number=str(self.drive.serial()),
+        return pnio.IM0(vendor_id=self.vendor_id, order_id=identity.ORDER_CODE, serial_number=str(identity.serial_of(self.drive)),
                         hardware_revision=identity.hardware_revision_number(), sw_revision=("V", major, minor, patch),
                         revision_counter=0,
                         profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)

@@ -32,3 +32,10 @@ def hardware_revision_number() -> int:
     """The hardware revision letter as a number for fields that hold one (I&M0): A = 1 ... E = 5 ([I]: the AKD's
     own I&M0 encoding of its revision letter is not in the seeds)."""
     return ord(HARDWARE_REVISION) - ord("A") + 1
+
+
+def serial_of(drive: object) -> int:
+    """The serial number a face reports for ``drive``: its own 0x1018:4 (``SimDrive.serial``; every simulated drive
+    but 'default' has its own), the record's for a stand-in without one (a face built on a test double)."""
+    reader = getattr(drive, "serial", None)
+    return int(reader()) if callable(reader) else SERIAL
