@@ -187,3 +187,9 @@ class InternalError(AkdError):
 
     exit_code = 70
     kind = "internal"
+
+
+class TriggerTimeout(CommError):
+    """A scope's trigger did not fire, or the drive's recorder did not finish, within ``--timeout`` (exit 3)."""
+
+    kind = "trigger-timeout"

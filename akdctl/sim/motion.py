@@ -306,6 +306,7 @@ class MotionComponent(Component):
         m.bind_object(0x6063, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
         m.bind_object(0x6064, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
         m.bind_object(0x606C, read=obj_reader("<i", lambda: counts(axis.vel)))
+        m.bind_object(0x606B, read=obj_reader("<i", lambda: counts(axis.vel)))  # velocity demand (VL.CMD): the ramp
         m.bind_object(0x6077, read=obj_reader("<h", lambda: round(self._current_fraction() * 1000)))
         m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
         # The AKD names of the same actual values (issue 23.7): one live value, every address of it.
