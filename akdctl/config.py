@@ -98,6 +98,11 @@ class _Where:
         return float(value)
 
 
+#: The largest config file read (bytes): a hand-written file of profiles is a few KiB; 1 MiB leaves room for
+#: thousands of profiles and refuses a wrong path (a log, an image, /dev/zero) before it costs memory.
+CONFIG_LIMIT = 1 << 20
+
+
 def load_config(path: str | os.PathLike[str] | None) -> Config:
     """Load and validate the config file (unknown keys, types, NaN/inf, signs: exit 2 naming file and key).
 
@@ -105,12 +110,20 @@ def load_config(path: str | os.PathLike[str] | None) -> Config:
     """
     explicit = path is not None or bool(os.environ.get("AKDCTL_CONFIG"))
     file = Path(path) if path is not None else Path(os.environ.get("AKDCTL_CONFIG") or default_config_path())
+    from akdctl.io.safe_read import FileRefused, read_bounded
+
     try:
-        text = file.read_text()
+        # The one bounded reader (issue 23.13): /dev/zero, a FIFO or a huge file is refused, never read for ever.
+        text = read_bounded(file, CONFIG_LIMIT).decode("utf-8")
     except FileNotFoundError:
         if explicit:
             raise UsageError(f"config file {file} does not exist") from None
         return Config(None, None, {})
+    except FileRefused as refused:
+        what = f"is {refused.kind}, not a regular file" if refused.kind else (
+            f"grew beyond {CONFIG_LIMIT} bytes while it was read" if refused.grew
+            else f"has {refused.size} bytes, more than the {CONFIG_LIMIT} a config file may have")
+        raise UsageError(f"config file {file} {what}") from None
     except OSError as exc:
         raise UsageError(f"cannot read config file {file}: {exc.strerror}") from None
     except UnicodeDecodeError:

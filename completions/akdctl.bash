@@ -170,7 +170,7 @@ _akdctl() {
         "ecat reg") COMPREPLY=($(compgen -W "read write --help" -- "$cur")) ;;
         "ecat reg read") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "ecat reg write") COMPREPLY=($(compgen -W "--dry-run --force --help --hex --size" -- "$cur")) ;;
-        "ecat scan") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "ecat scan") COMPREPLY=($(compgen -W "--help --iface" -- "$cur")) ;;
         "ecat sii") COMPREPLY=($(compgen -W "read write --help --raw" -- "$cur")) ;;
         "ecat sii read") COMPREPLY=($(compgen -W "--format --help --output -o" -- "$cur")) ;;
         "ecat sii write") COMPREPLY=($(compgen -W "--dry-run --fix-crc --force --format --help" -- "$cur")) ;;

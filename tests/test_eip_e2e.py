@@ -238,7 +238,7 @@ def test_pycomm3_as_client_of_the_face(serve, tmp_path) -> None:
                             text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout)
-    assert out["name"].endswith("(simulated)") and out["set"] is None and out["read"] == 4096
+    assert out["name"].endswith("AKD-P00606-NBCC-E000") and out["set"] is None and out["read"] == 4096  # sim/identity.py
     assert "Object does not exist" in out["missing"] and "not settable" in out["readonly"].lower()
 
 
@@ -323,7 +323,7 @@ def test_eip_scan_broadcasts_only_on_the_named_interface_in_a_private_namespace(
         assert result.returncode == 0, result.stderr
         data = json.loads(result.stdout)
         assert data["query"] == "10.213.0.255"
-        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00306-NBEI-0000 (simulated)"]
+        assert [d["product_name"] for d in data["devices"]] == ["AKD-P00606-NBCC-E000"]  # sim/identity.py
     finally:
         if server is not None:
             server.stop()

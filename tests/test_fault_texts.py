@@ -46,3 +46,27 @@ def test_explain_says_where_to_look_without_a_source(akd_inproc: Any) -> None:
     assert item["remedy"] is None and "AKD Fault Card" in item["where_to_look"] and "DRV.FAULTS" in item["where_to_look"]
     code, out, err = akd_inproc("fault", "explain", "F139")
     assert code == 0 and "AKD Fault Card" in " ".join(out.split()), out
+
+
+#: Issue 23.23: the common power-stage and bus faults it names. F533 is not in the public EMCY table the catalogue
+#: comes from (reference/akd_faults_emcy.csv): ``fault explain F533`` is an unknown code, exit 2.
+ISSUE_23_FAULTS = ("F501", "F502", "F503", "F504", "F505", "F523", "F524", "F531", "F532", "F534", "F535",
+                   "F702", "F703", "F125", "F129")
+
+
+def test_the_common_faults_cite_a_source_or_say_honestly_that_none_is_at_hand(akd_inproc: Any) -> None:
+    """Issue 23.23: a remedy only with its named source (F125: the EtherCAT manual; F703: the parameter reference's
+    DRV.DIS); the others have no public source in the project's seeds or reference and say where to look."""
+    cited = {}
+    for code in ISSUE_23_FAULTS:
+        rc, out, err = akd_inproc("--json", "fault", "explain", code)
+        assert rc == 0, err
+        (item,) = [f for f in json.loads(out)["faults"] if f["code"] == code]
+        if item["remedy"]:
+            assert "remedy:" in item["source"], item  # every remedy names where it comes from
+            cited[code] = item["source"]
+        else:
+            assert "no public source we cite" in item["where_to_look"]
+    assert set(cited) == {"F125", "F703"}
+    assert akd_inproc("fault", "explain", "F533")[0] == 2
+    assert "DRV.DIS" in cited["F703"] and "EtherCAT manual" in cited["F125"]

@@ -53,7 +53,7 @@ COMMANDS: list[tuple[tuple[str, ...], int, str]] = [
     (("pnu", "set", "930=1"), 0, r"930"),
     (("pnu", "describe", "930"), 0, r"930"),
     (("pnu", "set", "930=7"), 2, r""),                  # outside the catalogue's range: refused before sending
-    (("info",), 0, r"(?i)AKD-P00306"),
+    (("info",), 0, r"AKD-P00606-NBCC-E000"),  # the one identity record (sim/identity.py, issue 23.8)
     (("--json", "info"), 0, r'"order_id"'),
     (("sdo", "read", "0x6060"), 2, r""),                # pn:// has no object channel
 ]

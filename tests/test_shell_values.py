@@ -53,7 +53,7 @@ def test_info_names_vendor_and_model(akd_inproc) -> None:
     code, out, err = akd_inproc("info")
     assert code == EXIT_OK, err
     lines = out.splitlines()
-    assert lines[1].split() == ["vendor", "Kollmorgen"] and lines[2].split() == ["model", "AKD"]
+    assert lines[1].split() == ["vendor", "Kollmorgen"] and lines[2].split() == ["model", "AKD-P00606-NBCC-E000"]  # DRV.MODEL (issue 23.8)
     assert "manufacturer      256 (0x100, Kollmorgen)" in out
     data = json.loads(akd_inproc("info", "--json")[1])
     assert data["summary"]["vendor"] == "Kollmorgen" and data["summary"]["profile"] == "PROFIdrive 4.1"
@@ -67,7 +67,7 @@ def test_summary_prefers_the_most_specific_source() -> None:
                         "hardware_revision": 3, "software_revision": "V1.20.0"}}
     brief = summary(identity)
     assert brief["vendor"] == "Kollmorgen" and brief["model"] == "AKD-P00306-NBPN-0000"
-    assert brief["serial"] == "SIM0001" and brief["firmware"] == "V1.20.0"
+    assert brief["serial"] == "SIM0001" and brief["firmware"] == "1.20"  # one spelling per face (issue 23.8)
     assert summary({"profidrive": {"drive_unit": {"manufacturer": 42, "drive_unit_type": 7}}}) == {
         "vendor": "vendor 42 (0x2A)", "model": "drive unit type 7"}
 

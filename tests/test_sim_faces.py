@@ -503,16 +503,16 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
             requests.append(request)  # a retransmission: the cached reply
 
     def frames(short_way: bool) -> list[bytes]:
-        if not short_way:
-            monkeypatch.setattr(face_profinet.pnio_record, "plain_record_call", lambda data: None)
-        face = face_profinet.ProfinetFace(SimDrive("default", tmp_path / str(short_way)), "127.0.0.1", 0)
-        face.boot_time = 1234
-        sent: list[bytes] = []
-        face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
-        for request in requests:
-            sent.append(b"--")
-            face._datagram(request, ("127.0.0.1", 1))
-        monkeypatch.undo()
+        with monkeypatch.context() as patch:  # undoes only this patch, not the test's isolated state dir
+            if not short_way:
+                patch.setattr(face_profinet.pnio_record, "plain_record_call", lambda data: None)
+            face = face_profinet.ProfinetFace(SimDrive("default", tmp_path / str(short_way)), "127.0.0.1", 0)
+            face.boot_time = 1234
+            sent: list[bytes] = []
+            face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+            for request in requests:
+                sent.append(b"--")
+                face._datagram(request, ("127.0.0.1", 1))
         return sent
 
     short, general = frames(True), frames(False)

@@ -193,18 +193,25 @@ def test_a_state_file_that_is_not_a_regular_file_is_refused(akd_inproc, isolated
 @pytest.mark.parametrize("errno_, words", [(28, "No space left on device"), (30, "Read-only file system")])
 def test_an_unwritable_state_directory_is_a_one_line_error(
         akd_inproc, isolated_env: Path, monkeypatch, errno_: int, words: str) -> None:
+    """Issue 23.24: this test once failed both cases in one CI run. The race was its own: ``monkeypatch.undo()``
+    undid *every* patch of the test, the autouse ``isolated_env`` one included, so its last ``pnu set`` ran on the
+    user's real state directory, shared with every other run on the machine (its drive enabled, or its axis owned
+    by a parallel run: exit 4). Only the refusal is undone now, and the test checks it still uses its own directory.
+    """
     import akdctl.sim.drive as store
 
     def refuse(*args: object, **kwargs: object) -> None:
         raise OSError(errno_, os.strerror(errno_))
 
-    monkeypatch.setattr(store, "atomic_open", refuse)
-    code, _, err = akd_inproc("pnu", "set", "930=2")
-    line = _one_line(err)
-    assert code == 2 and "cannot save simulator state" in line and words in line and "AKDCTL_STATE_DIR" in line
-    assert akd_inproc("pnu", "get", "930")[0] == EXIT_OK  # reads need no write
-    monkeypatch.undo()
+    with monkeypatch.context() as patch:
+        patch.setattr(store, "atomic_open", refuse)
+        code, _, err = akd_inproc("pnu", "set", "930=2")
+        line = _one_line(err)
+        assert code == 2 and "cannot save simulator state" in line and words in line and "AKDCTL_STATE_DIR" in line
+        assert akd_inproc("pnu", "get", "930")[0] == EXIT_OK  # reads need no write
+    assert os.environ["AKDCTL_STATE_DIR"] == str(isolated_env)
     assert akd_inproc("pnu", "set", "930=2")[0] == EXIT_OK
+    assert (isolated_env / "sim-default.json").exists()
 
 
 def test_a_state_directory_that_cannot_exist_is_a_one_line_error(akd_inproc, tmp_path: Path, monkeypatch) -> None:

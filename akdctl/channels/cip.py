@@ -39,7 +39,19 @@ class CipAttributes:
         return self.call(cip.GET_ATTRIBUTE_SINGLE, cip.Path(class_id, instance, attribute))
 
     def set(self, class_id: int, instance: int, attribute: int, data: bytes) -> None:
-        self.call(cip.SET_ATTRIBUTE_SINGLE, cip.Path(class_id, instance, attribute), data)
+        """Set_Attribute_Single. A set whose answer never came is an unknown outcome, not "no answer": the
+        drive may have applied it (issue 23.22); akdctl does not send it twice and names the read to check."""
+        from akdctl.errors import NoAnswer, UnknownOutcome
+
+        try:
+            self.call(cip.SET_ATTRIBUTE_SINGLE, cip.Path(class_id, instance, attribute), data)
+        except NoAnswer as exc:
+            error = UnknownOutcome(
+                f"{exc.message}: unknown outcome, the drive may or may not have applied the set; akdctl does not "
+                f"send it twice: check with 'akdctl cip get 0x{class_id:02X}/{instance}/{attribute}' before "
+                "repeating", code=exc.code, details={**exc.details, "written": data.hex()})
+            error.unanswered = True  # type: ignore[attr-defined]  # how links.Budget counts it
+            raise error from None
 
     def identity(self) -> cip.IdentityAttributes:
         """Identity attributes 1-7 by Get_Attribute_Single (the AKD manual names only 0x0E/0x10 [V])."""

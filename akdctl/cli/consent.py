@@ -86,9 +86,13 @@ def own_axis(app: "AppContext") -> None:
         raise SafetyRefusal(f"refusing: the axis of {app.target.display} is in use by {_owner_text(busy.owner)}; "
                             "wait until it ends, or stop it ('akdctl stop' is never refused); nothing was written",
                             details={"owner": busy.owner}) from None
-    except OSError as exc:
-        raise SafetyRefusal(f"refusing: cannot take the axis's owner lock in {exc.filename or 'the state directory'} "
-                            f"({exc.strerror or exc}); nothing was written") from None
+    except OSError as exc:  # the state directory, not the drive: exit 2 naming the way out (README, issue 23.22)
+        from akdctl.errors import UsageError
+
+        where = exc.filename or "the state directory"
+        raise UsageError(f"cannot take the axis's owner lock {where} ({exc.strerror or exc}); check that the state "
+                         "directory is writable and has free space (set AKDCTL_STATE_DIR to use another); "
+                         "nothing was written") from None
 
 
 def _command_line() -> str:

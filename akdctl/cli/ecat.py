@@ -62,14 +62,22 @@ def ecat() -> None:
 
 
 @ecat.command("scan")
-def scan() -> None:
+@click.option("--iface", metavar="IFNAME", help="Scan the EtherCAT segment on this interface (instead of -T ecat://IFNAME).")
+def scan(iface: str | None) -> None:
     """List the slaves: position, station address, identity from the SII, AL state.
+
+    What to scan, as every scan command: the target (-T ecat://IFNAME), or --iface IFNAME.
 
     \b
     Examples:
       akdctl -T ecat://eth1 ecat scan
+      akdctl ecat scan --iface eth1
     """
     app = get_app()
+    if iface is not None:
+        from akdctl.transport.registry import parse_target
+
+        app._target = parse_target(f"ecat://{iface}", "--iface")  # noqa: SLF001 - the scan's one target
     transport = _bus()
     assert transport.master is not None
     slaves = transport.master.scan(with_sii=True)

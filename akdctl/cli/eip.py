@@ -50,19 +50,29 @@ def _interface_addresses(iface: str) -> tuple[str, str]:
 @click.option("--wait", type=click.FloatRange(0.05, 60), default=None, metavar="SECONDS",
               help="How long to collect answers (default: --timeout).")
 def scan(host: str | None, iface: str | None, port: int, wait: float | None) -> None:
-    """ListIdentity: unicast to HOST, or broadcast on --iface IFNAME.
+    """ListIdentity: unicast to the target (-T eip://HOST) or HOST, or broadcast on --iface IFNAME.
+
+    What to scan, as every scan command: the target, or --iface IFNAME to broadcast on a link (never by default).
 
     \b
     Examples:
+      akdctl -T eip://192.168.0.20 eip scan
       akdctl eip scan 192.168.0.20
       akdctl eip scan --iface eth1
     """
     from akdctl.catalog.texts import cip_vendor_name
     from akdctl.transport.ethernetip import list_identity
 
-    if (host is None) == (iface is None):
-        raise UsageError("give a HOST to ask, or --iface IFNAME to broadcast on (akdctl never broadcasts by default)")
     app = get_app()
+    if host is not None and iface is not None:
+        raise UsageError("give a HOST or --iface IFNAME, not both")
+    if host is None and iface is None:
+        if app.target.scheme != "eip":
+            raise UsageError("give the target (-T eip://HOST), a HOST to ask, or --iface IFNAME to broadcast on "
+                             "(akdctl never broadcasts by default)")
+        host = app.target.host
+        if app.target.port:
+            port = app.target.port
     if host is not None:
         address = host
         found = list_identity(host, port, app.options, wait=wait)

@@ -111,14 +111,22 @@ def _serve_callback(**kwargs: Any) -> None:
     from akdctl.cli.output import message
     from akdctl.sim.drive import SimDrive
 
-    name = kwargs.pop("name")
     duration = kwargs.pop("duration")
-    drive = SimDrive(name)
+    from akdctl.sim.drive import FACE_LOCK_TIMEOUT
+
+    drive = _sim_drive(kwargs.pop("name"))  # the target's drive unless --name says otherwise (issue 23.9)
+    drive.lock_timeout = FACE_LOCK_TIMEOUT  # a face answers "busy" before its client's timeout (issue 23.15)
+    name = drive.name
     faces = []
+    orphans: list[str] = []
     for module in FACES:
         face = module.from_options(drive, **kwargs)
         if face is not None:
             faces.append(face)
+        else:
+            orphans.extend(_orphan_options(module.OPTIONS, kwargs))
+    if orphans:
+        raise UsageError(f"{'; '.join(orphans)}: a face is served only with its own option")
     if not faces:
         flags = ", ".join(module.OPTIONS[0].flag for module in FACES)
         raise UsageError(f"choose at least one face to serve: {flags}")
@@ -154,6 +162,17 @@ def _serve_callback(**kwargs: Any) -> None:
             signal.signal(sig, handler)
 
 
+def _orphan_options(options: Any, values: dict[str, Any]) -> list[str]:
+    """A face's options given without the face itself (``--dcp eth0`` without ``--profinet``), in words.
+
+    Why: such an option used to be ignored without a word, and the user believed DCP was answered. The first
+    option of every face is the one that turns it on; any other one set away from its default needs it.
+    """
+    switch, *rest = options
+    given = [option.flag for option in rest if values.get(option.dest) not in (None, option.default)]
+    return [f"{', '.join(given)} {'needs' if len(given) == 1 else 'need'} {switch.flag}"] if given else []
+
+
 def click_option(option: FaceOption) -> click.Option:
     """The click option for one face option (the one place that turns face data into ``sim serve`` options)."""
     kind: Any = option.type
@@ -172,7 +191,7 @@ def click_option(option: FaceOption) -> click.Option:
 
 def _build_serve() -> click.Command:
     params: list[click.Parameter] = [
-        click.Option(["--name"], default="default", show_default=True, help="Simulated drive to serve."),
+        click.Option(["--name"], default=None, help="Simulated drive to serve (default: the target's, i.e. 'default')."),
         click.Option(["--duration"], type=click.FloatRange(min=0), default=None,
                      help="Stop after this many seconds (default: until Ctrl-C/SIGTERM)."),
     ]

@@ -44,6 +44,7 @@ def fault(codes: tuple[str, ...], after_reads: int | None, persist: bool, name: 
     drive = _sim_drive(name)
     with drive.transaction() as model:
         comp = _component(model)
+        _refuse_overflow(comp, normalised, armed=after_reads is not None)
         for code in normalised:
             if after_reads is None:
                 comp.raise_fault(code, persist=persist)
@@ -57,6 +58,27 @@ def fault(codes: tuple[str, ...], after_reads: int | None, persist: bool, name: 
     get_app().emit(data, f"simulated drive {drive.name!r}: {' '.join(normalised)} armed{when}" if after_reads
                    else f"simulated drive {drive.name!r}: active now {' '.join(active) or 'none'} "
                         f"(fault message counter {counter})")
+
+
+def _refuse_overflow(comp: Any, codes: list[str], *, armed: bool) -> None:
+    """Refuse an injection whose faults do not all fit one fault situation.
+
+    Why: PNU 947 keeps at most 8 fault numbers per situation (PROFINET manual
+    5.14); the model drops a ninth, so the command says so before it changes
+    anything instead of reporting success for a fault that never appears.
+    Warnings do not enter PNU 947 and do not count.
+    """
+    from akdctl.catalog.faults import by_code
+    from akdctl.sim.faults import FAULTS_PER_SITUATION
+
+    fault_numbers = {by_code(c).number for c in codes if not by_code(c).is_warning}  # type: ignore[union-attr]
+    present = set() if armed else set(comp.situations[0])
+    if len(fault_numbers | present) > FAULTS_PER_SITUATION:
+        raise UsageError(
+            f"{len(fault_numbers | present)} faults do not fit one fault situation (PNU 947 holds "
+            f"{FAULTS_PER_SITUATION}; {len(present)} active now); inject at most "
+            f"{max(FAULTS_PER_SITUATION - len(present), 0)} more, or acknowledge first ('akdctl fault ack')"
+        )
 
 
 @click.command("clear")

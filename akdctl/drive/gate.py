@@ -206,6 +206,20 @@ def check_write(conn: "Connection", gated: list[Gated | None], consent: Any, giv
         consent(consent_action(needing))
 
 
+#: The port a scheme uses when the target names none (README "Targets"): spelled out or not, one axis.
+_DEFAULT_PORTS = {"pn": 34964, "ecat-udp": 34980, "eip": 44818}
+#: Query values that select the default (pn: slot 1, subslot 1, API 0x3A00, axis 0), as _number() spells them.
+_DEFAULT_QUERY = {"pn": {"slot": "1", "subslot": "1", "api": str(0x3A00), "axis": "0"}}
+
+
+def _number(text: str) -> str:
+    """A decimal or 0x-hex number in its decimal spelling; any other text unchanged."""
+    try:
+        return str(int(text, 0)) if text.strip() else text
+    except ValueError:
+        return text
+
+
 #: Schemes that reach the same drive by another route share one owner name.
 _SAME_DRIVE = {"ecat+soem": "ecat"}
 
@@ -215,14 +229,24 @@ def owner_key(target: Any) -> str:
 
     What selects the drive counts (scheme, host, port, path, the PROFINET ``axis``/``slot``);
     options that only change how it is spoken to (``drive=``, ``timeout``, ``bitrate``) do not,
-    so ``sim`` and ``sim?drive=cia402`` are one axis. Two spellings of one host (a name and
-    its address) are two keys: the lock cannot know they meet.
+    so ``sim`` and ``sim?drive=cia402`` are one axis. The address is normalised first (issue 23.15):
+    a default port or query value spelled out or left away, and a number in hex or decimal
+    (station ``1001`` or ``0x3e9``, ``?axis=0``) give one key. Two spellings of one host (a name
+    and its address) are still two keys: the lock cannot know they meet.
     """
     scheme = _SAME_DRIVE.get(target.scheme, target.scheme)
     if scheme == "sim":
         who = f"sim/{target.host or 'default'}"
     else:
-        extra = "".join(f"&{k}={target.query[k]}" for k in ("slot", "subslot", "axis", "api") if k in target.query)
-        who = f"{scheme}/{target.host.lower()}:{target.port or ''}/{target.path.strip('/')}{extra}"
+        port = "" if target.port in (None, _DEFAULT_PORTS.get(scheme)) else str(target.port)
+        defaults = _DEFAULT_QUERY.get(scheme, {})
+        extra = ""
+        for key in ("slot", "subslot", "axis", "api"):
+            if key in target.query:
+                value = _number(target.query[key])
+                if value != defaults.get(key):
+                    extra += f"&{key}={value}"
+        path = "/".join(_number(part) for part in target.path.strip("/").split("/"))
+        who = f"{scheme}/{target.host.lower()}:{port}/{path}{extra}"
     readable = re.sub(r"[^A-Za-z0-9._-]+", "_", who).strip("_")[:80]
     return f"{readable}-{hashlib.sha256(who.encode()).hexdigest()[:12]}"

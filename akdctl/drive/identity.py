@@ -28,6 +28,7 @@ PNU_DRIVE_OBJECT = 975
 IDENTITY_OBJECTS: tuple[tuple[str, int, int], ...] = (
     ("vendor_id", 0x1018, 1), ("product_code", 0x1018, 2), ("revision", 0x1018, 3), ("serial", 0x1018, 4),
     ("device_name", 0x1008, 0), ("hardware_version", 0x1009, 0), ("software_version", 0x100A, 0),
+    ("model", 0x2033, 0),  # DRV.MODEL: the order code, as PROFINET's I&M0 and CIP's product name give it
 )
 
 
@@ -119,7 +120,7 @@ def summary(identity: dict[str, Any]) -> dict[str, Any]:
 
     Why a summary: ``info`` used to show ``manufacturer 256 (0x100)``; a technician wants "Kollmorgen" and the
     model. Each field takes the most specific source there is: the model is the I&M0 order number on PROFINET
-    (``AKD-P00306-NBPN-0000``), the CIP product name on EtherNet/IP, else the device name (0x1018:2 product code
+    (``AKD-P00606-NBCC-E000``), the CIP product name on EtherNet/IP, DRV.MODEL (0x2033) over CoE, else the device name (0x1018:2 product code
     'AKD', 0x1008); vendor names come from ``catalog/texts.py`` (CANopen/EtherCAT 0x1018:1, PI 964[0], CIP).
     """
     from akdctl.catalog.texts import CANOPEN_VENDORS, PI_VENDORS
@@ -140,17 +141,40 @@ def summary(identity: dict[str, Any]) -> dict[str, Any]:
                         cip.get("vendor_name") if cip else None,
                         PI_VENDORS.get(im0_vendor) if im0_vendor is not None else None,
                         _vendor_number(canopen.get("vendor_id"), unit.get("manufacturer"), im0_vendor)),
-        "model": first(im0.get("order_id"), cip.get("product_name"), canopen.get("device_name"),
+        "model": first(im0.get("order_id"), cip.get("product_name"), canopen.get("model"), canopen.get("device_name"),
                        f"drive unit type {unit['drive_unit_type']}" if "drive_unit_type" in unit else None),
-        "firmware": first(canopen.get("software_version"), im0.get("software_revision"), cip.get("revision"),
-                          unit.get("software_version")),
+        # One spelling whatever the face (issue 23.8): firmware as MAJOR.MINOR, the serial in decimal; the
+        # sections below keep each protocol's own spelling.
+        "firmware": first(*(_major_minor(v) for v in (canopen.get("software_version"), im0.get("software_revision"),
+                                                       cip.get("revision"), unit.get("software_version")))),
         "hardware": first(canopen.get("hardware_version"), im0.get("hardware_revision")),
-        "serial": first(im0.get("serial_number"), cip.get("serial"),
+        "serial": first(im0.get("serial_number"), _decimal(cip.get("serial")),
                         f"{canopen['serial']}" if canopen.get("serial") is not None else None),
         "profile": first(f"{profile['name']} {profile['version']}" if "name" in profile else None,
                          "CiA 402" if canopen else None, "CIP" if cip else None),
     }
     return {key: value for key, value in out.items() if value is not None}
+
+
+def _major_minor(text: Any) -> str | None:
+    """A firmware version as MAJOR.MINOR: "M_01-20-00-003" (CoE 0x100A), "V1.20.0" (I&M0), "1.020" (CIP
+    revision), "1.20" (PNU 964) all give "1.20"; anything else unchanged."""
+    import re
+
+    if not isinstance(text, str) or not text:
+        return None
+    found = re.fullmatch(r"(?:M_)?(\d+)-(\d+)(?:-\d+)*", text) or re.fullmatch(r"V?(\d+)\.(\d+)(?:\.\d+)*", text)
+    return f"{int(found[1])}.{int(found[2]):02d}" if found else text
+
+
+def _decimal(serial: Any) -> str | None:
+    """A CIP serial number ("0x99830093") in decimal, as I&M0 and CoE give it."""
+    if isinstance(serial, str) and serial.lower().startswith("0x"):
+        try:
+            return str(int(serial, 16))
+        except ValueError:
+            return serial
+    return None if serial is None else str(serial)
 
 
 def _vendor_number(*numbers: Any) -> str | None:

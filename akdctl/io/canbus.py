@@ -9,7 +9,7 @@ notifier first, else its thread reads from a closed bus); one copy here, below
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 from akdctl.errors import CommError, UsageError
 
@@ -36,7 +36,32 @@ class BusConfig:
         return f"{iface} {chan}"
 
 
-def open_bus(config: BusConfig) -> "can.BusABC":
+#: ``sleep_after_open`` for slcan when the target does not give one (seconds). python-can waits 2 s after opening
+#: the serial port, for adapters that reset when the port opens (Arduino-based ones); a CANable, CANtact or Lawicel
+#: CANUSB answers at once, and 2 s on every command is most of what a technician waits for. An adapter that
+#: resets on open needs ``?sleep_after_open=2`` in its target (README, "CAN targets").
+SLCAN_SLEEP_AFTER_OPEN = 0.05
+
+
+def _slcan_class(write_timeout: Callable[[], float]) -> Any:
+    """python-can's slcan bus whose every write to the serial port ends within ``write_timeout()`` seconds.
+
+    Why: python-can writes with pyserial's ``write_timeout`` = the ``timeout`` of ``send`` (None, i.e. for ever,
+    as canopen sends) and none at all while opening; an adapter that stops reading (its pty or USB buffer full)
+    then blocks the command in ``poll()`` for ever (issue 23.12). Bounded, the write fails with python-can's
+    ``CanOperationError`` and the command ends with exit 3 within its ``--timeout``.
+    """
+    from can.interfaces.slcan import slcanBus
+
+    class BoundedSlcanBus(slcanBus):  # type: ignore[misc]
+        def _write(self, string: str) -> None:
+            self.serialPortOrig.write_timeout = max(write_timeout(), 0.001)
+            super()._write(string)
+
+    return BoundedSlcanBus
+
+
+def open_bus(config: BusConfig, write_timeout: Callable[[], float] | None = None) -> "can.BusABC":
     """Open the python-can bus, translating every failure into one akdctl error.
 
     python-can's backends fail in their own ways when a vendor library is missing: an
@@ -53,6 +78,11 @@ def open_bus(config: BusConfig) -> "can.BusABC":
         )
     kwargs = dict(config.kwargs)
     try:
+        if config.interface == "slcan" and write_timeout is not None:
+            kwargs.setdefault("sleep_after_open", SLCAN_SLEEP_AFTER_OPEN)
+            if not config.channel:
+                raise ValueError("Must specify a serial port.")
+            return _slcan_class(write_timeout)(channel=config.channel, **kwargs)  # type: ignore[no-any-return]
         if config.use_config:
             return can.Bus(channel=config.channel, config_context=config.context, **kwargs)
         return can.Bus(interface=config.interface, channel=config.channel, ignore_config=True, **kwargs)

@@ -54,12 +54,33 @@ class PcState:
     profunit: int = DEFAULT_UNIT
 
 
+#: The Parameter object's unit parameters, by their PcState attribute: kept in the drive model by AKD name.
+UNIT_PARAMETERS = {"posunit": "EIP.POSUNIT", "profunit": "EIP.PROFUNIT"}
+
+
 class AxisBridge:
     """The axis as the CIP objects see it, on the simulated drive's CiA 402 objects."""
 
     def __init__(self, drive: Any, pc: PcState) -> None:
         self.drive = drive
         self.pc = pc
+        self._units_loaded = False
+
+    def load_units(self) -> None:
+        """EIP.POSUNIT/EIP.PROFUNIT as the drive keeps them (once per face: only this face writes them)."""
+        if self._units_loaded:
+            return
+        with self.model() as model:
+            for key, name in UNIT_PARAMETERS.items():
+                setattr(self.pc, key, model.named_value(name, DEFAULT_UNIT))
+        self._units_loaded = True
+
+    def save_unit(self, key: str, value: int) -> None:
+        """A unit parameter written over the Parameter object: kept with the drive's state, saved before the reply
+        (a drive that cannot keep it refuses: issue 23.11)."""
+        with self.model() as model:
+            model.set_named_value(UNIT_PARAMETERS[key], value)
+        setattr(self.pc, key, value)
 
     # ---------------------------------------------------------------- model access
     def model(self) -> Any:
@@ -90,7 +111,7 @@ class AxisBridge:
                     "position": model.object_value(0x6064, 0), "velocity": model.object_value(0x606C, 0),
                     "homed": axis.homed, "homing": axis.homing is not None, "activity": axis.activity,
                     "task": axis.task is not None, "at_rest": axis.standstill,
-                    "current": model.object_value(0x6077, 0)}
+                    "current": model.object_value(0x6077, 0), "current_ma": model.object_value(0x2077, 0)}
 
     @staticmethod
     def pc_mode(cia_mode: int) -> int:

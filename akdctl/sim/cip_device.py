@@ -31,16 +31,17 @@ Layout: one class per CIP object (:mod:`akdctl.sim.cip_objects`), the one axis t
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from akdctl.protocol import akd_assembly as asm
 from akdctl.protocol import cip
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.cip_axis import AxisBridge, CipRefusal, PcState
+from akdctl.sim import identity as _identity
 from akdctl.sim.cip_objects import OBJECTS, CipObject, IdentityObject
-
-SIM_RATED_MA = 3000                      # the simulated motor's rated current (for response type 5)
+from akdctl.sim.drive import SimStateError
+from akdctl.sim.face import request_failed
 
 
 @dataclass
@@ -50,9 +51,10 @@ class IdentitySettings:
     vendor: int = 452                    # "Kollmorgen" in pycomm3's vendor table [I]
     device_type: int = 0x10              # position controller [I]
     product_code: int = 1                # [I]
-    revision: tuple[int, int] = (1, 18)
-    serial: int = 0x00AD0001
-    product_name: str = "AKD-P00306-NBEI-0000 (simulated)"
+    # Revision, serial and name from the drive's one identity record (sim/identity.py, issue 23.8).
+    revision: tuple[int, int] = field(default_factory=lambda: _identity.firmware_numbers()[:2])
+    serial: int | None = None            # None: the drive's own (0x1018:4), as every face reports it
+    product_name: str = _identity.ORDER_CODE
 
     @classmethod
     def parse(cls, text: str | None) -> "IdentitySettings":
@@ -116,10 +118,14 @@ class CipDevice:
         try:
             with self.lock:
                 self.requests += 1
+                self.axis.load_units()
                 data = self._dispatch(req.service, path, req.data)
             return cip.Response(req.service, cip.SUCCESS, (), data).encode()
         except CipRefusal as exc:
             return cip.Response(req.service, exc.status, exc.extended).encode()
+        except SimStateError as exc:  # the drive cannot keep what it was told: "resource unavailable" (issue 23.11)
+            request_failed("ethernetip", exc)
+            return cip.Response(req.service, cip.RESOURCE_UNAVAILABLE).encode()
         except Exception:  # noqa: BLE001 - a face survives any per-request error
             return cip.Response(req.service, cip.DEVICE_STATE_CONFLICT).encode()
 
@@ -154,7 +160,7 @@ class CipDevice:
         status2 = asm.ST2_LOAD_COMPLETE if self.io.load_complete else 0
         motionstat = (1 if snap["task"] else 0) | (0b110 if snap["homed"] else 0) | (0b1000 if snap["homing"] else 0)
         rtype = command.response_type if command is not None else asm.RSP_NONE
-        value = round(snap["current"] * SIM_RATED_MA / 1000) if rtype == asm.RSP_TORQUE else 0
+        value = snap["current_ma"] if rtype == asm.RSP_TORQUE else 0  # the actual current of 0x2077 (issue 23.7)
         return asm.Response(status1=status1, status2=status2, response_axis=command.response_axis if command else 1,
                             response_type=rtype, data=asm.value_data(value),
                             actual_position=axis.eip_pos(snap["position"]),

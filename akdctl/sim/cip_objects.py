@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, ClassVar
 from akdctl.catalog import eip_parameters
 from akdctl.protocol import akd_assembly as asm
 from akdctl.protocol import cip
+from akdctl.sim import identity as _identity
 from akdctl.sim.cip_axis import HOMING_METHODS, CipRefusal, clamp32
 
 if TYPE_CHECKING:
@@ -83,8 +84,9 @@ class IdentityObject(CipObject):
         # recoverable fault while the drive reports a fault
         io_running = self.device.io.last_control is not None
         status = 0x0004 | (0x0060 if io_running else 0x0030) | (0x0400 if self.device.axis.fault() else 0)
+        serial = ident.serial if ident.serial is not None else _identity.serial_of(self.device.drive)
         return cip.IdentityAttributes(ident.vendor, ident.device_type, ident.product_code, ident.revision,
-                                      status, ident.serial, ident.product_name)
+                                      status, serial, ident.product_name)
 
     def request(self, service: int, path: cip.Path, data: bytes) -> bytes:
         attrs = self.identity_attributes()
@@ -199,10 +201,7 @@ class ParameterObject(CipObject):
         units = struct.unpack("<I", data)[0]
         if not 1 <= units <= 1 << 31:        # range 0..2^31 [M-21]; 0 would divide by zero
             raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE)
-        if key == "posunit":
-            pc.posunit = units
-        else:
-            pc.profunit = units
+        self.device.axis.save_unit(key, units)
         return b""
 
 

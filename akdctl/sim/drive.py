@@ -49,6 +49,10 @@ from akdctl.sim.model import DriveModel
 T = TypeVar("T")
 
 LOCK_TIMEOUT = 5.0
+#: How long a network face waits for the state lock before it answers "busy" in its protocol's words: less than
+#: one attempt of a client with the default --timeout (2 s over 3 attempts), so the client hears the answer instead
+#: of giving up first (issue 23.15). A transaction holds the lock for milliseconds; 0.5 s means something is stuck.
+FACE_LOCK_TIMEOUT = 0.5
 DEFAULT_TIME_SCALE = 1.0
 MAX_STATE_BYTES = 64 << 20  # far above any real state; a bigger file is not ours
 TOKEN_BYTES = 32
@@ -88,6 +92,7 @@ class SimDrive:
         self._sdo_server: Any = None
         self._pnu_server: Any = None
         self._lock_fd = -1
+        self.lock_timeout = LOCK_TIMEOUT  # sim serve lowers it to FACE_LOCK_TIMEOUT for its faces
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
         self._held: _Held | None = None
@@ -108,7 +113,7 @@ class SimDrive:
 
     # ------------------------------------------------------------------ locking
     def _locked_text(self) -> str:
-        return f"simulated drive {self.name!r} is locked by another process for more than {LOCK_TIMEOUT:g} s"
+        return f"simulated drive {self.name!r} is locked by another process for more than {self.lock_timeout:g} s"
 
     def _open_lock(self) -> int:
         try:
@@ -120,7 +125,7 @@ class SimDrive:
     def _acquire(self) -> int:
         """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file; returns
         the lock file's descriptor. :meth:`_release` lets go of both."""
-        if not self._mutex.acquire(timeout=LOCK_TIMEOUT):
+        if not self._mutex.acquire(timeout=self.lock_timeout):
             raise CommError(self._locked_text())
         try:
             deadline = None
@@ -131,7 +136,7 @@ class SimDrive:
                     fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError as exc:
                     now = time.monotonic()
-                    deadline = deadline or now + LOCK_TIMEOUT
+                    deadline = deadline or now + self.lock_timeout
                     if exc.errno not in (errno.EAGAIN, errno.EACCES) or now > deadline:
                         raise CommError(self._locked_text()) from None
                     time.sleep(0.005)
@@ -169,6 +174,30 @@ class SimDrive:
         return SimStateError(f"simulator state file {self.path} is corrupt ({why}); "
                              "run 'akdctl sim reset' to restore factory state")
 
+    def _directory_error(self) -> SimStateError:
+        """The state file's path is a directory: 'sim reset' replaces an empty one; one with files in it is
+        the user's to move, never deleted by us (issue 23.22: the advice must work when followed)."""
+        try:
+            empty = not any(os.scandir(self.path))
+        except OSError:
+            empty = False
+        if empty:
+            return self._corrupt("an empty directory, not a regular file")
+        return SimStateError(f"simulator state file {self.path} is a directory with files in it, not a state file; "
+                             "move it away (akdctl never deletes it), then the drive starts in factory state")
+
+    def _clear_directory(self) -> None:
+        """For :meth:`reset`: an empty directory where the state file belongs is removed; any other is refused."""
+        try:
+            os.rmdir(self.path)
+        except FileNotFoundError:
+            pass
+        except NotADirectoryError:
+            pass
+        except OSError:
+            if self.path.is_dir():
+                raise self._directory_error() from None
+
     def _clean_temporaries(self) -> None:
         """Remove temporary state files a killed writer left (any one present while we hold the lock is stale)."""
         with contextlib.suppress(OSError), os.scandir(self.directory) as entries:
@@ -189,6 +218,8 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot read simulator state", self.path, exc) from None
         except FileRefused as refused:
+            if refused.kind == "a directory":
+                raise self._directory_error() from None
             if refused.kind is not None:
                 raise self._corrupt(f"{refused.kind}, not a regular file") from None
             raise self._corrupt(f"{refused.size or 'grew beyond ' + str(MAX_STATE_BYTES)} bytes, "
@@ -294,6 +325,8 @@ class SimDrive:
         with self._locked() as lock_fd:
             self._held = None
             self._clean_temporaries()
+            if self.path.is_dir() and not self.path.is_symlink():
+                self._clear_directory()
             self._new_token(lock_fd)
             self._save(factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
 
@@ -364,6 +397,10 @@ class SimDrive:
         with self.transaction() as model:
             model.object_write(index, subindex, data)
 
+    def serial(self) -> int:
+        """This drive's serial number (0x1018:4): every face reports this one (sim/identity.py, issue 23.8)."""
+        return int.from_bytes(self.object_read(0x1018, 4)[:4], "little")
+
     def take_emergencies(self) -> list[Any]:
         """Emergencies the drive raised since the last call (for the CANopen face)."""
         with self.transaction() as model:
@@ -376,8 +413,10 @@ def serial_for(name: str) -> int:
     drives (``discover`` keys an inventory on the serial)."""
     import zlib
 
+    from akdctl.sim import identity
+
     if name == "default":
-        return 2575499411
+        return identity.SERIAL
     return 0x80000000 | (zlib.crc32(name.encode("utf-8")) & 0x7FFFFFFF)
 
 

@@ -78,7 +78,10 @@ class SlaveWorker:
     BUSY is not public [I]."""
 
     def __init__(self, esc: Esc, drive: SimDrive, injector: Injector, foe_busy: int = 0) -> None:
+        from akdctl.sim.mailbox_repeat import MailboxRepeats
+
         self.esc, self.drive, self.injector = esc, drive, injector
+        self.repeats = MailboxRepeats()  # the ESC's one mailbox: a repeated counter is not executed twice
         self.foe_busy = max(0, foe_busy)
         self._busy_left: tuple[int, int] | None = None  # (packet number, BUSY answers still to give)
 
@@ -107,7 +110,7 @@ class SlaveWorker:
                 return [mailbox_error_reply(request)], False
             if fault == "abort" and (abort := sdo_abort_reply(request)) is not None:
                 return [abort], False
-            return self.drive.handle_mailbox(request), fault == "drop"
+            return self.repeats.answer("sm0", request, self.drive.handle_mailbox), fault == "drop"
         except CodecError:
             with contextlib.suppress(CodecError):
                 return [mailbox_error_reply(request, 1)], False  # syntax of the mailbox protocol header wrong
@@ -324,8 +327,7 @@ class EthercatRawFace(Face):
         is kept there, seed 001 5.14) -- so the alias survives a power cycle (``sim serve`` restarted)."""
         # Mailboxes of 512 bytes, the AKD ESI default (a real drive's SII says 1024): the simulated drive's SDO
         # server takes mailboxes up to 512 bytes, and a master sizes its requests from what the SII declares.
-        image = (akd_sii_image(mailbox_size=SIM_MAILBOX) if self.serial is None
-                 else akd_sii_image(mailbox_size=SIM_MAILBOX, serial=self.serial))
+        image = sim_sii_image(self.serial, self.drive)  # the one identity record (issue 23.8)
         image = dataclasses.replace(image, mailbox_protocols=SIM_MAILBOX_PROTOCOLS)
         if self.drive is not None:
             with contextlib.suppress(Exception):
@@ -454,3 +456,12 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatRawFace | None:
     busy = kwargs.get("ecat_foe_busy")
     return EthercatRawFace(str(ifname), drive, injector, int(serial) if serial is not None else None,  # type: ignore[call-overload]
                            int(busy) if busy else 0)  # type: ignore[call-overload]
+
+
+def sim_sii_image(serial: int | None = None, drive: object = None) -> SiiImage:
+    """The raw slave's SII: order code and firmware from the drive's one identity record (issue 23.8), the serial
+    the drive reports in 0x1018:4 (``--ecat-serial`` overrides it for a bus of several simulated slaves)."""
+    from akdctl.sim import identity
+
+    return akd_sii_image(mailbox_size=SIM_MAILBOX, serial=serial if serial is not None else identity.serial_of(drive),
+                         revision=identity.COE_REVISION, order=identity.ORDER_CODE, firmware=identity.FIRMWARE)

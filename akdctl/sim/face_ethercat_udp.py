@@ -47,7 +47,7 @@ def parse_stations(text: str | None, drive: SimDrive) -> dict[int, SimDrive]:
             addr = -1
         if not sep or not 1 <= addr <= 0xFFFF or not name.replace("-", "").replace("_", "").isalnum():
             raise UsageError(f"--ecat-stations: {part!r} is not STATION=NAME (station 1..65535, e.g. 1001=default)")
-        stations[addr] = drive if name == drive.name else SimDrive(name, drive.directory)
+        stations[addr] = drive if name == drive.name else _face_drive(SimDrive(name, drive.directory), drive)
     return stations
 
 
@@ -68,10 +68,13 @@ class GatewayHandler:
     """
 
     def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
+        from akdctl.sim.mailbox_repeat import MailboxRepeats
+
         self.stations = stations
         self.injector = injector or Injector()
+        self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
 
-    def handle(self, datagram: bytes) -> list[bytes]:
+    def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
@@ -95,7 +98,7 @@ class GatewayHandler:
             replies = [abort]
         else:
             try:
-                replies = drive.handle_mailbox(raw)
+                replies = self.repeats.answer((peer, station), raw, drive.handle_mailbox)
             except CodecError:
                 replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
@@ -145,7 +148,7 @@ class EthercatUdpFace(Face):
             except OSError:
                 break
             try:
-                replies = self.handler.handle(data)
+                replies = self.handler.handle(data, peer)
             except Exception as exc:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
                 request_failed("ethercat-udp", exc)
                 replies = []
@@ -173,3 +176,9 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatUdpFace | None:
     stations = parse_stations(kwargs.get("ecat_stations") or None, drive)  # type: ignore[arg-type]
     injector = Injector.parse(kwargs.get("ecat_inject") or None, "--ecat-inject")  # type: ignore[arg-type]
     return EthercatUdpFace(host, port, GatewayHandler(stations, injector))
+
+
+def _face_drive(new: "SimDrive", like: "SimDrive") -> "SimDrive":
+    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout)."""
+    new.lock_timeout = like.lock_timeout
+    return new

@@ -187,17 +187,24 @@ class EthernetIpFace(Face):
     # ------------------------------------------------------------- TCP
     def _accept_loop(self) -> None:
         assert self.tcp is not None
-        while not self._stop.is_set():
-            try:
-                ready, _, _ = select.select([self.tcp], [], [], 0.2)
-                if not ready:
+        from akdctl.sim.tcp_clients import TcpClients
+
+        # A cap on clients, refused in ENIP's words, EMFILE survived (sim/tcp_clients.py, issue 23.10)
+        self.clients = TcpClients("ethernetip", _refuse_client)
+        try:
+            while not self._stop.is_set():
+                try:
+                    accepted = self.clients.accept(self.tcp)
+                except (OSError, ValueError):
+                    return  # the listening socket was closed: the face stops
+                if accepted is None:
                     continue
-                client, peer = self.tcp.accept()
-            except OSError:
-                return
-            with self._lock:
-                self._clients.add(client)
-            self.spawn(self._serve_client, "eip-client", client, peer)
+                client, peer = accepted
+                with self._lock:
+                    self._clients.add(client)
+                self.spawn(self._serve_client, "eip-client", client, peer)
+        finally:
+            self.clients.close()
 
     def _serve_client(self, client: socket.socket, peer: tuple[str, int]) -> None:
         sessions: set[int] = set()
@@ -224,6 +231,7 @@ class EthernetIpFace(Face):
         except (OSError, CodecError):
             return
         finally:
+            self.clients.release()
             with self._lock:
                 self._clients.discard(client)
                 self._sessions -= sessions
@@ -488,3 +496,13 @@ def _recv_exact(sock: socket.socket, size: int) -> bytes | None:
             return None
         data += chunk
     return bytes(data)
+
+
+def _refuse_client(sock: socket.socket) -> None:
+    """A client over the cap: its first request is answered with encapsulation status 0x0002 "insufficient
+    memory" (the receiver lacks the resources for the command), in that request's command and context."""
+    head = sock.recv(enip.HEADER_SIZE)
+    if len(head) < enip.HEADER_SIZE:
+        return
+    header = enip.decode_header(head)
+    sock.sendall(enip.Packet(header.command, b"", header.session, enip.STATUS_NO_MEMORY, header.context).encode())

@@ -19,7 +19,6 @@ import itertools
 import os
 import select
 import socket
-import sys
 import time
 import uuid
 from collections import OrderedDict
@@ -28,6 +27,7 @@ from typing import Any, Protocol
 
 from akdctl.errors import CommError, UsageError
 from akdctl.protocol import dcerpc, pnio, pnio_record
+from akdctl.protocol.errors import CodecError
 from akdctl.protocol.pnio import (
     BT_READ_REQ,
     BT_WRITE_REQ,
@@ -38,10 +38,10 @@ from akdctl.protocol.pnio import (
     OP_READ_IMPLICIT,
     OP_WRITE,
 )
-from akdctl.protocol.errors import CodecError
 from akdctl.sim.errors import RecordRefused
 from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
+from akdctl.sim.refusals import RefusalReport
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
@@ -144,6 +144,12 @@ def _ar_timeout(value: Any) -> float | None:
     return float(value)
 
 
+# ---------------------------------------------------------------- refusals, reported once per cause
+
+#: How many AR holders a refusal line names (the rest are counted): a device with 64 ARs must not print 64.
+REPORTED_HOLDERS = 3
+
+
 # ---------------------------------------------------------------- AR state
 
 @dataclass
@@ -201,6 +207,7 @@ class ProfinetFace(Face):
         self.slot, self.subslot, self.api = slot, subslot, api
         self.fragment = fragment
         self.refuse_ar = refuse_ar
+        self.refusals = RefusalReport("profinet")  # one line per cause (sim/refusals.py)
         self.station_name = station_name
         self.dcp_iface = dcp_iface
         self.max_ars = max_ars
@@ -243,6 +250,7 @@ class ProfinetFace(Face):
             os.write(self._wake_w, b"x")
 
     def close(self) -> None:
+        self.refusals.flush()
         if self._dcp is not None:
             self._dcp.stop()
             self._dcp = None
@@ -466,16 +474,19 @@ class ProfinetFace(Face):
 
     def _report_full(self, peer: tuple[str, int]) -> None:
         """Name the ARs holding every slot: the refused client cannot learn it from the device (PROFINET has no
-        field for it), the person running the simulator can."""
+        field for it), the person running the simulator can. Through :class:`RefusalReport`: one line per cause,
+        repeats counted (issue 23.16: a client retrying in a loop wrote 853 KB in 4 minutes)."""
         now = time.monotonic()
+        ars = list(self._ars.values())
         holders = "; ".join(
             f"AR {ar.ar_uuid} of {ar.station or '?'} at {ar.peer[0]}:{ar.peer[1]}, idle {now - ar.last_activity:.1f} s, "
             f"dropped in {max(0.0, ar.timeout - (now - ar.last_activity)):.1f} s without a request"
-            for ar in self._ars.values())
-        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(self._ars)} held: {holders})"
-        self.stats.log.append(text)
-        sys.stderr.write(f"akdctl: warning: profinet: {text}\n")
-        sys.stderr.flush()
+            for ar in ars[:REPORTED_HOLDERS])
+        if len(ars) > REPORTED_HOLDERS:
+            holders += f"; and {len(ars) - REPORTED_HOLDERS} more"
+        text = f"Connect from {peer[0]}:{peer[1]} refused, out of AR resources ({len(ars)} held: {holders})"
+        if self.refusals.refused("out of AR resources", text):
+            self.stats.log.append(text)
 
     def _release(self, blocks: bytes) -> tuple[pnio.PnioStatus, bytes]:
         rel = pnio.ReleaseBlock.decode(blocks)
@@ -552,8 +563,12 @@ class ProfinetFace(Face):
         return pnio_record.read_res(req, response[: max(0, req.length)])
 
     def im0(self) -> pnio.IM0:
-        return pnio.IM0(vendor_id=self.vendor_id, order_id="AKD-P00306-NBPN-0000", serial_number="SIM0001",
-                        hardware_revision=4, sw_revision=("V", 1, 13, 0), revision_counter=0,
+        from akdctl.sim import identity  # the drive's one identity record (issue 23.8)
+
+        major, minor, patch, _ = identity.firmware_numbers()
+        return pnio.IM0(vendor_id=self.vendor_id, order_id=identity.ORDER_CODE, serial_number=str(identity.serial_of(self.drive)),
+                        hardware_revision=identity.hardware_revision_number(), sw_revision=("V", major, minor, patch),
+                        revision_counter=0,
                         profile_id=pnio.API_PROFIDRIVE, profile_specific_type=1, im_version=(1, 1), im_supported=0)
 
 

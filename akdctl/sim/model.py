@@ -74,6 +74,9 @@ class DriveModel:
         self.time_scale = 1.0  # virtual seconds per wall second (SimDrive sets it; the watchdog counts wall time)
         self.pnu_values: dict[int, list[int]] = {}
         self.object_values: dict[tuple[int, int], bytes] = {}
+        # AKD parameters a face keeps that have no PNU or object address (EtherNet/IP's EIP.POSUNIT, EIP.PROFUNIT):
+        # kept with the rest, so a write over any face survives a restart (issue 23.11)
+        self.named_values: dict[str, int] = {}
         self.writes = 0  # count of accepted writes (tests assert "no write reached the drive")
         # Bumped by every change of persisted state: the stored values here, every component's (component.Tracked);
         # the store saves when it moved (sim/drive.py). The virtual clock is not part of it.
@@ -332,6 +335,15 @@ class DriveModel:
         self.writes += 1
         self.revision += 1
 
+    def named_value(self, name: str, default: int) -> int:
+        """An AKD parameter kept by name (a face's parameter without a PNU or object), ``default`` until written."""
+        return self.named_values.get(name, default)
+
+    def set_named_value(self, name: str, value: int) -> None:
+        self.named_values[name] = int(value)
+        self.writes += 1
+        self.revision += 1
+
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:
         return {
@@ -340,6 +352,7 @@ class DriveModel:
             "writes": self.writes,
             "pnus": {str(k): v for k, v in sorted(self.pnu_values.items())},
             "objects": {f"{i:04X}:{s:02X}": d.hex() for (i, s), d in sorted(self.object_values.items())},
+            "named": dict(sorted(self.named_values.items())),
             "components": {c.name: c.to_state() for c in self.components},
         }
 
@@ -359,6 +372,10 @@ class DriveModel:
             for key, hexdata in dict(state.get("objects", {})).items():
                 index, _, sub = str(key).partition(":")
                 model.object_values[(int(index, 16), int(sub, 16))] = bytes.fromhex(hexdata)
+            for name, value in dict(state.get("named", {})).items():
+                if not isinstance(value, int) or isinstance(value, bool):
+                    raise ValueError(f"parameter {name}: the value must be an integer")
+                model.named_values[str(name)] = value
             comp_states = dict(state.get("components", {}))
             for comp in model.components:
                 comp.load_state(dict(comp_states.get(comp.name, {})))
@@ -369,21 +386,34 @@ class DriveModel:
         return model
 
 
-# Identity of the simulated drive where the ESI gives no default (a real drive reports its own).
-SIM_OBJECT_DEFAULTS: dict[tuple[int, int], bytes] = {
-    (0x1008, 0): b"AKD",
-    (0x1009, 0): b"E",
-    (0x100A, 0): b"M_01-20-00-001",
-    (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
-    (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
-    # Revision and serial as the simulated ESC's SII reports them (protocol/sii.py akd_sii_image, taken from a real
-    # AKD's SII dump): one identity over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
-    (0x1018, 3): (0x00000002).to_bytes(4, "little"),
-    (0x1018, 4): (2575499411).to_bytes(4, "little"),
-    # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the ESI
-    # gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
-    (0x36E8, 0): (1).to_bytes(4, "little"),
-}
+# Identity of the simulated drive where the ESI gives no default (a real drive reports its own), built on first use:
+# the identity record is imported only when an identity object is read (the PNU path never needs it).
+_sim_object_defaults: dict[tuple[int, int], bytes] | None = None
+_PRESET_KEYS = frozenset({(0x1008, 0), (0x1009, 0), (0x100A, 0), (0x2033, 0), (0x1018, 1), (0x1018, 2), (0x1018, 3),
+                          (0x1018, 4), (0x36E8, 0)})  # the keys of sim_object_defaults(), known without building it
+
+
+def sim_object_defaults() -> dict[tuple[int, int], bytes]:
+    global _sim_object_defaults
+    if _sim_object_defaults is None:
+        from akdctl.sim import identity  # the one identity record (sim/identity.py, issue 23.8)
+
+        _sim_object_defaults = {
+            (0x1008, 0): b"AKD",
+            (0x1009, 0): identity.HARDWARE_REVISION.encode(),
+            (0x100A, 0): f"M_{identity.FIRMWARE}".encode(),
+            (0x2033, 0): identity.ORDER_CODE.encode(),  # DRV.MODEL
+            (0x1018, 1): (0x6A).to_bytes(4, "little"),  # Kollmorgen's EtherCAT vendor id (ESI)
+            (0x1018, 2): (0x00414B44).to_bytes(4, "little"),  # product code "AKD" (ESI)
+            # Revision and serial as the simulated ESC's SII reports them (the real AKD's SII dump): one identity
+            # over CoE and SII (docs/fidelity.md F3), not the newest ESI revision 0x00260000.
+            (0x1018, 3): identity.COE_REVISION.to_bytes(4, "little"),
+            (0x1018, 4): identity.SERIAL.to_bytes(4, "little"),
+            # FBUS.PARAM04 (synchronization supervision): "EtherCAT drive: enabled (1)" (EtherCAT manual 5.14); the
+            # ESI gives 0, the CANopen drive's default. The simulated AKD is an EtherCAT drive (docs/fidelity.md).
+            (0x36E8, 0): (1).to_bytes(4, "little"),
+        }
+    return _sim_object_defaults
 
 
 def _entry_size(entry: Any) -> int | None:
@@ -398,7 +428,8 @@ def _entry_signed(entry: Any) -> bool:
 
 
 def _default_bytes(entry: Any) -> bytes:
-    preset = SIM_OBJECT_DEFAULTS.get((entry.index, entry.subindex))
+    key = (entry.index, entry.subindex)
+    preset = sim_object_defaults().get(key) if key in _PRESET_KEYS else None
     if preset is not None:
         return preset
     size = _entry_size(entry)

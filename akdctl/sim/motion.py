@@ -57,6 +57,9 @@ if TYPE_CHECKING:
 
 DEFAULT_FE_WINDOW_REV = 0.5  # ZSW1 bit 8 / SW bit 13 window when 0x6065 is 0
 DEFAULT_WATCHDOG_S = 1.0
+#: The simulated drive's peak current (DRV.IPEAK, Arms): the AKD x00606 size the identity record names
+#: (6 A continuous, 18 A peak; [I] from Kollmorgen's catalogue, not from the seeds).
+SIM_PEAK_CURRENT_A = 18.0
 #: The warning the watchdog raises: a simulator-only number (catalog/data/faults.csv marks it so); a real AKD has
 #: no watchdog on acyclic access, hence no warning for it (docs/fidelity.md F4).
 WATCHDOG_WARNING = "n990"
@@ -326,6 +329,16 @@ class MotionComponent(Component):
         m.bind_object(0x606B, read=obj_reader("<i", lambda: counts(axis.vel)))  # velocity demand (VL.CMD): the ramp
         m.bind_object(0x6077, read=obj_reader("<h", lambda: round(self._current_fraction() * 1000)))
         m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
+        # The AKD names of the same actual values (issue 23.7): one live value, every address of it.
+        # VL.FB is 3618h *and* 606Ch [V reference/akd-parameter-names.md, G1]: the same reader.
+        m.bind_object(0x3618, read=obj_reader("<i", lambda: counts(axis.vel)))
+        # Actual current: 2077h is scaled in mA [V seed 001, "Actual Current 0x2077 sub 0, 32 bit, scaled in mA"];
+        # IL.FB 3558h in the 1000:1 float scaling of the AKD's CoE objects [I: its own scale row was not read].
+        m.bind_object(0x2077, read=obj_reader("<i", self.current_ma))
+        m.bind_object(0x3558, read=obj_reader("<i", self.current_ma))
+        # PL.ERR is the following error 60F4h shows [I: same quantity, same counts assumed].
+        m.bind_object(0x35C5, read=obj_reader("<i", lambda: counts(axis.following_error)))
+        m.bind_object(0x5084, read=obj_reader("<I", lambda: round(SIM_PEAK_CURRENT_A * 1000)))  # DRV.IPEAK, 1000:1 [I]
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
         m.bind_object(0x60FF, write=cia.write_target_velocity)
         m.bind_object(0x6071, write=cia.write_target_torque)          # torque mode (4)
@@ -335,6 +348,10 @@ class MotionComponent(Component):
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
         m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
         m.bind_object(0x3443, read=obj_reader("<H", self.dissources))
+
+    def current_ma(self) -> int:
+        """The actual current in mA (signed, as a fraction of the simulated drive's peak current)."""
+        return round(self._current_fraction() * SIM_PEAK_CURRENT_A * 1000)
 
     def _current_fraction(self) -> float:
         """A plausible current: acceleration torque plus a little friction, as a fraction of peak."""

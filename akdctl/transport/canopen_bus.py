@@ -27,7 +27,10 @@ Target syntax
 * Query parameters other than akdctl's own (``block``, ``context``) are passed to
   the python-can bus as keyword arguments, typed the way python-can types its
   config files (``500000`` -> int, ``0.5`` -> float, ``true`` -> bool, others
-  stay strings): ``?bitrate=250000``, ``?port=43114``, ``?sleep_after_open=0``.
+  stay strings): ``?bitrate=250000``, ``?port=43114``, ``?sleep_after_open=2``.
+* slcan: akdctl waits 0.05 s after opening the serial port (python-can's own default is 2 s, for adapters that
+  reset on open: give those ``?sleep_after_open=2``), and every write to the port ends within the command's
+  ``--timeout``, so an adapter that stops reading cannot hang a command; ``-v`` shows how long the open took.
 * ``?block=1`` uses SDO block transfer for uploads and downloads.
 
 Errors
@@ -53,7 +56,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
 from akdctl.errors import AkdError, CommError, NoAnswer, UsageError
-from akdctl.io.canbus import BusConfig, close_bus, open_bus, reason
+from akdctl.io.canbus import SLCAN_SLEEP_AFTER_OPEN, BusConfig, close_bus, open_bus, reason
 from akdctl.links import CanopenSdoClient
 from akdctl.protocol.nmt import state_name as _state_name
 from akdctl.transport.base import LinkOptions, Transport
@@ -227,7 +230,15 @@ class CanopenTransport(Transport):
     def open(self) -> None:
         import canopen
 
-        self.bus = open_bus(self.config)
+        started = time.monotonic()
+        self.bus = open_bus(self.config, write_timeout=self.options.budget.left)
+        if self.options.verbose:  # where the time of a slow start went (issue 23.21)
+            import sys
+
+            extra = (f", sleep_after_open {self.config.kwargs.get('sleep_after_open', SLCAN_SLEEP_AFTER_OPEN):g} s"
+                     if self.config.interface == "slcan" else "")
+            sys.stderr.write(f"akdctl: opened CAN interface {self.config.describe()} in "
+                             f"{(time.monotonic() - started) * 1000:.0f} ms{extra}\n")
         try:
             self.network = _make_network(self.bus, self.options.tracer)
             self.network.connect()

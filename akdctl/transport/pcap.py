@@ -11,6 +11,12 @@ frames. So this sink synthesises the lower headers from the record's ``meta``:
 * ``{"proto": "ethernet", "ethertype": T[, "src_mac": b6, "dst_mac": b6]}``: an
   Ethernet header in front of ``data``;
 * ``{"proto": "ethernet"}`` without an EtherType: ``data`` is already a whole frame.
+* ``{"proto": "can", "can_id": N, "extended": bool, "remote": bool}`` (``can://``): a SocketCAN frame
+  (LINKTYPE_CAN_SOCKETCAN: the CAN ID with its flags big-endian, the length, 8 data bytes). A pcap file has one
+  link type, written in its header before the first frame is known: the header says Ethernet, and when the first
+  frame written is a CAN frame the link type is changed in place to CAN (a capture is one command's, on one
+  transport). A frame of the other kind than the file's is counted in ``skipped``. tshark decodes the CANopen
+  SDOs with ``-d can.subdissector,canopen`` (Wireshark does not guess CANopen from an identifier).
 
 * ``{"proto": "sim"}`` (the in-process simulated drive, which has no wire): the
   bytes it exchanged are put in the frames a real drive would carry them in
@@ -38,6 +44,9 @@ from akdctl.transport.trace import TraceRecord
 
 PCAP_MAGIC = 0xA1B2C3D4
 LINKTYPE_ETHERNET = 1
+LINKTYPE_CAN_SOCKETCAN = 227
+CAN_EFF_FLAG = 0x80000000  # extended (29-bit) identifier
+CAN_RTR_FLAG = 0x40000000  # remote transmission request
 SNAPLEN = 262144
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -171,6 +180,14 @@ class SimWire:
         return ethercat.encode_frame([datagram], b"\x02\x00\x00\x00\x00\x01")
 
 
+def can_frame(can_id: int, data: bytes, extended: bool = False, remote: bool = False) -> bytes:
+    """A LINKTYPE_CAN_SOCKETCAN packet: ID and flags (big-endian), length, 3 reserved bytes, 8 data bytes."""
+    ident = (can_id & (0x1FFFFFFF if extended else 0x7FF)) | (CAN_EFF_FLAG if extended else 0) | (
+        CAN_RTR_FLAG if remote else 0)
+    payload = bytes(data[:8])
+    return struct.pack("!IB3x", ident, len(payload)) + payload.ljust(8, b"\0")
+
+
 class PcapWriter:
     """A pcap file that grows one flushed frame at a time. Use ``write`` as a tracer sink."""
 
@@ -191,13 +208,18 @@ class PcapWriter:
         self._tcp_seq: dict[tuple[str, int, str, int], int] = {}
         self._sim_wire: SimWire | None = None
         self._lock = threading.Lock()
+        self.link_type = LINKTYPE_ETHERNET
         self._file.write(struct.pack("<IHHiIII", PCAP_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_ETHERNET))
         self._file.flush()
 
     def frame_bytes(self, record: TraceRecord) -> bytes | None:
-        """The Ethernet frame for a record, or ``None`` if it has no wire form."""
+        """The Ethernet frame for a record (a SocketCAN frame for ``proto`` "can"), or ``None`` if it has no wire
+        form."""
         meta = record.meta
         proto = meta.get("proto")
+        if proto == "can" and isinstance(meta.get("can_id"), int):
+            return can_frame(int(meta["can_id"]), record.data, bool(meta.get("extended")),  # type: ignore[call-overload]
+                             bool(meta.get("remote")))
         if proto == "udp" and isinstance(meta.get("src"), (tuple, list)) and isinstance(meta.get("dst"), (tuple, list)):
             self._ident = (self._ident + 1) & 0xFFFF
             return udp_frame(meta["src"], meta["dst"], record.data, self._ident)  # type: ignore[arg-type]
@@ -234,7 +256,7 @@ class PcapWriter:
         with self._lock:
             if self._file is None:
                 return
-            if frame is None:
+            if frame is None or not self._link_type_for(record.meta.get("proto") == "can"):
                 self.skipped += 1
                 return
             seconds = int(record.time)
@@ -245,6 +267,22 @@ class PcapWriter:
             self._file.write(struct.pack("<IIII", seconds, micros, len(kept), len(frame)) + kept)
             self._file.flush()
             self.frames += 1
+
+    def _link_type_for(self, can: bool) -> bool:
+        """Whether a frame of this kind fits the file; the first frame decides (CAN: the header is rewritten)."""
+        wanted = LINKTYPE_CAN_SOCKETCAN if can else LINKTYPE_ETHERNET
+        if wanted == self.link_type:
+            return True
+        if self.frames or self._file is None:
+            return False
+        try:
+            self._file.seek(20)
+            self._file.write(struct.pack("<I", wanted))
+            self._file.seek(0, os.SEEK_END)
+        except (OSError, ValueError):
+            return False  # not seekable (a pipe): the header stays Ethernet and CAN frames are skipped
+        self.link_type = wanted
+        return True
 
     def close(self) -> None:
         with self._lock:

@@ -31,10 +31,17 @@ import uuid
 from typing import TYPE_CHECKING
 
 from akdctl.catalog.texts import pnio_status_text
-from akdctl.errors import CommError, MalformedReply, NoAnswer, RecordError, UsageError
+from akdctl.errors import (
+    CommError,
+    MalformedReply,
+    NoAnswer,
+    RecordError,
+    UnknownOutcome,
+    UsageError,
+)
+from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
-from akdctl.links import Deadline, RecordLink
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
@@ -201,15 +208,31 @@ class PnioRecordLink(RecordLink):
             raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
                              f"of {MAX_RECORD} bytes")
         with t.lock, t.options.budget.request() as deadline:
-            self._until_not_busy(deadline, lambda: t.write_record(request, deadline), "write")
-            return self._until_not_busy(deadline, lambda: t.read_record(deadline), "read")
+            try:
+                self._until_not_busy(deadline, lambda: t.write_record(request, deadline), "write")
+                return self._until_not_busy(deadline, lambda: t.read_record(deadline), "read")
+            except NoAnswer as exc:
+                from akdctl.protocol import bmp
+
+                if len(request) > 1 and request[1] == bmp.REQ_CHANGE:
+                    raise _unknown_outcome(exc, request) from None
+                raise
 
     def _until_not_busy(self, deadline: Deadline, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
         pause = BUSY_BACKOFF[0]
+        busy: pnio.PnioStatus | None = None
         while True:
-            status, data = action()
+            try:
+                status, data = action()
+            except NoAnswer:
+                if busy is None:
+                    raise
+                # The drive did answer: busy, until the time ran out. Say that, not "no answer" (issue 23.15).
+                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
+                               f"({what} record: {pnio_status_text(*busy.encode())})", code=busy.value) from None
             if not status.busy:
                 return data
+            busy = status
             if pause > deadline.remaining():
                 raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
                                f"({what} record: {pnio_status_text(*status.encode())})", code=status.value)
@@ -433,3 +456,25 @@ def _local_mac() -> bytes:
 
 
 __all__ = ["ProfinetTransport", "PnioRecordLink", "RpcClient"]
+
+
+def _unknown_outcome(exc: NoAnswer, request: bytes) -> UnknownOutcome:
+    """A change request whose answer never came: the drive may have applied it (issue 23.22).
+
+    Why not "no answer": the write record carried the change, and a late or lost reply says nothing about whether
+    the drive applied it (a reply 20 ms after the deadline means it did). The PNIO layer has already repeated the
+    datagram as often as the budget allowed (the device answers a repeat from its cache, never applying it twice);
+    akdctl does not send the change again. The user reads the parameters back before repeating.
+    """
+    from akdctl.protocol import bmp
+
+    try:
+        pnus = sorted({a.pnu for a in bmp.decode_request(request).addresses})
+    except bmp.BmpError:
+        pnus = []
+    check = f"'akdctl pnu get {' '.join(str(p) for p in pnus)}'" if pnus else "'akdctl pnu get'"
+    error = UnknownOutcome(f"{exc.message}: unknown outcome, the drive may or may not have applied the change; "
+                           f"akdctl does not send it twice: check with {check} before repeating",
+                           code=exc.code, details=exc.details)
+    error.unanswered = True  # type: ignore[attr-defined]  # how links.Budget counts it
+    return error

@@ -1,0 +1,53 @@
+"""A repeated mailbox is a repeat: the simulated slave and the ETG.8200 gateway do not execute it twice.
+
+Why: the mailbox header's counter (byte 5, bits 4-6, 1..7; 0 = none) exists so that a slave recognises a mailbox
+it already received (ETG.1000.4 mailbox; the master's retry and a network that duplicates a datagram both deliver
+the same mailbox again). Without this check a duplicated ``sdo write`` datagram was applied twice through a
+duplicating relay (issue 23.14: 15 of 60 writes, and a relative move of 0.5 rev moved 1.0 rev). A mailbox that
+repeats the previous one of its link -- same counter and same bytes -- is answered with the replies the first
+one got (they may have been the ones lost) and changes nothing. Comparing the bytes as well as the counter keeps
+two different requests that happen to carry the same counter (two masters behind one gateway, a client that
+restarted its count) from being taken for one.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+
+#: Links remembered at once (the gateway keys by client and station); the oldest is forgotten first.
+MAX_LINKS = 256
+#: How long after a mailbox its repeat is recognised (seconds). A duplicated datagram or a master's retry comes
+#: within the master's timeout; a *new* master process starts its counter at 1 again, and a first mailbox equal to
+#: the last one of the process before it must be executed, not answered from the past (the simulator's choice:
+#: ETG.1000 compares the counter only and names no time).
+REPEAT_WINDOW_S = 1.0
+
+
+class MailboxRepeats:
+    """Per link: the last mailbox with a counter and the replies it got."""
+
+    def __init__(self, max_links: int = MAX_LINKS) -> None:
+        self.max_links = max_links
+        self.repeats = 0  # repeats answered without executing them (for tests and stats)
+        self._last: OrderedDict[Hashable, tuple[bytes, list[bytes], float]] = OrderedDict()
+
+    def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
+        """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it."""
+        counter = (request[5] >> 4) & 0x07 if len(request) >= 6 else 0
+        if counter:
+            last = self._last.get(link)
+            if last is not None and last[0] == request and time.monotonic() - last[2] <= REPEAT_WINDOW_S:
+                self.repeats += 1
+                self._last.move_to_end(link)
+                return list(last[1])
+        replies = handle(request)
+        if counter:
+            self._last[link] = (bytes(request), list(replies), time.monotonic())
+            self._last.move_to_end(link)
+            while len(self._last) > self.max_links:
+                self._last.popitem(last=False)
+        else:
+            self._last.pop(link, None)  # a mailbox without a counter ends the sequence
+        return replies
