@@ -96,7 +96,7 @@ def test_the_cli_reads_the_akd_names_live(jogging, akd_inproc) -> None:
 def test_the_cip_view_of_the_same_motion(jogging, akd) -> None:
     """The Position Controller's actual velocity (0x25/1/14, in PROFUNIT counts per revolution per second) over
     the EtherNet/IP face shows the same 300 rpm as 0x606C and VL.FB."""
-    from akdctl.sim.cip_device import DEFAULT_UNIT
+    from akdctl.sim.cip_axis import DEFAULT_UNIT
     from tests.harness import SimServer
 
     with SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0") as server:
