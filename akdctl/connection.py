@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from akdctl.channels.cip import CipAttributes
     from akdctl.config import Profile
     from akdctl.drive.axis.base import Axis
-    from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
+    from akdctl.links import CommandLink, MailboxLink, NativeSdoClient, RecordLink, RegisterLink
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
@@ -90,6 +90,8 @@ class Connection:
         self._record_link: "RecordLink | None" = None  # the traced link, until parameters() builds its channel
         self._objects: "ObjectChannel | None" = None
         self._cip: "CipAttributes | None" = None
+        self._commands: "CommandLink | None" = None   # issue 24: the AKD's ASCII channel (akd://)
+        self._registers: "RegisterLink | None" = None  # issue 24: Modbus registers (mb://)
 
     @classmethod
     def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
@@ -152,6 +154,9 @@ class Connection:
 
             self._cip = CipAttributes(transport.message_link, self.target.display)
 
+        self._commands = transport.command_link
+        self._registers = transport.register_link
+
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
         from akdctl.channels.coe_sdo import CoeObjectChannel
 
@@ -188,6 +193,28 @@ class Connection:
         """Whether the target offers CIP explicit messaging (opens the transport)."""
         self.transport()
         return self._cip is not None
+
+    @property
+    def has_commands(self) -> bool:
+        """Whether the target speaks the AKD's ASCII command channel (akd://; opens the transport)."""
+        self.transport()
+        return self._commands is not None
+
+    def commands(self) -> "CommandLink":
+        """The AKD's ASCII command channel; UsageError naming the alternative if the target has none."""
+        self.transport()
+        return self._offered(self._commands, "no AKD command channel (ASCII service port); use an akd://HOST target")
+
+    @property
+    def has_registers(self) -> bool:
+        """Whether the target offers Modbus holding registers (mb://; opens the transport)."""
+        self.transport()
+        return self._registers is not None
+
+    def registers(self) -> "RegisterLink":
+        """The Modbus register link; UsageError naming the alternative if the target has none."""
+        self.transport()
+        return self._offered(self._registers, "no Modbus registers; use an mb://HOST target")
 
     def cip(self) -> "CipAttributes":
         """The CIP attribute channel; UsageError naming the alternative if the target has none."""
@@ -226,6 +253,7 @@ class Connection:
         transport, self._transport = self._transport, None
         channels = [c for c in (self._objects, self._parameters) if c is not None]
         self._parameters = self._objects = self._cip = None
+        self._commands = self._registers = None
         self._record_link = None
         for channel in channels:
             with contextlib.suppress(Exception):

@@ -90,10 +90,13 @@ def family(name: str) -> str:
 def merge(rows: dict[str, dict[str, str]]) -> list[dict[str, str]]:
     out: dict[str, dict[str, str]] = {}
     for name, row in rows.items():
-        access = {"rw": "RW", "ro": "RO", "wo": "WO"}[row["access"]]
-        out[name] = {**dict.fromkeys(COLUMNS, ""), **row, "access": access, "kind": "raw" if row["coe_type"] != "vs"
-                     else "string", "scale": "" if row["coe_type"] == "vs" else "1"}
-        if out[name]["kind"] == "raw":
+        # The ESI's write-only objects are all commands (DRV.NVSAVE, HOME.SET, DRV.STOP, MT.SET, MT.LOAD, WS.ARM,
+        # COGCOMP.TEACH, PLS.RESET: reference akd-parameter-names.md 1.1).
+        access = {"rw": "RW", "ro": "RO", "wo": "CMD"}[row["access"]]
+        kind = "command" if access == "CMD" else "string" if row["coe_type"] == "vs" else "raw"
+        out[name] = {**dict.fromkeys(COLUMNS, ""), **row, "access": access, "kind": kind,
+                     "scale": "1" if kind == "raw" else ""}
+        if kind == "raw":
             out[name]["marks"] += " scale=I"
     for fact in FACTS:
         (name, access, kind, unit, lo, hi, default, coe, coe_type, scale, n, pnu, source, marks, note) = fact

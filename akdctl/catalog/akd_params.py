@@ -69,7 +69,7 @@ class AkdParam(Record):
 
     @property
     def is_command(self) -> bool:
-        return self.access == "CMD" or self.kind == "command"
+        return self.access in ("CMD", "WO") or self.kind == "command"
 
     @property
     def readable(self) -> bool:
