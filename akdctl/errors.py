@@ -187,3 +187,9 @@ class InternalError(AkdError):
 
     exit_code = 70
     kind = "internal"
+
+
+class CommandRefused(DriveError):
+    """An ``Error:`` reply of the AKD's ASCII command channel (akd://): the drive's own words (issue 24)."""
+
+    kind = "akd-error"

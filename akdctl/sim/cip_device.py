@@ -254,7 +254,7 @@ class CipDevice:
         modelled = {eip_parameters.by_name(name).instance: key  # type: ignore[union-attr]
                     for name, key in (("EIP.POSUNIT", "posunit"), ("EIP.PROFUNIT", "profunit"), ("HOME.MOVE", "home"))}
         if instance not in modelled:
-            raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
+            return self._named_parameter(service, path, data, instance)
         command = modelled[instance] == "home"
         attrs = {1: b"\x00" if command else struct.pack("<I", getattr(self.pc, modelled[instance])),
                  5: bytes([0xC6 if command else 0xC8]), 6: bytes([1 if command else 4])}
@@ -273,6 +273,32 @@ class CipDevice:
         if not 1 <= value <= 1 << 31:        # range 0..2^31 [M-21]; 0 would divide by zero
             raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE)
         setattr(self.pc, modelled[instance], value)
+        return b""
+
+    def _named_parameter(self, service: int, path: cip.Path, data: bytes, instance: int) -> bytes:
+        """Any other catalogue parameter with a number ``n``: served from the one drive model by name
+        (:mod:`akdctl.sim.akd_params`), 4 bytes, floats x1000 (issue 24)."""
+        from akdctl.sim import akd_params as store
+
+        row = store.by_number(instance)
+        if row is None or row.is_command or row.kind in ("text", "string"):
+            raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
+        signed = row.kind == "float" or not row.coe_type.startswith("u")
+        if path.attribute in (5, 6):
+            if service != cip.GET_ATTRIBUTE_SINGLE:
+                raise CipRefusal(cip.ATTRIBUTE_NOT_SETTABLE)
+            return bytes([0xC4 if signed else 0xC8]) if path.attribute == 5 else b"\x04"
+        if path.attribute != 1:
+            raise CipRefusal(cip.ATTRIBUTE_NOT_SUPPORTED)
+        with self._model() as model:
+            try:
+                if service == cip.GET_ATTRIBUTE_SINGLE:
+                    return (store.wire(model, row) & 0xFFFFFFFF).to_bytes(4, "little")
+                if len(data) != 4:
+                    raise CipRefusal(cip.NOT_ENOUGH_DATA if len(data) < 4 else cip.TOO_MUCH_DATA)
+                store.write_wire(model, row, int.from_bytes(data, "little", signed=signed))
+            except store.ParamError:
+                raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE) from None
         return b""
 
     # ---------------------------------------------------------------- model access
