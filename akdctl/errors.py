@@ -193,3 +193,9 @@ class CommandRefused(DriveError):
     """An ``Error:`` reply of the AKD's ASCII command channel (akd://): the drive's own words (issue 24)."""
 
     kind = "akd-error"
+
+
+class ModbusRefused(DriveError):
+    """A Modbus exception response (function code + 0x80, exception code) from an mb:// target (issue 24)."""
+
+    kind = "modbus-exception"
