@@ -508,3 +508,21 @@ def execute_save(conn: "Connection", plan: "WritePlan") -> dict[str, Any]:
 
 __all__ = ["NameReading", "resolve", "expand", "route", "read", "read_all", "classify", "classify_line",
            "plan", "execute", "plan_save", "execute_save", "reachable", "alternatives", "drive_enabled"]
+
+
+def plan_line(conn: "Connection", line: str) -> "WritePlan":
+    """The passthrough (``akdctl cmd LINE``) as a plan: a known-safe read is a plan without writes' consent;
+    every other line is one gated write (its reason from :func:`classify_line`)."""
+    from akdctl.drive.operation import PlannedWrite, WritePlan
+
+    keyword, gated = classify_line(line)
+    conn.commands()  # only the service channel carries command lines: UsageError naming akd:// otherwise
+    text = line.strip()
+    enabled = drive_enabled(conn) if gated is not None and gated.when_enabled else None
+    return WritePlan("cmd", conn.target.display, [PlannedWrite(text, text, "(command line)", gated)],
+                     enabled=enabled, data={"line": text, "keyword": keyword, "safe": gated is None})
+
+
+def execute_line(conn: "Connection", plan: "WritePlan") -> str:
+    """Send the planned line; the drive's reply (without echo and prompt)."""
+    return conn.commands().command(plan.data["line"])

@@ -36,6 +36,8 @@ def profile_name(conn: Any) -> str:
         return "profidrive" if conn.has_parameters else "cia402"
     if "attributes" in channels:
         return "cip"
+    if "commands" in channels:
+        return "akd"   # the AKD's own command channel (issue 24)
     return "profidrive" if "parameters" in channels else "cia402"
 
 
@@ -46,6 +48,10 @@ def axis_class(conn: Any) -> type[Axis]:
         from akdctl.drive.axis.cip import CipAxis
 
         return CipAxis
+    if chosen == "akd":
+        from akdctl.drive.axis.akd_ascii import AkdAsciiAxis
+
+        return AkdAsciiAxis
     classes: dict[str, type[Axis]] = {"profidrive": ProfidriveAxis, "cia402": Cia402Axis}
     if chosen not in classes:
         raise UsageError(f"unknown drive profile {chosen!r}: use 'profidrive', 'cia402' or 'cip'")
@@ -66,6 +72,10 @@ def open_axis(conn: "Connection") -> Axis:
         from akdctl.drive.axis.cip import CipAxis
 
         axis = CipAxis(conn.cip(), timeout=timeout, target=target)
+    elif chosen == "akd":
+        from akdctl.drive.axis.akd_ascii import AkdAsciiAxis
+
+        axis = AkdAsciiAxis(conn.commands(), timeout=timeout, target=target)
     elif chosen == "profidrive":
         axis = ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)
