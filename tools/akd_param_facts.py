@@ -123,7 +123,7 @@ FACTS: tuple[tuple[str, ...], ...] = (
     ("MOTOR.INERTIA", "NV", "float", "kg·cm²", "1", "200000", "100", "", "", "1000", "", "", "G1 ESI", "coe=V scale=I", "rotor inertia"),
     ("MOTOR.BRAKE", "NV", "int", "", "0", "1", "0", "0x3587:0", "", "1", "", "", "G1", "coe=V", "brake present"),
     ("MOTOR.AUTOSET", "NV", "int", "", "0", "1", "0", "", "", "1", "", "", "G1 ESI", "coe=V", "motor parameters from the feedback"),
-    ("MOTOR.TEMP", "RO", "int", "Ω", "", "", "", "0x3612:0", "", "1", "258", "", "G1 C4", "coe=V n=V", "motor temperature sensor"),
+    ("MOTOR.TEMP", "RO", "int", "Ohm", "", "", "", "0x3612:0", "", "1", "258", "", "G1 C4", "coe=V n=V", "motor temperature sensor"),
     ("MOTOR.NAME", "NV", "string", "", "", "", "", "", "", "", "", "", "G1 ESI", "coe=V", "motor name"),
     # ---- feedback, bus, analog, fieldbus
     ("FB1.SELECT", "NV", "int", "", "-1", "41", "-1", "", "i32", "1", "", "", "G1 ESI", "coe=V", "feedback type (-1 auto)"),
@@ -138,8 +138,8 @@ FACTS: tuple[tuple[str, ...], ...] = (
     ("AOUT.MODE", "NV", "int", "", "", "", "", "", "", "1", "11", "", "ESI S12", "coe=V n=V", "analog output mode"),
     ("AOUT.OFFSET", "NV", "float", "V", "", "", "", "", "i32", "1000", "12", "", "ESI S12", "coe=V scale=I n=V", "analog output offset"),
     ("MODBUS.PSCALE", "NV", "int", "", "", "", "", "", "", "1", "490", "", "ESI UG", "coe=V n=V", "Modbus position scaling"),
-    ("EIP.POSUNIT", "NV", "int", "", "1", "2147483648", "", "-", "", "", "796", "", "UG", "n=V", "EtherNet/IP position unit"),
-    ("EIP.PROFUNIT", "NV", "int", "", "1", "2147483648", "", "-", "", "", "797", "", "UG", "n=V", "EtherNet/IP profile unit"),
+    ("EIP.POSUNIT", "NV", "int", "", "1", "2147483648", "65536", "-", "", "", "796", "", "UG", "n=V", "EtherNet/IP position unit"),
+    ("EIP.PROFUNIT", "NV", "int", "", "1", "2147483648", "65536", "-", "", "", "797", "", "UG", "n=V", "EtherNet/IP profile unit"),
     ("WS.MODE", "NV", "int", "", "", "", "", "", "", "1", "452", "", "ESI UG", "coe=V n=V", "wake-and-shake mode"),
     ("SD.SAVE", "CMD", "command", "", "", "", "", "-", "", "", "844", "", "UG", "n=V", "saves the drive's parameters to the SD card"),
 )

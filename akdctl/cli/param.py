@@ -235,10 +235,14 @@ def dump(file: str, pattern: str | None) -> None:
     app = get_app()
     require_directory(Path(file))
     readings, skipped = ops.read_all(app.connection, _dump_rows(pattern))
+    empty = [r.row.name for r in readings if r.row.kind == "string" and not str(r.value)]
+    readings = [r for r in readings if r.row.name not in empty]   # a 'NAME' line without value replays as a read
     header = [f"akdctl param dump of {app.target.display}",
               f"{len(readings)} NV parameters; units at the drive's UNIT.* settings"]
     if skipped:
         header.append("not reachable over this transport: " + " ".join(r.name for r in skipped))
+    if empty:
+        header.append("empty (not written): " + " ".join(empty))
     write_user_file(Path(file), render(((r.row.name, format_value(r.row.kind, r.value)) for r in readings), header))
     app.emit({"target": app.target.display, "file": file, "written": len(readings),
               "skipped": [r.name for r in skipped]},

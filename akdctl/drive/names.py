@@ -358,8 +358,11 @@ def wire_value(row: "AkdParam", value: Any, how: str, raw: bool = False) -> Any:
     return int(value)
 
 
-def check_value(row: "AkdParam", text: str, raw: bool = False) -> Any:
-    """The value a user or file gave for ``row``, parsed and checked against class and published range."""
+def check_value(row: "AkdParam", text: str, raw: bool = False, notes: list[str] | None = None) -> Any:
+    """The value a user or file gave for ``row``, parsed and checked against class and published range.
+
+    With ``notes`` (a restore: the values came from a drive) a value outside the published range is noted, not
+    refused: the ranges are launch-firmware ones (2009 guide) and the drive itself decides."""
     from akdctl.profiles.akd_values import ValueFormError, parse_text
 
     if row.is_command:
@@ -373,8 +376,12 @@ def check_value(row: "AkdParam", text: str, raw: bool = False) -> Any:
     if not raw and isinstance(value, (int, float)):
         for bound, ok in ((row.minimum, lambda b: value >= b), (row.maximum, lambda b: value <= b)):
             if bound and not ok(float(bound)):
-                raise UsageError(f"{value} is outside {row.name}'s range {row.minimum or '..'} .. "
-                                 f"{row.maximum or '..'}{' [I]' if row.mark('range') == 'I' else ''}")
+                words = (f"{value} is outside {row.name}'s published range {row.minimum or '..'} .. "
+                         f"{row.maximum or '..'}{' [I]' if row.mark('range') == 'I' else ''}")
+                if notes is None:
+                    raise UsageError(words)
+                notes.append(words + " (from the file; the drive decides)")
+                break
     return value
 
 
@@ -397,7 +404,7 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
         if row.name in seen:
             raise UsageError(f"{row.name} is given twice")
         seen.add(row.name)
-        value = check_value(row, text, raw)
+        value = check_value(row, text, raw, notes if only_changes else None)
         if not reachable(row, how):
             if skip_unreachable:
                 notes.append(f"{row.name} skipped: not reachable over {ROUTE_WORDS[how]}")

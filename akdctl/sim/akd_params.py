@@ -73,7 +73,7 @@ def write(model: Any, row: AkdParam, value: Any) -> None:
     """Store ``value`` (already a number/text of the row's kind); ParamError when the drive refuses it."""
     if not row.writable:
         raise ParamError(f"{row.name} is read-only")
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and row.mark("range") != "I":
         for bound, ok in ((row.minimum, lambda b: value >= b), (row.maximum, lambda b: value <= b)):
             if bound and not ok(float(bound)):
                 raise ParamError(f"{value} is out of range for {row.name}")

@@ -147,7 +147,7 @@ class AkdFace(Face):
             thread.join(timeout=2)
 
     def describe(self) -> str:
-        return f"akd ascii {self.host}:{self.port}"
+        return f"akd ascii tcp {self.host}:{self.port}"
 
     def warnings(self) -> list[str]:
         if self.quirks:
