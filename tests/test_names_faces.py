@@ -1,0 +1,210 @@
+"""The two new faces checked by independent clients, and akd:// against hostile peers (issue 24).
+
+* the ASCII face by a plain socket client written here from the reference's facts (akd-ascii-channel.md 1-2:
+  CRLF out, ``\\r\\n-->`` back, ``value [unit]``, ``Error:`` replies, Latin-1, Telnet options, one client);
+* the Modbus face by pymodbus's own client (register 2(n-1), most significant word first, x1000 floats);
+* the akd:// client against peers that misbehave: silent, an endless reply without a prompt, a reply in another
+  encoding, an IAC storm, a drive that hangs up at once (busy): one line, a documented exit code, within --timeout.
+
+Everything runs in this process on loopback (faces and peers are threads).
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from akdctl.sim.drive import SimDrive
+
+
+@pytest.fixture
+def drive(tmp_path: Path) -> SimDrive:
+    return SimDrive("default", tmp_path)
+
+
+@pytest.fixture
+def ascii_face(drive: SimDrive) -> Iterator[int]:
+    from akdctl.sim import face_akd
+
+    face = face_akd.from_options(drive, akd="127.0.0.1:0")
+    assert face is not None
+    face.start()
+    try:
+        yield face.port
+    finally:
+        face.stop()
+
+
+def _until_prompt(sock: socket.socket, timeout: float = 3.0) -> bytes:
+    data = b""
+    end = time.monotonic() + timeout
+    while not data.endswith(b"-->"):
+        sock.settimeout(max(0.01, end - time.monotonic()))
+        chunk = sock.recv(4096)
+        assert chunk, f"closed after {data!r}"
+        data += chunk
+    return data
+
+
+def test_ascii_face_speaks_as_the_reference_says(ascii_face: int) -> None:
+    with socket.create_connection(("127.0.0.1", ascii_face), timeout=3) as sock:
+        assert sock.recv(3) == bytes([255, 253, 31])          # IAC DO NAWS offered on connect [I]
+        sock.sendall(bytes([255, 252, 31]))                   # WONT NAWS: the client refuses
+        sock.sendall(b"vl.kp\r\n")                            # case-insensitive keyword, CRLF
+        reply = _until_prompt(sock)
+        assert reply.endswith(b"\r\n-->") and reply.rstrip(b"\r\n->").endswith(b"[A/(rad/s)]"), reply
+        sock.sendall(b"VL.KP 2.5\r\n")
+        assert _until_prompt(sock) == b"\r\n-->"              # a write: the bare prompt
+        sock.sendall(b"VL.KP\n")                              # LF alone is a line too
+        assert _until_prompt(sock) == b"2.500 [A/(rad/s)]\r\n-->"
+        sock.sendall(b"NOPE.NOTHING\r\n")
+        assert _until_prompt(sock) == b"Error: Command was not found.\r\n-->"
+        sock.sendall(b"VL.KP 1.23456\r\n")                    # more than 3 decimals: refused
+        assert _until_prompt(sock).startswith(b"Error:")
+        sock.sendall(b"DRV.INFO\r\n")
+        info = _until_prompt(sock)
+        assert info.count(b"\r\n") >= 3                       # a multi-line reply, CRLF between lines
+        sock.sendall(b"MOTOR.INERTIA\r\n")
+        assert b"[kg\xb7cm\xb2]" in _until_prompt(sock)       # Latin-1: one byte per character
+        with socket.create_connection(("127.0.0.1", ascii_face), timeout=3) as second:
+            second.settimeout(2)
+            assert second.recv(16) == b""                     # one client at a time: the second is closed
+        sock.sendall(b"DRV.ACTIVE\r\n")
+        assert _until_prompt(sock) == b"0\r\n-->"             # the first still served
+
+
+def test_a_write_over_the_ascii_face_shows_on_coe_and_back(ascii_face: int, drive: SimDrive, akd_inproc) -> None:
+    code, _, err = akd_inproc("-T", f"akd://127.0.0.1:{ascii_face}", "-y", "param", "set", "HOME.MODE=7")
+    assert code == 0, err
+    with drive.transaction() as model:
+        assert model.object_value(0x50CB, 0) == 7            # the CoE view of HOME.MODE
+        model.object_write(0x3548, 0, (4321).to_bytes(4, "little"))   # VL.KP by SDO, x1000
+    code, out, err = akd_inproc("-T", f"akd://127.0.0.1:{ascii_face}", "param", "get", "VL.KP")
+    assert code == 0 and "4.321 [A/(rad/s)]" in out, err
+
+
+def test_modbus_face_with_pymodbus_client(drive: SimDrive) -> None:
+    pytest.importorskip("pymodbus")
+    from pymodbus.client import ModbusTcpClient
+
+    from akdctl.catalog.akd_params import lookup
+    from akdctl.sim import face_modbus
+
+    face = face_modbus.from_options(drive, modbus="127.0.0.1:0")
+    assert face is not None
+    face.start()
+    client = ModbusTcpClient("127.0.0.1", port=face.port, timeout=2, retries=0)
+    try:
+        assert client.connect()
+        kp = lookup("VL.KP")
+        assert kp is not None and kp.modbus == 872                # 2(437-1)
+        assert not client.write_registers(872, [0, 1500]).isError()    # 1.500 x1000, MSW first
+        with drive.transaction() as model:
+            assert model.object_value(0x3548, 0) == 1500         # shows on CoE
+        offset = lookup("AIN.OFFSET")
+        assert offset is not None and offset.modbus == 6
+        assert not client.write_registers(6, [0xFFFF, 0xFF06]).isError()   # -0.250 as a signed 32-bit pair
+        assert client.read_holding_registers(6, count=2).registers == [0xFFFF, 0xFF06]
+        assert client.read_holding_registers(872, count=2).registers == [0, 1500]
+        assert client.read_holding_registers(2 * 5000, count=2).isError()   # no parameter there
+        assert client.write_register(872, 5).isError()         # half a parameter: refused
+    finally:
+        client.close()
+        face.stop()
+
+
+# ---------------------------------------------------------------- hostile peers for akd://
+class Peer:
+    """A one-connection TCP server thread that plays ``behave(conn)``."""
+
+    def __init__(self, behave: Callable[[socket.socket], None]) -> None:
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(4)
+        self.port = self.sock.getsockname()[1]
+        self.behave = behave
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        try:
+            while True:
+                conn, _ = self.sock.accept()
+                threading.Thread(target=self._one, args=(conn,), daemon=True).start()
+        except OSError:
+            return
+
+    def _one(self, conn: socket.socket) -> None:
+        try:
+            self.behave(conn)
+        except OSError:
+            pass
+        finally:
+            conn.close()
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def _silent(conn: socket.socket) -> None:
+    conn.recv(100)
+    time.sleep(5)
+
+
+def _endless(conn: socket.socket) -> None:
+    conn.recv(100)
+    end = time.monotonic() + 5
+    while time.monotonic() < end:
+        conn.sendall(b"1234567890 " * 100)
+
+
+def _wrong_encoding(conn: socket.socket) -> None:
+    conn.recv(100)
+    conn.sendall(b"\xe9\x80\x9b1.0 [\xb5s]\x00\r\n-->")
+
+
+def _iac_storm(conn: socket.socket) -> None:
+    conn.settimeout(0.05)
+    end = time.monotonic() + 5
+    while time.monotonic() < end:
+        conn.sendall(bytes(b for option in range(40) for b in (255, 253, option)) + bytes([255, 250, 1, 2, 3]))
+        try:
+            conn.recv(65536)
+        except socket.timeout:
+            pass
+
+
+def _hang_up(conn: socket.socket) -> None:
+    conn.close()
+
+
+@pytest.mark.parametrize(("behave", "words"), [
+    (_silent, "no prompt"), (_endless, "prompt"), (_wrong_encoding, "not a value"),
+    (_iac_storm, "no prompt"), (_hang_up, "in use by another client")])
+def test_hostile_ascii_peers_end_in_one_line(behave: Callable[[socket.socket], None], words: str, akd_inproc) -> None:
+    peer = Peer(behave)
+    try:
+        start = time.monotonic()
+        code, out, err = akd_inproc("-T", f"akd://127.0.0.1:{peer.port}", "--timeout", "1", "param", "get", "VL.KP")
+        took = time.monotonic() - start
+    finally:
+        peer.close()
+    assert code == 3, err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err, err
+    assert took < 2.5, took
+
+
+def test_telnet_options_are_refused_once_each() -> None:
+    from akdctl.transport.akd_ascii import Telnet
+
+    telnet = Telnet()
+    text, answer = telnet.feed(bytes([255, 253, 31, 255, 251, 1]) + b"ab" + bytes([255, 255]) + b"c")
+    assert text == b"ab\xffc" and answer == bytes([255, 252, 31, 255, 254, 1])
+    assert telnet.feed(bytes([255, 253, 31]))[1] == b""          # a repeated offer is not answered again
+    text, answer = telnet.feed(bytes([255, 250, 31, 0, 80, 255]))   # a subnegotiation cut mid-way
+    assert text == b"" and telnet.feed(bytes([240]) + b"x") == (b"x", b"")
