@@ -5,15 +5,16 @@ Why generated: the ESI carries 458 dotted AKD names with their CoE index, type a
 of them would drift from it; the facts the ESI lacks (class, kind, unit, range, default, sign, scale, ``n``, PNU)
 are kept by hand in ``tools/akd_param_facts.py``, one fact per source. This script merges the two:
 
-* every dotted name of the ESI's manufacturer range 0x2000-0x5FFF, object or sub-entry level (0x5xxx "M" names
-  lose their M; names with a space or split into 64-bit "low/high" halves are left out: they are not names);
+* every AKD name of the ESI's manufacturer range 0x2000-0x5FFF, object or sub-entry level (0x5xxx "M" names
+  lose their M; 64-bit parameters split into "low/high" halves are left out: no single address);
 * the ESI's known duplicates are resolved as reference/akd-parameter-names.md 1.3 says (VL.KVFF at 0x354B,
   VL.ERR at 0x3407:1, DRV.DISTO at 0x3445 -- 0x36DC is CS.TMAX in the 2009 guide);
 * ``n`` of a 0x5000-block name is ``index - 0x5000 + 1`` (the data verified for a dozen points, the rule [I]);
 * the fact table adds names the ESI lacks (CiA 402 aliases, commands) and overrides what it knows better.
 
-Run: ``python tools/gen_akd_params.py [--esi-tsv PATH]`` (default: ../shared/reference/akd_esi_objects_all_revisions.tsv
-next to the repository); ``--check`` exits 1 when the shipped file differs from what would be generated.
+Input: the shipped object table ``akdctl/catalog/data/objects.tsv`` (generated from the ESI's newest device revision
+by ``tools/gen_objects.py``, its ``param`` column the AKD name), so both tables name the same objects.
+Run: ``python tools/gen_akd_params.py``; ``--check`` exits 1 when the shipped file differs from what it would write.
 """
 
 from __future__ import annotations
@@ -27,14 +28,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tools"))
 
-from akd_param_facts import FACTS  # noqa: E402
+from akd_param_facts import FACTS
 
 OUT = ROOT / "akdctl" / "catalog" / "data" / "akd_params.tsv"
-DEFAULT_TSV = Path("/work/shared/reference/akd_esi_objects_all_revisions.tsv")
+OBJECTS = ROOT / "akdctl" / "catalog" / "data" / "objects.tsv"
 COLUMNS = ("name", "family", "access", "kind", "unit", "min", "max", "default", "coe", "coe_type", "scale", "n",
            "pnu", "marks", "source", "note")
 _SHORT = {"SINT": "i8", "INT": "i16", "DINT": "i32", "USINT": "u8", "UINT": "u16", "UDINT": "u32", "BOOL": "u8"}
 _NAME = re.compile(r"^[A-Z][A-Z0-9]*\.[A-Z0-9.]+$")
+
 #: ESI duplicates: the address that stays (reference akd-parameter-names.md 1.3).
 _PREFERRED = {"VL.KVFF": "0x354B:0", "VL.ERR": "0x3407:1", "DRV.DISTO": "0x3445:0"}
 
@@ -45,41 +47,34 @@ def short_type(esi: str) -> str:
     return _SHORT.get(esi, "")
 
 
-def esi_rows(path: Path) -> dict[str, dict[str, str]]:
+def esi_rows(path: Path = OBJECTS) -> dict[str, dict[str, str]]:
+    """The AKD names of the shipped object table (``akdctl/catalog/data/objects.tsv``, generated from the ESI's
+    newest device revision by tools/gen_objects.py, whose ``param`` column names them), in the manufacturer range."""
     rows: dict[str, dict[str, str]] = {}
-
-    def add(name: str, index: int, sub: int, typ: str, access: str) -> None:
-        if 0x5000 <= index <= 0x5FFF and name.endswith("M"):
-            name = name[:-1]
-        if not _NAME.match(name):
-            return
-        address = f"0x{index:04X}:{sub}"
-        if name in rows and _PREFERRED.get(name) != address:
-            return
-        row = {"name": name, "coe": address, "coe_type": short_type(typ), "access": access, "source": "ESI",
-               "marks": "coe=V", "n": "", "note": ""}
-        if 0x5000 <= index <= 0x5FFF:
-            row["n"] = str(index - 0x5000 + 1)
-            row["marks"] += " n=I"
-        rows[name] = row
-
+    header: list[str] = []
     for line in path.read_text(encoding="utf-8").splitlines():
         if not line or line.startswith("#"):
             continue
         cells = line.split("\t")
-        if not cells[0].startswith("0x") or len(cells) < 9:
+        if not header:
+            header = cells
             continue
-        index = int(cells[0], 16)
-        if not 0x2000 <= index <= 0x5FFF:
+        cell = dict(zip(header, cells))
+        index, sub = int(cell["index"], 16), int(cell["subindex"])
+        name = cell.get("param", "")
+        if not 0x2000 <= index <= 0x5FFF or not _NAME.match(name):
             continue
-        name, typ, access, subs = cells[1].strip().upper(), cells[2], cells[4], cells[8]
-        if subs.strip():
-            for item in subs.split(";"):
-                parts = item.strip().split(":")
-                if len(parts) >= 4 and parts[0].isdigit() and int(parts[0]) > 0:
-                    add(parts[1].strip().upper(), index, int(parts[0]), parts[2], parts[3])
-        else:
-            add(name, index, 0, typ, access)
+        if cell["name"].endswith((" low", " high")):
+            continue   # one half of a 64-bit parameter (no single address)
+        address = f"0x{index:04X}:{sub}"
+        if name in rows and _PREFERRED.get(name) != address:
+            continue
+        row = {"name": name, "coe": address, "coe_type": short_type(cell["type"]), "access": cell["access"],
+               "source": "ESI", "marks": "coe=V", "n": "", "note": ""}
+        if 0x5000 <= index <= 0x5FFF:
+            row["n"] = str(index - 0x5000 + 1)
+            row["marks"] += " n=I"
+        rows[name] = row
     return rows
 
 
@@ -144,10 +139,10 @@ def render(rows: list[dict[str, str]]) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--esi-tsv", type=Path, default=DEFAULT_TSV)
+    parser.add_argument("--objects", type=Path, default=OBJECTS, help="the object table generated from the ESI")
     parser.add_argument("--check", action="store_true")
     args = parser.parse_args()
-    text = render(merge(esi_rows(args.esi_tsv)))
+    text = render(merge(esi_rows(args.objects)))
     if args.check:
         return 0 if OUT.read_text(encoding="utf-8") == text else 1
     OUT.write_text(text, encoding="utf-8")
