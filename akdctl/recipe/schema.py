@@ -44,8 +44,10 @@ ACTIONS: dict[str, dict[str, Any]] = {
     "save": {},
     "backup": {"file": str, "source": str, "groups": list, "only": list},
     "restore": {"file": str, "force": bool},
+    "param": {"set": dict, "raw": bool},   # AKD parameters by name (issue 24, drive/names.py)
 }
-REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",)}
+REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",),
+            "param": ("set",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
 MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
@@ -315,6 +317,8 @@ def _file_in_folder(data: dict[str, Any], ctx: Context, *, must_exist: bool) -> 
 
 # ---------------------------------------------------------------------------- per action
 def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    if action == "param":
+        return _check_param(data)
     if action == "set":
         targets = _targets(data, write=True, multi=True)
         verify = data.get("verify", True)
@@ -552,6 +556,10 @@ def _gated(action: str, params: dict[str, Any]) -> list[Any]:
             return [gate.classify_pnu(915, "PZD setpoint assignment"), gate.classify_pnu(916, "PZD actual value "
                                                                                               "assignment")]
         return [gate.classify_object(0x1C12, 0, "RxPDO assignment")]
+    if action == "param":
+        from akdctl.drive import names
+
+        return [g for g in (names.classify(names.resolve(n)) for n, _ in params["assignments"]) if g is not None]
     if action != "set":
         return []
     found = []
@@ -590,3 +598,26 @@ def validate(recipe: RawRecipe, ctx: Context, structural: list[str]) -> list[Pla
     if problems:
         raise RecipeError(problems)
     return planned
+
+
+def _check_param(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """A ``param`` step: ``set = {"VL.KP" = 0.5, ...}`` checked offline by the rules ``param set`` uses (names,
+    class, value, published range); reachability and the wire form are planned on the drive (drive/names.py)."""
+    from akdctl.drive import names
+    from akdctl.profiles.akd_values import format_value
+
+    raw = bool(data.get("raw", False))
+    assignments: list[tuple[str, str]] = []
+    for name, value in dict(data["set"]).items():
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise StepProblem(f"set.{name}: a number or a text, got {value!r}", "set")
+        try:
+            row = names.resolve(str(name))
+            text = format_value(row.kind, value) if isinstance(value, float) else str(value)
+            names.check_value(row, text, raw)
+        except AkdError as exc:
+            raise StepProblem(exc.message, "set") from None
+        assignments.append((row.name, text))
+    if not assignments:
+        raise StepProblem("'set' names no parameter", "set")
+    return {"assignments": assignments, "raw": raw}, "param set " + " ".join(f"{n}={v}" for n, v in assignments)
