@@ -35,7 +35,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "telegram": ("akdctl.cli.telegram", "telegram", "Show and select the PROFIdrive telegram."),
     "fault": ("akdctl.cli.fault", "fault", "Fault buffer dump, acknowledge, history and explanations."),
     "support": ("akdctl.cli.support", "support", "Write or show a support bundle."),
-    "param": ("akdctl.cli.param", "param", "AKD parameters by name (DRV.OPMODE, VL.KP ...): get, set, list, save, dump, restore, diff."),
+    "param": ("akdctl.cli.param", "param", "AKD parameters by name (DRV.OPMODE, VL.KP): get, set, list, save, dump, restore, diff."),
     "params": ("akdctl.cli.param", "param", "Alias of 'param' (backup, restore and diff of drive parameters)."),
     "cmd": ("akdctl.cli.cmd", "cmd", "Send one line to the AKD's command channel (akd://): safe reads run, the rest is gated."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),

@@ -28,6 +28,7 @@ def param() -> None:
       akdctl param get DRV.OPMODE VL.KP
       akdctl -T akd://192.168.0.10 param get 'VL.*'
       akdctl -y param set VL.KP=0.5
+      akdctl params backup -o axis1.toml
     """
 
 
@@ -381,9 +382,11 @@ def diff(ctx: click.Context, file: str | None, other: str | None, against: str |
             doc.line(f"not reachable over {ops.ROUTE_WORDS[how]}: {', '.join(r.name for r in skipped)}")
         return doc
 
+    exc = CheckFailed(f"{len(differences)} parameter(s) differ from {source}") if differences else None
+    if exc is not None:
+        data_out["error"] = exc.to_json()   # one document: the comparison, and why the exit is 5
     app.emit(data_out, human)
-    if differences:
-        exc = CheckFailed(f"{len(differences)} parameter(s) differ from {source}")
+    if exc is not None:
         exc.reported = True
         raise exc
 
