@@ -382,13 +382,13 @@ def diff(ctx: click.Context, file: str | None, other: str | None, against: str |
             doc.line(f"not reachable over {ops.ROUTE_WORDS[how]}: {', '.join(r.name for r in skipped)}")
         return doc
 
-    exc = CheckFailed(f"{len(differences)} parameter(s) differ from {source}") if differences else None
-    if exc is not None:
-        data_out["error"] = exc.to_json()   # one document: the comparison, and why the exit is 5
+    failure = CheckFailed(f"{len(differences)} parameter(s) differ from {source}") if differences else None
+    if failure is not None:
+        data_out["error"] = failure.to_json()   # one document: the comparison, and why the exit is 5
     app.emit(data_out, human)
-    if exc is not None:
-        exc.reported = True
-        raise exc
+    if failure is not None:
+        failure.reported = True
+        raise failure
 
 
 def _add_backup() -> None:

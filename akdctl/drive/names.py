@@ -181,7 +181,7 @@ def read(conn: "Connection", row: "AkdParam", how: str | None = None) -> NameRea
             return NameReading(row, raw, str(raw), "", raw, "var", how, _coe_address(row),
                                note="raw CoE value: its scale depends on UNIT.*/FBUS.PARAM05")
         factor = row.factor or 1
-        value = from_fixed(int(raw), row.kind, factor)  # type: ignore[arg-type]
+        value = from_fixed(int(raw), row.kind, factor)  # type: ignore[call-overload]
         return NameReading(row, value, format_value(row.kind, value, row.unit), row.unit, raw, row.scale, how,
                            _coe_address(row))
     if how == "eip":
@@ -494,7 +494,6 @@ def plan_save(conn: "Connection") -> "WritePlan":
     """DRV.NVSAVE: the service channel's command, CoE 1010h:1 = "save"; other routes name the way."""
     from akdctl.drive.operation import PlannedWrite, WritePlan
 
-    row = resolve("DRV.NVSAVE")
     how = route(conn)
     if how not in ("ascii", "coe"):
         raise UsageError(f"saving to non-volatile memory is not reachable over {ROUTE_WORDS[how]}: use "
