@@ -7,6 +7,11 @@ model's components, such as VL.FB or the status, come from there); a name withou
 stored values under a private key (``0x10000 | n``, or ``0x20000 |`` a hash of the name), as its text. Values cross
 this module in the drive's own form: numbers (floats for float parameters), text for strings.
 
+A name with a PNU (DRV.OPMODE 930, HOME.MODE 1001) is written to the PNU and to its CoE object, and read from the
+CoE object: a write by name shows on both views, an SDO write on every name view; a PNU written by number alone
+(``pnu set 1001=...``) stays apart from the CoE object, as the simulator kept the two before [I: one parameter on a
+real drive].
+
 The simulator's own simplifications [I]: a ``var``-scaled CoE object (CiA 402 velocities/positions) is taken 1:1;
 an [I] float scale is applied as the catalogue states it; ranges are the catalogue's published ones.
 """
@@ -18,7 +23,7 @@ from typing import Any
 
 from akdctl.catalog.akd_params import AkdParam
 from akdctl.profiles.akd_values import ValueFormError, format_value, from_fixed, parse_text, to_fixed
-from akdctl.sim.errors import SdoAccessError
+from akdctl.sim.errors import PnuAccessError, SdoAccessError
 
 
 class ParamError(Exception):
@@ -44,9 +49,21 @@ def _factor(row: AkdParam) -> int:
 
 
 def read(model: Any, row: AkdParam) -> Any:
-    """The value of ``row`` now (number or text); ParamError when it cannot be read."""
+    """The value of ``row`` now (number or text); ParamError when it cannot be read.
+
+    A name is read from its CoE object where it has one, else from its PNU, else from the name store."""
     if not row.readable:
         raise ParamError(f"{row.name} is a command")
+    if row.pnu is not None and _coe_entry(model, row) is None:
+        try:
+            info = model.pnu_info(row.pnu)
+            _, values = model.pnu_read_raw(row.pnu, 0, 1)
+        except PnuAccessError as exc:
+            raise ParamError(f"{row.name} cannot be read (PNU error 0x{exc.error:02X})") from None
+        value = values[0]
+        if info.signed and value >= 1 << (info.bits - 1):
+            value -= 1 << info.bits
+        return value
     entry = _coe_entry(model, row)
     if entry is not None:
         from akdctl.protocol import datatypes
@@ -77,6 +94,12 @@ def write(model: Any, row: AkdParam, value: Any) -> None:
         for bound, ok in ((row.minimum, lambda b: value >= b), (row.maximum, lambda b: value <= b)):
             if bound and not ok(float(bound)):
                 raise ParamError(f"{value} is out of range for {row.name}")
+    if row.pnu is not None:   # the PNU is the name's home; its CoE object follows (module docstring)
+        try:
+            info = model.pnu_info(row.pnu)
+            model.pnu_write_raw(row.pnu, 0, info.wire_format, [int(value) & ((1 << info.bits) - 1)])
+        except (PnuAccessError, TypeError, ValueError):
+            raise ParamError(f"{value} is refused by {row.name}") from None
     entry = _coe_entry(model, row)
     if entry is not None:
         from akdctl.protocol import datatypes
