@@ -154,3 +154,24 @@ def test_params_is_an_alias_and_backup_is_in_param(akd_inproc, tmp_path: Path) -
     assert rc == 0, err
     rc, out, err = akd_inproc("param", "restore", str(backup), "--dry-run")
     assert rc == 0, err
+
+
+def test_live_discovery_is_cached_per_firmware_and_overrides(akd_inproc, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    rc, out, err = akd_inproc("--json", "param", "list", "--live", "VL.K*")
+    first = json.loads(out)
+    assert rc == 0 and "cached" not in first["source"] and {"VL.KP", "VL.KI"} <= {p["name"] for p in first["parameters"]}
+    assert list((tmp_path / "cache" / "akdctl").glob("akd-names-coe-M_01-20-00-001.json"))
+    rc, out, err = akd_inproc("--json", "param", "list", "--live", "VL.K*")
+    assert rc == 0 and "cached" in json.loads(out)["source"]
+    from akdctl.drive.name_discovery import live_row
+
+    row = akd_params.lookup("VL.KP")
+    moved = live_row(row, "VL.KP", {"VL.KP": {"coe": [0x3549, 0], "type": "u32"}})
+    assert moved is not None and moved.coe == (0x3549, 0) and moved.mark("coe") == "live"
+    new = live_row(None, "XYZ.NEW", {"XYZ.NEW": {"coe": [0x3999, 0], "type": "i32"}})
+    assert new is not None and new.kind == "raw" and new.source == "live"
+    assert names.resolve("XYZ.NEW", {"XYZ.NEW": {}}).name == "XYZ.NEW"
+    with pytest.raises(Exception, match="unknown AKD parameter"):
+        names.resolve("XYZ.NEW")

@@ -41,6 +41,12 @@ def _consent(app: Any, plan: Any) -> None:
     consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
 
 
+def _live(conn: Any, how: str) -> dict[str, Any]:
+    from akdctl.drive.name_discovery import discover
+
+    return dict(discover(conn, how)["names"])
+
+
 def _mark(row: Any) -> str:
     marks = [f"{k} {v}" for k, v in row.marks if v == "I"]
     return "[I: " + ", ".join(marks) + "]" if marks else ""
@@ -49,7 +55,9 @@ def _mark(row: Any) -> str:
 @param.command("get")
 @click.argument("names", nargs=-1, required=True, metavar="NAME|GLOB...")
 @click.option("--raw", is_flag=True, help="Also show the wire value, its scale and the address used.")
-def get(names: tuple[str, ...], raw: bool) -> None:
+@click.option("--live", is_flag=True, help="Ask the drive which names it has (DRV.LIST / SDO information, "
+                                           "cached per firmware); its answer overrides the catalogue.")
+def get(names: tuple[str, ...], raw: bool, live: bool) -> None:
     """Read parameters by name or glob; values print with their unit.
 
     A glob reads the names the target can reach and lists the others as skipped.
@@ -62,9 +70,10 @@ def get(names: tuple[str, ...], raw: bool) -> None:
     from akdctl.drive import names as ops
 
     app = get_app()
-    rows = ops.expand(names)
     conn = app.connection
-    how = ops.route(conn)
+    how = ops.route(conn) if live else ""
+    rows = ops.expand(names, _live(conn, how) if live else None)
+    how = how or ops.route(conn)
     explicit = {n.strip().upper() for n in names if not any(c in n for c in "*?[")}
     readings, skipped = [], []
     for row in rows:
@@ -104,7 +113,8 @@ def _assignments(texts: tuple[str, ...]) -> list[tuple[str, str]]:
 @click.argument("assignments", nargs=-1, required=True, metavar="NAME=VALUE...")
 @click.option("--raw", is_flag=True, help="VALUE is the integer the fieldbus carries (no scale applied).")
 @click.option("--dry-run", is_flag=True, help="Show the plan (writes, consent, notes); write nothing.")
-def set_(assignments: tuple[str, ...], raw: bool, dry_run: bool) -> None:
+@click.option("--live", is_flag=True, help="Use the names and addresses the drive reports (see 'param get --live').")
+def set_(assignments: tuple[str, ...], raw: bool, dry_run: bool, live: bool) -> None:
     """Change parameters by name: all are checked (class, range, reachability) before anything is written,
     each is read back. Writes that can power or move the axis need consent.
 
@@ -116,7 +126,8 @@ def set_(assignments: tuple[str, ...], raw: bool, dry_run: bool) -> None:
     from akdctl.drive import names as ops
 
     app = get_app()
-    plan = ops.plan(app.connection, _assignments(assignments), raw=raw)
+    found = _live(app.connection, ops.route(app.connection)) if live else None
+    plan = ops.plan(app.connection, _assignments(assignments), raw=raw, live=found)
     if dry_run:
         app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
         return
@@ -130,22 +141,36 @@ def set_(assignments: tuple[str, ...], raw: bool, dry_run: bool) -> None:
 
 @param.command("list")
 @click.argument("pattern", required=False, metavar="[GLOB]")
-def list_(pattern: str | None) -> None:
+@click.option("--live", is_flag=True, help="List what the drive reports (akd:// DRV.LIST, CoE SDO information), "
+                                           "cached per firmware version; --refresh asks again.")
+@click.option("--refresh", is_flag=True, help="With --live: ask the drive even when its answer is cached.")
+def list_(pattern: str | None, live: bool, refresh: bool) -> None:
     """List the catalogue's names (class, kind, unit, addresses, [I] marks); GLOB or a family (VL) filters.
 
     \b
     Examples:
       akdctl param list VL
       akdctl param list '*.KP' --json
+      akdctl -T akd://192.168.0.10 param list --live
     """
     from akdctl.catalog.akd_params import all_params, matching
 
     app = get_app()
-    rows = matching(pattern) if pattern else list(all_params())
+    source = "catalogue"
+    if live:
+        from akdctl.drive import names as ops
+        from akdctl.drive.name_discovery import discover
+
+        found = discover(app.connection, ops.route(app.connection), refresh=refresh)
+        source = f"{app.target.display} (firmware {found['firmware']}{', cached' if found['cached'] else ''})"
+        rows = ops.expand([pattern or "*"], found["names"])
+        rows = [r for r in rows if r.name in found["names"]]
+    else:
+        rows = matching(pattern) if pattern else list(all_params())
     if pattern and not rows:
         raise UsageError(f"no AKD parameter matches {pattern!r}")
-    app.emit({"parameters": [r.to_json() for r in rows]},
-             lambda: Doc("AKD parameters", "catalogue").table(
+    app.emit({"source": source, "parameters": [r.to_json() for r in rows]},
+             lambda: Doc("AKD parameters", source).table(
                  ["name", "class", "kind", "unit", "CoE", "n", "PNU", "inferred"],
                  [[r.name, r.access, r.kind, r.unit, "" if r.coe is None else f"0x{r.coe[0]:04X}:{r.coe[1]}",
                    r.n or "", r.pnu or "", _mark(r)] for r in rows]))

@@ -37,11 +37,16 @@ ROUTE_WORDS = {"ascii": "the AKD service channel (akd://)", "modbus": "Modbus TC
 # ---------------------------------------------------------------- names
 
 
-def resolve(name: str) -> "AkdParam":
-    """The catalogue row of ``name`` (case-insensitive); UsageError (exit 2) naming the closest names."""
+def resolve(name: str, live: dict[str, Any] | None = None) -> "AkdParam":
+    """The catalogue row of ``name`` (case-insensitive); UsageError (exit 2) naming the closest names.
+    ``live``: the names the drive reported (:mod:`akdctl.drive.name_discovery`), which override the catalogue."""
     from akdctl.catalog.akd_params import close_matches, lookup
 
     row = lookup(name)
+    if live is not None:
+        from akdctl.drive.name_discovery import live_row
+
+        row = live_row(row, name.strip().upper(), live)
     if row is None:
         close = close_matches(name)
         hint = f"; closest: {', '.join(close)}" if close else ""
@@ -50,18 +55,25 @@ def resolve(name: str) -> "AkdParam":
     return row
 
 
-def expand(patterns: Sequence[str]) -> list["AkdParam"]:
-    """Names and globs (``VL.*``) to rows, in order, each once; a glob that matches nothing is a UsageError."""
+def expand(patterns: Sequence[str], live: dict[str, Any] | None = None) -> list["AkdParam"]:
+    """Names and globs (``VL.*``) to rows, in order, each once; a glob that matches nothing is a UsageError.
+    ``live``: the drive's own names (they join the catalogue's and override its addresses)."""
+    import fnmatch
+
     from akdctl.catalog.akd_params import matching
 
     rows: list[AkdParam] = []
     for pattern in patterns:
         if any(c in pattern for c in "*?["):
             found = matching(pattern)
+            if live is not None:
+                known = {r.name for r in found}
+                extra = [n for n in sorted(live) if n not in known and fnmatch.fnmatchcase(n, pattern.strip().upper())]
+                found = [resolve(r.name, live) for r in found] + [resolve(n, live) for n in extra]
             if not found:
                 raise UsageError(f"no AKD parameter matches {pattern!r}")
         else:
-            found = [resolve(pattern)]
+            found = [resolve(pattern, live)]
         rows += [r for r in found if r not in rows]
     return rows
 
@@ -221,6 +233,13 @@ def _from_reply(row: "AkdParam", reply: str) -> NameReading:
     if row.kind in ("text", "string"):
         return NameReading(row, reply, reply, "", reply, "", "ascii", row.name)
     value_text, unit = split_reply(reply)
+    if row.kind == "raw":   # a name only the drive knows: a number when it is one, else its text
+        try:
+            number = parse_text("float" if "." in value_text else "int", value_text)
+        except ValueFormError:
+            return NameReading(row, reply, reply, "", reply, "", "ascii", row.name)
+        return NameReading(row, number, format_value("float" if isinstance(number, float) else "int", number, unit or ""),
+                           unit or "", reply, "", "ascii", row.name)
     try:
         value = parse_text("float" if row.kind == "float" or "." in value_text else "int", value_text)
     except ValueFormError as exc:
@@ -370,7 +389,8 @@ def check_value(row: "AkdParam", text: str, raw: bool = False, notes: list[str] 
     if not row.writable:
         raise UsageError(f"{row.name} is read-only ({row.access})")
     try:
-        value = parse_text("int" if raw else row.kind if row.kind != "raw" else "int", text)
+        kind = "int" if raw else row.kind if row.kind != "raw" else ("float" if "." in text else "int")
+        value = parse_text(kind, text)
     except ValueFormError as exc:
         raise UsageError(f"bad value for {row.name}: {exc}") from None
     if not raw and isinstance(value, (int, float)):
@@ -386,7 +406,8 @@ def check_value(row: "AkdParam", text: str, raw: bool = False, notes: list[str] 
 
 
 def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = False,
-         operation: str = "param set", only_changes: bool = False, skip_unreachable: bool = False) -> "WritePlan":
+         operation: str = "param set", only_changes: bool = False, skip_unreachable: bool = False,
+         live: dict[str, Any] | None = None) -> "WritePlan":
     """Plan writes of ``request`` [(name, value text)]: every name, value and range checked, each write's
     gate verdict attached, the enabled state read when a write is gated only while enabled. ``only_changes``
     (restore) reads each value first and drops the ones already equal; ``skip_unreachable`` (restore across
@@ -400,7 +421,7 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
     notes: list[str] = []
     seen: set[str] = set()
     for name, text in request:
-        row = resolve(name)
+        row = resolve(name, live)
         if row.name in seen:
             raise UsageError(f"{row.name} is given twice")
         seen.add(row.name)
@@ -416,7 +437,7 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
         address = row.name if how == "ascii" else f"{row.name} ({_address(row, how)})"
         writes.append(PlannedWrite(address, wire, format_value(row.kind, value, "" if raw else row.unit),
                                    classify(row)))
-        items.append((row.name, value, wire))
+        items.append((row, value, wire))
         if how != "ascii" and row.mark("scale") == "I" and row.kind == "float" and how == "coe" and not raw:
             notes.append(f"{row.name}: CoE scale x{row.scale} is inferred [I], read back to confirm")
     enabled = drive_enabled(conn) if any(w.gated is not None and w.gated.when_enabled for w in writes) else None
@@ -469,16 +490,14 @@ def _write(conn: "Connection", row: "AkdParam", wire: Any, how: str) -> None:
 
 def execute(conn: "Connection", plan: "WritePlan") -> list[dict[str, Any]]:
     """Write the plan in order, read every value back over the same route; CheckFailed names differences."""
-    from akdctl.catalog.akd_params import lookup
     from akdctl.drive.operation import check_readback
     from akdctl.profiles.akd_values import format_value, same_value
 
     how, raw = plan.data["route"], plan.data["raw"]
     done: list[dict[str, Any]] = []
     pairs = []
-    for name, value, wire in plan.data["items"]:
-        row = lookup(name)
-        assert row is not None
+    for row, value, wire in plan.data["items"]:
+        name = row.name
         _write(conn, row, wire, how)
         back = read(conn, row, how)
         got = back.raw if raw and how != "ascii" else back.value
