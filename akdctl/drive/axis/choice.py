@@ -38,6 +38,10 @@ def profile_name(conn: Any) -> str:
         return "cip"
     if "commands" in channels:
         return "akd"   # the AKD's own command channel (issue 24)
+    if "registers" in channels:   # issue 24: no published register holds the AKD's enable state
+        raise UsageError(f"{conn.target.display}: the axis (status, enable, motion) is not offered over Modbus: "
+                         "no published AKD register holds its enable state; read 'akdctl param get DRV.MOTIONSTAT "
+                         "DRV.FAULT1' here, or use akd://HOST or a fieldbus target")
     return "profidrive" if "parameters" in channels else "cia402"
 
 
