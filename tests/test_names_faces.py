@@ -11,6 +11,7 @@ Everything runs in this process on loopback (faces and peers are threads).
 
 from __future__ import annotations
 
+import json
 import socket
 import threading
 import time
@@ -208,3 +209,31 @@ def test_telnet_options_are_refused_once_each() -> None:
     assert telnet.feed(bytes([255, 253, 31]))[1] == b""          # a repeated offer is not answered again
     text, answer = telnet.feed(bytes([255, 250, 31, 0, 80, 255]))   # a subnegotiation cut mid-way
     assert text == b"" and telnet.feed(bytes([240]) + b"x") == (b"x", b"")
+
+
+def test_status_enable_disable_and_faults_over_the_ascii_channel(ascii_face: int, drive: SimDrive, akd_inproc) -> None:
+    target = ("-T", f"akd://127.0.0.1:{ascii_face}", "--timeout", "3")
+    code, out, err = akd_inproc(*target, "--json", "status")
+    assert code == 0 and json.loads(out)["status"]["state"] == "disabled", err
+    code, out, err = akd_inproc(*target, "enable")           # powers the axis: consent
+    assert code == 4 and "consent" in err
+    code, out, err = akd_inproc(*target, "-y", "--json", "enable")
+    assert code == 0 and json.loads(out)["status"]["enabled"] is True, err
+    with drive.transaction() as model:
+        assert model.object_value(0x6041, 0) & 0x6F == 0x27  # the one model is enabled
+    code, out, err = akd_inproc(*target, "--json", "disable")
+    assert code == 0 and json.loads(out)["status"]["enabled"] is False, err
+    with drive.transaction() as model:
+        model.faults.raise_fault("F501")
+    code, out, err = akd_inproc(*target, "--json", "fault", "dump")
+    assert code == 0 and json.loads(out)["akd"]["faults"][0]["code"] == "F501", err
+    with drive.transaction() as model:
+        model.faults.clear_causes()
+    code, out, err = akd_inproc(*target, "fault", "ack")
+    assert code == 0 and "F501" in out, err
+    code, out, err = akd_inproc(*target, "cmd", "DRV.FAULTS")
+    assert code == 0 and "No faults active" in out, err
+    code, out, err = akd_inproc(*target, "cmd", "DRV.EN")            # the passthrough is gated too
+    assert code == 4, err
+    code, out, err = akd_inproc(*target, "-y", "jog", "100")
+    assert code == 2 and "not offered over the AKD service channel" in err, err
