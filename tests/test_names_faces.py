@@ -237,3 +237,29 @@ def test_status_enable_disable_and_faults_over_the_ascii_channel(ascii_face: int
     assert code == 4, err
     code, out, err = akd_inproc(*target, "-y", "jog", "100")
     assert code == 2 and "not offered over the AKD service channel" in err, err
+
+
+def _modbus_garbage(conn: socket.socket) -> None:
+    conn.recv(100)
+    conn.sendall(b"\x00\x01\x00\x00\x00\xff\x01\x03" + b"\xee" * 40)   # a length that never arrives
+
+
+def _closed(conn: socket.socket) -> None:  # never called: the port is closed before the client connects
+    conn.close()
+
+
+@pytest.mark.parametrize("behave", [_silent, _modbus_garbage, _hang_up, _closed])
+def test_hostile_modbus_peers_end_in_one_line(behave: Callable[[socket.socket], None], akd_inproc) -> None:
+    pytest.importorskip("pymodbus")
+    peer = Peer(behave)
+    if behave is _closed:
+        peer.close()
+    try:
+        start = time.monotonic()
+        code, out, err = akd_inproc("-T", f"mb://127.0.0.1:{peer.port}", "--timeout", "1", "param", "get", "VL.KP")
+        took = time.monotonic() - start
+    finally:
+        peer.close()
+    assert code == 3, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert took < 3, took

@@ -45,6 +45,8 @@ class ModbusLink(RegisterLink):
                 raise CommError(f"{self.label}: connection failed during {what} ({exc})") from None
             except ModbusException as exc:
                 raise CommError(f"{self.label}: {what} failed ({exc})") from None
+            except OSError as exc:   # pymodbus lets a reset or refused socket through as it is
+                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
         if result.isError():
             code = getattr(result, "exception_code", None)
             text = EXCEPTIONS.get(code, "exception") if code is not None else "error"
@@ -72,7 +74,13 @@ class ModbusTransport(Transport):
         self._client: Any = None
 
     def open(self) -> None:
+        import logging
+
         from pymodbus.client import ModbusTcpClient
+
+        # pymodbus logs its failures itself; akdctl says them once, in its one error line
+        logging.getLogger("pymodbus").addHandler(logging.NullHandler())
+        logging.getLogger("pymodbus").propagate = False
 
         host, port = self.target.host, self.target.port or PORT
         label = f"mb://{host}:{port}"
@@ -85,7 +93,11 @@ class ModbusTransport(Transport):
         timeout = self.options.budget.left()
         client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0, reconnect_delay=0)
         self._client = client
-        if not client.connect():
+        try:
+            connected = client.connect()
+        except OSError as exc:
+            raise CommError(f"{label}: cannot connect ({exc.strerror or exc})") from None
+        if not connected:
             raise CommError(f"{label}: cannot connect (no Modbus TCP server answering; the AKD listens on 502)")
         self.register_link = ModbusLink(client, unit, self.options, label)
 
