@@ -263,3 +263,36 @@ def test_hostile_modbus_peers_end_in_one_line(behave: Callable[[socket.socket], 
     assert code == 3, err
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert took < 3, took
+
+
+def test_rec_lines_go_to_the_recorder_hook(ascii_face: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``REC.*`` lines are answered by akdctl.sim.recorder.handle_rec (the scope face's module), imported on use;
+    its RecorderError text is the reply; without the module the keyword is unknown."""
+    import sys
+    import types
+
+    def ask(line: bytes) -> bytes:
+        with socket.create_connection(("127.0.0.1", ascii_face), timeout=3) as sock:
+            sock.sendall(line + b"\r\n")
+            return _until_prompt(sock).split(bytes([255, 253, 31]))[-1]
+
+    monkeypatch.setitem(sys.modules, "akdctl.sim.recorder", None)   # absent: import fails
+    assert ask(b"REC.NUMPOINTS").startswith(b"Error: Command was not found.")
+    fake = types.ModuleType("akdctl.sim.recorder")
+
+    class RecorderError(Exception):
+        pass
+
+    def handle_rec(model: object, name: str, arg: str) -> str:
+        if arg == "bad":
+            raise RecorderError("Error: Value out of range.")
+        return f"{name}|{arg}"
+
+    fake.RecorderError = RecorderError   # type: ignore[attr-defined]
+    fake.handle_rec = handle_rec         # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "akdctl.sim.recorder", fake)
+    import akdctl.sim
+
+    monkeypatch.setattr(akdctl.sim, "recorder", fake, raising=False)
+    assert ask(b"rec.numpoints 500") == b"REC.NUMPOINTS|500\r\n-->"
+    assert ask(b"REC.GAP bad") == b"Error: Value out of range.\r\n-->"

@@ -98,7 +98,7 @@ class LazyGroup(click.Group):
 EPILOG = (
     "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
-    "can://INTERFACE/CHANNEL/NODE, eip://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
+    "can://INTERFACE/CHANNEL/NODE, eip://HOST, akd://HOST, mb://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
     "4 safety refusal, 5 check failed, 130 interrupted."
 )
 

@@ -258,8 +258,9 @@ class AkdFace(Face):
         with self.drive.transaction() as model:
             try:
                 return str(recorder.handle_rec(model, key, argument))
-            except recorder.RecorderError as exc:
-                return f"Error: {exc}"
+            except recorder.RecorderError as exc:   # its text is the drive's error text (with or without "Error:")
+                text = str(exc)
+                return text if text.startswith("Error:") else f"Error: {text}"
 
     # specials: the commands and reports the face computes from the model
     def _active(self, model: Any, argument: str) -> str:
