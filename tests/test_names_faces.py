@@ -271,10 +271,11 @@ def test_rec_lines_go_to_the_recorder_hook(ascii_face: int, monkeypatch: pytest.
     import sys
     import types
 
+    sock = socket.create_connection(("127.0.0.1", ascii_face), timeout=3)   # one client: one connection
+
     def ask(line: bytes) -> bytes:
-        with socket.create_connection(("127.0.0.1", ascii_face), timeout=3) as sock:
-            sock.sendall(line + b"\r\n")
-            return _until_prompt(sock).split(bytes([255, 253, 31]))[-1]
+        sock.sendall(line + b"\r\n")
+        return _until_prompt(sock).split(bytes([255, 253, 31]))[-1]
 
     monkeypatch.setitem(sys.modules, "akdctl.sim.recorder", None)   # absent: import fails
     assert ask(b"REC.NUMPOINTS").startswith(b"Error: Command was not found.")
@@ -296,3 +297,4 @@ def test_rec_lines_go_to_the_recorder_hook(ascii_face: int, monkeypatch: pytest.
     monkeypatch.setattr(akdctl.sim, "recorder", fake, raising=False)
     assert ask(b"rec.numpoints 500") == b"REC.NUMPOINTS|500\r\n-->"
     assert ask(b"REC.GAP bad") == b"Error: Value out of range.\r\n-->"
+    sock.close()
