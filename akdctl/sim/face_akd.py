@@ -34,6 +34,7 @@ DEFAULT_ADDRESS = "127.0.0.1:2323"
 IAC, SB, SE, DO, NAWS = 255, 250, 240, 253, 31
 MAX_LINE = 1024
 IDLE_TIMEOUT_S = 300.0
+GRACE_S = 0.3   # how long a newcomer waits for a slot a leaving client is about to free
 QUIRKS = ("echo", "prompt", "no-telnet")
 NOT_FOUND = "Error: Command was not found."
 
@@ -115,6 +116,7 @@ class AkdFace(Face):
         self._threads: list[threading.Thread] = []
         self._clients: set[socket.socket] = set()
         self._lock = threading.Lock()
+        self._freed = threading.Condition(self._lock)
 
     # ---------------------------------------------------------------- life cycle
     def start(self) -> None:
@@ -162,8 +164,8 @@ class AkdFace(Face):
                 client, _ = self.sock.accept()
             except OSError:
                 return
-            with self._lock:
-                full = len(self._clients) >= self.cap
+            with self._freed:   # a client that just hung up may not have been counted out yet: a short grace
+                full = not self._freed.wait_for(lambda: len(self._clients) < self.cap, timeout=GRACE_S)
                 if not full:
                     self._clients.add(client)
             if full:  # one client at a time [I]: the newcomer is closed at once
@@ -207,8 +209,9 @@ class AkdFace(Face):
         except OSError:
             return
         finally:
-            with self._lock:
+            with self._freed:
                 self._clients.discard(client)
+                self._freed.notify_all()
             try:
                 client.close()
             except OSError:
