@@ -276,11 +276,15 @@ def dump(file: str, pattern: str | None) -> None:
 
 
 def _load(file: str) -> tuple[str, bytes]:
+    """('akd', bytes) for an AKD text file; ('backup', b'') for a 'param backup' file, which 'params' reads
+    itself (a .toml/.json name, or content that is TOML/JSON)."""
     from akdctl.drive.param_file import LIMIT, kind_of
     from akdctl.io.safe_read import read_regular
 
+    if file.lower().endswith((".toml", ".json")):
+        return "backup", b""
     data = read_regular(file, limit=LIMIT, what="a parameter file")
-    return kind_of(data), data
+    return ("akd" if kind_of(data) == "akd" else "backup"), data
 
 
 @param.command("restore")
