@@ -298,3 +298,46 @@ def test_rec_lines_go_to_the_recorder_hook(ascii_face: int, monkeypatch: pytest.
     assert ask(b"rec.numpoints 500") == b"REC.NUMPOINTS|500\r\n-->"
     assert ask(b"REC.GAP bad") == b"Error: Value out of range.\r\n-->"
     sock.close()
+
+
+def test_modbus_face_with_a_second_independent_client(drive: SimDrive) -> None:
+    """pyModbusTCP (its own framing, no pymodbus code) reads and writes the same registers."""
+    pytest.importorskip("pymodbus")
+    client_module = pytest.importorskip("pyModbusTCP.client")
+    from akdctl.sim import face_modbus
+
+    face = face_modbus.from_options(drive, modbus="127.0.0.1:0")
+    assert face is not None
+    face.start()
+    try:
+        client = client_module.ModbusClient(host="127.0.0.1", port=face.port, unit_id=1, timeout=2)
+        assert client.write_multiple_registers(406, [0, 3])          # HOME.MODE (n 204) = 3, MSW first
+        with drive.transaction() as model:
+            assert model.object_value(0x50CB, 0) == 3
+        assert client.read_holding_registers(406, 2) == [0, 3]
+        assert client.read_holding_registers(2 * 5000, 2) is None    # an exception response
+        assert client.last_except == 2                              # illegal data address
+        client.close()
+    finally:
+        face.stop()
+
+
+@pytest.mark.parametrize("quirks", ["echo", "prompt", "echo,prompt", "no-telnet"])
+def test_the_client_reads_every_variant_the_public_record_leaves_open(drive: SimDrive, quirks: str,
+                                                                       akd_inproc) -> None:
+    """Echo or none, a prompt on connect or none, Telnet options or none [I]: the same values either way."""
+    from akdctl.sim import face_akd
+
+    face = face_akd.from_options(drive, akd="127.0.0.1:0", akd_quirks=quirks)
+    assert face is not None
+    face.start()
+    try:
+        target = ("-T", f"akd://127.0.0.1:{face.port}", "--timeout", "3")
+        code, _, err = akd_inproc(*target, "-y", "param", "set", "VL.KP=1.75", "HOME.MODE=2")
+        assert code == 0, err
+        code, out, err = akd_inproc(*target, "--json", "param", "get", "VL.KP", "HOME.MODE", "DRV.INFO")
+        values = {p["name"]: p["value"] for p in json.loads(out)["parameters"]}
+        assert code == 0 and values["VL.KP"] == 1.75 and values["HOME.MODE"] == 2, err
+        assert values["DRV.INFO"].startswith("Drive information")      # the echo is not part of the reply
+    finally:
+        face.stop()
