@@ -175,3 +175,15 @@ def test_live_discovery_is_cached_per_firmware_and_overrides(akd_inproc, tmp_pat
     assert names.resolve("XYZ.NEW", {"XYZ.NEW": {}}).name == "XYZ.NEW"
     with pytest.raises(Exception, match="unknown AKD parameter"):
         names.resolve("XYZ.NEW")
+
+
+def test_diff_against_another_drive(akd_inproc) -> None:
+    assert akd_inproc("-T", "sim://other", "-y", "param", "set", "VL.KP=3.25")[0] == 0
+    rc, out, err = akd_inproc("--json", "param", "diff", "--against", "sim://other")
+    doc = json.loads(out)
+    assert rc == 5 and [d["name"] for d in doc["differences"]] == ["VL.KP"] and doc["error"]["exit_code"] == 5, err
+    assert akd_inproc("-y", "param", "set", "VL.KP=3.25")[0] == 0
+    rc, out, err = akd_inproc("param", "diff", "--against", "sim://other")
+    assert rc == 0 and "no differences" in out, err
+    rc, out, err = akd_inproc("param", "diff", "--against", "sim://other", "--defaults")
+    assert rc == 2 and "one of" in err

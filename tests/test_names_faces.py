@@ -341,3 +341,13 @@ def test_the_client_reads_every_variant_the_public_record_leaves_open(drive: Sim
         assert values["DRV.INFO"].startswith("Drive information")      # the echo is not part of the reply
     finally:
         face.stop()
+
+
+def test_opmode_by_name_is_gated_only_while_enabled(ascii_face: int, akd_inproc) -> None:
+    target = ("-T", f"akd://127.0.0.1:{ascii_face}", "--timeout", "3")
+    code, out, err = akd_inproc(*target, "param", "set", "DRV.OPMODE=2")       # disabled: no consent needed
+    assert code == 0, err
+    assert akd_inproc(*target, "-y", "enable")[0] == 0
+    code, out, err = akd_inproc(*target, "param", "set", "DRV.OPMODE=1")       # enabled (DRV.ACTIVE 1): consent
+    assert code == 4 and "operating mode" in err, err
+    assert akd_inproc(*target, "disable")[0] == 0
