@@ -56,6 +56,12 @@ ROWS = (
     Row("cold-start", "cold start pnu get / sdo read / status vs minimal click",
         "≤ 1.5/1.6/1.7× (--help ≤ 1.15×)", "row_startup", "cold_start"),
     Row("home", "home at sim 1000×: return after the drive is done", "≤ 10 ms", "row_motion", "home_after_done"),
+    Row("canopen", "CANopen SDO uploads/s, can:// vs python-canopen's own sdo.upload, same bus",
+        "≥ 1.1×, client CPU ≤ the peer's", "row_peers", "canopen_vs_python_canopen"),
+    Row("cip", "CIP Get_Attribute_Single/s, eip:// vs pycomm3 generic_message, same face",
+        "≥ 1.2×, client CPU ≤ the peer's", "row_peers", "cip_vs_pycomm3"),
+    Row("line", "commission 32 simulated drives with --inventory / 32 single runs (and CPU per drive)",
+        "≤ 0.25", "row_line", "line"),
 )
 BY_NAME = {row.name: row for row in ROWS}
 

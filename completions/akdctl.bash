@@ -26,6 +26,7 @@ _akdctl() {
             ":cmd") path="cmd" ;;
             ":commission") path="commission" ;;
             ":info") path="info" ;;
+            ":discover") path="discover" ;;
             ":targets") path="targets" ;;
             ":pn") path="pn" ;;
             ":ecat") path="ecat" ;;
@@ -101,7 +102,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support param params cmd commission info targets pn ecat can cip eip sim --config --debug --help --json --pcap --profile --retries --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support param params cmd commission info discover targets pn ecat can cip eip sim --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -163,6 +164,7 @@ _akdctl() {
         "cmd") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
         "info") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "discover") COMPREPLY=($(compgen -W "--can --ecat --ecat-udp --eip --eip-iface --help --nodes --pn --pn-iface --sim --stations --tag --write-inventory" -- "$cur")) ;;
         "targets") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pn") COMPREPLY=($(compgen -W "blink scan set-ip set-name --help" -- "$cur")) ;;
         "pn blink") COMPREPLY=($(compgen -W "--help --iface -i" -- "$cur")) ;;

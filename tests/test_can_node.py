@@ -255,6 +255,43 @@ def test_malformed_block_reply_is_comm_error(link: CanopenTransport, monkeypatch
     def broken(*args: object, **kwargs: object) -> bytes:
         raise SdoCommunicationError("Toggle bit mismatch")
 
-    monkeypatch.setattr(link.objects().sdo, "open", broken)  # the channel reads through sdo.open (capped)
+    monkeypatch.setattr(link.objects().sdo, "request_response", broken)  # the channel's one request path
     with pytest.raises(MalformedReply):
         link.objects().upload(0x1018, 1)
+
+
+def test_a_reply_that_is_not_for_the_request_is_skipped_and_the_upload_goes_on(link: CanopenTransport) -> None:
+    """A late answer to an earlier request (another object) arrives first: it is not taken as this one's."""
+    sdo = link.objects().sdo
+    real = sdo.request_response
+
+    def late_first(request: bytes) -> bytes:
+        answer = real(request)
+        sdo.responses.put(answer)  # the real answer waits in the queue behind a stray one
+        return bytes([0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00])  # 0x1000:0 (device type), not 0x1018:1
+
+    sdo.request_response = late_first  # type: ignore[method-assign]
+    try:
+        assert link.objects().upload(0x1018, 1) == (0x6A).to_bytes(4, "little")
+    finally:
+        sdo.request_response = real  # type: ignore[method-assign]
+
+
+def test_a_segmented_upload_with_a_wrong_toggle_bit_is_aborted(link: CanopenTransport) -> None:
+    sdo = link.objects().sdo
+    real = sdo.request_response
+    sent: list[bytes] = []
+
+    def wrong_toggle(request: bytes) -> bytes:
+        sent.append(bytes(request))
+        answer = bytes(real(request))
+        if request[0] & 0xE0 == 0x60:  # upload segment request: answer with the other toggle bit
+            answer = bytes([answer[0] ^ 0x10]) + answer[1:]
+        return answer
+
+    sdo.request_response = wrong_toggle  # type: ignore[method-assign]
+    try:
+        with pytest.raises(MalformedReply, match="wrong toggle bit"):
+            link.objects().upload(0x100A, 0)  # software version: more than 4 bytes, segmented
+    finally:
+        sdo.request_response = real  # type: ignore[method-assign]

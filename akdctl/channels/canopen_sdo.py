@@ -122,7 +122,7 @@ class CanopenObjectChannel(ObjectChannel):
                     return self._call(what, deadline, self._read, index, subindex, True, deadline)
                 except _BlockDeclined:
                     self.block = False
-            return self._call(what, deadline, self._read, index, subindex, False, deadline)
+            return self._call(what, deadline, self._upload, index, subindex, deadline)
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
         what = sdo_what("download", index, subindex)
@@ -143,8 +143,8 @@ class CanopenObjectChannel(ObjectChannel):
 
                 def read_back() -> bytes:
                     self._pace(deadline, attempts)
-                    return self._call(sdo_what("upload", index, subindex), deadline, self._read, index, subindex,
-                                      False, deadline)
+                    return self._call(sdo_what("upload", index, subindex), deadline, self._upload, index, subindex,
+                                      deadline)
 
                 confirm_write(exc.message, data, None if attempts < 1 or deadline.expired() else read_back,
                               {"index": index, "subindex": subindex})
@@ -153,6 +153,69 @@ class CanopenObjectChannel(ObjectChannel):
         """canopen's per-response timeout and repeats for the next call: a share of what is left."""
         self.sdo.MAX_RETRIES = max(1, tries)
         self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.share(share or tries))
+
+    def _upload(self, index: int, subindex: int, deadline: Deadline) -> bytes:
+        """A normal (expedited or segmented) upload on canopen's request/response queue, framed by our own SDO
+        codec (:mod:`akdctl.protocol.coe`, the same CiA 301 frames CoE carries): no stream objects per call,
+        one request for an expedited value. A reply that is not for this request (a late answer to an earlier
+        one, another client's) is skipped and the wait goes on within the deadline; a wrong toggle bit aborts."""
+        from akdctl.protocol import coe
+
+        initiate = coe.encode_sdo(coe.SdoUploadInitiate(index, subindex))
+        first = self._exchange(initiate, deadline, lambda m: isinstance(m, coe.SdoUploadResponse)
+                               and m.index == index and m.subindex == subindex)
+        assert isinstance(first, coe.SdoUploadResponse)
+        size = first.size
+        if first.expedited:
+            return first.data
+        if size is not None and size > self.max_upload:
+            self.sdo.abort(coe.ABORT_OUT_OF_MEMORY)
+            raise MalformedReply(f"{self.where} announces {size} bytes for SDO {sdo_what('upload', index, subindex)}"
+                                 f", more than the {self.max_upload} bytes akdctl accepts from one object "
+                                 "(transfer aborted)")
+        limit = self.max_upload if size is None else size
+        data = bytearray()
+        toggle = 0
+        while True:
+            if deadline.expired():
+                self.sdo.abort(coe.ABORT_TIMEOUT)
+                raise NoAnswer(f"SDO {sdo_what('upload', index, subindex)} from {self.where} did not finish "
+                               f"within {deadline.describe()} (transfer aborted)")
+            segment = self._exchange(coe.encode_sdo(coe.SdoUploadSegment(toggle)), deadline,
+                                     lambda m: isinstance(m, coe.SdoUploadSegmentResponse))
+            assert isinstance(segment, coe.SdoUploadSegmentResponse)
+            if segment.toggle != toggle:
+                self.sdo.abort(coe.ABORT_TOGGLE)
+                raise MalformedReply(f"{self.where} answered SDO {sdo_what('upload', index, subindex)} with a "
+                                     "segment of the wrong toggle bit (transfer aborted)")
+            data += segment.data
+            if len(data) > limit:
+                self.sdo.abort(coe.ABORT_LENGTH_MISMATCH)
+                raise MalformedReply(f"{self.where} sent more than the {limit} bytes "
+                                     f"{'it announced' if size is not None else 'akdctl accepts'} for SDO "
+                                     f"{sdo_what('upload', index, subindex)} (transfer aborted)")
+            if segment.last:
+                return bytes(data)
+            toggle ^= 1
+
+    def _exchange(self, request: bytes, deadline: Deadline, mine):  # noqa: ANN001, ANN202
+        """Send ``request`` once (canopen repeats only within ``MAX_RETRIES`` when nothing came back) and return
+        the first reply ``mine`` accepts, skipping others until the deadline; an abort raises canopen's error."""
+        from akdctl.protocol import coe
+
+        reply = self.sdo.request_response(request)
+        while True:
+            try:
+                message = coe.decode_sdo(reply, from_server=True)
+            except coe.CoeError:
+                message = None
+            if message is not None and mine(message):
+                return message
+            if deadline.expired():
+                raise MalformedReply(f"{self.where} sent only replies that do not fit the request "
+                                     f"(last: {bytes(reply).hex(' ')})")
+            self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.remaining())
+            reply = self.sdo.read_response()
 
     def _read(self, index: int, subindex: int, block: bool, deadline: Deadline) -> bytes:
         """One upload, segment by segment: never more than the declared size or ``max_upload``."""

@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "cmd": ("akdctl.cli.cmd", "cmd", "Send one line to the AKD's command channel (akd://): safe reads run, the rest is gated."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
     "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
+    "discover": ("akdctl.cli.discover", "discover", "Find drives on every transport given and write an inventory of the line."),
     "targets": ("akdctl.cli.targets", "targets", "List the transports and whether their dependencies are present."),
     "pn": ("akdctl.cli.pn", "pn", "PROFINET: discover (DCP), name, address and blink devices."),
     "ecat": ("akdctl.cli.ecat", "ecat", "EtherCAT: scan slaves, change AL state, read the SII."),
@@ -95,6 +96,12 @@ class LazyGroup(click.Group):
                 formatter.write_dl(rows)
 
 
+def _line_only(ctx: click.Context, param: click.Parameter, value: Any) -> None:
+    """The line options reach click only without --inventory (main() hands a line run to cli/line.py first)."""
+    if value:
+        raise click.UsageError(f"{param.opts[0]} works only with --inventory FILE (before any '--')", ctx)
+
+
 EPILOG = (
     "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
@@ -120,6 +127,16 @@ EPILOG = (
 @click.option("--trace", is_flag=True, help="Hex dump of every request and response frame on stderr.")
 @click.option("--pcap", metavar="FILE", type=click.Path(dir_okay=False), help="Capture every frame to a pcap file (Wireshark/tshark).")
 @click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
+@click.option("--inventory", metavar="FILE", expose_value=False, callback=_line_only,
+              help="Run the command on every drive of this inventory (see 'akdctl discover'), one process per drive.")
+@click.option("--select", metavar="TAG|NAME", multiple=True, expose_value=False, callback=_line_only,
+              help="With --inventory: only the drives with this name or tag (repeatable, or comma-separated).")
+@click.option("--parallel", metavar="N", expose_value=False, callback=_line_only,
+              help="With --inventory: drives worked on at once (default 4).")
+@click.option("--stop-on-error", is_flag=True, expose_value=False, callback=_line_only,
+              help="With --inventory: start no further drive after one failed.")
+@click.option("--reference", metavar="NAME", expose_value=False, callback=_line_only,
+              help="With --inventory and param diff: compare with this drive instead of the majority.")
 @click.version_option(__version__, "--version", prog_name="akdctl")
 @click.pass_context
 def cli(ctx: click.Context, target: str | None, config_path: str | None, profile_name: str | None,
@@ -180,6 +197,12 @@ def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = F
         emit_json({"error": exc.to_json()})
 
 
+def _line_run(args: list[str]) -> bool:
+    from akdctl.cli.line import wanted
+
+    return wanted(args)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI and map every error to its documented exit code, in one style."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -188,10 +211,15 @@ def main(argv: list[str] | None = None) -> None:
     error: AkdError | None = None
     hint: list[str] = []
     try:
-        with cli.make_context("akdctl", list(args)) as ctx:  # click consumes the list it parses
-            app = ctx.ensure_object(AppContext)  # the root callback fills this same object
-            cli.invoke(ctx)
-        code = 0
+        if any(a == "--inventory" or a.startswith("--inventory=") for a in args) and _line_run(args):
+            from akdctl.cli import line
+
+            code = line.run(args)  # one process per drive of the inventory (cli/line.py)
+        else:
+            with cli.make_context("akdctl", list(args)) as ctx:  # click consumes the list it parses
+                app = ctx.ensure_object(AppContext)  # the root callback fills this same object
+                cli.invoke(ctx)
+            code = 0
     except click.exceptions.Exit as exc:
         code = exc.exit_code
     except click.exceptions.Abort:

@@ -211,7 +211,7 @@ class SimDrive:
         self._clean_temporaries()
         text = self._read_text()
         if text is None:
-            model, meta = DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
+            model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
         try:
             state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
@@ -303,7 +303,7 @@ class SimDrive:
             self._held = None
             self._clean_temporaries()
             self._new_token(lock_fd)
-            self._save(DriveModel(), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
+            self._save(factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE})
 
     def set_time_scale(self, scale: float) -> None:
         with self.transaction():  # the scale is saved with the model, under its lock
@@ -376,6 +376,24 @@ class SimDrive:
         """Emergencies the drive raised since the last call (for the CANopen face)."""
         with self.transaction() as model:
             return _take_emergencies(model)
+
+
+def serial_for(name: str) -> int:
+    """The serial number of the simulated drive ``name``: ``default`` keeps the real AKD's (its SII dump), every
+    other name its own, stable across resets and machines -- a line of simulated drives is a line of distinct
+    drives (``discover`` keys an inventory on the serial)."""
+    import zlib
+
+    if name == "default":
+        return 2575499411
+    return 0x80000000 | (zlib.crc32(name.encode("utf-8")) & 0x7FFFFFFF)
+
+
+def factory_model(name: str) -> DriveModel:
+    """A drive model in factory state, with the identity of the drive ``name``."""
+    model = DriveModel()
+    model.object_values[(0x1018, 4)] = serial_for(name).to_bytes(4, "little")
+    return model
 
 
 def _refuse_constant(name: str) -> float:

@@ -49,12 +49,15 @@ class EnipSession(MessageLink):
             raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect to {host}:{port} ({exc.strerror or exc})") from None
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a request is one segment: send it now
         self.sock.settimeout(timeout)
         self.local = self.sock.getsockname()[:2]
         self.remote = self.sock.getpeername()[:2]
 
     # ---------------------------------------------------------------- framing
     def _trace(self, direction: str, data: bytes, note: str) -> None:
+        if not self.options.tracer.active:  # tracing off costs one attribute test per frame, no dict, no tuple
+            return
         src, dst = (self.local, self.remote) if direction == "tx" else (self.remote, self.local)
         self.options.tracer.frame(direction, "enip", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "tcp", "src": src, "dst": dst})
