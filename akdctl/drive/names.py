@@ -417,7 +417,7 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
 
     how = route(conn)
     writes: list[PlannedWrite] = []
-    items: list[tuple[str, Any, Any]] = []
+    items: list[tuple["AkdParam", Any, Any]] = []
     notes: list[str] = []
     seen: set[str] = set()
     for name, text in request:
