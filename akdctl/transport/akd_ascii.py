@@ -114,6 +114,8 @@ class AsciiLink(CommandLink):
             raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
         if not data:
             raise CommError(f"{self.label}: the drive closed the connection during {what}")
+        if self.options.tracer.active:
+            self._trace("rx", data, what)
         text, answer = self.telnet.feed(data)
         if answer:
             self._send(answer, what)
@@ -123,7 +125,16 @@ class AsciiLink(CommandLink):
             raise MalformedReply(f"{self.label}: {what}: more than {MAX_REPLY} bytes without the '-->' prompt")
         return True
 
+    def _trace(self, direction: str, data: bytes, note: str) -> None:
+        """The wire bytes as TCP segments (``--trace``, ``--pcap``; layer ``akd``)."""
+        local, remote = self.sock.getsockname()[:2], self.sock.getpeername()[:2]
+        src, dst = (local, remote) if direction == "tx" else (remote, local)
+        self.options.tracer.frame(direction, "akd", data, note=note,  # type: ignore[arg-type]
+                                  meta={"proto": "tcp", "src": src, "dst": dst})
+
     def _send(self, data: bytes, what: str) -> None:
+        if self.options.tracer.active:
+            self._trace("tx", data, what)
         try:
             self.sock.sendall(data)
         except socket.timeout:

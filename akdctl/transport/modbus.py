@@ -91,7 +91,14 @@ class ModbusTransport(Transport):
         if not 0 <= unit <= 247:
             raise UsageError(f"{label}: unit must be 0..247")
         timeout = self.options.budget.left()
-        client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0, reconnect_delay=0)
+        tracer = self.options.tracer
+
+        def trace(sending: bool, packet: bytes) -> bytes:   # the Modbus TCP ADUs (--trace, --pcap; layer mb)
+            if tracer.active:
+                tracer.frame("tx" if sending else "rx", "mb", packet, note=label)
+            return packet
+
+        client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0, reconnect_delay=0, trace_packet=trace)
         self._client = client
         try:
             connected = client.connect()
