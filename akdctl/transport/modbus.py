@@ -95,7 +95,15 @@ class ModbusTransport(Transport):
 
         def trace(sending: bool, packet: bytes) -> bytes:   # the Modbus TCP ADUs (--trace, --pcap; layer mb)
             if tracer.active:
-                tracer.frame("tx" if sending else "rx", "mb", packet, note=label)
+                meta: dict[str, object] = {}
+                sock = getattr(client, "socket", None)
+                try:
+                    local, remote = sock.getsockname()[:2], sock.getpeername()[:2]  # type: ignore[union-attr]
+                    src, dst = (local, remote) if sending else (remote, local)
+                    meta = {"proto": "tcp", "src": src, "dst": dst}
+                except (AttributeError, OSError):
+                    pass
+                tracer.frame("tx" if sending else "rx", "mb", packet, note=label, meta=meta)
             return packet
 
         client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0, reconnect_delay=0, trace_packet=trace)
