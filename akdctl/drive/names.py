@@ -439,7 +439,8 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
                                    classify(row)))
         items.append((row, value, wire))
         if how != "ascii" and row.mark("scale") == "I" and row.kind == "float" and how == "coe" and not raw:
-            notes.append(f"{row.name}: CoE scale x{row.scale} is inferred [I], read back to confirm")
+            notes.append(f"{row.name}: CoE scale x{row.scale} is inferred [I] (the read-back uses the same scale, "
+                         "so it cannot confirm it; compare with akd://HOST on a real drive)")
     enabled = drive_enabled(conn) if any(w.gated is not None and w.gated.when_enabled for w in writes) else None
     if writes:
         notes.append("RAM only until 'akdctl param save' (DRV.NVSAVE)")
