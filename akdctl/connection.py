@@ -154,8 +154,9 @@ class Connection:
 
             self._cip = CipAttributes(transport.message_link, self.target.display)
 
-        self._commands = transport.command_link
-        self._registers = transport.register_link
+        # Transports written before these links existed (third-party ones, registered by entry point) lack them.
+        self._commands = getattr(transport, "command_link", None)
+        self._registers = getattr(transport, "register_link", None)
 
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
         from akdctl.channels.coe_sdo import CoeObjectChannel
