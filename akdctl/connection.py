@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from akdctl.drive.axis.base import Axis
     from akdctl.links import CommandLink, MailboxLink, NativeSdoClient, RecordLink, RegisterLink
     from akdctl.transport.base import LinkOptions, Transport
+    from akdctl.transport.eip_io import IoConnection
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -222,6 +223,18 @@ class Connection:
         self.transport()
         return self._offered(self._cip, "no CIP attribute channel (EtherNet/IP); use an eip://HOST target")
 
+    def io_connection(self, *, rpi_ms: float, port: int, local_port: int,
+                      timeout_multiplier: int) -> "IoConnection":
+        """A class-1 EtherNet/IP I/O connection (not opened: a context manager) over this target's explicit
+        session, traced like the session: the one place that builds it, so ``drive/eip_io`` never sees a
+        transport."""
+        from akdctl.transport.eip_io import IoConnection
+
+        channel = self.cip()
+        return IoConnection(channel.link, self.target.host, rpi_ms=rpi_ms, port=port, local_port=local_port,
+                            timeout=self.options.timeout, tracer=self.options.tracer,
+                            timeout_multiplier=timeout_multiplier)
+
     def parameters(self) -> "ParameterChannel":
         """The PROFIdrive parameter channel; UsageError naming the alternatives if the target has none."""
         self.transport()
@@ -239,7 +252,15 @@ class Connection:
 
     def _offered(self, channel: "T | None", missing: str) -> "T":
         if channel is None:
-            raise UsageError(f"target {self.target.display} offers {missing}")
+            # Name only what this target has (issue 23 item 20): a hint to 'sdo' on a target without SDO misleads.
+            missing, _, where = missing.partition("; use ")
+            has = [words for present, words in ((self._parameters is not None or self._record_link is not None,
+                                                 "'pnu' commands"), (self._objects is not None, "'sdo' commands"),
+                                                (self._cip is not None, "'cip' and 'eip' commands"))
+                   if present]
+            where = where.split(" or ")[-1] if " or " in where else where
+            hint = (f"; this target offers {' and '.join(has)}" if has else "") + (f"; or use {where}" if where else "")
+            raise UsageError(f"target {self.target.display} offers {missing}{hint}")
         return channel
 
     def axis(self) -> "Axis":

@@ -199,3 +199,9 @@ class ModbusRefused(DriveError):
     """A Modbus exception response (function code + 0x80, exception code) from an mb:// target (issue 24)."""
 
     kind = "modbus-exception"
+
+
+class TriggerTimeout(CommError):
+    """A scope's trigger did not fire, or the drive's recorder did not finish, within ``--timeout`` (exit 3)."""
+
+    kind = "trigger-timeout"

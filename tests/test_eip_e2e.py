@@ -196,7 +196,7 @@ def test_motion_over_the_position_controller_acts_on_the_one_drive(serve, tmp_pa
     assert status["enabled"] and status["position_counts"] == 98304
     # no attribute tells the homed state over explicit messaging: absolute moves are refused (exit 4)
     absolute = akdctl(tmp_path, server.target, "-y", "move", "0")
-    assert absolute.returncode == 4 and "not homed" in absolute.stderr
+    assert absolute.returncode == 4 and "absolute moves are not possible" in absolute.stderr
     assert akdctl(tmp_path, server.target, "disable").returncode == 0
 
 

@@ -32,7 +32,7 @@ CASES = [
     ('[[step]]\naction = "set"\nobject = "0x6060:9"\nvalue = 1\n', 11, "unknown subindex 0x6060:9"),
     ('[[step]]\naction = "set"\npnu = "930"\nvalue = "fast"\n', 12, "takes integers"),
     ('[[step]]\naction = "set"\nobject = "0x6060:0"\nvalue = 1.5\n', 12, "takes an integer"),
-    ('[[step]]\naction = "set"\npnu = "930"\nvalue = 7\n', 12, "out of range: expected 0..2"),
+    ('[[step]]\naction = "set"\npnu = "930"\nvalue = 7\n', 12, "is outside 0..2"),
     ('[[step]]\naction = "set"\nobject = "0x6060:0"\nvalue = 300\n', 12, "out of range"),
     ('[[step]]\naction = "set"\npnu = "930"\n', 9, "missing key 'value'"),
     ('[[step]]\naction = "move"\nvelocity = 10\n', 9, "missing key 'target'"),

@@ -386,3 +386,70 @@ def is_tx_pdo(number: int) -> bool:
 def pdo_bytes(pdo_entries: "tuple[PdoEntry, ...] | list[PdoEntry]") -> int:
     """Process-data length in bytes of a list of mapping entries (bits rounded up)."""
     return (sum(e.bits for e in pdo_entries) + 7) // 8
+
+
+# ---------------------------------------------------------------------------------------
+# Write classes: what a write to an AKD parameter does to the axis (the write gate's input, drive/gate.py)
+#
+# Why by name and not by index: the AKD reaches one parameter through several addresses (a CoE object, a PNU, a
+# CIP Parameter instance, its ASCII name), and the catalogue carries the AKD name for each of them (objects.tsv
+# ``param``, PnuInfo.akd_parameter, eip_parameters). Classifying the name once gives every address of one
+# parameter one class, and a parameter added to any table is classified the moment it carries its name.
+# Families from the AKD User Guide's parameter reference (DRV.OPMODE/DRV.CMDSOURCE "select the operation mode /
+# command source", *.CMD the loop set points, MT.* the motion task fields, HOME.MOVE/MT.MOVE start motion).
+
+#: class -> regular expression over the upper-cased AKD parameter name or CiA 402 short name (full match).
+WRITE_CLASS_RULES: tuple[tuple[str, str], ...] = (
+    ("control", r"CONTROLWORD|CONTROL WORD 1"),
+    ("power", r"DRV\.EN|DRV\.ENDEFAULT|MOTOR\.BRAKERLS"),
+    ("motion", r"MT\.MOVE|HOME\.MOVE"),
+    ("setpoint", r"(?:VL|IL|PL)\.CMD|MT\.(?:P|V|ACC|DEC|CNTL)|DRV\.(?:ACC|DEC)|TARGET_[A-Z_]+|VELOCITY_OFFSET"
+                 r"|TORQUE_OFFSET|INTERPOLATION_DATA_RECORD\.[0-9A-Z_]+"),
+    ("mode", r"DRV\.OPMODE|MODES_OF_OPERATION|GEAR\.MODE"),
+    ("source", r"DRV\.CMDSOURCE|(?:IL|VL|PL)\.FBSOURCE"),
+    ("task_load", r"MT\.LOAD"),
+)
+#: class -> regular expression searched in a row's own name or description when it carries no AKD name
+#: (e.g. 0x2071 "Target current", 0x345A:1 "Brake Control Command", PNU 1004 "jogging set point 1").
+#: "SET POINT"/"SET-POINT" need the separator, so the position-compare "CMP0.SETPOINT n" rows are not set points.
+DESCRIPTION_RULES: tuple[tuple[str, str], ...] = (
+    ("power", r"\bBRAKE CONTROL COMMAND\b"),
+    ("setpoint", r"^TARGET\b|\bSET[- ]POINT\b|^MOTION TASK SELECT$"),
+)
+WRITE_CLASSES = ("control", "power", "motion", "setpoint", "mode", "source", "mapping", "task_load")
+
+
+def name_write_class(name: str) -> str | None:
+    """The write class of an AKD parameter name or CiA 402 short name (``DRV.OPMODE`` -> "mode"), or None."""
+    import re
+
+    wanted = name.strip().upper()
+    for cls, pattern in WRITE_CLASS_RULES:
+        if re.fullmatch(pattern, wanted):
+            return cls
+    return None
+
+
+def description_write_class(text: str) -> str | None:
+    """The write class a row's own name/description implies when it has no AKD name, or None."""
+    import re
+
+    wanted = text.strip().upper()
+    for cls, pattern in DESCRIPTION_RULES:
+        if re.search(pattern, wanted):
+            return cls
+    return None
+
+
+def is_pdo_communication(index: int) -> bool:
+    """CiA 301's PDO mapping areas (0x1600..0x17FF RxPDO, 0x1A00..0x1BFF TxPDO) and the SM assignments."""
+    return 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF or index in (RX_ASSIGN, TX_ASSIGN)
+
+
+def write_class(entry: ObjectEntry) -> str | None:
+    """The write class of one catalogue row: its AKD name's class, else its own name's, else the mapping area."""
+    if is_pdo_communication(entry.index):
+        return "mapping"
+    if not entry.writable:
+        return None
+    return (name_write_class(entry.param) if entry.param else None) or description_write_class(entry.name)

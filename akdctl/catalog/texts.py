@@ -592,3 +592,13 @@ CANOPEN_VENDORS: dict[int, str] = {0x6A: "Kollmorgen"}
 # PROFINET (PI) vendor IDs (PNU 964[0], 975[0], DCP, I&M0): 0x0100 is what the simulator and the project's example
 # recipe give the AKD; inferred, not verified against PI's vendor list.
 PI_VENDORS: dict[int, str] = {0x0100: "Kollmorgen"}
+
+
+# FoE error codes beyond ETG.1000.6's first table, from newer Beckhoff SSC versions (reference
+# foe-alias-recorder.md A1: 0x800C..0x8010; 0x800F is "no file", the same meaning as 0x8001).
+FOE_ERROR_TEXTS.update({
+    0x800C: "Invalid checksum",
+    0x800D: "Invalid firmware (the hardware does not support it)",
+    0x800F: "No file",
+    0x8010: "File header missing",
+})

@@ -408,7 +408,9 @@ class CoeObjectChannel(ObjectChannel):
         end = min(deadline.at, time.monotonic() + wait)
         while True:
             raw = self.link.receive(max(0.0, end - time.monotonic()))
-            if raw is None:
+            if raw is None or time.monotonic() > end:
+                # Silence -- or only mailboxes that are not the answer until the wait ran out: a slave that keeps
+                # presenting a foreign reply (SM1 in buffered mode, issue 23 item 12) must not hold us forever.
                 self._stale = True
                 self.filter.unanswered()
                 raise _Silence()

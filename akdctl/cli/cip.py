@@ -76,26 +76,32 @@ get.help = (get.help or "").replace("{types}", TYPE_HELP)  # the one list (drive
 @click.argument("path", metavar="CLASS/INSTANCE/ATTRIBUTE")
 @click.argument("type_name", metavar="TYPE")
 @click.argument("value_text", metavar="VALUE")
-def set_(path: str, type_name: str, value_text: str) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def set_(path: str, type_name: str, value_text: str, dry_run: bool) -> None:
     """Set_Attribute_Single with VALUE packed as TYPE (decimal or 0x-hex numbers).
 
     \b
     Examples:
       akdctl -T eip://192.168.0.20 -y cip set 0x25/1/7 i32 65536
+      akdctl -T eip://192.168.0.20 cip set 0x25/1/3 u8 1 --dry-run
     """
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive.gate import classify_cip
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import eip_params
     from akdctl.drive.values import check_type_name, encode
 
     class_id, instance, attribute = parse_path(path)
-    _value, data = encode(check_type_name(type_name), value_text)
+    value, data = encode(check_type_name(type_name), value_text)
     app = get_app()
-    channel = attributes(app)
-    gate_write(app, [classify_cip(class_id, instance, attribute)])
-    channel.set(class_id, instance, attribute, data)
+    attributes(app)  # a target without CIP is refused before anything else
+    plan = eip_params.plan(app.connection, eip_params.attribute_request(class_id, instance, attribute, type_name,
+                                                                        value, data))
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    consent_plan(app, plan)
+    eip_params.execute(app.connection, plan)
     label = f"0x{class_id:02X}/{instance}/{attribute}"
     app.emit({"target": app.target.display, "class": class_id, "instance": instance, "attribute": attribute,
               "type": type_name, "written": data.hex()},
              lambda: Doc(f"attribute {label} written", app.target.display).kv("type", type_name)
              .kv("value", value_text).kv("bytes", data.hex(" ")))
-

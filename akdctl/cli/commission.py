@@ -87,8 +87,9 @@ def _finish(app: Any, result: Any) -> None:
         exc = result.error
         if failed is not None:
             exc.message = f"step {failed.step.number} ({failed.step.name}) failed at {failed.step.where}: {exc.message}"
-            if result.safe_state:
-                exc.message += f"; {result.safe_state}"
+            said = [part for part in result.safe_state.split("; ") if part and part not in exc.message]
+            if said:  # what the step's own error already said ("axis stopped") is not said twice
+                exc.message += "; " + "; ".join(said)
         exc.reported = True
         raise exc
 
@@ -110,8 +111,7 @@ def _consent(app: Any, steps: list[Any]) -> None:
 def _plan_doc(result: object) -> Doc:
     doc = Doc(f"commissioning plan: {result.recipe} (dry run, nothing touched)", result.target)  # type: ignore[attr-defined]
     doc.table(["step", "action", "plan", "where"],
-              [[r.step.number, r.step.action, r.step.plan + ("" if r.step.available else
-                                                             f"  [{r.step.unavailable_reason}]"), r.step.where]
+              [[r.step.number, r.step.action, r.step.plan, r.step.where]
                for r in result.results])  # type: ignore[attr-defined]
     return doc
 

@@ -49,6 +49,27 @@ def gate_write(app: Any, gated: list[Any]) -> None:
     gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)
 
 
+def consent_plan(app: Any, plan: Any) -> None:
+    """The consent a write plan asks for (:attr:`akdctl.drive.operation.WritePlan.consent_text`), decided by the
+    plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``)."""
+    from akdctl.drive.operation import consent_needed
+
+    if plan.gated and app.yes:
+        own_axis(app)
+    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
+
+
+def render_dry_run(app: Any, plan: Any) -> None:
+    """``--dry-run``: the plan in words (or its JSON with ``--json``); nothing is written."""
+    from akdctl.cli.output import Doc
+
+    lines = plan.lines()
+    doc = Doc(f"{lines[0]} (dry run, nothing written)", "")
+    for line in lines[1:]:
+        doc.line(line)
+    app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, doc)
+
+
 def own_axis(app: Any) -> None:
     """Own the target's axis until the command ends (released when the invocation closes, or when
     the process dies); SafetyRefusal (exit 4) naming the owner when another command holds it."""

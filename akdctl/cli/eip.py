@@ -131,20 +131,30 @@ def param_get(name: str) -> None:
 @param.command("set")
 @click.argument("name", metavar="NAME|INSTANCE")
 @click.argument("value", metavar="VALUE")
-def param_set(name: str, value: str) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def param_set(name: str, value: str, dry_run: bool) -> None:
     """Write a parameter: its type and length are read first, floats travel x1000.
 
     \b
     Examples:
       akdctl -T eip://192.168.0.20 -y eip param set DRV.OPMODE 2
+      akdctl -T eip://192.168.0.20 eip param set EIP.PROFUNIT 65536 --dry-run
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
+    request = eip_params.parameter_request(ref, value)
     app = get_app()
-    channel = _channel(app)
-    _gate_parameter(app, ref)
-    result = eip_params.write(channel, ref, value)
+    _channel(app)  # a target without CIP is refused before anything else
+    plan = eip_params.plan(app.connection, request)  # plan -> consent -> execute (drive/eip_params.py)
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    consent_plan(app, plan)
+    eip_params.execute(app.connection, plan)
+    result = {"instance": ref.instance, "name": ref.name, "written": plan.data["bytes"].hex(),
+              "value": plan.data["value"], "length": plan.data["length"]}
     app.emit({"target": app.target.display, **result},
              lambda: Doc(f"parameter {ref.name or ref.instance} written", app.target.display)
              .kv("value", value).kv("bytes", result["written"]))
@@ -169,115 +179,70 @@ def param_run(name: str) -> None:
     app.emit({"target": app.target.display, **result}, f"{ref.name or ref.instance}: command executed")
 
 
-IO_TYPES = {"position": 0x01, "torque": 0x05, "move": 0x06, "jog": 0x07, "velocity": 0x08}
+IO_KINDS = ("position", "torque", "move", "jog", "velocity")   # drive/eip_io.IO_TYPES, listed without its import
 
 
 @eip.command("io")
-@click.argument("kind", type=click.Choice(list(IO_TYPES)), metavar="TYPE")
+@click.argument("kind", type=click.Choice(list(IO_KINDS)), metavar="TYPE")
 @click.argument("value", type=int)
 @click.option("--velocity", type=int, default=None, help="move: velocity in EIP.PROFUNIT units per second.")
 @click.option("--accel", type=int, default=0, help="move/jog: acceleration (EIP.PROFUNIT units/s², 0: drive's).")
 @click.option("--decel", type=int, default=0, help="move/jog: deceleration (0: drive's).")
 @click.option("--relative", is_flag=True, help="position/move: VALUE is relative to the current position.")
-@click.option("--for", "hold", type=click.FloatRange(0.05, 3600), default=None, metavar="SECONDS",
-              help="jog/velocity/torque: keep the connection (and the motion) this long, then close it.")
+@click.option("--for", "hold", type=str, default=None, metavar="DURATION",
+              help="jog/velocity/torque: keep the motion this long (e.g. 2, 2s, 500ms; at most 60 s and the "
+                   "profile's max_jog_duration), stop it, then close the connection.")
 @click.option("--rpi", type=click.FloatRange(10, 10000), default=20.0, show_default=True, metavar="MS",
-              help="Requested packet interval (the AKD needs >= 10 ms, >= 20 ms beside WorkBench).")
+              help="Requested packet interval (the AKD needs >= 10 ms, >= 20 ms beside WorkBench); at most "
+                   "125 ms, so a dead tool leaves the axis running at most 0.5 s.")
 @click.option("--port", "io_port", type=click.IntRange(1, 65535), default=2222, show_default=True,
               help="The drive's UDP I/O port.")
 @click.option("--local-port", type=click.IntRange(0, 65535), default=0, show_default=True,
               help="Our UDP port for T->O data (0: any free port).")
-def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, relative: bool, hold: float | None,
-       rpi: float, io_port: int, local_port: int) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (after reading the drive's units); send nothing.")
+def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, relative: bool, hold: str | None,
+       rpi: float, io_port: int, local_port: int, dry_run: bool) -> None:
     """Run ONE command through the I/O assemblies over a class-1 connection akdctl opens itself.
 
-    Explicit opt-in: a PLC normally owns this connection (akdctl refuses if one does). akdctl runs
-    the Load/Start -> Load Complete handshake, waits for the move (or --for), then closes the
-    connection - and the drive disables the axis when the connection ends (the Enable bit drops).
-    VALUE is in EIP.POSUNIT units (position, move), EIP.PROFUNIT units/s (jog, velocity) or mA (torque).
+    Explicit opt-in: a PLC normally owns this connection (akdctl refuses if one does). The command passes
+    the motion planner's limits (config profile, 60 s for a timed motion); akdctl runs the Load/Start ->
+    Load Complete handshake, waits for the move (or --for, then a smooth stop to standstill), then closes
+    the connection - and the drive disables the axis when the connection ends (the Enable bit drops).
+    The connection's timeout (RPI x multiplier) is kept within 0.5 s, so a killed akdctl leaves the axis
+    running at most that long. VALUE is in EIP.POSUNIT units (position, move), EIP.PROFUNIT units/s (jog,
+    velocity) or mA (torque).
 
     \b
     Examples:
       akdctl -T eip://192.168.0.20 -y eip io move 10000 --velocity 2000
-      akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2
+      akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2s
     """
     from akdctl.cli.consent import require_consent
-    from akdctl.drive.axis.cip import CipAxis
-    from akdctl.drive.motion_plan import check_executed_limits
-    from akdctl.drive.polling import pause_unless_stopped
-    from akdctl.drive.eip_io import run_command
-    from akdctl.protocol import akd_assembly as asm
-    from akdctl.transport.eip_io import IoConnection
+    from akdctl.cli.parsing import parse_duration
+    from akdctl.cli.signals import stop_signals
+    from akdctl.drive import eip_io
 
     app = get_app()
-    timed = kind in ("jog", "velocity", "torque")
-    if timed and hold is None:
-        raise UsageError(f"eip io {kind} needs --for SECONDS, so the motion is bounded")
-    if kind == "move" and not velocity:
-        raise UsageError("eip io move needs --velocity (EIP.PROFUNIT units per second)")
-    channel = _channel(app)
-    axis = CipAxis(channel, timeout=app.options.timeout, target=app.target.display)
-    posunit, profunit = axis.units()
-    speed = value if kind in ("jog", "velocity") else (velocity or 0)
-    # The same limit rules as every planned motion, on the raw values this command sends.
-    end_rev = None
-    if kind in ("position", "move"):
-        status = axis.read_status()
-        if relative:
-            end_rev = None if status.position_rev is None else status.position_rev + value / posunit
-        else:
-            end_rev = value / posunit
-        if end_rev is None and app.connection.profile is not None and app.connection.profile.limits.get("travel"):
-            from akdctl.errors import SafetyRefusal
-
-            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
-    check_executed_limits(app.connection, rpm=speed * 60.0 / profunit if speed else None,
-                          acc_rpm_s=max(accel, decel) * 60.0 / profunit if (accel or decel) else None,
-                          end_rev=end_rev, executed_by="the I/O assembly")
-    require_consent(app, f"run an I/O {kind} command ({value}, command type 0x{IO_TYPES[kind]:02X}) over a "
-                    "class-1 connection akdctl opens; when the connection ends the drive sees Enable drop and "
-                    "disables the axis")
-    direction = asm.CTL_DIRECTION if kind in ("jog", "velocity") and value >= 0 else 0   # velocity mode only [M-12]
-    control = asm.CTL_ENABLE | (asm.CTL_RELATIVE if relative else 0) | direction
-    command = asm.Command(control=control, command_type=IO_TYPES[kind],
-                          data=value if kind in ("position", "velocity", "torque") else 0,
-                          position=value if kind == "move" else 0,
-                          velocity=(velocity or 0) if kind == "move" else abs(value) if kind == "jog" else 0,
-                          acceleration=accel, deceleration=decel)
-    session = app.connection.transport().message_link
-    from akdctl.cli.signals import stop_signals
-    from akdctl.errors import Interrupted
-
-    # The connection closes on every way out (Forward_Close; the drive drops Enable and disables the axis),
-    # also on SIGINT/SIGTERM/SIGHUP: they only set a flag that the waits below check.
-    with stop_signals() as stop, IoConnection(session, app.target.host, rpi_ms=rpi, port=io_port,
-                                              local_port=local_port, timeout=app.options.timeout,
-                                              tracer=app.options.tracer) as conn:
-        result = run_command(conn, command, timeout=app.options.timeout)
-        if timed:
-            pause_unless_stopped(hold, stop)  # type: ignore[arg-type]
-            final = conn.wait_input(lambda r: True, "a response", app.options.timeout)
-        else:
-            final = conn.wait_input(lambda r: stop() or (bool(r.status1 & asm.ST1_IN_POSITION)
-                                                         and not r.status1 & asm.ST1_IN_MOTION), "In Position",
-                                    timeout=max(app.options.timeout, 60.0))
-        if stop():
-            raise Interrupted(f"interrupted during the I/O {kind} command; the connection is closed, so the drive "
-                              "disables the axis")
-        stats = conn.stats
-    data = {"target": app.target.display, "type": kind, "command_type": IO_TYPES[kind], "value": value,
-            "sent": [b.hex(" ") for b in result.sent], "responses": [b.hex(" ") for b in result.seen],
-            "final": final.encode().hex(" "), "actual_position": final.actual_position,
-            "actual_velocity": final.actual_velocity, "produced": stats.produced, "consumed": stats.consumed,
-            "connection": "closed (the drive disables the axis)"}
+    request = eip_io.IoRequest(kind, value, velocity, accel, decel, relative,
+                               None if hold is None else parse_duration(hold, "--for"), rpi, io_port, local_port)
+    accepted = eip_io.plan(app.connection, request)
+    if dry_run:
+        app.emit({"target": app.target.display, "dry_run": True, "plan": accepted.to_json()},
+                 "\n".join(accepted.lines()))
+        return
+    require_consent(app, accepted.consent_text)
+    # SIGINT/SIGTERM/SIGHUP only set a flag the waits check: the axis is stopped and watched to standstill
+    # before the connection closes (drive/eip_io.execute).
+    with stop_signals() as stop:
+        data = eip_io.execute(app.connection, accepted, stop)
 
     def human() -> Doc:
         doc = Doc(f"I/O {kind} command", app.target.display)
-        for n, raw in enumerate(result.sent, 1):
-            doc.kv(f"C{n}", raw[:8].hex(" "))
-        for n, raw in enumerate(result.seen, 1):
-            doc.kv(f"R{n}", raw[:8].hex(" "))
-        doc.kv("actual position", final.actual_position).kv("actual velocity", final.actual_velocity)
+        for n, raw in enumerate(data["sent"], 1):
+            doc.kv(f"C{n}", raw[:23])
+        for n, raw in enumerate(data["responses"], 1):
+            doc.kv(f"R{n}", raw[:23])
+        doc.kv("actual position", data["actual_position"]).kv("actual velocity", data["actual_velocity"])
         doc.kv("connection", "closed; the drive disables the axis")
         return doc
 

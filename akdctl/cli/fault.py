@@ -179,7 +179,8 @@ def dump(fmt: str) -> None:
 
 
 @fault.command("ack")
-def ack() -> None:
+@click.option("--dry-run", is_flag=True, help="Print the faults that would be acknowledged and the write; write nothing.")
+def ack(dry_run: bool) -> None:
     """Acknowledge the active faults (STW1 bit 7 / controlword bit 7 rising edge).
 
     Exit 1 if a fault is still active afterwards (its cause persists).
@@ -187,11 +188,17 @@ def ack() -> None:
     \b
     Examples:
       akdctl fault ack
+      akdctl fault ack --dry-run
     """
-    from akdctl.drive.faults import acknowledge
+    from akdctl.cli.consent import render_dry_run
+    from akdctl.drive import faults
 
     app = get_app()
-    result = acknowledge(app.connection)
+    plan = faults.plan(app.connection, faults.AckRequest())
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    result = faults.execute(app.connection, plan)  # never gated: an acknowledge powers nothing
     if result["acknowledged"]:
         text = f"acknowledged {', '.join(result['acknowledged'])}; no fault active"
     elif not result.get("note"):

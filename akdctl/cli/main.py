@@ -17,6 +17,7 @@ import click
 
 from akdctl import __version__
 from akdctl.cli.context import AppContext
+from akdctl.cli.parsing import Duration
 from akdctl.errors import EXIT_USAGE, AkdError, InternalError, Interrupted, UsageError
 
 # name -> (module, attribute, short help). Order is the order of `akdctl --help`.
@@ -38,6 +39,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "param": ("akdctl.cli.param", "param", "AKD parameters by name (DRV.OPMODE, VL.KP): get, set, list, save, dump, restore, diff."),
     "params": ("akdctl.cli.param", "param", "Alias of 'param' (backup, restore and diff of drive parameters)."),
     "cmd": ("akdctl.cli.cmd", "cmd", "Send one line to the AKD's command channel (akd://): safe reads run, the rest is gated."),
+    "scope": ("akdctl.cli.scope", "scope", "Record signals (poll, the drive's recorder, PDO) and plot them."),
     "commission": ("akdctl.cli.commission", "commission", "Run a commissioning recipe (TOML)."),
     "info": ("akdctl.cli.info", "info", "Identify the drive (vendor, type, firmware, profile)."),
     "discover": ("akdctl.cli.discover", "discover", "Find drives on every transport given and write an inventory of the line."),
@@ -48,6 +50,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "cip": ("akdctl.cli.cip", "cip", "Read and write CIP attributes (EtherNet/IP explicit messaging)."),
     "eip": ("akdctl.cli.eip", "eip", "EtherNet/IP: ListIdentity scan, AKD parameters by the Parameter object."),
     "sim": ("akdctl.cli.sim", "sim", "The simulated AKD: reset, show, inject faults, serve on the network."),
+    "firmware": ("akdctl.cli.firmware", "firmware", "Update the drive's firmware over EtherCAT (FoE in BOOT)."),
 }
 
 
@@ -115,9 +118,9 @@ EPILOG = (
 @click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
-@click.option("--timeout", type=click.FloatRange(min=0.001, max=3600), metavar="SECONDS",
-              help="How long a request may wait for the drive, repeats included (default 2); a command "
-                   "against a silent drive gives up after about this long.")
+@click.option("--timeout", type=Duration(0.001, 3600), metavar="DURATION",
+              help="How long a request may wait for the drive, repeats included (default 2 s; 2, 2s, 500ms); a "
+                   "command against a silent drive gives up after about this long.")
 @click.option("--retries", type=click.IntRange(min=0, max=10), metavar="N",
               help="Repeats of a request that got no answer, within --timeout (default 2). A write is "
                    "repeated only where the drive recognises the repeat (PROFINET); elsewhere it is sent "
@@ -181,6 +184,18 @@ def _from_click(exc: click.ClickException) -> AkdError:
     return error
 
 
+def _message_lines(message: str) -> list[str]:
+    """A refusal listing its reasons ("...:\n  - reason") prints one reason per line, never a literal "\n"; only an
+    indented continuation breaks the line, so a newline inside quoted input stays escaped on its own line."""
+    lines: list[str] = []
+    for part in message.split("\n"):
+        if lines and not part.startswith("  "):
+            lines[-1] += "\n" + part
+        else:
+            lines.append(part)
+    return lines
+
+
 def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = False, hint: list[str] = ()) -> None:
     """The one error style: ``akdctl: error: <message> [target T]`` (plus click's usage hint for usage errors),
     and with ``--json`` the error document on stdout unless the command already printed its result."""
@@ -189,10 +204,11 @@ def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = F
     if exc.target is None and app is not None and app._target is not None:
         exc.target = app._target.display
     target = exc.target
-    line = f"akdctl: error: {exc.message}"
+    first, *more = _message_lines(exc.message)
+    line = f"akdctl: error: {first}"
     if target and target not in exc.message:
         line += f" [target {target}]"
-    sys.stderr.write("".join(inert(text) + "\n" for text in [line, *hint]))
+    sys.stderr.write("".join(inert(text) + "\n" for text in [line, *more, *hint]))
     if (json_wanted or (app is not None and app.json)) and not exc.reported:
         emit_json({"error": exc.to_json()})
 

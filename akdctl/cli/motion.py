@@ -17,7 +17,6 @@ Velocities are rpm, accelerations rpm/s; positions take ``--units``.
 from __future__ import annotations
 
 import contextlib
-import re
 import time
 from typing import Any
 
@@ -25,6 +24,7 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc, LiveView, message
+from akdctl.cli.parsing import Duration
 from akdctl.drive.motion_plan import DEFAULT_ACC_RPM_S, DEFAULT_RPM, MAX_JOG_S, UNITS
 from akdctl.errors import Interrupted, UsageError
 
@@ -37,7 +37,9 @@ def _axis(app: Any) -> Any:
 def _status_doc(app: Any, status: Any, title: str, extra: dict[str, Any] | None = None) -> Doc:
     doc = Doc(title, app.target.display)
     for key, value in (extra or {}).items():
-        doc.kv(key, value)
+        if key == "homed" and status.homed is not None:
+            continue  # the status below says it, read from the drive
+        doc.kv(key, ("yes" if value else "no") if isinstance(value, bool) else value)  # one rendering of a yes/no
     doc.kv("profile", status.profile)
     doc.kv("state", f"{status.state} ({status.state_text})" if status.state != status.state_text else status.state)
     doc.kv("mode", f"{status.mode} ({status.mode_text})")
@@ -74,23 +76,19 @@ def _emit_status(app: Any, status: Any, title: str, extra: dict[str, Any] | None
     app.emit(data, human)
 
 
-_DURATION = r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|m|min)?\s*$"  # compiled on first use (status needs none)
-
-
 def _duration(text: str) -> float:
-    match = re.match(_DURATION, text)
-    if not match:
-        raise UsageError(f"bad duration {text!r}: use e.g. 2s, 500ms, 1.5")
-    value = float(match.group(1))
-    unit = match.group(2) or "s"
-    return value / 1000.0 if unit == "ms" else value * 60.0 if unit in ("m", "min") else value
+    """Seconds from ``2``, ``2s``, ``500ms`` (the one parser, :func:`akdctl.cli.parsing.parse_duration`; this
+    name stays for its callers, e.g. ``scope --jog-for``)."""
+    from akdctl.cli.parsing import parse_duration
+
+    return parse_duration(text)
 
 
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
                   wait: bool = True) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
     consent, then execute under the stop signals; prints the final state."""
-    from akdctl.cli.consent import require_consent
+    from akdctl.cli.consent import own_axis, require_consent
     from akdctl.cli.progress import MotionProgress
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
@@ -98,9 +96,15 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 
     conn = app.connection
     motion_plan.check_request(conn, request, axis_class(conn))  # no drive needed: bad input exits 2 first
+    if app.yes:
+        # Consent is given: own the axis before the plan reads it, so the preparation may share the plan's
+        # status read (Axis.recent_status) - no other command can have moved the axis in between.
+        own_axis(app)
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
     require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
+    if not app.yes:
+        axis.forget_status()  # the owner lock came with the answer: the preparation reads the drive again
     with stop_signals() as stop, MotionProgress(plan, quiet=app.json or not wait) as progress:
         result = motion_plan.execute(axis, plan, stop, progress.update, wait=wait)
     extra = dict(extra or {})
@@ -214,22 +218,26 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
         request = MotionRequest("jog", velocity=abs(velocity), distance=distance, accel=accel, unit=unit)
         _plan_and_run(get_app(), request, "jog finished", {"distance": distance})
         return
-    seconds = _duration(duration) if duration is not None else None
+    from akdctl.cli.parsing import parse_duration
+
+    seconds = parse_duration(duration, "jog --for") if duration is not None else None
     request = MotionRequest("jog", velocity=velocity, duration_s=seconds, accel=accel)
     _plan_and_run(get_app(), request, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds})
 
 
 @click.command()
 @click.option("--mode", "home_mode", type=int, help="Homing mode: PNU 1001 (HOME.MODE) or 0x6098 method.")
-@click.option("--timeout", "home_timeout", type=float, default=60.0, show_default=True,
-              help="Seconds the whole homing may take before the axis is stopped.")
+@click.option("--max-time", "--timeout", "home_timeout", type=Duration(0.0, 3600.0), default=60.0, metavar="DURATION",
+              help="How long the whole homing may take before the axis is stopped (default 60 s; 30, 30s, 2m). "
+                   "'home --timeout' is this option too; the wait for each request is the global "
+                   "'akdctl --timeout' before the command.")
 def home(home_mode: int | None, home_timeout: float) -> None:
     """Run the drive's homing procedure and wait until the home position is set.
 
     \b
     Examples:
       akdctl -y home
-      akdctl -y home --mode 3 --timeout 30
+      akdctl -y home --mode 3 --max-time 30s
     """
     from akdctl.drive.motion_plan import MotionRequest
 

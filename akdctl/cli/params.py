@@ -109,12 +109,19 @@ def restore(file: str, dry_run: bool, force: bool, save: bool) -> None:
       akdctl params restore axis1.toml --dry-run
       akdctl -y params restore axis1.toml --save
     """
+    from akdctl.cli.consent import consent_plan
     from akdctl.drive import snapshot
 
     app = get_app()
-    snap = snapshot.load_file(file)
-    result = snapshot.restore(app.connection, snap, dry_run=dry_run, force=force, save=save)
-    data = {"target": app.target.display, "file": file, "dry_run": dry_run, **result.to_json()}
+    request = snapshot.RestoreRequest(snapshot.load_file(file), force=force, save=save)
+    plan = snapshot.plan(app.connection, request)
+    if dry_run:
+        result = snapshot.RestoreResult(plan.data["changes"], [], False, plan.data["mismatches"])
+    else:
+        consent_plan(app, plan)
+        result = snapshot.execute(app.connection, plan)
+    data = {"target": app.target.display, "file": file, "dry_run": dry_run, **result.to_json(),
+            "plan": plan.to_json()}
 
     def human() -> Doc:
         title = "restore plan (dry run: nothing written)" if dry_run else "parameters restored"

@@ -160,62 +160,50 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
     """
     import json as jsonlib
 
+    from akdctl.cli.consent import consent_plan
     from akdctl.drive import pdo as dp
 
     app = get_app()
     if file and (rx or tx or define or opmode is not None or cycle_time is not None):
         raise UsageError("give the mapping either with --file or with --rx/--tx/--define/--opmode/--cycle-time")
-    plan = dp.load_plan_file(file) if file else dp.build_plan(rx, tx, define, opmode, cycle_time)
-    if plan.empty:
-        raise UsageError("nothing to map: give --rx/--tx (e.g. --rx 0x1701 --tx 0x1B01) or --file")
-    problems = dp.validate(plan)
-    if problems and not force:
-        raise UsageError(
-            "mapping refused, nothing was written:\n  - " + "\n  - ".join(problems)
-            + "\n(--force sends it anyway and lets the drive answer)",
-            details={"problems": problems},
-        )
-    for problem in problems:
-        message(f"akdctl: warning: --force: {problem}")
-    steps = dp.startup_list(plan)
+    mapping = dp.load_plan_file(file) if file else dp.build_plan(rx, tx, define, opmode, cycle_time)
+    request = dp.map_request(mapping, force=force)
+    steps = dp.startup_list(mapping)
     if export:
         from pathlib import Path
 
         from akdctl.io.atomic import write_user_file  # the one rule for files akdctl writes (mode, directory)
 
-        write_user_file(Path(export), jsonlib.dumps(dp.export_json(steps, plan), indent=2) + "\n")
-    data: dict[str, Any] = {"plan": plan.to_json(), "startup": [s.to_json() for s in steps], "problems": problems,
-                            "dry_run": dry_run}
+        write_user_file(Path(export), jsonlib.dumps(dp.export_json(steps, mapping), indent=2) + "\n")
+    plan = dp.plan(app.connection, request)
+    data: dict[str, Any] = {"plan": mapping.to_json(), "startup": [s.to_json() for s in steps],
+                            "problems": request.problems, "dry_run": dry_run, "write_plan": plan.to_json()}
     if dry_run:
-        app.emit(data, lambda: _startup_doc(steps, "startup list (dry run, nothing written)", "plan"))
-        return
-    if not force:
-        state = dp.al_state_of(app.transport())
-        if state is not None and state != "PREOP":
-            raise UsageError(
-                f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18). "
-                "Switch it to PRE-OP first; nothing was written.", details={"al_state": state})
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive.gate import classify_object
+        def planned() -> Doc:
+            doc = Doc("startup list (dry run, nothing written)", plan.target)
+            for text in plan.preconditions:
+                doc.kv("precondition", text)
+            if plan.needing_consent:
+                doc.kv("needs consent", plan.consent_text)
+            for text in plan.notes:
+                doc.kv("note", text)
+            return doc.table(["Transition", "Protocol", "Index", "Data", "Comment"],
+                             [[s.transition, "CoE", s.address, s.data_text, s.comment] for s in steps])
 
-    gate_write(app, [classify_object(0x1C12, 0, "RxPDO assignment")])  # the mapping of an enabled drive is gated
-    channel = app.objects()
-    written = dp.apply(channel, steps)
-    differences = dp.verify(channel, plan)
-    after = {d: m.to_json() for d, m in dp.read_mapping(channel).items()}
-    data.update({"target": app.target.display, "written": written, "verified": not differences,
-                 "differences": differences, "mapping": after})
+        app.emit(data, planned)
+        return
+    for note in plan.notes:
+        message(f"akdctl: warning: {note}")
+    consent_plan(app, plan)
+    result = dp.execute(app.connection, plan)
+    after = result["mapping"]
+    data.update({"target": app.target.display, "written": result["sdo_downloads"], "verified": True,
+                 "differences": [], "mapping": after})
 
     def human() -> Doc:
-        doc = _startup_doc(steps, f"PDO mapping written ({written} SDO downloads)", app.target.display)
-        doc.kv("read back", "identical" if not differences else "DIFFERS")
+        doc = _startup_doc(steps, f"PDO mapping written ({result['sdo_downloads']} SDO downloads)",
+                           app.target.display)
+        doc.kv("read back", "identical")
         return _mapping_doc(doc, after)
 
     app.emit(data, human)
-    if differences:
-        from akdctl.errors import CheckFailed
-
-        exc = CheckFailed("PDO mapping read back differs: " + "; ".join(differences),
-                          details={"differences": differences})
-        exc.reported = True
-        raise exc

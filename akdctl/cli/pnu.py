@@ -8,7 +8,6 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
-from akdctl.errors import CheckFailed, ParameterRefused
 
 
 @click.group()
@@ -67,13 +66,10 @@ def _report_failures(readings: list[Any], verb: str) -> None:
     failed = [r for r in readings if not r.ok]
     if not failed:
         return
-    first = failed[0]
-    more = f" (and {len(failed) - 1} more)" if len(failed) > 1 else ""
-    exc = ParameterRefused(
-        f"drive refused to {verb} PNU {first.spec.label}: {first.error_text} (error 0x{first.error:02X}){more}",
-        code=first.error,
-    )
-    exc.reported = True  # type: ignore[attr-defined]
+    from akdctl.drive.values import pnu_refused
+
+    exc = pnu_refused(failed[0], verb, more=len(failed) - 1)
+    exc.reported = True
     raise exc
 
 
@@ -105,42 +101,42 @@ def get(addresses: tuple[str, ...]) -> None:
 @pnu.command("set")
 @click.argument("assignments", nargs=-1, required=True, metavar="PNU[SUB]=VALUE[,VALUE...]...")
 @click.option("--verify", is_flag=True, help="Read every value back and compare (exit 5 on a difference).")
-def set_(assignments: tuple[str, ...], verify: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and which writes need consent; write nothing.")
+def set_(assignments: tuple[str, ...], verify: bool, dry_run: bool) -> None:
     """Change one or more PNUs (all are checked before anything is sent).
 
     \b
     Examples:
       akdctl -y pnu set 930=2 --verify
       akdctl -y pnu set 1004=-500 1005=500
+      akdctl pnu set 930=2 --dry-run
     """
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive import gate
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import raw_write
     from akdctl.drive.params import parse_assignment
-    from akdctl.drive.values import pnu_display, read_pnus, write_pnus
 
     app = get_app()
-    parsed = [parse_assignment(text) for text in assignments]
-    channel = app.parameters()
-    gate_write(app, [gate.classify_pnu(spec.pnu, spec.info.name if spec.info else "") for spec, _ in parsed])
-    results = write_pnus(channel, parsed)
-    mismatches: list[str] = []
-    if verify and all(r.ok for r in results):
-        for (spec, values), back in zip(parsed, read_pnus(channel, [spec for spec, _ in parsed])):
-            if not back.ok or back.values != values:
-                mismatches.append(f"PNU {spec.label}: wrote {values}, read back {back.values if back.ok else back.error_text}")
+    request = raw_write.SetRequest([raw_write.pnu_target(*parse_assignment(text)) for text in assignments], verify)
+    plan = raw_write.plan(app.connection, request)
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    consent_plan(app, plan)
+    raw_write.execute(app.connection, plan)
+    from akdctl.drive.values import PnuReading
+
     app.emit(
-        {"target": app.target.display, "written": [r.to_json() for r in results], "verified": verify and not mismatches},
+        {"target": app.target.display,
+         "written": [{**PnuReading(t.spec, values=t.values, format=t.spec.info.wire_format if t.spec.info else None)
+                      .to_json(), "gated": w.to_json().get("gated")}
+                     for w, t in zip(plan.writes, request.targets)],
+         "verified": verify},
         lambda: Doc("PNU written", app.target.display).table(
             ["PNU", "name", "value", "result"],
-            [[r.spec.label, r.spec.info.name if r.spec.info else "?",
-              ",".join(pnu_display(r.spec.pnu, r.spec.subindex + i, v) for i, v in enumerate(r.values or [])),
-              "ok" if r.ok else f"refused: {r.error_text}"]
-             for r in results],
+            [[t.spec.label, t.name or "?", w.display, "ok" + (", read back" if verify else "")]
+             for w, t in zip(plan.writes, request.targets)],
         ),
     )
-    _report_failures(results, "change")
-    if mismatches:
-        raise CheckFailed("read-back differs: " + "; ".join(mismatches))
 
 
 @pnu.command("describe")

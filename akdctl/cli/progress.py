@@ -53,6 +53,13 @@ def measure(plan: Any, status: Any, elapsed: float) -> Measure:
         to_go = abs(plan.end_rev - status.position_rev)
         return Measure(max(total - to_go, 0.0), total, target, f"{to_go:.4f} rev to go", _eta(plan, to_go, speed))
     where = f"at {status.position_rev:.4f} rev" if status.position_rev is not None else "searching"
+    phase = None
+    if r.kind == "home":
+        from akdctl.drive.axis.base import AxisStatus  # loaded with the axis that produced the status
+
+        phase = status.homing_phase() if isinstance(status, AxisStatus) else None
+    if phase:  # what the drive reports of the homing's progress (issue 28 item 7)
+        where = f"{phase}, {where}"
     if status.velocity_rpm is not None:
         where += f", {status.velocity_rpm:.1f} rpm"
     if plan.deadline_s:

@@ -12,7 +12,7 @@ import click
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 from akdctl.drive.values import TYPE_HELP
-from akdctl.errors import CheckFailed, SdoAborted, UsageError
+from akdctl.errors import SdoAborted, UsageError
 
 #: SDO abort "object does not exist in the object dictionary" (CiA 301).
 _NO_OBJECT = 0x06020000
@@ -84,7 +84,8 @@ read.help = (read.help or "").replace("{types}", TYPE_HELP)  # the one list (dri
 @click.argument("address", metavar="INDEX[:SUB]")
 @click.argument("args", nargs=-1, required=True, metavar="[TYPE] VALUE")
 @click.option("--verify", is_flag=True, help="Read the object back and compare (exit 5 on a difference).")
-def write(address: str, args: tuple[str, ...], verify: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def write(address: str, args: tuple[str, ...], verify: bool, dry_run: bool) -> None:
     """Download a value; TYPE defaults to the catalogue's type; VALUE '-' reads stdin.
 
     \b
@@ -94,10 +95,10 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
       echo 01ff | akdctl sdo write 0x2013:1 os -
     """
     from akdctl.catalog.objects import object_name
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive import gate
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import raw_write
     from akdctl.drive.objects import parse_address
-    from akdctl.drive.values import decode, encode, resolve_type
+    from akdctl.drive.values import encode, resolve_type
     app = get_app()
     addr = parse_address(address)
     if len(args) == 1:
@@ -113,15 +114,16 @@ def write(address: str, args: tuple[str, ...], verify: bool) -> None:
     if entry is not None and not entry.writable:
         raise UsageError(f"object {addr.label} ({entry.name}) is read-only")
     value, data = encode(dtype, value_text)
-    channel = app.objects()
-    gate_write(app, [gate.classify_object(addr.index, addr.subindex, entry.name if entry is not None else "")])
-    with _hinting(address):
-        channel.download(addr.index, addr.subindex, data)
-    if verify:
-        back = channel.upload(addr.index, addr.subindex)
-        if decode(dtype, back) != value:
-            raise CheckFailed(f"object {addr.label}: wrote {value!r}, read back {decode(dtype, back)!r}")
     name = entry.name if entry is not None else (object_name(addr.index) or "")
+    target = raw_write.object_target(addr.index, addr.subindex, dtype, value, data,
+                                     entry.name if entry is not None else "")
+    plan = raw_write.plan(app.connection, raw_write.SetRequest([target], verify))
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    consent_plan(app, plan)
+    with _hinting(address):
+        raw_write.execute(app.connection, plan)
     app.emit(
         {"target": app.target.display, "index": addr.index, "subindex": addr.subindex, "name": name,
          "type": dtype, "written": data.hex(), "verified": verify},

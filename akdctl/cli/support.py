@@ -32,7 +32,9 @@ def support() -> None:
               help="Bundle file to write (JSON; a name ending in .zip writes a zip with the JSON inside).")
 @click.option("--all-objects", is_flag=True,
               help="Snapshot every readable object of the dictionary, not only the core ones (slow on a real bus).")
-def bundle(output: str, all_objects: bool) -> None:
+@click.option("--scope", "scope_file", metavar="FILE",
+              help="Attach a recording ('akdctl scope ... --json > FILE') as the bundle's 'scope' member.")
+def bundle(output: str, all_objects: bool, scope_file: str | None) -> None:
     """Collect identity, fault dump, status, parameters, mapping and the session trace into one file.
 
     A section the drive refuses is recorded in the file; the file is written
@@ -43,6 +45,7 @@ def bundle(output: str, all_objects: bool) -> None:
     Examples:
       akdctl support bundle -o bundle.zip
       akdctl -T pn://192.168.0.10 support bundle -o axis1.zip --all-objects
+      akdctl support bundle -o bundle.zip --scope jog.json
     """
     from akdctl.drive import bundle as bundle_mod
 
@@ -52,7 +55,14 @@ def bundle(output: str, all_objects: bool) -> None:
 
     app = get_app()
     require_directory(Path(output))  # before the drive is read
+    recording = None
+    if scope_file is not None:
+        from akdctl.drive.scope_model import load_recording
+
+        recording = load_recording(scope_file).to_json()  # a bad file refuses before the drive is read
     data = bundle_mod.collect(app.connection, all_objects=all_objects)
+    if recording is not None:
+        data["scope"] = recording
     path = bundle_mod.write(data, output)
     errors = data.get("errors", {})
     summary = {"file": str(path), "format": bundle_mod.FORMAT, "format_version": bundle_mod.FORMAT_VERSION,
@@ -202,6 +212,7 @@ def show(file: str, trace_all: bool) -> None:
         ("parameters", lambda: _parameters_doc(data)),
         ("mapping", lambda: _mapping_doc(data)),
         ("trace", lambda: _trace_doc(data, trace_all)),
+        *((("scope", lambda: _scope_doc(data["scope"])),) if "scope" in data else ()),
     )
     for name, build in builders:
         try:
@@ -210,3 +221,19 @@ def show(file: str, trace_all: bool) -> None:
             raise UsageError(f"{file}: damaged support bundle (section {name}: {type(exc).__name__})") from None
     for doc in docs:
         render(doc)
+
+
+def _scope_doc(recording: Any) -> Doc:
+    """The attached recording: its facts and its terminal plot (drive/scope_plot.py)."""
+    from akdctl.drive.scope_model import Recording
+    from akdctl.drive.scope_plot import terminal_plot
+
+    rec = Recording.from_json(recording)  # ValueError: a damaged member (the caller's one-line error)
+    doc = Doc("scope recording", rec.target)
+    doc.kv("source", rec.source).kv("trigger", rec.trigger).kv("samples", rec.summary())
+    doc.kv("channels", ", ".join(c.legend for c in rec.channels))
+    if rec.partial:
+        doc.kv("PARTIAL", rec.partial)
+    for line in terminal_plot(rec, width=72, height=10).splitlines()[2:]:
+        doc.line(line)
+    return doc

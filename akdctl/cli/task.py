@@ -11,9 +11,9 @@ from typing import Any
 
 import click
 
-from akdctl.cli.consent import gate_write
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
+from akdctl.cli.parsing import Duration
 
 _COLUMNS = ["task", "position", "mode", "velocity [rpm]", "accel [rpm/s]", "decel [rpm/s]"]
 
@@ -56,10 +56,10 @@ def list_(count: int, show_all: bool) -> None:
 
     app = get_app()
     objects = tasks.objects_of(app.connection)
-    gate_write(app, tasks.gated_reads())
-    found = [tasks.read_task(objects, n) for n in range(count)]
+    tasks.refuse_if_moving(app.connection)  # a read is never a motion: no consent, refused while moving
+    found = tasks.read_tasks(objects, list(range(count)))
     shown = [t for t in found if show_all or t.configured]
-    app.emit({"target": app.target.display, "tasks": [t.to_json() for t in shown]},
+    app.emit({"target": app.target.display, "tasks": [t.to_json() for t in shown], "note": tasks.RESTORED_NOTE},
              lambda: Doc("motion tasks", app.target.display).table(
                  _COLUMNS, [_row(t) for t in shown] or [["", "(none configured)", "", "", "", ""]]))
 
@@ -78,9 +78,9 @@ def show(number: int) -> None:
     app = get_app()
     tasks.check_number(number)
     objects = tasks.objects_of(app.connection)
-    gate_write(app, tasks.gated_reads())
+    tasks.refuse_if_moving(app.connection)  # a read is never a motion: no consent, refused while moving
     found = tasks.read_task(objects, number)
-    app.emit({"target": app.target.display, **found.to_json()},
+    app.emit({"target": app.target.display, **found.to_json(), "note": tasks.RESTORED_NOTE},
              lambda: Doc(f"motion task {number}", app.target.display).table(_COLUMNS, [_row(found)]))
 
 
@@ -91,30 +91,41 @@ def show(number: int) -> None:
 @click.option("--accel", type=float, required=True, help="rpm/s.")
 @click.option("--decel", type=float, help="rpm/s (default: --accel).")
 @click.option("--relative/--absolute", default=False, help="Relative to the start position (default absolute).")
-def set_(number: int, position: float, velocity: float, accel: float, decel: float | None, relative: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Show what would be written; write nothing.")
+def set_(number: int, position: float, velocity: float, accel: float, decel: float | None, relative: bool,
+         dry_run: bool) -> None:
     """Store a task (MT.P/MT.V/MT.ACC/MT.DEC/MT.CNTL, then MT.SET); nothing moves.
+
+    The values must pass what 'move' with them would (the config profile's limits, the drive's
+    set-point ranges), as 'task start' checks them again.
 
     \b
     Examples:
       akdctl task set 5 --position 2.5 --velocity 300 --accel 2000 --yes
     """
+    from akdctl.cli.consent import own_axis, require_consent
     from akdctl.drive import tasks
-    from akdctl.drive.motion_plan import finite
+    from akdctl.drive.operation import consent_needed
 
     app = get_app()
-    tasks.check_number(number)
-    values = [finite(v, what) for v, what in ((position, "position"), (velocity, "velocity"), (accel, "accel"),
-                                              (accel if decel is None else decel, "decel"))]
-    objects = tasks.objects_of(app.connection)
-    gate_write(app, tasks.gated_writes())
-    stored = tasks.write_task(objects, number, *values, relative=relative)
+    accepted = tasks.plan_set(app.connection, tasks.TaskRequest(number, position, velocity, accel, decel, relative))
+    if dry_run:
+        app.emit({"target": app.target.display, "dry_run": True, "plan": accepted.to_json()},
+                 "\n".join(accepted.lines()))
+        return
+    if accepted.gated and app.yes:
+        own_axis(app)  # a gated write owns the axis like a motion, also with --yes (cli/consent.gate_write)
+    consent_needed(accepted, lambda text: require_consent(app, text), given=app.yes)
+    stored = tasks.execute_set(app.connection, accepted)
     app.emit({"target": app.target.display, **stored.to_json()},
              lambda: Doc(f"motion task {number} stored", app.target.display).table(_COLUMNS, [_row(stored)]))
 
 
 @task.command("start")
 @click.argument("number", type=int)
-@click.option("--timeout", "task_timeout", type=float, help="Seconds the task may take before the axis is stopped.")
+@click.option("--max-time", "--timeout", "task_timeout", type=Duration(0.0, 3600.0), metavar="DURATION",
+              help="How long the task may take before the axis is stopped (30, 30s, 2m; default from the task). "
+                   "'task start --timeout' is this option too; the per-request wait is the global 'akdctl --timeout'.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
 @click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent to motion without a prompt.")
 def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: bool) -> None:

@@ -55,44 +55,47 @@ def show() -> None:
     app.emit(data, lambda: _state_doc("PROFIdrive telegram", app.target.display, data))
 
 
+def _run(app: Any, request: Any, dry_run: bool, title: str) -> None:
+    """plan -> consent -> execute -> render: the one path of both writing telegram commands."""
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import telegram as dt
+
+    plan = dt.plan(app.connection, request)
+    if dry_run:
+        render_dry_run(app, plan)
+        return
+    for note in plan.notes:
+        message(f"akdctl: warning: {note}")
+    consent_plan(app, plan)
+    state = dt.execute(app.connection, plan)
+    data = {"target": app.target.display, **state.to_json()}
+    app.emit(data, lambda: _state_doc(title, app.target.display, data))
+
+
 @telegram.command("set")
 @click.argument("number", type=int, metavar="1|7|9|350|351|0")
 @click.option("--force", is_flag=True, help="Send a telegram number akdctl does not know; the drive answers.")
-def set_(number: int, force: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def set_(number: int, force: bool, dry_run: bool) -> None:
     """Select a telegram (PNU 922), then read back its layout.
 
     \b
     Examples:
       akdctl -y telegram set 9
-      akdctl -y telegram set 1
+      akdctl telegram set 1 --dry-run
     """
-    from akdctl.catalog.telegrams import FREE_TELEGRAM, TELEGRAMS
-    from akdctl.drive.telegram import select_telegram
+    from akdctl.drive.telegram import select_request
 
-    known = (*TELEGRAMS, FREE_TELEGRAM)
-    if number not in known:
-        if not force:
-            raise UsageError(f"telegram {number} is not offered by the AKD; choose one of "
-                             + ", ".join(str(n) for n in sorted(known)) + " (nothing was written)")
-        message(f"akdctl: warning: --force: telegram {number} is not one the AKD documents")
-    if not 0 <= number <= 0xFFFF:
-        raise UsageError(f"telegram {number} is outside 0..65535")
-    app = get_app()
-    channel = app.parameters()
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive.gate import classify_pnu
-
-    gate_write(app, [classify_pnu(922, "Telegram selection")])  # the telegram of an enabled drive is gated
-    state = select_telegram(channel, number)
-    data = {"target": app.target.display, **state.to_json()}
-    app.emit(data, lambda: _state_doc(f"telegram {number} selected", app.target.display, data))
+    request = select_request(number, force=force)
+    _run(get_app(), request, dry_run, f"telegram {number} selected")
 
 
 @telegram.command("map")
 @click.option("--setpoint", metavar="SIGNALS", help="Set-point signals in IO order, e.g. 1,5 or STW1,NSOLL_A (PNU 915).")
 @click.option("--actual", metavar="SIGNALS", help="Actual-value signals in IO order, e.g. 2,6 or ZSW1,NIST_A (PNU 916).")
 @click.option("--force", is_flag=True, help="Skip akdctl's own checks; the drive answers.")
-def map_(setpoint: str | None, actual: str | None, force: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Print what would be written and whether it needs consent; write nothing.")
+def map_(setpoint: str | None, actual: str | None, force: bool, dry_run: bool) -> None:
     """Free mapping for telegram 0 through PNU 915/916, checked against the signal list PNU 923 first.
 
     \b
@@ -104,29 +107,12 @@ def map_(setpoint: str | None, actual: str | None, force: bool) -> None:
     Examples:
       akdctl -y telegram set 0
       akdctl -y telegram map --setpoint 1,5 --actual 2,6,52
+      akdctl telegram map --setpoint 1,5 --dry-run
     """
-    from akdctl.drive.telegram import map_free, parse_signals, read_state, validate_free_map
+    from akdctl.drive.telegram import map_request, parse_signals
 
     if setpoint is None and actual is None:
         raise UsageError("nothing to map: give --setpoint and/or --actual")
-    wanted_set = parse_signals(setpoint) if setpoint is not None else None
-    wanted_act = parse_signals(actual) if actual is not None else None
-    app = get_app()
-    channel = app.parameters()
-    state = read_state(channel)
-    problems = validate_free_map(wanted_set or [], wanted_act or [], state.signal_list)
-    if state.number != 0:
-        problems.insert(0, f"telegram {state.number} is selected; PNU 915/916 change only in telegram 0 "
-                           "(run 'akdctl telegram set 0' first)")
-    if problems and not force:
-        raise UsageError("telegram mapping refused, nothing was written:\n  - " + "\n  - ".join(problems),
-                         details={"problems": problems})
-    for problem in problems:
-        message(f"akdctl: warning: --force: {problem}")
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive.gate import classify_pnu
-
-    gate_write(app, [classify_pnu(915, "PZD setpoint assignment"), classify_pnu(916, "PZD actual value assignment")])
-    state = map_free(channel, wanted_set, wanted_act)
-    data = {"target": app.target.display, **state.to_json()}
-    app.emit(data, lambda: _state_doc("telegram 0 mapped", app.target.display, data))
+    request = map_request(parse_signals(setpoint) if setpoint is not None else None,
+                          parse_signals(actual) if actual is not None else None, force=force)
+    _run(get_app(), request, dry_run, "telegram 0 mapped")

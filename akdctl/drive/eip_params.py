@@ -73,7 +73,9 @@ def read(channel: Any, ref: ParameterRef) -> dict[str, Any]:
             f"0x{type_code:02X}", "length": size, "raw": raw.hex(), "value": value}
 
 
-def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
+def encode_parameter(channel: Any, ref: ParameterRef, text: str) -> tuple[Any, bytes, int]:
+    """(value, bytes, length) for a Parameter-object write: the type and length are read first (attributes 5, 6),
+    floats travel x1000; a value that does not fit is refused before anything is written."""
     if ref.kind == "command":
         raise UsageError(f"{ref.name} is a command: run it with 'akdctl eip param run {ref.name}'")
     type_code, size = describe(channel, ref)
@@ -96,6 +98,11 @@ def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
                          f"({size} bytes, {'signed' if signed else 'unsigned'})")
     if size == 8 and len(data) == 8 and -(1 << 31) <= number < (1 << 31):
         data = data[:4]      # 64-bit parameters also take a 32-bit value [M-26]
+    return value, data, size
+
+
+def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
+    value, data, size = encode_parameter(channel, ref, text)
     channel.set(cip.PARAMETER, ref.instance, 1, data)
     return {"instance": ref.instance, "name": ref.name, "written": data.hex(), "value": value, "length": size}
 
@@ -107,4 +114,65 @@ def run_command(channel: Any, ref: ParameterRef) -> dict[str, Any]:
     return {"instance": ref.instance, "name": ref.name, "executed": True}
 
 
-__all__ = ["ParameterRef", "resolve", "describe", "read", "write", "run_command"]
+# ---------------------------------------------------------------------------- the operation (plan -> execute)
+class AttributeWrite:
+    """One Set_Attribute_Single: ``cip set`` (``dtype`` and ``value`` as the user typed them) or ``eip param set``
+    (the Parameter object's attribute 1, ``ref`` and the value text, packed by the drive's own type)."""
+
+    __slots__ = ("class_id", "instance", "attribute", "dtype", "value", "data", "ref", "text")
+
+    def __init__(self, class_id: int, instance: int, attribute: int, *, dtype: str = "", value: Any = None,
+                 data: bytes = b"", ref: ParameterRef | None = None, text: str = "") -> None:
+        self.class_id = class_id
+        self.instance = instance
+        self.attribute = attribute
+        self.dtype = dtype
+        self.value = value
+        self.data = bytes(data)
+        self.ref = ref
+        self.text = text
+
+
+def attribute_request(class_id: int, instance: int, attribute: int, dtype: str, value: Any,
+                      data: bytes) -> AttributeWrite:
+    return AttributeWrite(class_id, instance, attribute, dtype=dtype, value=value, data=data)
+
+
+def parameter_request(ref: ParameterRef, text: str) -> AttributeWrite:
+    if ref.kind == "command":
+        raise UsageError(f"{ref.name} is a command: run it with 'akdctl eip param run {ref.name}'")
+    return AttributeWrite(cip.PARAMETER, ref.instance, 1, ref=ref, text=text)
+
+
+def plan(conn: Any, request: AttributeWrite) -> Any:
+    """The write with the gate's verdict (akdctl.drive.gate.classify_cip); a parameter's type and length are
+    read first, so its bytes are known (and a value that does not fit refused) before anything is written."""
+    from akdctl.drive.gate import classify_cip
+    from akdctl.drive.operation import PlannedWrite, WritePlan, read_enabled
+
+    label = f"0x{request.class_id:02X}/{request.instance}/{request.attribute}"
+    if request.ref is not None:
+        value, data, size = encode_parameter(conn.cip(), request.ref, request.text)
+        name = request.ref.name or ""
+        address, operation, shown = (f"parameter {name or request.instance} ({label})", "eip param set",
+                                     f"{value}" + (" (x1000 on the wire)" if request.ref.kind == "float" else ""))
+    else:
+        value, data, size, name = request.value, request.data, len(request.data), ""
+        address, operation, shown = label, "cip set", f"{request.value} ({request.dtype})"
+    writes = [PlannedWrite(address, data, shown, classify_cip(request.class_id, request.instance,
+                                                              request.attribute, name))]
+    return WritePlan(operation, conn.target.display, writes, enabled=read_enabled(conn, writes),
+                     data={"request": request, "bytes": data, "value": value, "length": size})
+
+
+def execute(conn: Any, plan: Any) -> dict[str, Any]:
+    """Send the one Set_Attribute_Single of the plan."""
+    request: AttributeWrite = plan.data["request"]
+    data: bytes = plan.data["bytes"]
+    conn.cip().set(request.class_id, request.instance, request.attribute, data)
+    return {"class": request.class_id, "instance": request.instance, "attribute": request.attribute,
+            "written": data.hex()}
+
+
+__all__ = ["AttributeWrite", "ParameterRef", "attribute_request", "describe", "encode_parameter", "execute",
+           "parameter_request", "plan", "read", "resolve", "run_command", "write"]

@@ -27,11 +27,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import faults as catalog
-from akdctl.errors import AkdError, CommError, DriveFault, ParameterRefused, UsageError
+from akdctl.errors import AkdError, CommError, DriveFault, UsageError
 from akdctl.profiles.statusword import SW_FAULT, SW_WARNING, ZSW1_FAULT, ZSW1_WARNING
 
 if TYPE_CHECKING:
     from akdctl.connection import Connection
+    from akdctl.drive.operation import WritePlan
 
 MAX_ATTEMPTS = 5  # consistent-read attempts before reporting an inconsistent dump
 PNU_FAULT_COUNTER = 944
@@ -165,15 +166,12 @@ def split_buffer(values: list[int]) -> tuple[list[FaultEntry], list[dict[str, An
 
 
 def _read_one(channel: Any, specs: list[Any]) -> list[Any]:
-    from akdctl.drive.values import read_pnus
+    from akdctl.drive.values import pnu_refused, read_pnus
 
     readings = read_pnus(channel, specs)
     for reading in readings:
         if not reading.ok and reading.spec.pnu != PNU_ZSW1:
-            raise ParameterRefused(
-                f"drive refused to read PNU {reading.spec.label} ({reading.error_text}, error 0x{reading.error:02X})",
-                code=reading.error,
-            )
+            raise pnu_refused(reading, "read")
     return readings
 
 
@@ -447,3 +445,44 @@ def read_modbus_faults(conn: "Connection") -> dict[str, Any]:
     faults = [decode_number(number).to_json()] if number else []
     return {"faults": faults, "warnings": [], "fault_present": bool(faults), "warning_present": False,
             "note": "only DRV.FAULT1 has a published Modbus register; more faults may be active"}
+
+
+# ---------------------------------------------------------------------------- acknowledge as a write plan
+#: What an acknowledge writes on each path: the profile's one fault-reset edge (Axis.acknowledge_faults).
+_ACK_WRITES = {
+    "profidrive": ("PNU 1 (STW1)", "bit 7 (fault acknowledge) low, high, low: one rising edge, power bits off "
+                                   "(SPEC-NOTES 7)"),
+    "canopen": ("0x6040:0 (Controlword)", "0x0000, 0x0080 (fault reset), 0x0000: one rising edge of bit 7"),
+}
+
+
+class AckRequest:
+    """``fault ack``: nothing to choose; the target and its profile decide the path."""
+
+    __slots__ = ()
+
+
+def plan(conn: "Connection", request: AckRequest | None = None) -> "WritePlan":
+    """Reads the fault state; the acknowledge edge is the plan's one write (none when no fault is active).
+
+    The write carries no gate verdict on purpose: an acknowledge only takes power away (README "Safety
+    model"; akdctl/drive/gate.py), so it never asks for consent nor waits for the axis's owner.
+    """
+    from akdctl.drive.operation import PlannedWrite, WritePlan
+
+    path = _ack_path(conn)
+    active = summary(dump(conn))
+    address, display = _ACK_WRITES.get(path, (path, "fault reset"))
+    writes = [PlannedWrite(address, None, display)] if active["fault_present"] else []
+    notes = [f"active: {', '.join(active['faults']) or 'a fault (see fault dump)'}" if active["fault_present"]
+             else "no active fault: nothing to acknowledge"]
+    return WritePlan("fault ack", conn.target.display, writes, notes=notes,
+                     data={"path": path, "active": active["faults"]})
+
+
+def execute(conn: "Connection", plan: "WritePlan") -> dict[str, Any]:
+    """Send the acknowledge edge (when the plan has it) and read the faults again (DriveFault if one stays)."""
+    if not plan.writes:
+        return {"target": conn.target.display, "acknowledged": [], "still_active": [], "fault_present": False,
+                "via": plan.data["path"], "note": "no active fault: nothing was written"}
+    return acknowledge(conn)

@@ -6,22 +6,22 @@ machine without the motion commands' consent. Every raw write path (``pnu set``,
 for consent (:func:`akdctl.cli.consent.require_consent`) when :func:`needing_consent`
 returns anything. README "Safety model" lists the same addresses.
 
-* always gated — the control words and the set points the drive acts on:
-  PNU 1 (STW1), 5 (NSOLL_A), 32 (SATZANW), 34..38 (MDI_*), 1004..1007 (jog set points
-  and ramps); objects 0x6040 (controlword), 0x607A, 0x60FF, 0x6071, 0x60C1 (target
-  position/velocity/torque, interpolation set points), 0x60B1/0x60B2 (velocity/torque
-  offsets), 0x6081/0x6083/0x6084 (profile velocity and ramps);
-* gated while the drive is enabled (or its state cannot be read) — what changes
-  the meaning of the running set points: the operating mode (PNU 930, 0x6060) and
-  the telegram / process-data mapping (PNU 915, 916, 922; 0x1600..0x17FF,
-  0x1A00..0x1BFF, 0x1C12, 0x1C13), and MT.LOAD 0x3432 (it loads a motion task into
-  those profile-position set points; ``task list|show``).
+The gate knows no list of addresses: it asks the catalogue for the *write class* of the row an address
+names (catalog/objects.py ``write_class``, ``name_write_class``): every CoE object, PNU and CIP Parameter
+instance that carries one AKD name gets that name's class, so ``pnu set 930``, ``sdo write 0x35B4`` (both
+DRV.OPMODE) and ``param set DRV.OPMODE=`` are gated alike (:func:`classify_name` serves writes by name).
 
-CIP attributes (``cip set``, ``eip param set|run``) are classified the same way: the
-Position Controller 0x25's enable (17), load handshake (11) and home move (101) are
-control, its target position/velocity and incremental flag (6, 7, 10) set points, its
-mode (3) gated while enabled; the Parameter object's HOME.MOVE command and the command
-assembly (0x04/100) move the axis.
+* always gated — control (the control words), power (DRV.EN, brake release), motion (MT.MOVE, HOME.MOVE) and
+  set points (*.CMD, MT.P/V/ACC/DEC/CNTL, DRV.ACC/DEC, the CiA 402 targets and offsets, 0x2071 target current);
+* gated while the drive is enabled (or its state cannot be read) — what changes the meaning of the running set
+  points: the operating mode (DRV.OPMODE, 0x6060), the command or feedback source (DRV.CMDSOURCE, *.FBSOURCE),
+  the telegram / process-data mapping (PNU 915, 916, 922; the CiA 301 PDO areas, 0x1C12, 0x1C13), and MT.LOAD
+  (it loads a motion task into the profile-position set points; ``task list|show``).
+
+CIP attributes (``cip set``, ``eip param set|run``): a Parameter object instance by its AKD name as above; the
+Position Controller 0x25's attributes carry no AKD name, so their classes are written here (``CIP_PC_CLASSES``:
+enable 17 power, load handshake 11 and home move 101 motion, target position/velocity and incremental flag
+6, 7, 10 set points, mode 3); the command assembly (0x04/100) is control.
 
 Ownership: whatever passes this gate (a motion, a recipe that moves, a gated raw
 write) also owns the target's axis for the rest of the command, so two akdctl
@@ -35,7 +35,10 @@ from __future__ import annotations
 import hashlib
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from akdctl.catalog.pnus import PnuInfo
 
 _CONTROL = "the control word powers and moves the axis"
 _SETPOINT = "a set point the drive acts on"
@@ -43,21 +46,25 @@ _MODE = "the operating mode of an enabled drive changes what its set points mean
 _MAPPING = "the process-data mapping of an enabled drive changes which set points it follows"
 _MT_LOAD = "MT.LOAD replaces the profile-position set points 0x607A/0x6081/0x6083/0x6084 of an enabled drive"
 
-PNU_ALWAYS: dict[int, str] = {1: _CONTROL, 5: _SETPOINT, 32: _SETPOINT, 34: _SETPOINT, 35: _SETPOINT,
-                              36: _SETPOINT, 37: _SETPOINT, 38: _SETPOINT, 1004: _SETPOINT, 1005: _SETPOINT,
-                              1006: _SETPOINT, 1007: _SETPOINT}
-PNU_WHEN_ENABLED: dict[int, str] = {930: _MODE, 915: _MAPPING, 916: _MAPPING, 922: _MAPPING}
-OBJECT_ALWAYS: dict[int, str] = {0x6040: _CONTROL, 0x607A: _SETPOINT, 0x60FF: _SETPOINT, 0x6071: _SETPOINT,
-                                 0x60C1: _SETPOINT, 0x60B1: _SETPOINT, 0x60B2: _SETPOINT, 0x6081: _SETPOINT,
-                                 0x6083: _SETPOINT, 0x6084: _SETPOINT}
-OBJECT_WHEN_ENABLED: dict[int, str] = {0x6060: _MODE, 0x1C12: _MAPPING, 0x1C13: _MAPPING, 0x3432: _MT_LOAD}
-MAPPING_RANGES = ((0x1600, 0x17FF), (0x1A00, 0x1BFF))
-#: Position Controller 0x25 instance 1 attributes (AKD EtherNet/IP manual appendix A, reference/ethernetip.md 1.8).
-CIP_PC_ALWAYS: dict[int, str] = {17: "the enable attribute powers the axis",
-                                 11: "the load handshake starts the loaded motion",
-                                 101: "the home move attribute starts homing", 6: _SETPOINT, 7: _SETPOINT,
-                                 10: _SETPOINT}
-CIP_PC_WHEN_ENABLED: dict[int, str] = {3: _MODE}
+#: Write class (catalog/objects.py WRITE_CLASSES) -> (why it is gated, gated only while the drive is enabled).
+CLASS_REASONS: dict[str, tuple[str, bool]] = {
+    "control": (_CONTROL, False),
+    "power": ("it switches the power stage or releases the brake", False),
+    "motion": ("the command starts a motion ('akdctl move|home|task start' supervise it)", False),
+    "setpoint": (_SETPOINT, False),
+    "mode": (_MODE, True),
+    "source": ("the command or feedback source of an enabled drive changes what it follows", True),
+    "mapping": (_MAPPING, True),
+    "task_load": (_MT_LOAD, True),
+}
+#: Position Controller 0x25 instance 1 attributes (AKD EtherNet/IP manual appendix A, reference/ethernetip.md 1.8):
+#: CIP attributes carry no AKD name, so their classes are written here, once.
+CIP_PC_CLASSES: dict[int, tuple[str, str | None]] = {
+    17: ("power", "the enable attribute powers the axis"),
+    11: ("motion", "the load handshake starts the loaded motion"),
+    101: ("motion", "the home move attribute starts homing"),
+    6: ("setpoint", None), 7: ("setpoint", None), 10: ("setpoint", None), 3: ("mode", None),
+}
 
 
 @dataclass(frozen=True)
@@ -67,45 +74,96 @@ class Gated:
     address: str
     reason: str
     when_enabled: bool = False
+    write_class: str = ""
 
     def text(self) -> str:
         return f"{self.address}: {self.reason}"
 
 
+def gated_for(label: str, cls: str | None, reason: str | None = None) -> Gated | None:
+    """The Gated record of an address of write class ``cls`` (None: not gated)."""
+    if cls is None:
+        return None
+    why, when_enabled = CLASS_REASONS[cls]
+    return Gated(label, reason or why, when_enabled=when_enabled, write_class=cls)
+
+
+def classify_name(name: str, label: str | None = None) -> Gated | None:
+    """A write by AKD parameter name (``param set DRV.OPMODE=2``), by the catalogue's classes.
+
+    The name's own class first (catalog/objects.py WRITE_CLASS_RULES); a name the rules do not know is
+    classified like the catalogue rows that carry it (every CoE object and PNU of that AKD name).
+    """
+    from akdctl.catalog import objects, pnus
+
+    label = label or name.strip().upper()
+    cls = objects.name_write_class(name)
+    if cls is None:
+        for entry in objects.by_param(name):
+            cls = cls or objects.write_class(entry)
+        wanted = name.strip().lower()
+        for info in pnus.pnu_table().values():
+            if info.akd_parameter.lower() == wanted:
+                cls = cls or pnu_write_class(info)
+    return gated_for(label, cls)
+
+
+def pnu_write_class(info: PnuInfo) -> str | None:
+    """The write class of one catalogued PNU: the telegram group is mapping; otherwise its AKD name's class,
+    else what its name/description says (PNU 1004 "jogging set point 1")."""
+    from akdctl.catalog import objects
+
+    if info.access != "rw":
+        return None
+    if info.group == "telegram":
+        return "mapping"
+    akd = info.akd_parameter
+    return ((objects.name_write_class(akd) if akd else None) or objects.description_write_class(info.name)
+            or objects.description_write_class(info.description))
+
+
 def classify_pnu(pnu: int, name: str = "") -> Gated | None:
+    """A PNU write, by the class of the catalogue's row (an uncatalogued PNU is refused by the drive anyway)."""
+    from akdctl.catalog import pnus
+
     label = f"PNU {pnu}" + (f" ({name})" if name else "")
-    if pnu in PNU_ALWAYS:
-        return Gated(label, PNU_ALWAYS[pnu])
-    if pnu in PNU_WHEN_ENABLED:
-        return Gated(label, PNU_WHEN_ENABLED[pnu], when_enabled=True)
-    return None
+    info = pnus.lookup(pnu)
+    return None if info is None else gated_for(label, pnu_write_class(info))
 
 
 def classify_object(index: int, subindex: int, name: str = "") -> Gated | None:
+    """An object write, by the class of the catalogue's row; an object the catalogue lacks by the CiA 301 PDO
+    areas, then by the name the caller gives."""
+    from akdctl.catalog import objects
+
     label = f"0x{index:04X}:{subindex}" + (f" ({name})" if name else "")
-    if index in OBJECT_ALWAYS:
-        return Gated(label, OBJECT_ALWAYS[index])
-    if index in OBJECT_WHEN_ENABLED or any(lo <= index <= hi for lo, hi in MAPPING_RANGES):
-        return Gated(label, OBJECT_WHEN_ENABLED.get(index, _MAPPING), when_enabled=True)
-    return None
+    entry = objects.lookup(index, subindex)
+    if entry is not None:
+        return gated_for(label, objects.write_class(entry))
+    if objects.is_pdo_communication(index):
+        return gated_for(label, "mapping")
+    rows = objects.subentries(index)  # a sub-index the table lacks: the object's own class
+    cls = next((c for c in (objects.write_class(r) for r in rows) if c), None)
+    if cls is None and name:
+        cls = objects.name_write_class(name) or objects.description_write_class(name)
+    return gated_for(label, cls)
 
 
 def classify_cip(class_id: int, instance: int, attribute: int, name: str = "") -> Gated | None:
-    """A CIP attribute write (explicit messaging), by the same rules as PNUs and objects."""
-    from akdctl.catalog.eip_parameters import by_name
+    """A CIP attribute write (explicit messaging), by the same classes as PNUs and objects."""
+    from akdctl.catalog.eip_parameters import by_instance
     from akdctl.protocol import cip
 
     label = f"0x{class_id:02X}/{instance}/{attribute}" + (f" ({name})" if name else "")
-    if class_id == cip.POSITION_CONTROLLER and instance == 1:
-        if attribute in CIP_PC_ALWAYS:
-            return Gated(label, CIP_PC_ALWAYS[attribute])
-        if attribute in CIP_PC_WHEN_ENABLED:
-            return Gated(label, CIP_PC_WHEN_ENABLED[attribute], when_enabled=True)
-    home_move = by_name("HOME.MOVE")
-    if class_id == cip.PARAMETER and home_move is not None and instance == home_move.instance and attribute == 1:
-        return Gated(label, "the HOME.MOVE command starts homing ('akdctl home' supervises it)")
+    if class_id == cip.POSITION_CONTROLLER and instance == 1 and attribute in CIP_PC_CLASSES:
+        cls, reason = CIP_PC_CLASSES[attribute]
+        return gated_for(label, cls, reason)
+    if class_id == cip.PARAMETER and attribute == 1:
+        row = by_instance(instance)
+        if row is not None:
+            return classify_name(row.name, label)
     if class_id == cip.ASSEMBLY and instance == 100:
-        return Gated(label, "the command assembly powers and moves the axis")
+        return gated_for(label, "control", "the command assembly powers and moves the axis")
     return None
 
 

@@ -113,7 +113,7 @@ class MotionPlan(Record):
 
     __slots__ = ("request", "profile", "mode_kind", "unit", "velocity", "accel", "decel", "target_raw", "move_rev",
                  "start_rev", "end_rev", "duration_s", "deadline_s", "needs_homed", "homed", "mode_text", "notes",
-                 "limits", "after_consent")
+                 "limits", "after_consent", "task_text")
     __hash__ = None  # type: ignore[assignment]
 
     def __init__(self, request: MotionRequest, profile: str, mode_kind: str, unit: str = "rev",
@@ -142,9 +142,10 @@ class MotionPlan(Record):
         self.notes: list[str] = [] if notes is None else notes
         self.limits: dict[str, Any] = {} if limits is None else limits
         self.after_consent = after_consent
+        self.task_text = ""  # kind "task": the stored task in words (target, speed), read while planning
 
     def __repr__(self) -> str:
-        shown = (n for n in self.__slots__ if n != "after_consent")
+        shown = (n for n in self.__slots__ if n not in ("after_consent", "task_text"))
         return f"MotionPlan({', '.join(f'{n}={getattr(self, n)!r}' for n in shown)})"
 
     @property
@@ -157,7 +158,8 @@ class MotionPlan(Record):
             return "run the homing procedure (the axis searches for its reference)" + (
                 f", homing mode {r.home_mode}" if r.home_mode is not None else "")
         if r.kind == "task":
-            return f"start motion task {r.task} as stored in the drive (program mode)"
+            return f"start motion task {r.task} as stored in the drive (program mode)" + (
+                f": {self.task_text}" if self.task_text else "")
         assert self.velocity is not None and self.accel is not None
         v, a = self.velocity.executed, self.accel.executed
         if r.kind == "jog" and r.duration_s is not None:
@@ -269,6 +271,11 @@ def _check_travel(limits: dict[str, Any], end_rev: float, how: str = "would end 
                             f"[{lo:g}, {hi:g}] rev")
 
 
+def check_travel(limits: dict[str, Any], end_rev: float, how: str = "would end at") -> None:
+    """The travel window's rule for a caller outside the planner (a stored task's relative end)."""
+    _check_travel(limits, end_rev, how)
+
+
 def check_executed_limits(conn: Any, *, rpm: float | None = None, acc_rpm_s: float | None = None,
                           end_rev: float | None = None, executed_by: str = "") -> None:
     """The profile's limits for a motion whose raw values a caller built itself (``eip io``): the
@@ -280,6 +287,21 @@ def check_executed_limits(conn: Any, *, rpm: float | None = None, acc_rpm_s: flo
                        _limit(limits, "max_acceleration"), "max_acceleration", "rpm/s", executed_by)
     if end_rev is not None:
         _check_travel(limits, end_rev)
+
+
+def check_duration(limits: dict[str, Any], duration_s: Any, what: str = "jog --for",
+                   hint: str = "use --distance for a move the drive ends itself") -> float:
+    """A motion the tool ends after ``duration_s``: at most :data:`MAX_JOG_S` and the profile's
+    ``max_jog_duration`` (every timed motion: ``jog --for``, ``eip io jog|velocity|torque --for``)."""
+    seconds = finite(duration_s, f"{what} duration")
+    if not 0 < seconds <= MAX_JOG_S:
+        raise UsageError(f"{what} must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
+                         f"motion; {hint}), got {seconds:g} s")
+    profile_bound = _limit(limits, "max_jog_duration")
+    if profile_bound is not None and seconds > profile_bound:  # a profile limit, like velocity: exit 4
+        raise SafetyRefusal(f"refusing: {what} {seconds:g} s exceeds the profile's max_jog_duration "
+                            f"{profile_bound:g} s; nothing was sent")
+    return seconds
 
 
 def _move_time(distance_rev: float, rpm: float, acc: float, dec: float) -> float:
@@ -343,15 +365,7 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
         if velocity == 0:
             raise UsageError("jog velocity must not be 0")
         if r.duration_s is not None:
-            seconds = finite(r.duration_s, "jog duration")
-            if not 0 < seconds <= MAX_JOG_S:
-                raise UsageError(f"jog --for must be more than 0 and at most {MAX_JOG_S:g} s (the tool ends a timed "
-                                 f"jog; use --distance for a move the drive ends itself), got {seconds:g} s")
-            profile_bound = _limit(limits, "max_jog_duration")
-            if profile_bound is not None and seconds > profile_bound:  # a profile limit, like velocity: exit 4
-                raise SafetyRefusal(f"refusing: jog --for {seconds:g} s exceeds the profile's max_jog_duration "
-                                    f"{profile_bound:g} s; nothing was sent")
-            plan.duration_s = seconds
+            plan.duration_s = check_duration(limits, r.duration_s)
         else:
             finite(r.distance, "jog distance")
     else:
@@ -393,6 +407,8 @@ def check_request(conn: Any, request: MotionRequest, axis_cls: Any,
         raise UsageError(f"'unit' {plan.unit!r} is not a unit: expected one of {', '.join(UNITS)}")
     if plan.unit == "user" and not per_rev_of(conn):
         raise UsageError("--units user needs [units] per_rev in the config profile")
+    if r.kind == "move" and not r.relative and axis_cls.NO_ABSOLUTE_MOVES:
+        raise SafetyRefusal(f"refusing: absolute moves are not possible over this link: {axis_cls.NO_ABSOLUTE_MOVES}")
     if r.kind == "move" and not r.relative and plan.unit != "counts":
         _check_travel(limits, to_rev(conn, float(r.target), plan.unit, None))  # type: ignore[arg-type]
     positioning = r.kind == "move" or r.distance is not None
@@ -464,9 +480,10 @@ def plan(conn: Any, axis: Any, request: MotionRequest) -> MotionPlan:
 
 
 def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[str, Any]) -> MotionPlan:
-    """A stored task: its parameters are only known by loading it (MT.LOAD writes), so the limits are checked
-    after consent (:attr:`MotionPlan.after_consent`); a link that cannot read the table refuses when the profile
-    sets limits, because they could not be checked (docs/fidelity.md F11)."""
+    """A stored task: read (MT.LOAD, the working parameters restored) and held to the rules ``task set`` applied
+    (:func:`akdctl.drive.tasks.check_values`) before consent, so the consent names its target and speed; a link
+    that cannot read the table refuses when the profile sets limits, because they could not be checked
+    (docs/fidelity.md F11)."""
     from akdctl.drive import tasks
 
     number = accepted.request.task
@@ -478,27 +495,25 @@ def _plan_task(conn: Any, accepted: MotionPlan, pos: float | None, limits: dict[
         accepted.notes.append(f"motion task {number} cannot be read over this link; it runs as stored")
         return accepted
 
-    def check() -> None:
-        task = tasks.read_task(conn.objects(), number)  # type: ignore[arg-type]
-        if not task.configured:
-            raise SafetyRefusal(f"refusing: motion task {number} is not configured (MT.V/MT.ACC/MT.DEC are 0); "
-                                f"set it with 'akdctl task set {number} ...'")
-        executed_by = f"motion task {number}"
-        _refuse_over_limit("velocity", task.velocity_rpm, _limit(limits, "max_velocity"), "max_velocity", "rpm",
-                           executed_by)
-        for what, value in (("acceleration", task.acc_rpm_s), ("deceleration", task.dec_rpm_s)):
-            _refuse_over_limit(what, value, _limit(limits, "max_acceleration"), "max_acceleration", "rpm/s",
-                               executed_by)
-        end = (pos or 0.0) + task.position_rev if task.relative else task.position_rev
-        if task.relative and pos is None and limits.get("travel") is not None:
-            raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
-        _check_travel(limits, end)
-        accepted.start_rev, accepted.end_rev = pos, end
-        if accepted.request.timeout_s is None:
-            distance = task.position_rev if task.relative else end - (pos or 0.0)
-            accepted.deadline_s = _move_time(distance, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s) + 5.0
-
-    accepted.after_consent = check
+    # Read before consent, so the consent names where and how fast: the read saves and restores the working
+    # parameters it overwrites (drive/tasks.read_tasks) and the plan already refused a moving axis.
+    task = tasks.read_task(conn.objects(), number)  # type: ignore[arg-type]
+    if not task.configured:
+        raise SafetyRefusal(f"refusing: motion task {number} is not configured (MT.V/MT.ACC/MT.DEC are 0); "
+                            f"set it with 'akdctl task set {number} ...'")
+    if task.relative and pos is None and limits.get("travel") is not None:
+        raise SafetyRefusal("refusing: the profile limits travel but this link cannot read the position")
+    tasks.check_values(conn, int(number or 0), task.position_rev, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s,
+                       task.relative, start_rev=pos)
+    end = (pos or 0.0) + task.position_rev if task.relative else task.position_rev
+    accepted.start_rev, accepted.end_rev = pos, end
+    accepted.task_text = (f"{'by' if task.relative else 'to'} {task.position_rev:g} rev (ends at {end:.4f} rev) at "
+                          f"{task.velocity_rpm:.6g} rpm, accel {task.acc_rpm_s:.6g} / decel {task.dec_rpm_s:.6g} "
+                          "rpm/s")
+    accepted.notes.append(tasks.RESTORED_NOTE)
+    if accepted.request.timeout_s is None:
+        distance = task.position_rev if task.relative else end - (pos or 0.0)
+        accepted.deadline_s = _move_time(distance, task.velocity_rpm, task.acc_rpm_s, task.dec_rpm_s) + 5.0
     return accepted
 
 
@@ -595,8 +610,9 @@ def confirm_own_target(axis: Any, accepted: MotionPlan, status: Any, what: str) 
 
 def _prepare(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
     """Re-check under the owner lock (the drive may have changed since the plan), confirm homed,
-    switch the mode, enable. A relative move is measured from the position read here."""
-    status = axis.read_status()
+    switch the mode, enable. A relative move is measured from the position read here. With no prompt between
+    (``--yes``) the plan's own read is recent enough to stand for this one (Axis.recent_status)."""
+    status = axis.recent_status()
     axis.refuse_if_fault(status)
     if not status.standstill:
         raise SafetyRefusal("refusing: the axis is moving; stop it first ('akdctl stop')")
@@ -624,3 +640,25 @@ def wait_hint(conn: Any) -> str:
                 "the move must finish")
     return ("not waiting: the drive runs the finite positioning task to its end on its own (acyclic access has no "
             "watchdog on the AKD); check the result with 'akdctl status'")
+
+
+def start(axis: Any, accepted: MotionPlan, interrupted: Callable[[], bool]) -> None:
+    """Start an accepted motion without waiting for it, for a caller that watches it itself (``scope`` records
+    during it): the same re-checks, mode and enable as :func:`execute`; a move is started as ``move --no-wait``;
+    a timed jog is started and left running: the caller ends it (``axis.end_jog()``) at its duration and stops
+    the axis (``axis.safe_stop()``) on any error or interrupt."""
+    from akdctl.drive.axis.base import JogSpec
+
+    r = accepted.request
+    if r.kind != "jog" or r.duration_s is None:
+        execute(axis, accepted, interrupted, wait=False)
+        return
+    if accepted.after_consent is not None:
+        accepted.after_consent()
+    _prepare(axis, accepted, interrupted)
+    assert accepted.velocity and accepted.accel and accepted.decel
+    try:
+        axis.start_jog(JogSpec(accepted.velocity.raw, accepted.accel.raw, accepted.decel.raw))
+    except BaseException:
+        axis.safe_stop()
+        raise

@@ -49,12 +49,13 @@ class MotionRun:
             self._stop_and_raise(exc)
         end = time.monotonic() + deadline_s
         poll = self.axis.poll()
+        ours: int | None = None  # the control word our start left; nothing of ours writes it while we poll
         while True:
             if self.interrupted():
                 _, outcome = self.axis.safe_stop()
                 raise Interrupted(f"interrupted during {what}; {outcome}", details={"stop": outcome})
             try:
-                status = poll.read(self.axis.read_status)
+                status = poll.read(self.axis.read_motion_status)
             except AkdError as exc:
                 self._stop_and_raise(exc)
             poll.observe(status.word)
@@ -64,6 +65,15 @@ class MotionRun:
                 self.axis.safe_stop()
                 raise DriveFault(f"drive fault during {what}: {status.fault_summary()}",
                                  details={"faults": status.faults})
+            if ours is None:
+                ours = status.control
+            cause = ended_elsewhere(status, ours)
+            if cause is not None:
+                # Nothing is written: a stop or disable from elsewhere is obeyed, never undone by our stop.
+                raise DriveError(f"{what} ended by something else: {cause}; "
+                                 f"{'the axis is at standstill' if status.standstill else 'the axis is stopping'}",
+                                 details={"ended_by": cause, "state": status.state, "word": status.word,
+                                          "control": status.control})
             try:
                 result = finished(status)
             except AkdError as exc:
@@ -78,3 +88,22 @@ class MotionRun:
                     return status
                 self._stop_and_raise(DriveError(f"{what} did not finish within {deadline_s:.1f} s"))
             poll.pause()
+
+
+def ended_elsewhere(status: AxisStatus, ours: int) -> str | None:
+    """Why a running motion stopped that this command did not stop, in words; None while it runs as commanded.
+
+    Read from what every poll already has (no extra request): the power stage lost (another command's
+    ``disable``, a lost hardware enable, STO), a quick stop, or a control word that is no longer the one our
+    start left (``akdctl stop`` from a second shell, another master). A CIP axis reports no control word (0):
+    only the first two apply there.
+    """
+    if not status.enabled:
+        return ("the power stage was disabled (a 'disable' from another command or master, a lost hardware "
+                f"enable or safe torque off; state {status.state_text})")
+    if "quick stop" in status.state_text.lower() or status.state_text == "switching off":
+        return f"a quick stop or switch-off is active (from another command or master; state {status.state_text})"
+    if status.control != ours:
+        return (f"another command or master changed the control word from 0x{ours:04X} to 0x{status.control:04X} "
+                "(e.g. 'akdctl stop' from a second shell)")
+    return None

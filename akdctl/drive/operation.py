@@ -67,19 +67,28 @@ class WritePlan:
     ``verify``: execute reads every write back; ``data``: the operation's own values for its ``execute``.
     """
 
-    __slots__ = ("operation", "target", "writes", "preconditions", "notes", "enabled", "verify", "data")
+    __slots__ = ("operation", "target", "writes", "preconditions", "notes", "_enabled", "verify", "data")
 
     def __init__(self, operation: str, target: str, writes: Sequence[PlannedWrite] = (), *,
-                 preconditions: Iterable[str] = (), notes: Iterable[str] = (), enabled: bool | None = None,
+                 preconditions: Iterable[str] = (), notes: Iterable[str] = (),
+                 enabled: "bool | None | Callable[[], bool | None]" = None,
                  verify: bool = False, data: dict[str, Any] | None = None) -> None:
         self.operation = operation
         self.target = target
         self.writes = list(writes)
         self.preconditions = list(preconditions)
         self.notes = list(notes)
-        self.enabled = enabled
+        self._enabled = enabled
         self.verify = verify
         self.data = dict(data or {})
+
+    @property
+    def enabled(self) -> bool | None:
+        """The power stage as the plan found it; a reader (:func:`read_enabled`) runs once, on first use: only
+        a consent question or a dry run needs it, so ``--yes`` and a recipe's run cost no read."""
+        if callable(self._enabled):
+            self._enabled = self._enabled()
+        return self._enabled
 
     # ------------------------------------------------------------ consent
     @property
@@ -100,7 +109,12 @@ class WritePlan:
         needing = self.needing_consent
         if not needing:
             return ""
-        return f"{self.operation}: write " + "; ".join(g.text() for g in needing)
+        by_reason: dict[str, list[str]] = {}  # one reason once, however many addresses share it (a PDO map)
+        for gated in needing:
+            addresses = by_reason.setdefault(gated.reason, [])
+            if gated.address not in addresses:
+                addresses.append(gated.address)
+        return "write " + "; ".join(f"{', '.join(a)}: {r}" for r, a in by_reason.items())
 
     # ------------------------------------------------------------ rendering
     def lines(self) -> list[str]:
@@ -132,8 +146,19 @@ def consent_needed(plan: WritePlan, ask: Callable[[str], None], *, given: bool =
     ``ask`` raises :class:`~akdctl.errors.SafetyRefusal` when consent is refused (the CLI's prompt, a
     recipe's missing ``--yes``), so returning means the plan may run.
     """
-    if plan.needing_consent and not given:
+    if not given and plan.needing_consent:  # given first: --yes never reads the power stage
         ask(plan.consent_text)
+
+
+def read_enabled(conn: Any, writes: Iterable[PlannedWrite]) -> "bool | Callable[[], bool | None]":
+    """The power stage as a plan needs it: ``False`` when no write is gated only while enabled (nothing depends
+    on it), else a reader of :func:`akdctl.drive.gate.drive_enabled` that :attr:`WritePlan.enabled` runs when
+    the consent or a dry run first asks."""
+    if not any(w.gated is not None and w.gated.when_enabled for w in writes):
+        return False
+    from akdctl.drive.gate import drive_enabled
+
+    return lambda: drive_enabled(conn)
 
 
 def check_readback(pairs: Iterable[tuple[str, Any, Any]]) -> None:
@@ -165,4 +190,4 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-__all__ = ["PlannedWrite", "WritePlan", "check_readback", "consent_needed"]
+__all__ = ["PlannedWrite", "WritePlan", "check_readback", "consent_needed", "read_enabled"]

@@ -18,7 +18,7 @@ from akdctl.catalog.pnus import by_name, lookup
 from akdctl.drive.values import PnuSpec, check_pnu_values
 from akdctl.errors import UsageError
 
-__all__ = ["description_json", "parse_assignment", "parse_pnu_spec"]
+__all__ = ["description_json", "fit_values", "parse_assignment", "parse_pnu_spec"]
 
 # Patterns, compiled on first use: ``pnu get 930`` (a bare number) needs neither.
 _SPEC = r"^\s*(?P<pnu>[A-Za-z_][A-Za-z0-9_]*|\d+|0[xX][0-9A-Fa-f]+)\s*(\[\s*(?P<a>\w+)?\s*(\.\.\s*(?P<b>\w+))?\s*\])?\s*$"
@@ -53,6 +53,9 @@ def parse_pnu_spec(text: str) -> PnuSpec:
     """Parse ``930``, ``964[0..4]`` (or ``964:0..4``), ``947[3]`` (``947:3``), ``STW1``; checks against the
     catalogue when known."""
     shown, text = text, _brackets(text)
+    named = by_name(shown) if not shown.strip().isdecimal() else None
+    if named is not None:  # a catalogue name as a whole, spaces and all ("Operating mode"): the one resolver
+        return PnuSpec(named.pnu, 0, named.length if named.is_array else 1, named)
     parts = _spec_parts(text)
     if parts is None:
         raise UsageError(f"cannot parse PNU address {shown!r}: expected PNU, PNU[SUB], PNU[FROM..TO] or PNU:FROM..TO, "
@@ -105,16 +108,25 @@ def parse_assignment(text: str) -> tuple[PnuSpec, list[int]]:
     if not info.writable:
         raise UsageError(f"PNU {spec.pnu} ({info.name}) is read-only")
     values = [_int(v.strip(), f"value for PNU {spec.pnu}") for v in right.split(",")]
-    if "[" not in left and info.is_array:
-        spec = PnuSpec(spec.pnu, 0, len(values), info)
-    elif "[" in left and ".." not in left:
+    return fit_values(spec, values, ranged=".." in left), values
+
+
+def fit_values(spec: PnuSpec, values: list[int], *, ranged: bool) -> PnuSpec:
+    """The one check of values for a catalogue PNU address (``pnu set``, recipe set/expect steps): an array
+    addressed without a range takes as many elements as values are given; the count, the array's length and
+    every value's limits (:func:`akdctl.drive.values.check_pnu_values`) are checked; the address to write is
+    returned."""
+    info = spec.info
+    if info is None:
+        raise UsageError(f"PNU {spec.pnu} is not in the catalogue, so its data type is unknown; cannot write it")
+    if not ranged and info.is_array:
         spec = PnuSpec(spec.pnu, spec.subindex, len(values), info)
     if len(values) != spec.count:
         raise UsageError(f"PNU {spec.label}: {spec.count} element(s) addressed but {len(values)} value(s) given")
     if spec.subindex + spec.count > info.length:
         raise UsageError(f"PNU {spec.pnu} ({info.name}) has elements 0..{info.length - 1}; too many values")
     check_pnu_values(info, values)
-    return spec, values
+    return spec
 
 
 def description_json(description: Any) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from typing import Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog.objects import PdoEntry
-from akdctl.errors import CheckFailed, SdoAborted, UsageError
+from akdctl.errors import SdoAborted, UsageError
 
 DIRECTIONS = ("rx", "tx")
 ASSIGN_INDEX = {"rx": oc.RX_ASSIGN, "tx": oc.TX_ASSIGN}
@@ -566,22 +566,18 @@ def _cycle_time_in_drive_order(channel: Any, steps: Sequence[StartupEntry]) -> l
     return steps
 
 
-def verify(channel: Any, plan: PdoPlan) -> list[str]:
-    """Read everything the plan wrote back; one text per difference (empty: the drive holds the plan)."""
-    differences: list[str] = []
+def readback_pairs(channel: Any, plan: PdoPlan) -> list[tuple[str, str, str]]:
+    """(address, written, read back) for everything the plan wrote, in words (PDO contents, assignments, the
+    init commands), for the one comparison :func:`akdctl.drive.operation.check_readback`."""
+    pairs: list[tuple[str, str, str]] = []
     for d in DIRECTIONS:
         if plan.defined(d):
             for pdo in FLEXIBLE[d]:
-                want = plan.definitions.get(pdo, ())
-                got = read_pdo(channel, pdo)
-                if got != want:
-                    differences.append(f"0x{pdo:04X}: wrote {_entries_text(want)}, read back {_entries_text(got)}")
+                pairs.append((f"0x{pdo:04X}", _entries_text(plan.definitions.get(pdo, ())),
+                              _entries_text(read_pdo(channel, pdo))))
         if plan.assign[d] is not None:
-            current = read_direction(channel, d)
-            if current.assigned != plan.assign[d]:
-                differences.append(
-                    f"0x{ASSIGN_INDEX[d]:04X}: wrote {_numbers_text(plan.assign[d] or [])}, "
-                    f"read back {_numbers_text(current.assigned)}")
+            pairs.append((f"0x{ASSIGN_INDEX[d]:04X}", _numbers_text(plan.assign[d] or []),
+                          _numbers_text(read_direction(channel, d).assigned)))
     checks: list[tuple[int, int, int]] = []
     if plan.opmode is not None:
         checks.append((0x6060, 0, plan.opmode))
@@ -590,16 +586,14 @@ def verify(channel: Any, plan: PdoPlan) -> list[str]:
     from akdctl.drive.values import read_object
 
     for index, sub, want in checks:
-        got = read_object(channel, index, sub)
-        if got != want:
-            differences.append(f"0x{index:04X}:{sub:02X}: wrote {want}, read back {got}")
-    return differences
+        pairs.append((f"0x{index:04X}:{sub:02X}", str(want), str(read_object(channel, index, sub))))
+    return pairs
 
 
-def check_verified(differences: list[str]) -> None:
-    if differences:
-        raise CheckFailed("PDO mapping read back differs: " + "; ".join(differences),
-                          details={"differences": differences})
+def verify(channel: Any, plan: PdoPlan) -> list[str]:
+    """Read everything the plan wrote back; one text per difference (empty: the drive holds the plan)."""
+    return [f"{address}: wrote {wrote}, read back {back}"
+            for address, wrote, back in readback_pairs(channel, plan) if wrote != back]
 
 
 def _entries_text(entries: Sequence[PdoEntry]) -> str:
@@ -608,6 +602,15 @@ def _entries_text(entries: Sequence[PdoEntry]) -> str:
 
 def _numbers_text(numbers: Sequence[int]) -> str:
     return "[" + ", ".join(f"0x{n:04X}" for n in numbers) + "]" if numbers else "(none)"
+
+
+#: The one precondition text of a mapping change (SPEC-NOTES 18): the CLI, the recipe and the plan say it so.
+PREOP_ONLY = "the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)"
+
+
+def normal_al_state(state: Any) -> str | None:
+    """The one spelling of an EtherCAT AL state: 'PREOP', 'SAFEOP', 'OP', 'INIT', 'BOOT' (None stays None)."""
+    return None if state is None else str(state).upper().replace("-", "").replace("_", "").replace(" ", "")
 
 
 def al_state_of(transport: Any) -> str | None:
@@ -619,11 +622,80 @@ def al_state_of(transport: Any) -> str | None:
     getter = getattr(transport, "al_state", None)
     if getter is None or not callable(getter):
         return None
-    state = getter()
-    return None if state is None else str(state).upper().replace("-", "")
+    return normal_al_state(getter())
 
 
 def export_json(steps: Sequence[StartupEntry], plan: PdoPlan) -> dict[str, Any]:
     """The document ``--export`` writes: the plan and its startup list."""
     return {"format": "akdctl-startup-list", "version": 1, "plan": plan.to_json(),
             "startup": [s.to_json() for s in steps]}
+
+
+# --------------------------------------------------------------------------- the operation (plan -> execute)
+class MapRequest:
+    """``pdo map``/a recipe's map step: the mapping (a checked :class:`PdoPlan`) and ``force`` (akdctl's own
+    checks and the PRE-OP precondition become notes; the drive answers)."""
+
+    __slots__ = ("mapping", "force", "problems")
+
+    def __init__(self, mapping: PdoPlan, force: bool = False, problems: Sequence[str] = ()) -> None:
+        self.mapping = mapping
+        self.force = force
+        self.problems = list(problems)
+
+
+def refusal(problems: Sequence[str]) -> UsageError:
+    """The one wording of a refused mapping: one problem per line."""
+    return UsageError("mapping refused, nothing was written:\n  - " + "\n  - ".join(problems)
+                      + "\n  (--force sends it anyway and lets the drive answer)", details={"problems": list(problems)})
+
+
+def map_request(mapping: PdoPlan, *, force: bool = False) -> MapRequest:
+    """Check a mapping without the drive (:func:`validate`); refused unless forced."""
+    if mapping.empty:
+        raise UsageError("nothing to map: give --rx/--tx (e.g. --rx 0x1701 --tx 0x1B01) or --file")
+    problems = validate(mapping)
+    if problems and not force:
+        raise refusal(problems)
+    return MapRequest(mapping, force, problems)
+
+
+def _gate(step: StartupEntry) -> Any:
+    from akdctl.drive.gate import classify_object
+
+    return classify_object(step.index, step.subindex, oc.object_name(step.index) or "")  # the object, not its entry
+
+
+def gated(request: MapRequest) -> list[Any]:
+    """What the startup list writes that the gate classifies (mapping, assignment, mode): without the drive."""
+    return [g for g in (_gate(s) for s in startup_list(request.mapping)) if g is not None]
+
+
+def plan(conn: Any, request: MapRequest) -> Any:
+    """The startup list as a write plan; reads the AL state (PRE-OP is the precondition unless forced)."""
+    from akdctl.drive.operation import PlannedWrite, WritePlan, read_enabled
+
+    conn.objects()  # a target without SDO access is refused before any consent is asked
+    state = al_state_of(conn.transport())
+    notes = [f"--force: {p}" for p in request.problems]
+    if state is not None and state != "PREOP":
+        if not request.force:
+            raise UsageError(f"the drive is in {state}; {PREOP_ONLY}. Switch it to PRE-OP first; nothing was "
+                             "written.", details={"al_state": state})
+        notes.append(f"--force: the drive is in {state}; {PREOP_ONLY}")
+    preconditions = [f"EtherCAT state {state}" if state is not None
+                     else "EtherCAT state not known on this target (the drive's own check answers)"]
+    steps = startup_list(request.mapping)
+    writes = [PlannedWrite(f"{s.address} ({s.comment})", s.data().hex(), s.data_text, _gate(s)) for s in steps]
+    return WritePlan("pdo map", conn.target.display, writes, preconditions=preconditions, notes=notes,
+                     enabled=read_enabled(conn, writes), verify=True, data={"request": request, "steps": steps})
+
+
+def execute(conn: Any, plan: Any) -> dict[str, Any]:
+    """Download the startup list in order, read everything back (one CheckFailed on a difference)."""
+    from akdctl.drive.operation import check_readback
+
+    channel = conn.objects()
+    written = apply(channel, plan.data["steps"])
+    check_readback(readback_pairs(channel, plan.data["request"].mapping))
+    return {"sdo_downloads": written, "mapping": {d: m.to_json() for d, m in read_mapping(channel).items()}}

@@ -34,17 +34,19 @@ from akdctl.drive.values import (
     Value,
     check_pnu_values,
     encode_object,
+    pnu_refused,
     read_pnus,
     read_snapshot_value,
     snapshot_value,
     write_object,
     write_pnus,
 )
-from akdctl.errors import AkdError, CheckFailed, CommError, DriveError, SafetyRefusal, SdoAborted, UsageError
+from akdctl.errors import AkdError, CommError, SafetyRefusal, SdoAborted, UsageError
 from akdctl.io.atomic import write_user_file
 
 if TYPE_CHECKING:
     from akdctl.connection import Connection
+    from akdctl.drive.operation import WritePlan
 
 SNAPSHOT_FORMAT = 1
 
@@ -491,6 +493,13 @@ def _toml_key(key: str) -> str:
     return key if key.replace("_", "").replace("-", "").isalnum() and not key[0].isdigit() else json.dumps(key)
 
 
+def toml_string(text: str) -> str:
+    """A TOML basic string for any text a drive's string object can hold: JSON's escapes are TOML's (\\b \\t \\n
+    \\f \\r \\" \\\\ \\uXXXX) and cover every C0 control; TOML also forbids a raw DEL (U+007F), which JSON
+    leaves alone, so it is escaped too (issue 23 item 18: a backup always restores)."""
+    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
 def _toml_value(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -503,7 +512,7 @@ def _toml_value(value: Any) -> str:
             return "inf" if value > 0 else "-inf"
         return repr(value)
     if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
+        return toml_string(value)
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
@@ -625,9 +634,10 @@ def apply_changes(conn: "Connection", changes: Sequence[Change]) -> list[dict[st
         results = write_pnus(conn.parameters(), assignments)
         for change, result in zip(pnu_batch, results):
             if not result.ok:
-                raise DriveError(f"drive refused PNU {change.item.key} ({change.item.name}) = {change.new}: "
-                                 f"{result.error_text}; {len(done)} change(s) were written before it",
-                                 code=result.error, details={"written": done})
+                exc = pnu_refused(result, "change")
+                exc.message += f" (to {change.new}); {len(done)} change(s) were written before it"
+                exc.details["written"] = done
+                raise exc
             done.append(change.to_json())
         pnu_batch.clear()
 
@@ -696,20 +706,20 @@ def _download(channel: Any, entry: Any, value: Any, done: list[dict[str, Any]], 
 
 
 def verify(conn: "Connection", changes: Sequence[Change]) -> None:
-    """Read every changed item back (one batched PNU read + SDO uploads) and compare."""
+    """Read every changed item back (one batched PNU read + SDO uploads) and compare (the one read-back)."""
+    from akdctl.drive.operation import check_readback
+
     if not changes:
         return
-    items = [c.item for c in changes]
-    values, errors = read_values(conn, items)
-    bad = []
+    values, errors = read_values(conn, [c.item for c in changes])
+    pairs = []
     for change in changes:
         key = change.item.key
-        if key in errors:
-            bad.append(f"{key} ({change.item.name}): read-back refused: {errors[key]}")
-        elif not values_equal(values.get(key), change.new):
-            bad.append(f"{key} ({change.item.name}): wrote {change.new!r}, read back {values.get(key)!r}")
-    if bad:
-        raise CheckFailed("read-back differs: " + "; ".join(bad), details={"mismatches": bad})
+        back = f"refused: {errors[key]}" if key in errors else values.get(key)
+        if values_equal(back, change.new):
+            back = change.new  # equal as the snapshot compares (float tolerance, hex case)
+        pairs.append((f"{key} ({change.item.name})", change.new, back))
+    check_readback(pairs)
 
 
 def save_nonvolatile(conn: "Connection") -> None:
@@ -731,38 +741,89 @@ class RestoreResult:
                 "identity_mismatches": self.identity_warnings}
 
 
-def restore(conn: "Connection", snapshot: Snapshot, *, dry_run: bool = False, force: bool = False,
-            save: bool = False) -> RestoreResult:
-    """Make the drive equal the snapshot's configuration values (see the module docstring)."""
+class RestoreRequest:
+    """``params restore FILE``/a recipe's restore step: the snapshot, ``force`` (restore a backup of another
+    drive type), ``save`` (then DRV.NVSAVE)."""
+
+    __slots__ = ("snapshot", "force", "save")
+
+    def __init__(self, snapshot: Snapshot, *, force: bool = False, save: bool = False) -> None:
+        self.snapshot = snapshot
+        self.force = force
+        self.save = save
+
+
+#: The precondition of every restore: parameters change only on a disabled drive.
+DISABLED = "drive disabled (parameters are restored only with the power stage off)"
+
+
+def plan(conn: "Connection", request: RestoreRequest) -> "WritePlan":
+    """Reads the identity and the current values; the differences in their safe order are the writes.
+
+    Refused here, before anything is written: a backup of another drive type (unless forced) and, when there is
+    anything to write, a drive that is enabled or does not say.
+    """
+    from akdctl.drive.gate import drive_enabled
+    from akdctl.drive.operation import PlannedWrite, WritePlan
+
+    snapshot = request.snapshot
     items = restorable_items(snapshot)
     use_pnu = any(i.kind == "pnu" for i in items) or not conn.has_objects
     use_obj = any(i.kind == "object" for i in items) or not conn.has_parameters
-    actual_identity = read_identity(conn, use_pnu, use_obj)
-    mismatches = identity_mismatches(snapshot.identity, actual_identity)
-    if mismatches and not force:
+    mismatches = identity_mismatches(snapshot.identity, read_identity(conn, use_pnu, use_obj))
+    if mismatches and not request.force:
         raise SafetyRefusal("the backup is of a different drive type (" + "; ".join(mismatches)
                             + "); refusing to restore (use --force to restore anyway)",
                             details={"mismatches": mismatches})
     current, _ = read_values(conn, items)
     changes = plan_restore(snapshot, current)
-    if dry_run:
-        return RestoreResult(changes, [], False, mismatches)
+    enabled: bool | None = False
     if changes:
-        from akdctl.drive.gate import drive_enabled
-
         enabled = drive_enabled(conn)  # the one "is the power stage on?" rule (the axis status)
         if enabled is not False:
             state = "is enabled (operation enabled)" if enabled else "does not tell whether it is enabled"
             raise SafetyRefusal(f"the drive {state}; disable it before restoring parameters")
-    written = apply_changes(conn, changes)
-    if save:
+    # No write carries a gate verdict: the precondition above (power stage off, read just now) is what keeps
+    # a restore from moving the axis, and the control word is never restorable; the README's restore needs no
+    # consent, as before.
+    writes = [PlannedWrite(f"{c.item.key} ({c.item.name})", c.new,
+                           f"{describe_value(c.new)} (now {describe_value(c.old)})") for c in changes]
+    notes = [f"identity differs ({m}); restored because of --force" for m in mismatches]
+    if any(c.item.kind == "object" and (c.item.index in _PDO_MAPPING or c.item.index in _PDO_ASSIGN)
+           for c in changes):
+        notes.append("a PDO mapping or assignment is cleared (count 0) before its entries change (SPEC-NOTES 17)")
+    if request.save:
+        notes.append("then saved to non-volatile memory (DRV.NVSAVE, 0x1010:1 = \"save\")")
+    return WritePlan("params restore", conn.target.display, writes, preconditions=[DISABLED] if changes else [],
+                     notes=notes, enabled=enabled, verify=True,
+                     data={"request": request, "changes": changes, "mismatches": mismatches})
+
+
+def execute(conn: "Connection", plan: "WritePlan") -> "RestoreResult":
+    """Write the plan's changes in order, read every one back (one CheckFailed), then save if asked."""
+    request: RestoreRequest = plan.data["request"]
+    changes: list[Change] = plan.data["changes"]
+    written = apply_changes(conn, changes) if changes else []
+    if request.save:
         save_nonvolatile(conn)
-    return RestoreResult(changes, written, save, mismatches)
+    return RestoreResult(changes, written, request.save, plan.data["mismatches"])
+
+
+def restore(conn: "Connection", snapshot: Snapshot, *, dry_run: bool = False, force: bool = False,
+            save: bool = False) -> RestoreResult:
+    """Make the drive equal the snapshot's configuration values: :func:`plan` then (unless ``dry_run``)
+    :func:`execute`."""
+    planned = plan(conn, RestoreRequest(snapshot, force=force, save=save))
+    if dry_run:
+        return RestoreResult(planned.data["changes"], [], False, planned.data["mismatches"])
+    return execute(conn, planned)
 
 
 def describe_value(value: Any) -> str:
     if value is None:
         return "-"
+    if isinstance(value, dict) and set(value) == {"hex"}:
+        return f"0x{value['hex']} (bytes, not UTF-8 text)"
     if isinstance(value, list):
         return "[" + ", ".join(str(v) for v in value) + "]"
     return str(value)

@@ -5,9 +5,11 @@ and set those tasks before ``task start`` runs one. The PROFINET manuals documen
 (their PNUs are the signals and the PROFIdrive parameters), so the table is reached the way the AKD maps it onto
 CoE objects (``profiles/motion_tasks``): MT.NUM selects a task, MT.LOAD copies it into the working parameters
 MT.P/MT.V/MT.ACC/MT.DEC/MT.CNTL, MT.SET stores them back (docs/fidelity.md F11). Reading a task therefore writes
-MT.NUM and MT.LOAD, which replaces the profile-position set points; the write gate (drive/gate.py) asks for
-consent when the drive is enabled. ``task start`` is a motion and goes through the one planner
-(drive/motion_plan.py, kind ``task``) instead.
+MT.NUM and MT.LOAD, which replace the working set points: a read saves them first and writes them back, is refused
+while the axis moves, and never asks for motion consent (a read is never a motion). ``task set`` is a writing
+operation (:func:`plan_set` / :func:`execute_set`) whose values pass the planner's rules for the move the task
+will be (:func:`check_values`), the same rules ``task start`` applies again; ``task start`` is a motion and goes
+through the one planner (drive/motion_plan.py, kind ``task``).
 """
 
 from __future__ import annotations
@@ -61,27 +63,47 @@ def objects_of(conn: Any) -> Any:
     return conn.objects()
 
 
-def gated_reads() -> list[Any]:
-    """What reading tasks writes, for the write gate: MT.NUM and MT.LOAD (gated while the drive is enabled)."""
-    from akdctl.drive import gate
+#: The working parameters MT.LOAD overwrites, saved before a read and written back after it.
+_WORKING = (mt.MT_P, mt.MT_V, mt.MT_ACC, mt.MT_DEC, mt.MT_CNTL)
+#: What a read of the table says about its scratch writes (``task list|show``, the ``task start`` plan).
+RESTORED_NOTE = ("the table is read through MT.LOAD, which overwrites the working parameters MT.P/MT.V/MT.ACC/"
+                 "MT.DEC/MT.CNTL and MT.NUM; akdctl saved them first and wrote them back")
 
-    return [gate.classify_object(mt.MT_NUM, 0, "MT.NUM"), gate.classify_object(mt.MT_LOAD, 0, "MT.LOAD")]
+
+def refuse_if_moving(conn: Any) -> None:
+    """Reading the table loads a task into the working set points: never while the axis moves (a read is never a
+    motion). A standstill axis, enabled or not, is read and its working parameters restored."""
+    from akdctl.errors import SafetyRefusal
+
+    status = conn.axis().read_status()
+    if not status.standstill:
+        raise SafetyRefusal("refusing: reading a motion task loads it (MT.LOAD) into the working set points, and "
+                            "the axis is moving; read the table at standstill")
 
 
-def gated_writes() -> list[Any]:
-    """What ``task set`` writes, for the write gate: the working parameters (set points) and MT.SET."""
-    from akdctl.drive import gate
+def read_tasks(objects: Any, numbers: list[int]) -> list[Task]:
+    """Tasks by MT.NUM = n, MT.LOAD, then the working parameters; the working parameters and MT.NUM as they were
+    before are written back afterwards, also when a read fails (:data:`RESTORED_NOTE`)."""
+    from akdctl.drive.values import read_object, write_object
 
-    names = {mt.MT_P: "MT.P", mt.MT_V: "MT.V", mt.MT_ACC: "MT.ACC", mt.MT_DEC: "MT.DEC", mt.MT_CNTL: "MT.CNTL",
-             mt.MT_NUM: "MT.NUM", mt.MT_SET: "MT.SET"}
-    return [gate.classify_object(index, 0, name) for index, name in names.items()]
+    for number in numbers:
+        check_number(number)
+    saved = [(index, read_object(objects, index, 0)) for index in (*_WORKING, mt.MT_NUM)]
+    try:
+        return [_load(objects, number) for number in numbers]
+    finally:
+        for index, value in saved:
+            write_object(objects, index, 0, value)
 
 
 def read_task(objects: Any, number: int) -> Task:
-    """MT.NUM = n, MT.LOAD, then the working parameters."""
+    """One task (:func:`read_tasks`)."""
+    return read_tasks(objects, [number])[0]
+
+
+def _load(objects: Any, number: int) -> Task:
     from akdctl.drive.values import read_object, write_object
 
-    check_number(number)
     write_object(objects, mt.MT_NUM, 0, number)
     write_object(objects, mt.MT_LOAD, 0, number)
     raw = {"position": read_object(objects, mt.MT_P, 0), "velocity": read_object(objects, mt.MT_V, 0),
@@ -91,23 +113,93 @@ def read_task(objects: Any, number: int) -> Task:
                 units.cia_rpm(raw["acc"]), units.cia_rpm(raw["dec"]), bool(raw["cntl"] & mt.CNTL_RELATIVE), raw)
 
 
-def write_task(objects: Any, number: int, position_rev: float, velocity_rpm: float, acc_rpm_s: float,
-               dec_rpm_s: float, relative: bool) -> Task:
-    """Working parameters, then MT.NUM = n and MT.SET; returns the task as read back."""
+# ====================================================================== task set: plan -> consent -> execute
+@dataclass(frozen=True)
+class TaskRequest:
+    """``task set N --position P --velocity V --accel A [--decel D] [--relative]`` (rev, rpm, rpm/s)."""
+
+    number: int
+    position_rev: float
+    velocity_rpm: float
+    acc_rpm_s: float
+    dec_rpm_s: float | None = None
+    relative: bool = False
+
+
+def check_values(conn: Any, number: int, position_rev: float, velocity_rpm: float, acc_rpm_s: float,
+                 dec_rpm_s: float, relative: bool, start_rev: float | None = None) -> None:
+    """The planner's rules for a stored task, at ``task set`` and again at ``task start`` (the task runs like a
+    ``move`` with these values): finite and > 0, the velocity within the axis profile's set-point range (the
+    range a ``move`` has, in the planner's words), the config profile's max_velocity / max_acceleration, and
+    the travel window for an absolute target or, once the start position is known, a relative one.
+
+    The accelerations are not held to the MDI grid a ``move`` uses: a task runs from the table's own MT.ACC /
+    MT.DEC, not from MDI_ACC/MDI_DEC."""
+    from akdctl.drive import motion_plan
+    from akdctl.drive.axis.choice import axis_class
+    from akdctl.errors import SafetyRefusal
+
+    executed_by = f"motion task {number}"
+    try:
+        motion_plan.finite(position_rev, "position")
+        for value, what in ((velocity_rpm, "velocity"), (acc_rpm_s, "acceleration"), (dec_rpm_s, "deceleration")):
+            if not motion_plan.finite(value, what) > 0:
+                raise UsageError(f"{what} must be greater than 0, got {value:g}")
+        scales = axis_class(conn).motion_scales("position")
+        motion_plan.quantise(scales.velocity, velocity_rpm, "velocity", explicit=False)
+        if not relative:
+            end: float | None = position_rev
+        else:  # a relative task's end is known once the start position is (task start)
+            end = None if start_rev is None else start_rev + position_rev
+        motion_plan.check_executed_limits(conn, rpm=velocity_rpm, acc_rpm_s=max(acc_rpm_s, dec_rpm_s), end_rev=end,
+                                          executed_by=executed_by)
+    except (UsageError, SafetyRefusal) as exc:
+        exc.message = exc.message.replace("refusing: ", f"refusing: {executed_by}: ", 1) \
+            if exc.message.startswith("refusing: ") else f"{executed_by}: {exc.message}"
+        raise
+
+
+def plan_set(conn: Any, request: TaskRequest) -> Any:
+    """What ``task set`` writes, checked like the move the task will be (:func:`check_values`); reads only."""
+    from akdctl.drive import gate
+    from akdctl.drive.operation import PlannedWrite, WritePlan
+
+    r = request
+    check_number(r.number)
+    dec = r.acc_rpm_s if r.dec_rpm_s is None else r.dec_rpm_s
+    check_values(conn, r.number, r.position_rev, r.velocity_rpm, r.acc_rpm_s, dec, r.relative)
+    counts = units.rev_to_counts(r.position_rev)
+    if not -(1 << 31) <= counts < 1 << 31:
+        raise UsageError(f"task {r.number}: position {r.position_rev:g} rev is outside MT.P's 32-bit counts")
+    values = [(mt.MT_NUM, "MT.NUM", r.number, str(r.number)),
+              (mt.MT_P, "MT.P", counts, f"{r.position_rev:g} rev"),
+              (mt.MT_V, "MT.V", units.cia_per_s(r.velocity_rpm), f"{r.velocity_rpm:g} rpm"),
+              (mt.MT_ACC, "MT.ACC", units.cia_per_s(r.acc_rpm_s), f"{r.acc_rpm_s:g} rpm/s"),
+              (mt.MT_DEC, "MT.DEC", units.cia_per_s(dec), f"{dec:g} rpm/s"),
+              (mt.MT_CNTL, "MT.CNTL", mt.CNTL_RELATIVE if r.relative else 0,
+               "relative" if r.relative else "absolute"),
+              (mt.MT_SET, "MT.SET", r.number, f"store as task {r.number}")]
+    writes = [PlannedWrite(f"0x{index:04X}:0 ({name})", raw, shown, gate.classify_object(index, 0, name))
+              for index, name, raw, shown in values]
+    objects_of(conn)  # a parameter-only link cannot reach the table: say why before any question
+    enabled = gate.drive_enabled(conn) if any(w.gated is not None and w.gated.when_enabled for w in writes) else None
+    return WritePlan("task set", conn.target.display, writes, enabled=enabled, verify=True,
+                     notes=["nothing moves: the values are stored as the task (MT.SET); 'task start' runs it",
+                            RESTORED_NOTE.replace("the table is read", "the stored task is read back")],
+                     data={"number": r.number, "objects": [(index, name) for index, name, _, _ in values]})
+
+
+def execute_set(conn: Any, accepted: Any) -> Task:
+    """Write the plan, then read the stored task back (MT.LOAD, working parameters restored) and compare."""
+    from akdctl.drive.operation import check_readback
     from akdctl.drive.values import write_object
 
-    check_number(number)
-    for what, value in (("velocity", velocity_rpm), ("acceleration", acc_rpm_s), ("deceleration", dec_rpm_s)):
-        if not value > 0:
-            raise UsageError(f"task {number}: {what} must be greater than 0, got {value:g}")
-    counts = units.rev_to_counts(position_rev)
-    if not -(1 << 31) <= counts < 1 << 31:
-        raise UsageError(f"task {number}: position {position_rev:g} rev is outside MT.P's 32-bit counts")
-    write_object(objects, mt.MT_NUM, 0, number)
-    write_object(objects, mt.MT_P, 0, counts)
-    write_object(objects, mt.MT_V, 0, units.cia_per_s(velocity_rpm))
-    write_object(objects, mt.MT_ACC, 0, units.cia_per_s(acc_rpm_s))
-    write_object(objects, mt.MT_DEC, 0, units.cia_per_s(dec_rpm_s))
-    write_object(objects, mt.MT_CNTL, 0, mt.CNTL_RELATIVE if relative else 0)
-    write_object(objects, mt.MT_SET, 0, number)
-    return read_task(objects, number)
+    objects = objects_of(conn)
+    for write, (index, _) in zip(accepted.writes, accepted.data["objects"]):
+        write_object(objects, index, 0, write.raw)
+    stored = read_task(objects, accepted.data["number"])
+    wrote = {name: w.raw for w, (_, name) in zip(accepted.writes, accepted.data["objects"])}
+    check_readback([("MT.P", wrote["MT.P"], stored.raw["position"]), ("MT.V", wrote["MT.V"], stored.raw["velocity"]),
+                    ("MT.ACC", wrote["MT.ACC"], stored.raw["acc"]), ("MT.DEC", wrote["MT.DEC"], stored.raw["dec"]),
+                    ("MT.CNTL", wrote["MT.CNTL"], stored.raw["cntl"] & mt.CNTL_RELATIVE)])
+    return stored

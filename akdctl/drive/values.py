@@ -32,8 +32,9 @@ from akdctl.catalog.pnus import PnuInfo, lookup as pnu_lookup
 from akdctl.errors import MalformedReply, ParameterRefused, UsageError
 from akdctl.protocol.record import Record
 
-#: What a snapshot or recipe holds for one object or PNU.
-Value = int | float | str | list[int]
+#: What a snapshot or recipe holds for one object or PNU (``{"hex": ...}``: a string object's bytes that are not
+#: UTF-8 text, kept exactly; see :func:`snapshot_value`).
+Value = int | float | str | list[int] | dict[str, str]
 
 
 # ====================================================================== objects (SDO, little-endian)
@@ -209,7 +210,16 @@ def json_value(type_name: str, value: Any) -> Any:
 
 # ---------------------------------------------------------------------- the snapshot's form of object values
 def snapshot_value(entry: Any, data: bytes) -> Value:
-    """Upload bytes → the value a snapshot/recipe stores: numbers, text, octets (and undecodable data) as "0x…"."""
+    """Upload bytes → the value a snapshot/recipe stores: numbers, text, octets (and undecodable data) as "0x…".
+
+    A string object whose bytes are not UTF-8 text is stored as ``{"hex": "41ff42"}``: decoding it would replace
+    the bytes with U+FFFD, and a restore would then write other bytes than the drive held and read them back as
+    "equal" (issue 23 item 18: a backup always restores what it backed up)."""
+    if entry.short_type == "vs":
+        try:
+            bytes(data).rstrip(b"\x00").decode("utf-8")
+        except UnicodeDecodeError:
+            return {"hex": bytes(data).hex()}
     try:
         value = decode(entry.short_type, data)
     except MalformedReply:
@@ -231,6 +241,10 @@ def encode_object(entry: Any, value: Any) -> bytes:
 
     kind = entry.short_type
     try:
+        if isinstance(value, dict):
+            if kind not in ("vs", "os") or set(value) != {"hex"} or not isinstance(value["hex"], str):
+                raise DataTypeError('only a string object takes a table, and only as {hex = "..."}')
+            return bytes.fromhex(value["hex"])
         if kind == "os":
             if not isinstance(value, str):
                 raise DataTypeError("octet strings are written as hex text, e.g. \"0x0102\"")
@@ -395,8 +409,7 @@ def read_pnu_map(channel: Any, pnus: Sequence[int]) -> dict[int, list[int]]:
     out: dict[int, list[int]] = {}
     for reading in read_pnus(channel, [pnu_spec(p) for p in pnus]):
         if not reading.ok:
-            raise ParameterRefused(f"drive refused to read PNU {reading.spec.label}: {reading.error_text}",
-                                   code=reading.error)
+            raise pnu_refused(reading, "read")
         out[reading.spec.pnu] = list(reading.values or [])
     return out
 
@@ -405,5 +418,24 @@ def write_pnu_map(channel: Any, pairs: Sequence[tuple[int, int]]) -> None:
     """Single-element PNUs ``(pnu, value)`` in one batched change; a refusal raises ParameterRefused."""
     for result in write_pnus(channel, [(pnu_spec(pnu, count=1), [value]) for pnu, value in pairs]):
         if not result.ok:
-            raise ParameterRefused(f"drive refused to change PNU {result.spec.label}: {result.error_text}",
-                                   code=result.error)
+            raise pnu_refused(result, "change")
+
+
+def pnu_refused(reading: PnuReading, verb: str, *, more: int = 0) -> ParameterRefused:
+    """The one error for a PNU the drive refused to ``verb`` (read, change): "drive refused to read PNU 947[3]:
+    faulty subindex (error 0x03, subindex 99)" -- every caller (pnu get/set, telegrams, the fault buffer,
+    restores, recipes) words it here, as :func:`akdctl.channels.base.sdo_aborted` does for SDO aborts.
+    ``more``: how many further addresses of the same request were refused too."""
+    from akdctl.catalog.texts import profidrive_error_phrase, profidrive_failure_detail
+
+    info = reading.spec.info
+    name = f" ({info.name})" if info is not None else ""
+    error = reading.error if reading.error is not None else 0
+    detail = profidrive_failure_detail(error, reading.additional)
+    if info is not None and info.is_array and reading.additional is not None:  # the element of an array refused
+        detail = f"{profidrive_error_phrase(error)} (error 0x{error:02X}, element {reading.additional})"
+    return ParameterRefused(
+        f"drive refused to {verb} PNU {reading.spec.label}{name}: {detail}"
+        + (f" (and {more} more)" if more else ""),
+        code=error, details={"pnu": reading.spec.pnu, "subindex": reading.spec.subindex,
+                             "additional": reading.additional})

@@ -112,3 +112,18 @@ def ack(number: int) -> FoeFrame:
 
 def error(code: int, text: str = "") -> FoeFrame:
     return FoeFrame(FoeOpcode.ERROR, code, text.encode("latin-1", "replace"))
+
+
+def busy_progress(frame: FoeFrame) -> tuple[int, int]:
+    """(done, entire) of a BUSY frame: the u32 holds ``u16 Done, u16 Entire`` (ETG.1000.6; reference A1)."""
+    return frame.value & 0xFFFF, frame.value >> 16
+
+
+def busy(done: int, entire: int, text: str = "") -> FoeFrame:
+    return FoeFrame(FoeOpcode.BUSY, (done & 0xFFFF) | (entire & 0xFFFF) << 16, text.encode("latin-1", "replace"))
+
+
+def packet_data_size(mailbox_size: int) -> int:
+    """File bytes one DATA packet carries: the mailbox minus the 6-byte mailbox and 6-byte FoE headers (a
+    shorter packet ends the file; reference A1: SOEM, IgH and SOES agree)."""
+    return mailbox_size - 6 - HEADER_SIZE

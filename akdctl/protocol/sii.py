@@ -523,3 +523,61 @@ def _padded(raw: bytes) -> bytes:
 
 def with_serial(image: SiiImage, serial: int) -> SiiImage:
     return replace(image, serial=serial)
+
+
+# ---------------------------------------------------------------------- Intel HEX (ecat sii read/write)
+# Why: SII images travel as raw binary (IgH sii_read/sii_write, SOEM eepromtool -r/-w) or Intel HEX (SOEM
+# eepromtool -ri/-wi, vendor EEPROM tools). Record types 00 (data), 01 (end), 02/04 (segment/linear base).
+
+def encode_ihex(data: bytes, width: int = 16) -> str:
+    lines = []
+    for off in range(0, len(data), width):
+        chunk = data[off:off + width]
+        rec = bytes([len(chunk), (off >> 8) & 0xFF, off & 0xFF, 0]) + chunk
+        lines.append(":" + (rec + bytes([(-sum(rec)) & 0xFF])).hex().upper())
+    lines.append(":00000001FF")
+    return "\n".join(lines) + "\n"
+
+
+def decode_ihex(text: str, limit: int = 0x10000) -> bytes:
+    """The bytes of an Intel HEX text (gaps filled with 0xFF); CodecError naming the line on any defect."""
+    out = bytearray()
+    base = 0
+    ended = False
+    for number, line in enumerate(text.splitlines(), 1):
+        line = line.strip()
+        if not line:
+            continue
+        if ended:
+            raise CodecError(f"Intel HEX line {number}: data after the end record")
+        if not line.startswith(":") or len(line) < 11 or len(line) % 2 == 0:
+            raise CodecError(f"Intel HEX line {number}: not a record (':' and an odd number of hex digits)")
+        try:
+            rec = bytes.fromhex(line[1:])
+        except ValueError:
+            raise CodecError(f"Intel HEX line {number}: not hexadecimal") from None
+        if len(rec) != rec[0] + 5:
+            raise CodecError(f"Intel HEX line {number}: length byte {rec[0]} does not match the record")
+        if sum(rec) & 0xFF:
+            raise CodecError(f"Intel HEX line {number}: checksum wrong")
+        kind, payload = rec[3], rec[4:-1]
+        if kind == 0:
+            addr = base + (rec[1] << 8 | rec[2])
+            if addr + len(payload) > limit:
+                raise CodecError(f"Intel HEX line {number}: address 0x{addr:X} beyond {limit} bytes")
+            if len(out) < addr:
+                out += b"\xff" * (addr - len(out))
+            out[addr:addr + len(payload)] = payload
+        elif kind == 1:
+            ended = True
+        elif kind == 2 and len(payload) == 2:
+            base = (payload[0] << 8 | payload[1]) << 4
+        elif kind == 4 and len(payload) == 2:
+            base = (payload[0] << 8 | payload[1]) << 16
+        elif kind in (3, 5):
+            continue  # start addresses: meaningless for an EEPROM image
+        else:
+            raise CodecError(f"Intel HEX line {number}: record type {kind} not understood")
+    if not ended:
+        raise CodecError("Intel HEX: no end record (file cut short?)")
+    return bytes(out)

@@ -3,10 +3,11 @@
 Why a thin layer: the recipe must behave exactly like the commands a technician
 types (``pnu set --verify``, ``pdo map``, ``telegram set``, ``enable``, ``home``,
 ``move``, ``fault dump``, ``params backup``), so every action calls the same
-drive-layer function those commands call (:mod:`akdctl.drive.params`,
-:mod:`akdctl.drive.pdo`, :mod:`akdctl.drive.telegram`, :mod:`akdctl.drive.axis`,
-:mod:`akdctl.drive.faults`, :mod:`akdctl.drive.snapshot`) and never re-implements
-it. An action whose module is missing fails with "not available in this version".
+drive-layer function those commands call and never re-implements it. A writing
+step runs its operation's ``plan(conn, request)`` and ``execute(conn, plan)``
+(:mod:`akdctl.drive.raw_write`, :mod:`akdctl.drive.telegram`, :mod:`akdctl.drive.pdo`,
+:mod:`akdctl.drive.snapshot`; the request was built while validating) and reports
+the plan it ran, so ``tests/test_write_parity.py`` can hold it to the command's.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from akdctl.errors import CheckFailed, DriveFault, DriveError, UsageError
+from akdctl.errors import CheckFailed, DriveFault, UsageError
 from akdctl.recipe.schema import PlannedStep
 
 if TYPE_CHECKING:
@@ -73,12 +74,12 @@ class Session:
 
 # ---------------------------------------------------------------------------- reading and comparing
 def read_target(session: Session, target: dict[str, Any]) -> Any:
-    from akdctl.drive.values import read_pnus, read_snapshot_value
+    from akdctl.drive.values import pnu_refused, read_pnus, read_snapshot_value
 
     if target["kind"] == "pnu":
         (reading,) = read_pnus(session.conn.parameters(), [target["spec"]])
         if not reading.ok:
-            raise DriveError(f"drive refused to read {target['label']}: {reading.error_text}", code=reading.error)
+            raise pnu_refused(reading, "read")
         values = reading.values or []
         return values if target["spec"].count > 1 else (values[0] if values else None)
     return read_snapshot_value(session.conn.objects(), target["entry"])
@@ -103,30 +104,13 @@ def matches(value: Any, comparison: dict[str, Any]) -> bool:
 
 # ---------------------------------------------------------------------------- actions
 def do_set(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    from akdctl.drive.values import encode_object, write_pnus
+    """The raw-write operation ``pnu set``/``sdo write`` run (drive/raw_write.py): plan, execute, read back."""
+    from akdctl.drive import raw_write
 
-    pnu_targets = [t for t in params["targets"] if t["kind"] == "pnu"]
-    if pnu_targets:
-        assignments = [(t["spec"], t["value"] if isinstance(t["value"], list) else [t["value"]]) for t in pnu_targets]
-        for target, result in zip(pnu_targets, write_pnus(session.conn.parameters(), assignments)):
-            if not result.ok:
-                raise DriveError(f"drive refused {target['label']} = {target['value']}: {result.error_text} "
-                                 f"(error 0x{result.error:02X})", code=result.error)
-    for target in params["targets"]:
-        if target["kind"] == "object":
-            entry = target["entry"]
-            session.conn.objects().download(entry.index, entry.subindex, encode_object(entry, target["value"]))
-    readback = {}
-    if params["verify"]:
-        bad = []
-        for target in params["targets"]:
-            got = read_target(session, target)
-            readback[target["label"]] = got
-            if not matches(got, {"value": target["value"]}):
-                bad.append(f"{target['label']}: wrote {target['value']}, read back {got}")
-        if bad:
-            raise CheckFailed("read-back differs: " + "; ".join(bad))
-    return {"written": {t["label"]: t["value"] for t in params["targets"]}, "read_back": readback}
+    plan = raw_write.plan(session.conn, params["request"])
+    written = raw_write.execute(session.conn, plan)
+    return {"written": {t["label"]: t["value"] for t in params["targets"]}, "writes": written,
+            "plan": plan.to_json()}
 
 
 def do_expect(session: Session, params: dict[str, Any]) -> dict[str, Any]:
@@ -172,28 +156,24 @@ def do_wait(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 
 def do_map(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     if "telegram_map" in params:
-        from akdctl.drive import telegram as dt
-
-        lists = params["telegram_map"]
-        state = dt.map_free(session.conn.parameters(), lists.get("setpoint"), lists.get("actual"))
-        return state.to_json()
+        return _telegram(session, params)
     from akdctl.drive import pdo as dp
 
-    plan = params["pdo"]
-    state = dp.al_state_of(session.transport)
-    if state is not None and state != "PREOP":
-        raise UsageError(f"the drive is in {state}; the PDO mapping can only change in PRE-OP (SPEC-NOTES 18)")
-    channel = session.conn.objects()
-    steps = dp.startup_list(plan)
-    written = dp.apply(channel, steps)
-    dp.check_verified(dp.verify(channel, plan))
-    return {"sdo_downloads": written, "plan": plan.to_json()}
+    plan = dp.plan(session.conn, params["request"])  # the one PDO operation 'pdo map' runs (PRE-OP included)
+    result = dp.execute(session.conn, plan)
+    return {"sdo_downloads": result["sdo_downloads"], "plan": plan.to_json()}
+
+
+def _telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """``telegram set``/``telegram map``'s one operation (drive/telegram.py): plan, execute, read back."""
+    from akdctl.drive import telegram as dt
+
+    plan = dt.plan(session.conn, params["request"])
+    return {**dt.execute(session.conn, plan).to_json(), "plan": plan.to_json()}
 
 
 def do_telegram(session: Session, params: dict[str, Any]) -> dict[str, Any]:
-    from akdctl.drive import telegram as dt
-
-    return dt.select_telegram(session.conn.parameters(), params["telegram"]).to_json()
+    return _telegram(session, params)
 
 
 def _axis_with_timeout(session: Session, timeout: float | None) -> Any:
@@ -276,8 +256,44 @@ def do_backup(session: Session, params: dict[str, Any]) -> dict[str, Any]:
 def do_restore(session: Session, params: dict[str, Any]) -> dict[str, Any]:
     from akdctl.drive import snapshot
 
-    result = snapshot.restore(session.conn, params["snapshot"], force=params["force"])
-    return result.to_json()
+    plan = snapshot.plan(session.conn, snapshot.RestoreRequest(params["snapshot"], force=params["force"]))
+    return {**snapshot.execute(session.conn, plan).to_json(), "plan": plan.to_json()}
+
+
+def do_scope(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """Record (through the one scope operation the command uses: drive/scope.py), write the files the step names
+    below the output directory, then check the bounds (CheckFailed, exit 5). Consent for a recorded jog was given
+    for the recipe."""
+    from akdctl.drive import scope as op
+
+    plan = op.plan(session.conn, params["request"])
+    recording, failure = op.execute(session.conn, plan, stopped=session.interrupted)
+    for key, relative in params["files"].items():
+        from akdctl.io.atomic import atomic_open
+
+        path = session.output_file(relative, f"scope {key} file")
+        text = recording.to_csv() if key == "csv" else _svg(recording) if key == "svg" else \
+            _json_text(recording.to_json())
+        with atomic_open(path) as out:
+            out.write(text)
+        session.files.append(str(path))
+    if failure is not None:
+        raise failure
+    measured = op.check_bounds(recording, params["bounds"]) if params["bounds"].any else {}
+    return {"samples": len(recording), "rate_hz": recording.rate_achieved, "measured": measured,
+            "summary": recording.summary()}
+
+
+def _svg(recording: Any) -> str:
+    from akdctl.drive.scope_svg import render_svg
+
+    return render_svg(recording)
+
+
+def _json_text(data: Any) -> str:
+    import json
+
+    return json.dumps(data, indent=1) + "\n"
 
 
 ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
@@ -285,12 +301,11 @@ ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
     "enable": do_enable, "disable": do_disable, "stop": do_stop, "acknowledge": do_acknowledge, "home": do_home,
     "move": do_move, "check_faults": do_check_faults, "save": do_save, "backup": do_backup, "restore": do_restore,
     "param": lambda session, params: do_param(session, params),
+    "scope": do_scope,
 }
 
 
 def run_step(session: Session, step: PlannedStep) -> dict[str, Any]:
-    if not step.available:
-        raise UsageError(step.unavailable_reason)
     return ACTIONS[step.action](session, step.params)
 
 

@@ -10,7 +10,6 @@ what was expected. The result is a list of :class:`PlannedStep` whose
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,15 +44,15 @@ ACTIONS: dict[str, dict[str, Any]] = {
     "backup": {"file": str, "source": str, "groups": list, "only": list},
     "restore": {"file": str, "force": bool},
     "param": {"set": dict, "raw": bool},   # AKD parameters by name (issue 24, drive/names.py)
+    "scope": {"signals": list, "for": NUMBER, "samples": int, "rate": NUMBER, "source": str, "trigger": str,
+              "pretrigger": NUMBER, "timeout": NUMBER, "jog": NUMBER, "jog_for": NUMBER, "accel": NUMBER,
+              "csv": str, "svg": str, "json": str, "max_following_error": NUMBER, "max_settle_time": NUMBER,
+              "settle_band": NUMBER, "ring": int},
 }
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",),
-            "param": ("set",)}
+            "scope": ("signals",), "param": ("set",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
-MODULES = {"map": ("akdctl.drive.pdo", "akdctl.drive.telegram"), "telegram": ("akdctl.drive.telegram",),
-           "enable": ("akdctl.drive.axis",), "disable": ("akdctl.drive.axis",), "stop": ("akdctl.drive.axis",),
-           "acknowledge": ("akdctl.drive.axis",), "home": ("akdctl.drive.axis",), "move": ("akdctl.drive.axis",),
-           "check_faults": ("akdctl.drive.faults",)}
 
 
 @dataclass
@@ -68,8 +67,6 @@ class PlannedStep:
     params: dict[str, Any]
     plan: str
     motion: bool = False
-    available: bool = True
-    unavailable_reason: str = ""
     gated: list[Any] = field(default_factory=list)  # gate.Gated addresses a set step writes (akdctl.drive.gate)
 
     @property
@@ -78,7 +75,7 @@ class PlannedStep:
 
     def to_json(self) -> dict[str, Any]:
         return {"step": self.number, "action": self.action, "name": self.name, "file": self.file, "line": self.line,
-                "plan": self.plan, "motion": self.motion, "available": self.available}
+                "plan": self.plan, "motion": self.motion}
 
 
 @dataclass
@@ -101,13 +98,6 @@ class StepProblem(Exception):
         self.key = key
 
 
-def module_available(name: str) -> bool:
-    try:
-        return importlib.util.find_spec(name) is not None
-    except (ImportError, ValueError):
-        return False
-
-
 # ---------------------------------------------------------------------------- helpers
 def _number(data: dict[str, Any], key: str, *, positive: bool = False, maximum: float | None = None,
             default: float | None = None) -> float | None:
@@ -124,13 +114,10 @@ def _number(data: dict[str, Any], key: str, *, positive: bool = False, maximum: 
 
 
 def _pnu_target(text: Any, *, write: bool) -> Any:
-    from akdctl.catalog.pnus import by_name
     from akdctl.drive.params import parse_pnu_spec
-    from akdctl.drive.values import PnuSpec
 
     try:
-        named = by_name(str(text)) if isinstance(text, str) and " " in text.strip() else None
-        spec = PnuSpec(named.pnu, 0, named.length, named) if named is not None else parse_pnu_spec(str(text))
+        spec = parse_pnu_spec(str(text))  # the one resolver: numbers, PNU[SUB], names ("STW1", "Operating mode")
     except UsageError as exc:
         raise StepProblem(exc.message + " — expected a PNU of the catalogue (see 'akdctl pnu list')", "pnu") from None
     if spec.info is None:
@@ -144,25 +131,19 @@ def _pnu_target(text: Any, *, write: bool) -> Any:
     return spec
 
 
-def _pnu_values(spec: Any, value: Any, key: str = "value") -> list[int]:
+def _pnu_values(spec: Any, value: Any, key: str = "value", ranged: bool = True) -> list[int]:
+    """The values of a PNU step, checked by the commands' one rule (drive/params.fit_values)."""
+    from akdctl.drive.params import fit_values
+
     info = spec.info
     values = value if isinstance(value, list) else [value]
     for v in values:
         if isinstance(v, bool) or not isinstance(v, int):
             raise StepProblem(f"PNU {spec.label} ({info.name}) takes integers ({info.type}); got {v!r}", key)
-    if isinstance(value, list) and "[" not in str(spec.label) and info.is_array:
-        from akdctl.drive.values import PnuSpec
-
-        spec = PnuSpec(spec.pnu, 0, len(values), info)
-    if len(values) != spec.count:
-        raise StepProblem(f"PNU {spec.label} ({info.name}): {spec.count} element(s) addressed but {len(values)} "
-                          "value(s) given", key)
-    if spec.subindex + spec.count > info.length:
-        raise StepProblem(f"PNU {info.pnu} ({info.name}) has elements 0..{info.length - 1}; too many values", key)
-    lo, hi = info.limits()
-    for v in values:
-        if not lo <= v <= hi:
-            raise StepProblem(f"value {v} for PNU {info.pnu} ({info.name}) is out of range: expected {lo}..{hi}", key)
+    try:
+        fit_values(spec, values, ranged=ranged)
+    except UsageError as exc:
+        raise StepProblem(exc.message, key) from None
     return values
 
 
@@ -232,12 +213,14 @@ def _targets(data: dict[str, Any], *, write: bool, multi: bool) -> list[dict[str
     for target, value in pairs:
         if form in ("pnu", "pnus"):
             spec = _pnu_target(target, write=write)
-            values = _pnu_values(spec, value, "value" if form == "pnu" else form) if value is not None and write else None
-            if values is not None and spec.count != len(values):
-                from akdctl.drive.values import PnuSpec
+            ranged = ".." in str(target)  # as pnu set reads PNU[FROM..TO]=...: only a range fixes the count
+            values = _pnu_values(spec, value, "value" if form == "pnu" else form, ranged) \
+                if value is not None and write else None
+            if values is not None:
+                from akdctl.drive.params import fit_values
 
-                spec = PnuSpec(spec.pnu, spec.subindex, len(values), spec.info)
-            out.append({"kind": "pnu", "spec": spec, "label": f"PNU {spec.label} ({spec.info.name})",
+                spec = fit_values(spec, values, ranged=ranged)
+            out.append({"kind": "pnu", "spec": spec, "label": f"PNU {spec.label} ({spec.info.name})", "ranged": ranged,
                         "value": values if values is None or isinstance(value, list) else values[0]})
         else:
             entry = _object_target(target, write=write)
@@ -246,6 +229,24 @@ def _targets(data: dict[str, Any], *, write: bool, multi: bool) -> list[dict[str
             out.append({"kind": "object", "entry": entry,
                         "label": f"0x{entry.index:04X}:{entry.subindex} ({entry.name})", "value": value})
     return out
+
+
+def _set_request(targets: list[dict[str, Any]], verify: bool) -> Any:
+    """The set step's request for the one raw-write operation (drive/raw_write.py), as ``pnu set``/``sdo write``
+    build it: PNU values as integers, object values as their type decodes the bytes sent."""
+    from akdctl.drive import raw_write
+    from akdctl.drive.values import decode, encode_object
+
+    out = []
+    for t in targets:
+        if t["kind"] == "pnu":
+            out.append(raw_write.pnu_target(t["spec"], t["value"] if isinstance(t["value"], list) else [t["value"]]))
+        else:
+            entry = t["entry"]
+            data = encode_object(entry, t["value"])
+            out.append(raw_write.object_target(entry.index, entry.subindex, entry.short_type,
+                                               decode(entry.short_type, data), data, entry.name))
+    return raw_write.SetRequest(out, verify)
 
 
 def _comparison(data: dict[str, Any], target: dict[str, Any]) -> dict[str, Any]:
@@ -259,7 +260,7 @@ def _comparison(data: dict[str, Any], target: dict[str, Any]) -> dict[str, Any]:
     if has_value:
         value = data["value"]
         if target["kind"] == "pnu":
-            values = _pnu_values(target["spec"], value)
+            values = _pnu_values(target["spec"], value, ranged=target.get("ranged", True))
             comparison["value"] = values if isinstance(value, list) else values[0]
         else:
             comparison["value"] = _object_value(target["entry"], value)
@@ -323,7 +324,7 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
         targets = _targets(data, write=True, multi=True)
         verify = data.get("verify", True)
         plan = "write " + ", ".join(f"{t['label']} = {t['value']}" for t in targets) + (" and read back" if verify else "")
-        return {"targets": targets, "verify": verify}, plan
+        return {"targets": targets, "verify": verify, "request": _set_request(targets, verify)}, plan
     if action in ("expect", "wait") and (action == "expect" or "seconds" not in data):
         targets = _targets(data, write=False, multi=False)
         comparison = _comparison(data, targets[0])
@@ -342,13 +343,14 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
     if action == "map":
         return _check_map(data)
     if action == "telegram":
-        from akdctl.catalog.pnus import TELEGRAMS
+        from akdctl.drive import telegram as dt
 
         number = data["telegram"]
-        if number not in TELEGRAMS:
-            raise StepProblem(f"telegram {number} is not one the AKD offers; expected one of "
-                              f"{', '.join(str(t) for t in TELEGRAMS)}", "telegram")
-        return {"telegram": number}, f"select telegram {number} (PNU 922) and read it back"
+        try:
+            request = dt.select_request(number)  # the rule 'telegram set' applies
+        except UsageError as exc:
+            raise StepProblem(exc.message, "telegram") from None
+        return {"telegram": number, "request": request}, f"select telegram {number} (PNU 922) and read it back"
     if action == "enable":
         timeout = _number(data, "timeout", positive=True, maximum=MAX_WAIT_S)
         return _motion(ctx, {"kind": "enable"}, {"timeout": timeout})
@@ -401,6 +403,8 @@ def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, A
             raise StepProblem(exc.message, "file") from None
         return {"file": str(full), "snapshot": snap, "force": data.get("force", False)}, \
             f"restore parameters from {data['file']} (write differences, verify)"
+    if action == "scope":
+        return _check_scope(data, ctx)
     raise StepProblem(f"unknown action {action!r}")  # pragma: no cover - filtered before
 
 
@@ -414,8 +418,6 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise StepProblem("missing key: give 'rx'/'tx' (EtherCAT PDOs, e.g. rx = [\"0x1701\"]) or "
                           "'setpoint'/'actual' (PROFIdrive telegram 0 signals)")
     if tel_keys:
-        if not module_available("akdctl.drive.telegram"):
-            return {"telegram_map": None}, "map the free telegram (PNU 915/916)"
         from akdctl.drive import telegram as dt
 
         lists = {}
@@ -428,10 +430,12 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         problems = dt.validate_free_map(lists.get("setpoint", []), lists.get("actual", []))
         if problems:
             raise StepProblem("; ".join(problems), tel_keys[0])
-        return {"telegram_map": lists}, ("map the free telegram: " + "; ".join(
+        try:
+            request = dt.map_request(lists.get("setpoint"), lists.get("actual"))
+        except UsageError as exc:
+            raise StepProblem(exc.message, tel_keys[0]) from None
+        return {"telegram_map": lists, "request": request}, ("map the free telegram: " + "; ".join(
             f"{k} signals {', '.join(str(s) for s in v)}" for k, v in lists.items()))
-    if not module_available("akdctl.drive.pdo"):
-        return {"pdo": None}, "map process data"
     from akdctl.drive import pdo as dp
 
     try:
@@ -445,7 +449,7 @@ def _check_map(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise StepProblem("; ".join(problems), pdo_keys[0])
     parts = [f"{d} {', '.join(f'0x{n:04X}' for n in plan.assign[d] or [])}" for d in ("rx", "tx")
              if plan.assign[d] is not None]
-    return {"pdo": plan}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
+    return {"pdo": plan, "request": dp.map_request(plan)}, "map process data: " + ("; ".join(parts) or "mode/cycle only") + " (manual's sequence, verify)"
 
 
 # Which recipe key a planner refusal points at (for FILE:LINE).
@@ -499,15 +503,9 @@ def validate_step(raw: RawStep, ctx: Context) -> PlannedStep:
     params, plan = _check(action, data, ctx)
     _check_channels(action, params, ctx)
     name = data.get("name") or plan
-    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan, motion=action in MOTION,
+    step = PlannedStep(raw.number, action, name, shown, raw.line, params, plan,
+                       motion=action in MOTION or bool(params.get("moves")),
                        gated=_gated(action, params))
-    for module in MODULES.get(action, ()):
-        if action == "map" and module != _map_module(params):
-            continue
-        if not module_available(module):
-            step.available = False
-            step.unavailable_reason = f"the {action} step is not available in this version of akdctl " \
-                                      f"({module} is missing)"
     return step
 
 
@@ -546,33 +544,25 @@ def _check_channels(action: str, params: dict[str, Any], ctx: Context) -> None:
 
 
 def _gated(action: str, params: dict[str, Any]) -> list[Any]:
-    """The gated addresses a set/telegram/map step writes (akdctl.drive.gate): the recipe may then need consent."""
-    from akdctl.drive import gate
+    """The gated addresses a set/telegram/map step writes, as each operation classifies them (drive/raw_write,
+    drive/telegram, drive/pdo ``gated``): the recipe may then need consent."""
+    if action == "telegram" or (action == "map" and "telegram_map" in params):
+        from akdctl.drive import telegram as dt
 
-    if action == "telegram":
-        return [gate.classify_pnu(922, "Telegram selection")]
+        return dt.gated(params["request"]) if params.get("request") is not None else []
     if action == "map":
-        if "telegram_map" in params:
-            return [gate.classify_pnu(915, "PZD setpoint assignment"), gate.classify_pnu(916, "PZD actual value "
-                                                                                              "assignment")]
-        return [gate.classify_object(0x1C12, 0, "RxPDO assignment")]
+        from akdctl.drive import pdo as dp
+
+        return dp.gated(params["request"]) if params.get("request") is not None else []
     if action == "param":
         from akdctl.drive import names
 
         return [g for g in (names.classify(names.resolve(n)) for n, _ in params["assignments"]) if g is not None]
     if action != "set":
         return []
-    found = []
-    for t in params["targets"]:
-        if t["kind"] == "pnu":
-            found.append(gate.classify_pnu(t["spec"].pnu, t["spec"].info.name))
-        else:
-            found.append(gate.classify_object(t["entry"].index, t["entry"].subindex, t["entry"].name))
-    return [g for g in found if g is not None]
+    from akdctl.drive import raw_write
 
-
-def _map_module(params: dict[str, Any]) -> str:
-    return "akdctl.drive.telegram" if "telegram_map" in params else "akdctl.drive.pdo"
+    return raw_write.gated(params["request"])
 
 
 def _type_word(t: type) -> str:
@@ -621,3 +611,42 @@ def _check_param(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
     if not assignments:
         raise StepProblem("'set' names no parameter", "set")
     return {"assignments": assignments, "raw": raw}, "param set " + " ".join(f"{n}={v}" for n, v in assignments)
+
+
+def _check_scope(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    """A scope step: the request the command line would build (drive/scope.build_request: CLI-recipe parity),
+    its drive-free checks, the bounds, and the motion planner's drive-free stage for a recorded jog."""
+    from akdctl.drive import scope as op
+
+    signals = data["signals"]
+    if not signals or not all(isinstance(s, str) for s in signals):
+        raise StepProblem("'signals' must be a non-empty list of signal names", "signals")
+    for key in ("csv", "svg", "json"):
+        if key in data:
+            path = Path(data[key])
+            if path.is_absolute() or ".." in path.parts:
+                raise StepProblem(f"{data[key]!r}: a scope file is written below the output directory; give a "
+                                  "relative path without '..'", key)
+    try:
+        request = op.build_request(signals, duration_s=data.get("for"), samples=data.get("samples"),
+                                   rate_hz=data.get("rate"), source=data.get("source", "auto"),
+                                   trigger=data.get("trigger"), pretrigger=float(data.get("pretrigger", 0.0)),
+                                   timeout_s=float(data.get("timeout", op.DEFAULT_TIMEOUT_S)),
+                                   jog_rpm=data.get("jog"), jog_s=data.get("jog_for"), accel=data.get("accel"),
+                                   ring=data.get("ring"))
+        op.check(request)
+        bounds = op.Bounds(data.get("max_following_error"), data.get("max_settle_time"), data.get("settle_band"))
+        bounds.check_request(request)
+    except UsageError as exc:
+        raise StepProblem(exc.message) from None
+    text = f"record {', '.join(signals)}"
+    if request.move is not None:
+        _motion(ctx, {"kind": "jog", "velocity": request.move.velocity, "duration_s": request.move.duration_s,
+                      "accel": request.move.accel})
+        text += f" during a jog at {request.move.velocity:g} rpm for {request.move.duration_s:g} s"
+    if bounds.any:
+        text += " and check " + ", ".join(f"{k} <= {v:g}" for k, v in (("following error", bounds.max_following_error),
+                                                                      ("settle time", bounds.max_settle_time))
+                                         if v is not None)
+    files = {key: data[key] for key in ("csv", "svg", "json") if key in data}
+    return {"request": request, "bounds": bounds, "files": files, "moves": request.move is not None}, text

@@ -23,13 +23,21 @@ from __future__ import annotations
 import struct
 import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from akdctl.protocol import ethercat as ec
-from akdctl.protocol.sii import SiiImage, build_sii
+from akdctl.protocol.sii import SiiImage, build_sii, crc8
 
 RAM_SIZE = 0x10000
 NUM_SM = 8
+NUM_FMMU = 3  # as REG_TYPE reports (0x0004)
+#: SM watchdog registers and their power-on values (ESC datasheet: divider 2498 -> 100 us units, process-data
+#: watchdog 1000 units -> 100 ms).
+REG_WD_PD_TIME = 0x0420
+WD_DIVIDER_DEFAULT = 2498
+WD_PD_TIME_DEFAULT = 1000
+SM_CONTROL_WATCHDOG = 0x40
 MBX_MIN = 40  # smallest mailbox the AKD accepts (ESI Sm MinSize)
 
 # ECAT-read-only register bytes (writes by the master are ignored there)
@@ -71,7 +79,12 @@ class Esc:
         self._replies: deque[bytes] = deque()
         self._have_request = threading.Condition(self._lock)
         self._sm = [_MailboxSm() for _ in range(NUM_SM)]
+        #: () -> (RxPDO bytes, TxPDO bytes) of the current mapping, for the P -> S SM length check
+        self.process_sizes: Callable[[], tuple[int, int]] | None = None
         self.drop_next_reply = False  # fault injection: the frame that reads the next reply is lost
+        self.eeprom_writes: list[int] = []  # words the master wrote, for the face's application to act on
+        self.inputs_read = 0  # input process data frames served
+        self.outputs_written = 0  # output process data frames taken (the application and the SM watchdog watch it)
         self.lost_frame = False  # set by process(): the face must not send this frame back
         self.reset()
 
@@ -81,12 +94,20 @@ class Esc:
             self.mem[:] = bytes(RAM_SIZE)
             struct.pack_into("<BBHBBBB", self.mem, ec.REG_TYPE, 0x04, 0x01, 0x0100, 3, NUM_SM, 8, 0x0F)
             struct.pack_into("<H", self.mem, ec.REG_FEATURES, 0x01CC)
-            struct.pack_into("<H", self.mem, ec.REG_STATION_ALIAS, self.sii.station_alias)
+            # Power-on: the ESC loads its configuration area (words 0-7) from the EEPROM, the station alias
+            # (word 4) into 0x0012 among it -- only when the CRC in word 7 is right (ESC datasheet, reference
+            # foe-alias-recorder.md B); a wrong CRC leaves the alias 0 and shows the checksum error in 0x0502.
+            crc_ok = crc8(bytes(self.eeprom[0:14])) == self.eeprom[14]
+            alias = struct.unpack_from("<H", self.eeprom, 8)[0] if crc_ok else 0
+            struct.pack_into("<H", self.mem, ec.REG_STATION_ALIAS, alias)
+            struct.pack_into("<H", self.mem, ec.REG_WD_DIVIDER, WD_DIVIDER_DEFAULT)
+            struct.pack_into("<H", self.mem, REG_WD_PD_TIME, WD_PD_TIME_DEFAULT)
             # DL status: PDI operational, link on port 0, port 0 open with communication, ports 1-3 closed
             struct.pack_into("<H", self.mem, ec.REG_DL_STATUS, 0x0001 | 0x0010 | 0x0200 | 0x0400 | 0x1000 | 0x4000)
             struct.pack_into("<H", self.mem, ec.REG_AL_STATUS, ec.AlState.INIT)
             struct.pack_into("<H", self.mem, ec.REG_PDI_CONTROL, self.sii.pdi_control)
-            struct.pack_into("<H", self.mem, ec.REG_EEP_CONTROL, ec.EEP_READ_8_BYTES)
+            struct.pack_into("<H", self.mem, ec.REG_EEP_CONTROL,
+                             ec.EEP_READ_8_BYTES | (0 if crc_ok else ec.EEP_ERROR_CHECKSUM))
             self._requests.clear()
             self._replies.clear()
             self._sm = [_MailboxSm() for _ in range(NUM_SM)]
@@ -128,7 +149,7 @@ class Esc:
             self.mem[addr] & ~ec.SM_STATUS_MAILBOX_FULL & 0xFF)
 
     def _mailboxes_active(self) -> bool:
-        return (self.al_status & 0x0F) in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
+        return (self.al_status & 0x0F) in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP, ec.AlState.BOOT)
 
     # ------------------------------------------------------------------ frame processing
     def process(self, datagrams: list[ec.Datagram]) -> list[ec.Datagram]:
@@ -150,8 +171,11 @@ class Esc:
         elif cmd in ec.BROADCAST_CMDS:
             addressed = True
             d.adp = (d.adp + 1) & 0xFFFF
+        elif cmd in ec.LOGICAL_CMDS:
+            self._process_logical(d)
+            return
         else:
-            return  # logical commands: no FMMU is configured in this simulator; NOP: nothing
+            return  # NOP (and unknown commands): nothing
         if not addressed:
             return
         ado, n = d.ado, len(d.data)
@@ -178,6 +202,76 @@ class Esc:
             wrote = self._write(ado, d.data)
             d.data = old
             d.wkc = (d.wkc + (3 if wrote else 1)) & 0xFFFF
+
+    # ------------------------------------------------------------------ logical addressing (FMMUs)
+    def fmmus(self) -> list[tuple[int, int, int, int]]:
+        """The active FMMUs: (logical start, length, physical start, type bits: 1 read, 2 write).
+
+        Byte granularity only: the AKD's process data is whole bytes (SPEC-NOTES 18 keeps totals even),
+        and every master maps it byte-aligned; start/stop bits are not evaluated."""
+        out = []
+        for i in range(NUM_FMMU):
+            base = ec.REG_FMMU0 + 16 * i
+            logical, length, _sb, _eb, physical, _pb, kind, active = struct.unpack_from("<IHBBHBBB", self.mem, base)
+            if active & 0x01 and length and kind & 0x03:
+                out.append((logical, length, physical, kind & 0x03))
+        return out
+
+    def _pd_area_ok(self, physical: int, length: int, write: bool) -> bool:
+        """An FMMU's physical area must lie in an enabled process-data SM of the right direction; outputs
+        count only in OP (the AKD's application takes them then; in SAFE-OP the output SM is not yet
+        served, so LRW shows WKC 1 there and 3 in OP -- what a master expects of one slave)."""
+        state = self.al_status & 0x0F
+        if state not in (ec.AlState.SAFEOP, ec.AlState.OP) or (write and state != ec.AlState.OP):
+            return False
+        for i in range(NUM_SM):
+            sm = self.sync_manager(i)
+            if (sm.enabled and not sm.is_mailbox and sm.writes_to_slave == write
+                    and sm.start <= physical and physical + length <= sm.start + sm.length):
+                return True
+        return False
+
+    def _process_logical(self, d: ec.Datagram) -> None:
+        start, n = d.logical, len(d.data)
+        data = bytearray(d.data)
+        read = wrote = False
+        for logical, length, physical, kind in self.fmmus():
+            lo, hi = max(start, logical), min(start + n, logical + length)
+            if lo >= hi:
+                continue
+            phys = physical + (lo - logical)
+            size = hi - lo
+            if kind & 0x01 and d.cmd in (ec.Cmd.LRD, ec.Cmd.LRW) and self._pd_area_ok(phys, size, write=False):
+                data[lo - start:hi - start] = self.mem[phys:phys + size]
+                read = True
+            if kind & 0x02 and d.cmd in (ec.Cmd.LWR, ec.Cmd.LRW) and self._pd_area_ok(phys, size, write=True):
+                self.mem[phys:phys + size] = d.data[lo - start:hi - start]
+                wrote = True
+        if wrote:
+            self.outputs_written += 1
+        if read:
+            self.inputs_read += 1
+        d.data = bytes(data)
+        d.wkc = (d.wkc + (1 if read else 0) + (2 if wrote else 0)) & 0xFFFF
+
+    def process_image(self, write: bool) -> bytes:
+        """The bytes of the enabled process-data SM of one direction (``write``: outputs, SM2)."""
+        with self._lock:
+            for i in range(NUM_SM):
+                sm = self.sync_manager(i)
+                if sm.enabled and not sm.is_mailbox and sm.writes_to_slave == write and sm.length:
+                    return bytes(self.mem[sm.start:sm.start + sm.length])
+            return b""
+
+    def set_inputs(self, data: bytes) -> None:
+        """The application's inputs (TxPDO) into the input SM's buffer, as far as it reaches."""
+        with self._lock:
+            for i in range(NUM_SM):
+                sm = self.sync_manager(i)
+                if sm.enabled and not sm.is_mailbox and not sm.writes_to_slave and sm.length:
+                    chunk = bytes(data[:sm.length])
+                    self.mem[sm.start:sm.start + len(chunk)] = chunk
+                    return
 
     def _mailbox_sm_at(self, addr: int, n: int) -> int | None:
         """The enabled mailbox SM whose buffer overlaps [addr, addr+n)."""
@@ -265,6 +359,7 @@ class Esc:
                 status |= ec.EEP_ERROR_WRITE_ENABLE
             elif word * 2 + 2 <= len(self.eeprom):
                 self.eeprom[word * 2 : word * 2 + 2] = self.mem[ec.REG_EEP_DATA : ec.REG_EEP_DATA + 2]
+                self.eeprom_writes.append(word)
             else:
                 status |= ec.EEP_ERROR_ACK
         elif cmd == ec.EEP_CMD_RELOAD:
@@ -311,7 +406,7 @@ class Esc:
         if requested == S.INIT:
             return 0
         if requested == S.BOOT:
-            return 0 if current == S.INIT else 0x0011
+            return self._check_mailbox_sms(boot=True) if current == S.INIT else 0x0011
         if current == S.BOOT:
             return 0x0011
         if requested == S.PREOP:
@@ -322,6 +417,13 @@ class Esc:
             return self._check_process_sms() if current == S.PREOP else 0
         # OP
         return 0 if current == S.SAFEOP else 0x0011
+
+    def watchdog_expired(self) -> None:
+        """The process-data watchdog ran out in OP: SAFE-OP with the error flag, AL status code 0x001B [I]
+        (see :class:`akdctl.sim.face_ethercat_raw.ProcessData`)."""
+        with self._lock:
+            if (self.al_status & 0x0F) == ec.AlState.OP:
+                self._set_al(ec.AlState.SAFEOP | ec.AL_ERROR_FLAG, 0x001B)
 
     def follow_al_state(self, state: int) -> None:
         """Enter AL state ``state`` because the drive behind the ESC is in it (the application side).
@@ -338,22 +440,39 @@ class Esc:
                 self._clear_mailboxes()
             self._set_al(state, 0)
 
-    def _check_mailbox_sms(self) -> int:
-        """I -> P: SM0/SM1 must be the AKD's mailboxes (start address and a sane length)."""
-        rx = self.sii.std_rx_size or self.mailbox_sizes[0]
-        tx = self.sii.std_tx_size or self.mailbox_sizes[1]
+    def _check_mailbox_sms(self, boot: bool = False) -> int:
+        """I -> P: SM0/SM1 must be the AKD's standard mailboxes (start address and a sane length);
+        I -> B: the bootstrap mailboxes the SII declares (words 0x14-0x17), as SOEM's firm_update and
+        pysoem's amend_mbx program them (reference foe-alias-recorder.md A2/A3)."""
+        sii = self.sii
+        if boot:
+            rx_start, rx, tx_start, tx = sii.boot_rx_offset, sii.boot_rx_size, sii.boot_tx_offset, sii.boot_tx_size
+        else:
+            rx_start, rx, tx_start, tx = sii.std_rx_offset, sii.std_rx_size, sii.std_tx_offset, sii.std_tx_size
+        rx = rx or self.mailbox_sizes[0]
+        tx = tx or self.mailbox_sizes[1]
         sm0, sm1 = self.sync_manager(0), self.sync_manager(1)
-        ok = (sm0.start == self.sii.std_rx_offset and MBX_MIN <= sm0.length <= rx and sm0.is_mailbox
+        ok = (sm0.start == rx_start and MBX_MIN <= sm0.length <= rx and sm0.is_mailbox
               and sm0.writes_to_slave and sm0.enabled
-              and sm1.start == self.sii.std_tx_offset and MBX_MIN <= sm1.length <= tx and sm1.is_mailbox
+              and sm1.start == tx_start and MBX_MIN <= sm1.length <= tx and sm1.is_mailbox
               and not sm1.writes_to_slave and sm1.enabled)
         return 0 if ok else 0x0017
 
     def _check_process_sms(self) -> int:
-        """P -> S: process-data SMs, where enabled, at the AKD's addresses 0x1100/0x1140."""
+        """P -> S: process-data SMs, where enabled, at the AKD's addresses 0x1100/0x1140 and exactly as long
+        as the assigned PDOs (issue 23 item 9: the manual's 0x0017 "invalid sync manager configuration"
+        covers both; ETG.1000.6 SM checks do the same). :attr:`process_sizes` tells the lengths the drive's
+        current mapping needs (rx bytes, tx bytes); without one (a bare ESC) only the addresses are checked.
+        A disabled SM is not checked: a master that exchanges no process data may still go to SAFE-OP/OP
+        (a real AKD then raises its fieldbus fault; the simulator does not)."""
+        sizes = self.process_sizes() if self.process_sizes is not None else None
         for n, start in ((2, 0x1100), (3, 0x1140)):
             sm = self.sync_manager(n)
-            if sm.enabled and (sm.start != start or sm.is_mailbox):
+            if not sm.enabled:
+                continue
+            if sm.start != start or sm.is_mailbox:
+                return 0x0017
+            if sizes is not None and sm.length != sizes[n - 2]:
                 return 0x0017
         return 0
 
@@ -404,3 +523,15 @@ class Esc:
                 self.mem[sm.start : sm.start + sm.length] = reply.ljust(sm.length, b"\0")
                 self._set_full(i, True)
                 return
+
+
+def watchdog_seconds(esc: Esc) -> float | None:
+    """The process-data watchdog time the master programmed (None: disabled -- time 0 or no SM with the
+    watchdog bit). Units: (divider + 2) x 40 ns, as the ESC counts them."""
+    divider = esc.u16(ec.REG_WD_DIVIDER)
+    units = esc.u16(REG_WD_PD_TIME)
+    if not units:
+        return None
+    armed = any(sm.enabled and not sm.is_mailbox and sm.writes_to_slave and sm.control & SM_CONTROL_WATCHDOG
+                for sm in (esc.sync_manager(i) for i in range(NUM_SM)))
+    return units * (divider + 2) * 40e-9 if armed else None

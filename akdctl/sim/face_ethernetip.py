@@ -106,6 +106,7 @@ class IoConnection:
     sequence: int = 0
     produced: int = 0
     consumed: int = 0
+    idle: int = 0                      # consumed packets with the Run bit clear (not applied)
     last_command: bytes = bytes(asm.ASSEMBLY_SIZE)
 
 
@@ -459,12 +460,18 @@ class EthernetIpFace(Face):
             packet = enip.IoPacket.decode(data)
             if io is None or packet.connection_id != io.ot_id:
                 return
-            _run, command = enip.split_run_idle(packet.data)
+            run, command = enip.split_run_idle(packet.data)
         except CodecError:
             return
-        io.last_consumed = time.monotonic()
+        io.last_consumed = time.monotonic()   # Idle data keeps the connection alive (it is a valid packet)
         io.consumed += 1
-        if len(command) == asm.ASSEMBLY_SIZE:
+        if not run:
+            # CIP's 32-bit run/idle header: data sent with the Run bit clear (Idle) is not applied. The AKD documents no idle behaviour
+            # of its own [I]; the simulated drive takes it as the data-less command (Enable = 0), what a closed
+            # connection leaves, so a PLC in program mode neither enables nor keeps moving the axis.
+            io.last_command = bytes(asm.ASSEMBLY_SIZE)
+            io.idle += 1
+        elif len(command) == asm.ASSEMBLY_SIZE:
             io.last_command = command
 
     def _produce(self, io: IoConnection) -> None:

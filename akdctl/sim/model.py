@@ -90,6 +90,7 @@ class DriveModel:
         self.pdo = PdoComponent(self)
         self.foe = FoeFiles(self)
         self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
+        self._recorder: Any = None  # REC.* (sim/recorder.py), made on first use: most commands never record
         # the components that move with time (the others keep Component.tick, which does nothing), in tick order
         self._tickers = [c.tick for c in self.components if type(c).tick is not Component.tick]
 
@@ -113,6 +114,26 @@ class DriveModel:
     # ------------------------------------------------------------------ time
     def advance(self, dt: float) -> None:
         """Advance virtual time; components integrate motion, timers, watchdogs."""
+        if dt <= 0:
+            return
+        if self._recorder is not None and self._recorder.running:
+            self._recorder.advance(dt, self._step)  # samples the motion at its own instants
+        else:
+            self._step(dt)
+
+    @property
+    def recorder(self) -> Any:
+        """The REC.* recorder (:class:`akdctl.sim.recorder.Recorder`), attached on first use."""
+        if self._recorder is None:
+            from akdctl.sim.recorder import Recorder
+
+            self._recorder = Recorder(self)
+            self.components.append(self._recorder)
+            self.revision += 1  # to_state() now carries it (the revision rule, sim/component.Tracked)
+        return self._recorder
+
+    def _step(self, dt: float) -> None:
+        """One advance of the clock and the components (the recorder splits :meth:`advance` at its samples)."""
         if dt <= 0:
             return
         self.clock += dt
@@ -341,6 +362,8 @@ class DriveModel:
             comp_states = dict(state.get("components", {}))
             for comp in model.components:
                 comp.load_state(dict(comp_states.get(comp.name, {})))
+            if "recorder" in comp_states:
+                model.recorder.load_state(dict(comp_states["recorder"]))
         except (TypeError, AttributeError, KeyError) as exc:
             raise ValueError(f"damaged simulator state: {exc}") from exc
         return model

@@ -303,6 +303,7 @@ class MotionComponent(Component):
         m.bind_object(0x6063, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
         m.bind_object(0x6064, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
         m.bind_object(0x606C, read=obj_reader("<i", lambda: counts(axis.vel)))
+        m.bind_object(0x606B, read=obj_reader("<i", lambda: counts(axis.vel)))  # velocity demand (VL.CMD): the ramp
         m.bind_object(0x6077, read=obj_reader("<h", lambda: round(self._current_fraction() * 1000)))
         m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
         m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))

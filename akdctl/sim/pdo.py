@@ -86,6 +86,7 @@ class PdoComponent(Component):
     def __init__(self, model: "DriveModel") -> None:
         super().__init__(model)
         self.al_state = "PREOP"
+        self.cyclic = False  # True only while apply_outputs() writes the RxPDO's objects (not persisted)
         # assignment: [count, sub1..sub4] per direction (ESI default 0x1701 / 0x1B01)
         self.assign: dict[int, list[int]] = {
             oc.RX_ASSIGN: [1, oc.DEFAULT_RX_PDO, 0, 0, 0],
@@ -142,8 +143,11 @@ class PdoComponent(Component):
         return out
 
     def controlword_in_active_rxpdo(self) -> bool:
-        """True in OP while 0x6040:00 travels in an assigned RxPDO: SDO writes of it then have no effect (SPEC-NOTES 23)."""
-        if self.al_state != "OP":
+        """True in OP while 0x6040:00 travels in an assigned RxPDO: SDO writes of it then have no effect (SPEC-NOTES 23).
+
+        False while the process data itself is being applied (:func:`apply_outputs`): that write is the one
+        that wins."""
+        if self.al_state != "OP" or self.cyclic:
             return False
         return any(e.index == 0x6040 and e.subindex == 0 for e in self.active_entries("rx"))
 
@@ -345,3 +349,53 @@ class PdoComponent(Component):
             raise PnuAccessError(PE_VALUE_IMPERMISSIBLE, exc.index) from None
         self.free_words[pnu] = words
         self.changed()
+
+
+# ---------------------------------------------------------------------- cyclic process data (EtherCAT)
+# Why here: the mapping that decides the byte layout lives in this component, so the faces that exchange
+# process data (the raw EtherCAT face) pack and unpack through it and never keep a copy of the layout.
+
+def image_size(model: "DriveModel", direction: str) -> int:
+    """Bytes of the process image of one direction ("rx" outputs of the master, "tx" inputs) as mapped now."""
+    return (sum(e.bits for e in model.pdo.active_entries(direction)) + 7) // 8
+
+
+def _is_padding(entry: oc.PdoEntry) -> bool:
+    return entry.index < 0x0008 or entry.is_padding
+
+
+def apply_outputs(model: "DriveModel", data: bytes) -> None:
+    """Write a received RxPDO image into the mapped objects, as the drive's cyclic task does in OP.
+
+    The controlword written here wins over SDO writes (SPEC-NOTES 23): the component's ``cyclic`` flag
+    lifts the "mapped controlword" rule for this write only. A value the drive refuses is skipped, as a
+    real drive ignores a set point it cannot take from process data.
+    """
+    entries = model.pdo.active_entries("rx")
+    value, offset = int.from_bytes(bytes(data), "little"), 0
+    model.pdo.cyclic = True
+    try:
+        for entry in entries:
+            if not _is_padding(entry) and offset + entry.bits <= 8 * len(data):
+                raw = (value >> offset) & ((1 << entry.bits) - 1)
+                try:
+                    model.object_write(entry.index, entry.subindex, raw.to_bytes((entry.bits + 7) // 8, "little"))
+                except SdoAccessError:
+                    pass
+            offset += entry.bits
+    finally:
+        model.pdo.cyclic = False
+
+
+def sample_inputs(model: "DriveModel") -> bytes:
+    """The TxPDO image: every mapped object's current value, packed LSB first in mapping order."""
+    value, offset = 0, 0
+    for entry in model.pdo.active_entries("tx"):
+        if not _is_padding(entry):
+            try:
+                raw = int.from_bytes(model.object_read(entry.index, entry.subindex), "little")
+            except SdoAccessError:
+                raw = 0
+            value |= (raw & ((1 << entry.bits) - 1)) << offset
+        offset += entry.bits
+    return value.to_bytes((offset + 7) // 8, "little")

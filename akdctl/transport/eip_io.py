@@ -51,7 +51,8 @@ class IoConnection:
     """One exclusive-owner class-1 connection. Use as a context manager."""
 
     def __init__(self, session: object, host: str, rpi_ms: float = 20.0, port: int = enip.IO_PORT,
-                 local_port: int = 0, timeout: float = 2.0, tracer: object = None) -> None:
+                 local_port: int = 0, timeout: float = 2.0, tracer: object = None,
+                 timeout_multiplier: int = 2) -> None:
         if rpi_ms < MIN_RPI_MS:
             raise UsageError(f"RPI {rpi_ms:g} ms is below the AKD's minimum of {MIN_RPI_MS:g} ms")
         self.session = session
@@ -76,6 +77,10 @@ class IoConnection:
         self.to_id = int.from_bytes(os.urandom(4), "little") | 1
         self.ot_id = 0
         self.output = asm.Command().encode()
+        # The Run bit of the run/idle header is set only while a command is meant (set_output): until then, and
+        # after idle(), the drive gets Idle data, which CIP says it must not apply.
+        self.run = False
+        self.timeout_multiplier = timeout_multiplier   # CIP code n: the target times out after RPI x 4 << n
         self._input: tuple[int, bytes] | None = None     # (sequence, data) of the newest response
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
@@ -93,7 +98,8 @@ class IoConnection:
         rpi_us = round(self.rpi_s * 1e6)
         fo = cip.ForwardOpen(0, self.to_id, self.serial, ORIGINATOR_VENDOR, self.originator_serial, rpi_us,
                              cip.NetParams(OT_SIZE, cip.TYPE_P2P), rpi_us, cip.NetParams(TO_SIZE, cip.TYPE_P2P),
-                             self._path(), cip.TRANSPORT_CLASS1_CYCLIC, timeout_multiplier=2)
+                             self._path(), cip.TRANSPORT_CLASS1_CYCLIC,
+                             timeout_multiplier=self.timeout_multiplier)
         request = cip.Request(cip.FORWARD_OPEN, cip.Path(cip.CONNECTION_MANAGER, 1).encode(), fo.encode())
         sockaddr = enip.Item(enip.ITEM_SOCKADDR_T2O, enip.SockAddr("0.0.0.0", self.local_port).encode())
         response = self.session.request(request, extra_items=(sockaddr,))  # type: ignore[attr-defined]
@@ -156,7 +162,7 @@ class IoConnection:
             if now >= next_send:
                 sequence = (sequence + 1) & 0xFFFFFFFF
                 with self._lock:
-                    data = enip.with_run_idle(self.output, run=True)
+                    data = enip.with_run_idle(self.output, run=self.run)
                 packet = enip.IoPacket(self.ot_id, sequence, sequence & 0xFFFF, data).encode()
                 self._trace("tx", packet, f"O->T seq {sequence}")
                 try:
@@ -187,9 +193,20 @@ class IoConnection:
                 self.stats.consumed += 1
                 self._changed.notify_all()
 
-    def set_output(self, command: asm.Command) -> None:
+    def set_output(self, command: asm.Command, run: bool = True) -> None:
         with self._lock:
             self.output = command.encode()
+            self.run = run
+
+    def idle(self) -> None:
+        """From now on send Idle (Run bit clear): the drive applies none of the data."""
+        with self._lock:
+            self.run = False
+
+    @property
+    def connection_timeout_s(self) -> float:
+        """How long the drive keeps the last command after our last packet (RPI x the timeout multiplier)."""
+        return self.rpi_s * (4 << self.timeout_multiplier)
 
     def wait_input(self, predicate, what: str, timeout: float | None = None) -> asm.Response:  # type: ignore[no-untyped-def]
         """The first response assembly *produced after this call* that satisfies ``predicate``."""

@@ -36,6 +36,8 @@ from akdctl.transport.trace import Tracer
 
 MASTER_MAC = b"\x01\x01\x01\x01\x01\x01"  # as SOEM: EtherCAT ignores MACs; slaves set bit 1 of byte 0
 STATION_BASE = 0x1001
+#: Seconds a slave leaving BOOT may take to answer again: the AKD ESI's back-to-INIT timeout.
+BOOT_EXIT_TIMEOUT = 50.0
 SII_MAX_BYTES = 0x4000
 
 
@@ -133,7 +135,11 @@ class EcatMaster:
         deadline = time.monotonic() + self.frame_timeout
         buffer = self._buffer
         while True:
-            sock.settimeout(max(0.0, deadline - time.monotonic()))
+            left = deadline - time.monotonic()
+            if left <= 0:  # a peer flooding frames that are not the answer does not hold us past the deadline
+                raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
+                                "no slave connected, or the link is down")
+            sock.settimeout(left)
             try:
                 reply = buffer[:sock.recv_into(buffer)]
             except (socket.timeout, BlockingIOError):
@@ -238,6 +244,27 @@ class EcatMaster:
                 return data[6:14] if ctl & ec.EEP_READ_8_BYTES else data[6:10]
             if time.monotonic() > deadline:
                 raise NoAnswer(f"slave 0x{station:04X}: SII EEPROM stays busy")
+
+    def write_eeprom(self, station: int, word: int, value: int) -> None:
+        """Write one SII word through the ESC's EEPROM interface and wait for it (IgH's way: data, address and
+        the write command with write enable in one 8-byte access at 0x0502; reference B). A NACK or a
+        write-enable error is a one-line CommError; the wait is bounded by the timeout."""
+        deadline = time.monotonic() + self.timeout
+        with contextlib.suppress(CommError):
+            self.fpwr(station, ec.REG_EEP_CONFIG, b"\x00")  # EEPROM access by ECAT (the master)
+        self.fpwr(station, ec.REG_EEP_CONTROL, struct.pack("<HIH", ec.EEP_CMD_WRITE | 0x0001, word, value & 0xFFFF))
+        while True:
+            (ctl,) = struct.unpack("<H", self.fprd(station, ec.REG_EEP_CONTROL, 2))
+            if not ctl & ec.EEP_BUSY:
+                if ctl & (ec.EEP_ERROR_ACK | ec.EEP_ERROR_WRITE_ENABLE):
+                    raise CommError(f"slave 0x{station:04X}: SII EEPROM write of word 0x{word:X} failed "
+                                    f"(status 0x{ctl:04X}: "
+                                    + ("write not enabled" if ctl & ec.EEP_ERROR_WRITE_ENABLE else "not acknowledged")
+                                    + ")")
+                return
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"slave 0x{station:04X}: SII EEPROM stays busy after a write of word 0x{word:X}")
+            time.sleep(0.001)
 
     def read_sii_bytes(self, station: int, start: int, length: int) -> bytes:
         out = bytearray()
@@ -516,10 +543,15 @@ class EthercatRawTransport(Transport):
         sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
         sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         ready = (state in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP)
-                 and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled)
+                 and not slave.al_status & ec.AL_ERROR_FLAG and sm0.enabled and sm1.enabled
+                 and sm0.is_mailbox and sm1.is_mailbox)  # an SM1 in buffered mode presents stale data for ever
         if ready and (sm0.start, sm0.length, sm1.start, sm1.length) != master.mailbox_layout(slave.station):
             ready = False  # the sync managers disagree with the SII: re-establish the mailbox from it
         if not ready:
+            if state == ec.AlState.BOOT:  # BOOT leaves to INIT only, and the drive restarts (a firmware download)
+                self.leave_boot(BOOT_EXIT_TIMEOUT)
+                slave = self.slave
+                assert slave is not None
             sii, _raw = master.read_sii(slave.station, full=False)
             slave.sii = sii
             if state != ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
@@ -529,6 +561,66 @@ class EthercatRawTransport(Transport):
             sm0 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0, 8))
             sm1 = ec.SyncManager.decode(master.fprd(slave.station, ec.REG_SM0 + ec.SM_STRIDE, 8))
         self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
+
+    # ------------------------------------------------------------------ bootstrap (firmware download)
+    def enter_boot(self) -> RawMailboxLink:
+        """INIT, SM0/SM1 from the SII's bootstrap mailbox (words 0x14-0x17), BOOT: the state a firmware file is
+        written in (reference foe-alias-recorder.md A1/A6; SOEM's firm_update does the same). Returns the
+        bootstrap mailbox; a slave whose SII declares none is refused before anything changes."""
+        master, slave = self.master, self.slave
+        assert master is not None and slave is not None
+        sii, _raw = master.read_sii(slave.station, full=False)
+        slave.sii = sii
+        if not sii.boot_rx_size or not sii.boot_tx_size:
+            raise UsageError(f"slave 0x{slave.station:04X} declares no bootstrap mailbox in its SII (words 0x14-0x17): "
+                             "it cannot take a file in BOOT")
+        if slave.al_status & 0x0F != ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
+            master.request_state(slave.station, ec.AlState.INIT)
+        sm0 = ec.SyncManager(sii.boot_rx_offset, sii.boot_rx_size, 0x26, 0, ec.SM_ACTIVATE_ENABLE)
+        sm1 = ec.SyncManager(sii.boot_tx_offset, sii.boot_tx_size, 0x22, 0, ec.SM_ACTIVATE_ENABLE)
+        master.fpwr(slave.station, ec.REG_SM0, sm0.encode() + sm1.encode())
+        slave.al_status, slave.al_code = master.request_state(slave.station, ec.AlState.BOOT)
+        self.link = self.mailbox_link = RawMailboxLink(master, slave.station, sm0, sm1)
+        return self.link
+
+    def leave_boot(self, timeout: float) -> float:
+        """Request INIT from BOOT -- the drive takes the file and restarts -- and wait until it answers again in
+        INIT; returns the seconds it took. The AL-control write may go unanswered (the slave restarting):
+        that is expected. NoAnswer (exit 3) when it is not back within ``timeout``."""
+        master, slave = self.master, self.slave
+        assert master is not None and slave is not None
+        start = time.monotonic()
+        self.link = self.mailbox_link = None
+        with contextlib.suppress(CommError):
+            master.write(ec.Cmd.FPWR, slave.station, ec.REG_AL_CONTROL, struct.pack("<H", ec.AlState.INIT), retries=0)
+        return self.wait_back(timeout, start)
+
+    def wait_back(self, timeout: float, start: float | None = None) -> float:
+        """Poll the line until the slave at POSITION answers again (a restart clears its station address, so
+        addresses are given again), in INIT or higher and not in BOOT; seconds since ``start``."""
+        master = self.master
+        assert master is not None
+        start = time.monotonic() if start is None else start
+        deadline = start + timeout
+        last = "no frame came back"
+        while True:
+            try:
+                count = master.count_slaves()
+                if count > self.position:
+                    station = master.assign_addresses(count)[self.position]
+                    status, code = master.al_status(station)
+                    if status & 0x0F not in (0, ec.AlState.BOOT):
+                        self.slave = SlaveInfo(self.position, station, status, code)
+                        return time.monotonic() - start
+                    last = f"still in {ec.al_state_name(status)}"
+                else:
+                    last = f"{count} slave(s) answer"
+            except CommError as exc:
+                last = str(exc)
+            if time.monotonic() > deadline:
+                raise NoAnswer(f"the drive did not answer again within {timeout:g} s after leaving BOOT ({last}); "
+                               "power-cycle it and check its firmware with 'akdctl ecat scan'")
+            time.sleep(0.2)
 
     def al_state(self) -> str | None:
         """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
@@ -547,3 +639,55 @@ class EthercatRawTransport(Transport):
         if self.master is not None:
             self.master.close()
             self.master = None
+
+
+# ---------------------------------------------------------------------- cyclic process data (our master)
+
+#: The logical address our master maps the slave's process data to (outputs first, inputs behind them).
+LOGICAL_BASE = 0x00010000
+#: SM2/SM3 of the AKD (ESI and the real SII: outputs 0x1100, inputs 0x1140), control bytes as its SII gives them:
+#: 0x64 = buffered, ECAT writes, watchdog on; 0x20 = buffered, ECAT reads.
+SM2_START, SM3_START = 0x1100, 0x1140
+SM2_CONTROL, SM3_CONTROL = 0x64, 0x20
+
+
+class ProcessDataCycle:
+    """Our master's cyclic exchange with one slave: SM2/SM3 and two FMMUs programmed in PRE-OP, then one frame
+    per cycle holding an LRW of the whole image and, when asked (``ecat pdo watch``: every display refresh), an
+    FPRD of the AL status, so the working counter and whether the slave is still in OP come in one frame.
+
+    Why LRW: one datagram writes the outputs and reads the inputs (WKC 3 per slave in OP: +1 read, +2 write);
+    the expected WKC is derived from the mapping (``expected_wkc``), as SOEM derives it from its groups.
+    """
+
+    def __init__(self, master: EcatMaster, station: int, rx_bytes: int, tx_bytes: int) -> None:
+        if rx_bytes + tx_bytes == 0:
+            raise UsageError("the slave maps no process data (0x1C12/0x1C13 assign nothing): nothing to exchange")
+        self.master, self.station, self.rx_bytes, self.tx_bytes = master, station, rx_bytes, tx_bytes
+        self.expected_wkc = (2 if rx_bytes else 0) + (1 if tx_bytes else 0)
+        self.cycles = 0
+
+    def configure(self) -> None:
+        """In PRE-OP: SM2/SM3 with the mapping's lengths, FMMU0 outputs, FMMU1 inputs."""
+        m, st = self.master, self.station
+        sms = b""
+        for start, length, control in ((SM2_START, self.rx_bytes, SM2_CONTROL), (SM3_START, self.tx_bytes, SM3_CONTROL)):
+            sms += ec.SyncManager(start, length, control, 0, ec.SM_ACTIVATE_ENABLE if length else 0).encode()
+        m.fpwr(st, ec.REG_SM0 + 2 * ec.SM_STRIDE, sms)
+        fmmus = b""
+        for logical, length, physical, kind in ((LOGICAL_BASE, self.rx_bytes, SM2_START, 2),
+                                                 (LOGICAL_BASE + self.rx_bytes, self.tx_bytes, SM3_START, 1)):
+            fmmus += struct.pack("<IHBBHBBB3x", logical, length, 0, 7, physical, 0, kind, 1 if length else 0)
+        m.fpwr(st, ec.REG_FMMU0, fmmus)
+
+    def exchange(self, outputs: bytes, with_status: bool = True) -> tuple[bytes, int, int | None]:
+        """One cycle: (inputs, working counter of the LRW, AL status or None when not asked for). FrameLost when
+        the frame is lost. The AL status rides in the same frame when ``with_status``."""
+        image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
+        datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
+        if with_status:
+            datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
+        got = self.master.txrx(datagrams, retries=0)
+        self.cycles += 1
+        al = None if not with_status else (struct.unpack("<H", got[1].data)[0] if got[1].wkc == 1 else 0)
+        return bytes(got[0].data[self.rx_bytes:]), got[0].wkc, al

@@ -18,6 +18,7 @@ Query parameters: none yet; the port defaults to 44818.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import socket
 import struct
@@ -40,19 +41,42 @@ class EnipSession(MessageLink):
         self.label = label
         self.session = 0
         self._context = itertools.count(1)
-        timeout = options.timeout
+        self._last_context = 0      # the newest sender context sent: smaller ones are our own late replies
+        self._confused = False      # the stream lost its framing (a reply cut off by the deadline): reconnect
+        self.host, self.port = host, port
+        self.late_replies = 0
+        self.sock = self._connect()
+
+    def _connect(self) -> socket.socket:
+        host, port, label, timeout = self.host, self.port, self.label, self.options.timeout
         try:
-            self.sock = socket.create_connection((host, port), timeout=timeout)
+            sock = socket.create_connection((host, port), timeout=timeout)
         except socket.timeout:
             raise NoAnswer(f"{label}: no answer from {host}:{port} within {timeout:g} s (TCP connect)") from None
         except (socket.gaierror, UnicodeError) as exc:
             raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect to {host}:{port} ({exc.strerror or exc})") from None
-        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a request is one segment: send it now
-        self.sock.settimeout(timeout)
-        self.local = self.sock.getsockname()[:2]
-        self.remote = self.sock.getpeername()[:2]
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a request is one segment: send it now
+        sock.settimeout(timeout)
+        self.local = sock.getsockname()[:2]
+        self.remote = sock.getpeername()[:2]
+        return sock
+
+    def _fresh_session(self, what: str, deadline: Deadline) -> None:
+        """A new TCP connection and session after the old stream lost its framing: the next request (a stop
+        above all) is still delivered. The old session's state on the target ends with its connection."""
+        with contextlib.suppress(OSError):
+            self.sock.close()
+        self._confused = False
+        self.session = 0
+        self.sock = self._connect()
+        reply = self._exchange(enip.REGISTER_SESSION, enip.register_session_data(),
+                               f"RegisterSession (a fresh session for {what})", deadline)
+        if reply.status != 0 or reply.session == 0:
+            self._confused = True
+            raise CommError(f"{self.label}: the target refuses a fresh session (status 0x{reply.status:08X})")
+        self.session = reply.session
 
     # ---------------------------------------------------------------- framing
     def _trace(self, direction: str, data: bytes, note: str) -> None:
@@ -62,17 +86,22 @@ class EnipSession(MessageLink):
         self.options.tracer.frame(direction, "enip", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "tcp", "src": src, "dst": dst})
 
-    def _recv_exact(self, size: int, what: str, deadline: Deadline) -> bytes:
+    def _recv_exact(self, size: int, what: str, deadline: Deadline, whole: bool = True) -> bytes:
+        """``size`` bytes; ``whole`` False for the rest of a packet whose header was read (a timeout there
+        leaves the stream mid-packet, so the session is confused)."""
         data = bytearray()
         while len(data) < size:
             self.sock.settimeout(max(0.001, deadline.remaining()))
             try:
                 chunk = self.sock.recv(size - len(data))
             except socket.timeout:
+                self._confused = self._confused or bool(data) or not whole  # a packet cut in two
                 raise NoAnswer(f"{self.label}: no answer to {what} within {deadline.describe()}") from None
             except OSError as exc:
+                self._confused = True
                 raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
             if not chunk:
+                self._confused = True
                 raise CommError(f"{self.label}: the target closed the connection during {what}"
                                 + (f" after {len(data)} of {size} bytes" if data else ""))
             data += chunk
@@ -85,7 +114,11 @@ class EnipSession(MessageLink):
             return self._exchange(command, data, what, deadline)
 
     def _exchange(self, command: int, data: bytes, what: str, deadline: Deadline) -> enip.Packet:
-        context = struct.pack("<Q", next(self._context))
+        if self._confused and command != enip.REGISTER_SESSION:
+            self._fresh_session(what, deadline)
+        number = next(self._context)
+        self._last_context = number
+        context = struct.pack("<Q", number)
         packet = enip.Packet(command, data, self.session, 0, context)
         raw = packet.encode()
         self._trace("tx", raw, what)
@@ -93,22 +126,41 @@ class EnipSession(MessageLink):
         try:
             self.sock.sendall(raw)
         except socket.timeout:
+            self._confused = True  # part of the request may be on the wire
             raise NoAnswer(f"{self.label}: could not send {what} within {deadline.describe()}") from None
         except OSError as exc:
+            self._confused = True
             raise CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})") from None
-        head_raw = self._recv_exact(enip.HEADER_SIZE, what, deadline)
-        try:
-            head = enip.decode_header(head_raw)
-        except CodecError as exc:
-            raise MalformedReply(f"{self.label}: malformed encapsulation header in the reply to {what}: {exc}") from None
+        while True:
+            head_raw = self._recv_exact(enip.HEADER_SIZE, what, deadline)
+            try:
+                head = enip.decode_header(head_raw)
+            except CodecError as exc:
+                self._confused = True
+                raise MalformedReply(f"{self.label}: malformed encapsulation header in the reply to {what}: "
+                                     f"{exc}") from None
+            if head.length > enip.MAX_DATA:
+                self._confused = True
+                raise MalformedReply(f"{self.label}: reply to {what} announces {head.length} bytes")
+            body = self._recv_exact(head.length, what, deadline, whole=False) if head.length else b""
+            if head.context != context:
+                earlier = struct.unpack("<Q", head.context)[0]
+                if 0 < earlier < number:
+                    # The reply to one of our own earlier requests that came after its deadline: the sender
+                    # context exists for telling it apart. Dropped; the conversation goes on.
+                    self.late_replies += 1
+                    self._trace("rx", head_raw + body, f"late reply to request {earlier} (discarded)")
+                    continue
+                self._trace("rx", head_raw + body, what)
+                self._confused = True
+                if head.command != command:
+                    raise MalformedReply(f"{self.label}: reply to {what} is a {enip.command_name(head.command)} "
+                                         "packet")
+                raise MalformedReply(f"{self.label}: reply to {what} carries a sender context akdctl never sent")
+            self._trace("rx", head_raw + body, what)
+            break
         if head.command != command:
             raise MalformedReply(f"{self.label}: reply to {what} is a {enip.command_name(head.command)} packet")
-        if head.length > enip.MAX_DATA:
-            raise MalformedReply(f"{self.label}: reply to {what} announces {head.length} bytes")
-        body = self._recv_exact(head.length, what, deadline) if head.length else b""
-        self._trace("rx", head_raw + body, what)
-        if head.context != context:
-            raise MalformedReply(f"{self.label}: reply to {what} carries another request's sender context")
         if command != enip.REGISTER_SESSION and head.status == 0 and head.session != self.session:
             raise MalformedReply(f"{self.label}: reply to {what} names session 0x{head.session:08X}, "
                                  f"ours is 0x{self.session:08X}")

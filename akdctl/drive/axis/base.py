@@ -78,6 +78,29 @@ class AxisStatus(Record):
             return "; ".join(f"{w['code']} {w['text']}".strip() for w in self.warnings)
         return "a warning is present (the drive did not report its number)" if self.warning else "none"
 
+    def homing_phase(self) -> str | None:
+        """Where a running homing stands, in words, as far as the drive's status word tells (issue 28 item 7);
+        None when the profile's word says nothing about homing in this mode.
+
+        CiA 402 homing mode (0x6061 = 6), statusword bits 13/12/10 (CiA 402 homing mode table): 000 in progress,
+        001 interrupted or not started, 010 attained but target not reached, 011 completed, 1x0 error while
+        moving, 1x1 error at standstill. PROFIdrive position mode (SPEC-NOTES 9): ZSW1 bits 10/11/13 are clear
+        while homing runs and all set when it finished; bit 11 alone is the home position set."""
+        if self.profile == "cia402" and self.mode == 6:
+            bits = (bool(self.word & sw.SW_BIT13), bool(self.word & sw.SW_BIT12), bool(self.word & sw.SW_TARGET_REACHED))
+            return {(False, False, False): "homing in progress",
+                    (False, False, True): "homing interrupted or not started",
+                    (False, True, False): "home found, still moving to it",
+                    (False, True, True): "homing completed"}.get(
+                bits, "homing error" + (" at standstill" if bits[2] else ", still moving"))
+        if self.profile == "profidrive" and self.mode == 2:
+            if self.word & sw.ZSW1_HOME_POSITION_SET and self.word & sw.ZSW1_DRIVE_STOPPED:
+                return "homing completed"
+            if self.word & sw.ZSW1_HOME_POSITION_SET:
+                return "home position set, still moving"
+            return "searching for the reference" if not self.standstill else "homing not running"
+        return None
+
     def to_json(self) -> dict[str, Any]:
         return {
             "profile": self.profile,
@@ -218,6 +241,9 @@ class Axis(ABC):
     RELATIVE_MOVES_NEED_HOME = False
     #: Where the homed state comes from, for refusals.
     HOMED_SOURCE = ""
+    #: Why absolute moves are not possible over this profile at all ("" when they are once homed): the planner
+    #: refuses them with this reason before reading the drive, instead of a "not homed" a 'home' cannot cure.
+    NO_ABSOLUTE_MOVES = ""
     #: The homing modes/methods the drive accepts, and where they go.
     HOME_MODE_RANGE: tuple[int, int] = (-128, 127)
     HOME_MODE_FIELD = ""
@@ -239,8 +265,42 @@ class Axis(ABC):
         return Poll(self.time_scale_source() if self.time_scale_source is not None else 1.0, deadline)
 
     # ---------------------------------------------------------------- primitives per profile
+    #: How old a status may be to stand in for a new read (:meth:`recent_status`): no human prompt fits in it,
+    #: and every write of the axis forgets the status (:meth:`_forget`), so it never hides a change we made.
+    RECENT_S = 0.25
+    _last: tuple[float, AxisStatus] | None = None
+
+    def read_status(self) -> AxisStatus:
+        """The drive's status, read now (and remembered for :meth:`recent_status`)."""
+        status = self._read_status()
+        self._last = (time.monotonic(), status)
+        return status
+
+    def recent_status(self) -> AxisStatus:
+        """The status read within :data:`RECENT_S` with no write of ours since, else a new read: the one read the
+        planner and the preparation of a motion share (issue 22 item 6), instead of two back to back. Callers
+        share it only under the owner lock (cli/motion._plan_and_run takes it before the plan with --yes, and
+        calls :meth:`forget_status` after a prompt; a recipe holds it for its whole run)."""
+        if self._last is not None and time.monotonic() - self._last[0] <= self.RECENT_S:
+            return self._last[1]
+        return self.read_status()
+
+    def read_motion_status(self) -> AxisStatus:
+        """The status a poll of a running motion needs; a profile whose full status costs extra requests for what
+        a poll does not use (CiA 402: the torque) reads less here."""
+        return self.read_status()
+
+    def _forget(self) -> None:
+        """A write of ours: the remembered status is no longer the drive's."""
+        self._last = None
+
+    def forget_status(self) -> None:
+        """The remembered status may not stand for a new read (e.g. it was read before the owner lock was
+        taken: another command may have moved the axis since)."""
+        self._forget()
+
     @abstractmethod
-    def read_status(self) -> AxisStatus: ...
+    def _read_status(self) -> AxisStatus: ...
 
     @abstractmethod
     def _enable_steps(self, status: AxisStatus) -> None: ...
@@ -342,7 +402,7 @@ class Axis(ABC):
                                 details={"faults": status.faults})
 
     def enable(self) -> AxisStatus:
-        status = self.read_status()
+        status = self.recent_status()
         self.refuse_if_fault(status)
         if status.enabled:
             return status
@@ -363,11 +423,18 @@ class Axis(ABC):
         if not quick:
             self._ramp_stop_command()
             try:
-                return self.wait_for(lambda s: s.standstill, "standstill", timeout=wait, allow_fault=True)
+                status = self.wait_for(lambda s: s.standstill, "standstill", timeout=wait, allow_fault=True)
             except DriveError:
                 pass  # the ramp was not obeyed in time: quick stop
+            else:
+                return self._drop_held_motion(status)
         self._quick_stop_command()
         return self.wait_for(lambda s: s.standstill, "standstill after quick stop", timeout=wait, allow_fault=True)
+
+    def _drop_held_motion(self, status: AxisStatus) -> AxisStatus:
+        """After a ramp stop at standstill: a profile that only *holds* the interrupted motion (CiA 402 halt keeps
+        the positioning task) drops it here, so nothing resumes it later. Default: nothing is held."""
+        return status
 
     def acknowledge_faults(self) -> AxisStatus:
         self._ack_command()

@@ -38,23 +38,31 @@ class Cia402Axis(Axis):
         super().__init__(timeout, target)
         self.objects = objects
         self.transport = transport
+        self._mapping: list[int] | None = None  # RxPDOs holding 0x6040, read once (_refuse_pdo_override)
 
     def _up(self, index: int, sub: int) -> int:
         return read_object(self.objects, index, sub)  # type: ignore[no-any-return]
 
     def _down(self, index: int, sub: int, value: int) -> None:
+        self._forget()
         write_object(self.objects, index, sub, value)
 
     def controlword(self, word: int) -> None:
         self._down(0x6040, 0, word)
 
-    def read_status(self) -> AxisStatus:
+    def read_motion_status(self) -> AxisStatus:
+        """A poll's status: five objects, not six (no torque 0x6077: nothing a poll decides needs it)."""
+        status = self._read_status(torque=False)
+        self._last = (time.monotonic(), status)
+        return status
+
+    def _read_status(self, torque: bool = True) -> AxisStatus:
         word = self._up(0x6041, 0)
         control = self._up(0x6040, 0)
         mode = self._up(0x6061, 0)
         position = self._up(0x6064, 0) / CIA_COUNTS_PER_REV
         velocity = self._up(0x606C, 0) * 60.0 / CIA_COUNTS_PER_REV
-        torque = self._up(0x6077, 0) / 10.0
+        current = self._up(0x6077, 0) / 10.0 if torque else None
         state = sw.cia402_state(word)
         fault = bool(word & sw.SW_FAULT)
         faults: list[dict[str, Any]] = []
@@ -80,7 +88,7 @@ class Cia402Axis(Axis):
             warning=bool(word & sw.SW_WARNING), faults=faults, warnings=warnings, homed=homed,
             target_reached=bool(word & sw.SW_TARGET_REACHED), standstill=velocity == 0.0,
             task_ack=bool(word & sw.SW_BIT12) and mode == 1, homing_error=bool(word & sw.SW_BIT13) and mode == 6,
-            position_rev=position, counts_per_rev=CIA_COUNTS_PER_REV, velocity_rpm=velocity, current_pct=torque,
+            position_rev=position, counts_per_rev=CIA_COUNTS_PER_REV, velocity_rpm=velocity, current_pct=current,
             bits=sw.statusword_bits(word, mode),
         )
 
@@ -109,10 +117,14 @@ class Cia402Axis(Axis):
         return None if state is None else str(state).upper()
 
     def _refuse_pdo_override(self, observed: bool) -> None:
-        try:
-            mapped = self.controlword_mapping()
-        except AkdError:
-            mapped = []
+        # The mapping is read once per command (five SDOs; plan and enable both ask): only an SDO write or the
+        # master changes it, and the AL state that decides is read each time.
+        if self._mapping is None:
+            try:
+                self._mapping = self.controlword_mapping()
+            except AkdError:
+                self._mapping = []
+        mapped = self._mapping
         if not mapped:
             return
         al = self._al_state()
@@ -130,16 +142,35 @@ class Cia402Axis(Axis):
             if status.state != "switched on":
                 self.controlword(sw.CW_SHUTDOWN)
                 try:
-                    self.wait_for(lambda s: s.state in ("ready to switch on", "switched on"), "ready to switch on")
+                    self._wait_state(("ready to switch on", "switched on"), "ready to switch on")
                 except DriveError:
                     if self.read_status().word == before:
                         self._refuse_pdo_override(observed=True)
                     raise
             self.controlword(sw.CW_SWITCH_ON_CMD)
-            self.wait_for(lambda s: s.state in ("switched on", "operation enabled"), "switched on")
+            self._wait_state(("switched on", "operation enabled"), "switched on")
         # With halt (bit 8): "enable" commands no motion, even if a set point (0x60FF in profile velocity) was
         # loaded before; the motion commands clear halt when they start.
         self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)
+
+    def _wait_state(self, states: tuple[str, ...], what: str) -> None:
+        """Wait for a state of the state machine reading the statusword alone (one SDO per poll, not the six of a
+        full status: issue 22 item 6); a fault ends the wait as in :meth:`wait_for`."""
+        deadline = time.monotonic() + self.timeout
+        poll = self.poll(deadline)
+        while True:
+            word = poll.read(lambda: self._up(0x6041, 0))
+            poll.observe(word)
+            if sw.cia402_state(word) in states:
+                return
+            if word & sw.SW_FAULT:
+                status = self.read_status()
+                raise DriveFault(f"drive fault while waiting for {what}: {status.fault_summary()}",
+                                 details={"faults": status.faults})
+            if time.monotonic() > deadline:
+                raise DriveError(f"the drive did not reach {what} within {self.timeout:g} s "
+                                 f"(state {sw.cia402_state(word)}, word 0x{word:04X})")
+            poll.pause()
 
     def _disable_command(self) -> None:
         self.controlword(sw.CW_SHUTDOWN)
@@ -150,6 +181,25 @@ class Cia402Axis(Axis):
             self.controlword(sw.CW_ENABLE_OPERATION_CMD | sw.CW_HALT)  # halt: brake along the profile ramp
         elif status.state not in ("quick stop active",):
             self.controlword(sw.CW_SHUTDOWN)
+
+    def _drop_held_motion(self, status: AxisStatus) -> AxisStatus:
+        """Halt only pauses a profile-position task (CiA 402: clearing halt resumes it), so an interrupted move
+        would continue on the next controlword without halt, and the PROFIdrive view of the same drive shows no
+        "drive stopped" (ZSW1 bit 13) while the task is held. Replace it by a set point at the standstill
+        position (change immediately, absolute), which ends at once; then the axis holds where it stopped."""
+        if status.state != "operation enabled" or status.mode != 1 or not status.control & sw.CW_HALT:
+            return status
+        here = self._up(0x6064, 0)
+        self._down(0x607A, 0, here)
+        base = sw.CW_ENABLE_OPERATION_CMD | sw.CW_CHANGE_IMMEDIATELY
+        self.controlword(base | sw.CW_NEW_SETPOINT)
+        try:
+            self.wait_for(lambda s: s.task_ack, "set-point acknowledge (statusword bit 12)")
+        except DriveError:
+            self.controlword(base | sw.CW_HALT)  # not taken: keep holding with halt
+            return self.read_status()
+        self.controlword(base)
+        return self.wait_for(lambda s: s.standstill, "standstill at the stop position", allow_fault=True)
 
     def _quick_stop_command(self) -> None:
         self.controlword(sw.CW_QUICK_STOP_CMD | sw.CW_SWITCH_ON | sw.CW_ENABLE_OPERATION)  # 0x000B
@@ -166,7 +216,7 @@ class Cia402Axis(Axis):
 
     def ensure_mode(self, kind: str) -> None:
         wanted = {"velocity": 3, "position": 1, "homing": 6}[kind]
-        if self._up(0x6061, 0) != wanted:
+        if self.recent_status().mode != wanted:
             self._down(0x6060, 0, wanted)
             deadline = time.monotonic() + self.timeout
             poll = self.poll(deadline)

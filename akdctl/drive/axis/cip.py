@@ -68,6 +68,7 @@ class CipAxis(Axis):
             data = struct.pack(fmt, value)
         except struct.error:
             raise UsageError(f"value {value} does not fit attribute 0x25/1/{attribute} ({fmt[1:]})") from None
+        self._forget()
         self.channel.set(PC, 1, attribute, data)
 
     def units(self) -> tuple[int, int]:
@@ -82,6 +83,9 @@ class CipAxis(Axis):
     # moves are refused (confirm_homed is False); relative moves and jogs need no home.
     RELATIVE_MOVES_NEED_HOME = False
     HOMED_SOURCE = "no Position Controller attribute reports it over explicit messaging"
+    NO_ABSOLUTE_MOVES = ("explicit messaging has no attribute that reports the homed state, so akdctl cannot know "
+                         "that an absolute position means anything, even right after 'akdctl home'; move with "
+                         "--relative, or use 'akdctl eip io position|move' (the drive itself checks homing there)")
     HOME_MODE_RANGE = (-32768, 32767)
     HOME_MODE_FIELD = "the home mode 0x25/1/100 (INT)"
 
@@ -114,7 +118,7 @@ class CipAxis(Axis):
         return False
 
     # ---------------------------------------------------------------- status
-    def read_status(self) -> AxisStatus:
+    def _read_status(self) -> AxisStatus:
         mode = self._get(3, "<B")
         enabled = bool(self._get(17, "<B"))
         load_complete = bool(self._get(58, "<B"))

@@ -46,6 +46,7 @@ class ProfidriveAxis(Axis):
         return read_pnu_map(self.params, pnus)
 
     def _write(self, *pairs: tuple[int, int]) -> None:
+        self._forget()
         write_pnu_map(self.params, pairs)
 
     def stw1(self, word: int) -> None:
@@ -66,7 +67,7 @@ class ProfidriveAxis(Axis):
         return out
 
     # ---------------------------------------------------------------- status
-    def read_status(self) -> AxisStatus:
+    def _read_status(self) -> AxisStatus:
         values = self._read_with_position(2, 1, 930, 6, 52, 1002)
         zsw1, stw1, opmode = values[2][0], values[1][0], values[930][0]
         nist, itist, bits = values[6][0], values[52][0], values[1002][0]
@@ -161,6 +162,8 @@ class ProfidriveAxis(Axis):
         self._ensure_opmode(1 if kind == "velocity" else 2)
         if kind in ("position", "task"):  # MDI / program mode read their telegram's signals (docs/fidelity.md F9)
             from akdctl.drive.telegram import ensure_submode
+
+            self._forget()  # the telegram may change below, by writes outside _write
 
             ensure_submode(self.params, "mdi" if kind == "position" else "program")
 

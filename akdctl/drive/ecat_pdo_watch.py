@@ -1,0 +1,188 @@
+"""``ecat pdo watch``: akdctl as the EtherCAT master takes the slave to OP with its current mapping and shows the
+TxPDO values live, with the working counter of every cycle.
+
+Why a writing operation (plan -> consent -> execute): in OP the RxPDO *is* written every cycle, and the mapped
+controlword overrides SDO writes (SPEC-NOTES 23) -- so what goes out is planned first. By default it is the
+all-safe image (every output 0: controlword 0 = disable voltage, set points 0), which needs no consent;
+explicit output values (``--out 0x6040:0=15``) are classified by the gate like any object write and need
+consent. The run ends at ``--for`` or Ctrl-C, or early, with words and an exit code, when the working counter
+drops (exit 3: the slave did not take or give its data) or the slave leaves OP (exit 1, with the AL status
+code). The slave is left in PRE-OP, outputs last written as 0.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from akdctl.catalog import objects as oc
+from akdctl.drive.gate import classify_object
+from akdctl.drive.operation import PlannedWrite, WritePlan
+from akdctl.errors import CommError, DriveError, UsageError
+
+if TYPE_CHECKING:
+    from akdctl.connection import Connection
+
+_SIGNED = ("SINT", "INT", "DINT", "LINT", "INTEGER8", "INTEGER16", "INTEGER32", "INTEGER64")
+
+#: Units of the CiA 402 objects an AKD maps most, in the AKD's default scaling (counts = 2^16 per revolution,
+#: docs: profiles/units.py CIA_COUNTS_PER_REV); anything else shows its raw value.
+UNITS = {0x6064: "counts", 0x6063: "counts", 0x607A: "counts", 0x60F4: "counts", 0x606C: "counts/s",
+         0x60FF: "counts/s", 0x6077: "per mille of rated torque", 0x6071: "per mille of rated torque",
+         0x6078: "per mille of rated current", 0x2077: "mA"}
+
+
+def _shown(index: int, raw: int) -> str:
+    """The value as a technician reads it: positions also in revolutions, velocities in rpm (AKD default
+    scaling, 2^16 counts per revolution), status/control words in hex."""
+    from akdctl.profiles.units import CIA_COUNTS_PER_REV, cia_rpm
+
+    unit = UNITS.get(index, "")
+    if unit == "counts":
+        return f"{raw} counts ({raw / CIA_COUNTS_PER_REV:.3f} rev)"
+    if unit == "counts/s":
+        return f"{raw} counts/s ({cia_rpm(raw):.1f} rpm)"
+    if index in (0x6040, 0x6041):
+        return f"0x{raw:04X}"
+    return f"{raw} {unit}".strip()
+
+
+class Layout:
+    """The process image of one direction: (entry, bit offset, name, signed) in mapping order."""
+
+    def __init__(self, pdos: list[tuple[int, tuple[oc.PdoEntry, ...]]]) -> None:
+        self.fields: list[tuple[oc.PdoEntry, int, str, bool]] = []
+        bit = 0
+        for _number, entries in pdos:
+            for entry in entries:
+                obj = oc.lookup(entry.index, entry.subindex)
+                if not entry.is_padding and entry.index >= 0x0008:
+                    name = obj.name if obj else f"0x{entry.index:04X}:{entry.subindex:02X}"
+                    signed = bool(obj and obj.type.upper() in _SIGNED)
+                    self.fields.append((entry, bit, name, signed))
+                bit += entry.bits
+        self.bytes = (bit + 7) // 8
+
+    def decode(self, data: bytes) -> list[dict[str, Any]]:
+        value = int.from_bytes(data, "little")
+        out = []
+        for entry, bit, name, signed in self.fields:
+            raw = (value >> bit) & ((1 << entry.bits) - 1)
+            if signed and raw >> (entry.bits - 1):
+                raw -= 1 << entry.bits
+            out.append({"address": f"0x{entry.index:04X}:{entry.subindex:02X}", "name": name, "value": raw,
+                        "unit": UNITS.get(entry.index, ""), "shown": _shown(entry.index, raw)})
+        return out
+
+    def encode(self, values: dict[tuple[int, int], int]) -> bytes:
+        image = 0
+        for entry, bit, _name, _signed in self.fields:
+            v = values.get((entry.index, entry.subindex), 0)
+            image |= (v & ((1 << entry.bits) - 1)) << bit
+        return image.to_bytes(self.bytes, "little")
+
+    def has(self, index: int, sub: int) -> bool:
+        return any(e.index == index and e.subindex == sub for e, _b, _n, _s in self.fields)
+
+
+def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
+    from akdctl.drive.pdo import read_mapping
+
+    transport = conn.transport()
+    if getattr(transport, "scheme", "") != "ecat":
+        raise UsageError(f"'ecat pdo watch' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
+                         f"{conn.target.display} cannot take the slave to OP")
+    mapping = read_mapping(conn.objects())
+    rx, tx = Layout(mapping["rx"].pdos), Layout(mapping["tx"].pdos)
+    for index, sub in outputs:
+        if not rx.has(index, sub):
+            raise UsageError(f"0x{index:04X}:{sub:02X} is not in the assigned RxPDOs "
+                             f"({', '.join(f'0x{n:04X}' for n in mapping['rx'].assigned) or 'none'}); "
+                             "map it first ('akdctl pdo map')")
+    writes = []
+    for entry, _bit, name, _signed in rx.fields:
+        value = outputs.get((entry.index, entry.subindex), 0)
+        gated = classify_object(entry.index, entry.subindex, name) if (entry.index, entry.subindex) in outputs else None
+        writes.append(PlannedWrite(f"RxPDO 0x{entry.index:04X}:{entry.subindex:02X} ({name})", value, str(value), gated))
+    return WritePlan("ecat pdo watch", conn.target.display, writes,
+                     preconditions=[f"RxPDO {mapping['rx'].assigned and ', '.join(f'0x{n:04X}' for n in mapping['rx'].assigned)} "
+                                    f"{rx.bytes} bytes, TxPDO {', '.join(f'0x{n:04X}' for n in mapping['tx'].assigned)} "
+                                    f"{tx.bytes} bytes"],
+                     notes=["every cycle writes these outputs while the slave is in OP; the slave is left in PRE-OP",
+                            "all outputs 0 (controlword 0: disable voltage) unless given with --out and --yes"],
+                     enabled=None, data={"rx": rx, "tx": tx, "outputs": dict(outputs)})
+
+
+Sample = Callable[[list[dict[str, Any]], int, int, int], None]  # values, wkc, expected wkc, cycle
+
+
+def execute(conn: "Connection", plan: WritePlan, duration: float, period: float, on_sample: Sample,
+            show_every: float = 0.1) -> dict[str, Any]:
+    """PRE-OP -> SAFE-OP -> OP with the mapping, cycle for ``duration`` s, back to PRE-OP. The result document;
+    CommError (WKC drop) or DriveError (left OP) end it early, after the slave was taken back to PRE-OP."""
+    from akdctl.protocol import ethercat as ec
+    from akdctl.transport.ethercat_raw import ProcessDataCycle
+
+    transport: Any = conn.transport()
+    master, slave = transport.master, transport.slave
+    rx, tx = plan.data["rx"], plan.data["tx"]
+    outputs = rx.encode(plan.data["outputs"])
+    cycle = ProcessDataCycle(master, slave.station, rx.bytes, tx.bytes)
+    status, _code = master.al_status(slave.station)
+    if status & 0x0F != ec.AlState.PREOP:
+        master.request_state(slave.station, ec.AlState.PREOP)
+    cycle.configure()
+    last_values: list[dict[str, Any]] = []
+    started = time.monotonic()
+    ended = "time"
+    try:
+        master.request_state(slave.station, ec.AlState.SAFEOP)
+        cycle.exchange(bytes(rx.bytes))
+        master.request_state(slave.station, ec.AlState.OP)
+        next_show = 0.0
+        end = time.monotonic() + duration
+        while True:
+            now = time.monotonic()
+            if now >= end:
+                break
+            check = now >= next_show  # the AL status rides along at each display refresh (a WKC drop shows sooner)
+            inputs, wkc, al = cycle.exchange(outputs, with_status=check)
+            last_values = tx.decode(inputs)
+            if al is None and wkc != cycle.expected_wkc:
+                al = cycle.exchange(outputs)[2]  # why did it drop: a slave out of OP says so
+            if al is not None and (al & 0x0F != ec.AlState.OP or al & ec.AL_ERROR_FLAG):
+                code = master.al_status(slave.station)[1]
+                ended = "left-op"
+                raise DriveError(f"the slave left OP at cycle {cycle.cycles}: now {ec.describe_al(al, code)}",
+                                 code=code, details={"al_status": al, "al_status_code": code})
+            if wkc != cycle.expected_wkc:
+                on_sample(last_values, wkc, cycle.expected_wkc, cycle.cycles)
+                ended = "wkc"
+                raise CommError(f"working counter {wkc} where {cycle.expected_wkc} was expected at cycle "
+                                f"{cycle.cycles}: the slave did not exchange its process data",
+                                details={"wkc": wkc, "expected": cycle.expected_wkc, "cycle": cycle.cycles})
+            if now >= next_show:
+                on_sample(last_values, wkc, cycle.expected_wkc, cycle.cycles)
+                next_show = now + show_every
+            time.sleep(max(0.0, min(period, end - time.monotonic())))
+    finally:
+        _leave(master, slave.station, cycle, rx.bytes)
+    return {"target": conn.target.display, "cycles": cycle.cycles, "expected_wkc": cycle.expected_wkc,
+            "seconds": round(time.monotonic() - started, 3), "period_s": period, "ended": ended,
+            "outputs": {f"0x{i:04X}:{s:02X}": v for (i, s), v in plan.data["outputs"].items()},
+            "inputs": last_values}
+
+
+def _leave(master: Any, station: int, cycle: Any, rx_bytes: int) -> None:
+    """Outputs 0 once more, then PRE-OP: a known state whatever ended the run (errors here are not the story)."""
+    from akdctl.protocol import ethercat as ec
+
+    try:
+        cycle.exchange(bytes(rx_bytes))
+    except Exception:  # noqa: BLE001
+        pass
+    try:
+        master.request_state(station, ec.AlState.PREOP)
+    except Exception:  # noqa: BLE001
+        pass

@@ -1,0 +1,325 @@
+"""EtherCAT service work against the simulated AKD slave on a veth pair in network namespaces the tests create and
+remove (tests/netns.py): pysoem -- an independent master -- flashes it with its own firmware sequence (INIT,
+bootstrap mailbox from the SII, BOOT, foe_write, INIT), reads a file with foe_read, cycles process data in OP with
+the working counter it expects, and reads SII words 4/7 after 'akdctl ecat alias'; akdctl's own CLI does the same
+jobs; tshark decodes every FoE field of akdctl's --pcap. Needs root: skipped with a reason otherwise, never in CI.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+import subprocess
+import sys
+import textwrap
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.harness import SimServer, run_akdctl
+from tests.netns import VethPair
+from tests.test_ecat_raw_root import CI, IS_ROOT, _need_pysoem, _run, cli, slave_server
+
+pytestmark = [
+    pytest.mark.root,
+    pytest.mark.slow,
+    pytest.mark.skipif(not IS_ROOT and not CI, reason="needs root for network namespaces and raw sockets"),
+]
+
+IMAGE = bytes(range(256)) * 12 + b"end"
+
+
+@pytest.fixture
+def pair() -> Iterator[VethPair]:
+    with VethPair() as p:
+        yield p
+
+
+@pytest.fixture
+def slave(pair: VethPair) -> Iterator[SimServer]:
+    with slave_server(pair) as server:
+        yield server
+
+
+def _answers_again(pair: VethPair, within: float = 20.0) -> None:
+    """Wait until the slave answers after a restart (a loaded machine stretches its 1 s)."""
+    end = time.monotonic() + within
+    while cli(pair, "ecat", "state").returncode != 0:
+        assert time.monotonic() < end, "the slave did not answer again"
+        time.sleep(0.3)
+
+
+def _pysoem(pair: VethPair, body: str, timeout: float = 90) -> dict:  # type: ignore[type-arg]
+    script = "import json, time, pysoem\nm = pysoem.Master()\nm.open(%r)\nout = {}\ntry:\n%s\nfinally:\n    m.close()\n" \
+             "print(json.dumps(out))\n" % (pair.if_a, textwrap.indent(textwrap.dedent(body), "    "))
+    result = subprocess.run(["ip", "netns", "exec", pair.a, sys.executable, "-c", script], capture_output=True,
+                            text=True, timeout=timeout)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+
+
+def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
+    """pysoem's own examples/firmware_update.py steps; then the drive answers again and returns the file."""
+    _need_pysoem()
+    out = _pysoem(pair, f"""
+        assert m.config_init() == 1
+        s = m.slaves[0]
+        s.state = pysoem.INIT_STATE; s.write_state()
+        out["init"] = s.state_check(pysoem.INIT_STATE, 2_000_000)
+        rx = int.from_bytes(s.eeprom_read(pysoem.SiiOffset.BOOT_RX_MBX), "little")
+        tx = int.from_bytes(s.eeprom_read(pysoem.SiiOffset.BOOT_TX_MBX), "little")
+        out["boot_mbx"] = [rx & 0xFFFF, rx >> 16, tx & 0xFFFF, tx >> 16]
+        s.amend_mbx("out", rx & 0xFFFF, rx >> 16)
+        s.amend_mbx("in", tx & 0xFFFF, tx >> 16)
+        s.state = pysoem.BOOT_STATE; s.write_state()
+        out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
+        s.foe_write("AKD.i00", 0, {IMAGE!r}, 6_000_000)
+        s.state = pysoem.INIT_STATE; s.write_state()
+        for _ in range(40):  # the drive restarts (1 s; longer on a loaded machine)
+            time.sleep(0.5)
+            out["n_after"] = m.config_init()
+            if out["n_after"] > 0:
+                break
+        s = m.slaves[0]
+        s.state = pysoem.PREOP_STATE; s.write_state()
+        out["preop"] = s.state_check(pysoem.PREOP_STATE, 2_000_000)
+        out["back"] = s.foe_read("AKD.i00", 0, 65536, 6_000_000).hex()
+        try:
+            out["missing"] = "read " + repr(s.foe_read("missing.bin", 0, 100, 2_000_000))
+        except Exception as exc:
+            out["missing"] = type(exc).__name__ + " " + repr(getattr(exc, "error_code", None))
+    """)
+    assert out["init"] == 1 and out["boot"] == 3
+    assert out["boot_mbx"] == [0x1800, 512, 0x1C00, 512]
+    assert out["n_after"] == 1 and out["preop"] == 2
+    assert bytes.fromhex(out["back"]) == IMAGE
+    # pysoem pushes no error for a FoE ERR reply: the refused read "succeeds" with its unfilled buffer (seen here:
+    # 100 bytes of uninitialised memory; the slave's 0x8001 is lost, reference A2/A3). akdctl names the code and
+    # the text instead (test_cli_firmware_update_foe_read_and_tshark).
+    assert out["missing"].startswith("read ")
+
+
+def test_pysoem_cyclic_process_data_in_op(pair: VethPair, slave: SimServer) -> None:
+    _need_pysoem()
+    out = _pysoem(pair, """
+        assert m.config_init() == 1
+        m.config_map()
+        s = m.slaves[0]
+        out["sizes"] = [len(s.output), len(s.input)]
+        out["expected"] = m.expected_wkc
+        m.state = pysoem.SAFEOP_STATE; m.write_state()
+        out["safeop"] = m.state_check(pysoem.SAFEOP_STATE, 2_000_000)
+        m.send_processdata(); m.receive_processdata(50_000)
+        m.state = pysoem.OP_STATE; m.write_state()
+        wkcs = []
+        for i in range(300):
+            word = 0x06 if i < 100 else 0x07 if i < 150 else 0x0F
+            s.output = bytes(4) + word.to_bytes(2, "little")  # 0x1701: 0x60C1:1 (32 bit), controlword
+            m.send_processdata()
+            wkcs.append(m.receive_processdata(50_000))
+            time.sleep(0.005)
+        for _ in range(10):  # SOEM waits 2 ms for the frame: a Python slave on a loaded machine can miss that
+            if m.read_state():
+                break
+        out["state"] = s.state
+        out["al"] = s._fprd(0x0130, 6, 50_000).hex()
+        out["wkcs"] = sorted(set(wkcs[20:]))
+        out["statusword"] = int.from_bytes(s.input[4:6], "little")  # 0x1B01: 0x6063 (32 bit), statusword
+        for i in range(20):
+            s.output = bytes(len(s.output)); m.send_processdata(); m.receive_processdata(50_000); time.sleep(0.005)
+        m.state = pysoem.PREOP_STATE; m.write_state()
+    """)
+    assert out["sizes"] == [6, 6]  # the ESI default assignment 0x1701 / 0x1B01
+    assert out["safeop"] == 4 and out["state"] == 8, out
+    assert out["wkcs"] == [out["expected"]] == [3]
+    assert out["statusword"] & 0x6F == 0x27  # operation enabled by the mapped controlword
+
+
+def test_alias_through_the_cli_and_pysoem_reads_words_4_and_7(pair: VethPair, slave: SimServer) -> None:
+    _need_pysoem()
+    shown = cli(pair, "--json", "ecat", "alias")
+    assert shown.returncode == 0, shown.stderr
+    assert json.loads(shown.stdout)["sii_crc_ok"] is True
+    refused = cli(pair, "ecat", "alias", "1001")
+    assert refused.returncode == 4 and "nothing was written" in refused.stderr
+    result = cli(pair, "-y", "--json", "ecat", "alias", "1001")
+    assert result.returncode == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["after"]["fbus_param03"] == 1001 and doc["power_cycle_needed"] is True
+    out = _pysoem(pair, """
+        m.config_init()
+        s = m.slaves[0]
+        out["w4"] = int.from_bytes(s.eeprom_read(4), "little") & 0xFFFF
+        out["w7"] = int.from_bytes(s.eeprom_read(7), "little") & 0xFFFF
+    """)
+    assert out["w4"] == 1001 and out["w7"] & 0xFF == 0x71  # CRC vector of the reference
+    before = cli(pair, "--json", "ecat", "reg", "read", "0x0012")
+    assert json.loads(before.stdout)["value"] == 0  # register 0x0012 follows at power-on only
+
+
+def test_alias_reaches_register_0x0012_after_a_power_cycle(pair: VethPair) -> None:
+    """'sim serve' stopped and started again is the simulated power cycle: the ESC loads word 4 into 0x0012."""
+    with slave_server(pair):
+        assert cli(pair, "-y", "ecat", "alias", "0x1234").returncode == 0
+    with slave_server(pair):
+        doc = json.loads(cli(pair, "--json", "ecat", "alias").stdout)
+    assert doc["register_0x0012"] == 0x1234 and doc["sii_word4"] == 0x1234 and doc["sii_word7"] & 0xFF == 0xE7
+    assert doc["fbus_param03"] == 0x1234 and doc["pending_power_cycle"] is False
+
+
+def test_cli_firmware_update_foe_read_and_tshark(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
+    fw = tmp_path / "AKD_test.i00"
+    fw.write_bytes(IMAGE)
+    dry = cli(pair, "firmware", "update", str(fw), "--dry-run")
+    assert dry.returncode == 0 and "FoE file 'AKD_test.i00'" in dry.stdout and "needs consent" in dry.stdout
+    refused = cli(pair, "firmware", "update", str(fw))
+    assert refused.returncode == 4, refused.stderr
+    pcap = tmp_path / "foe.pcap"
+    result = cli(pair, "-y", "--json", "--pcap", str(pcap), "firmware", "update", str(fw))
+    assert result.returncode == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["bytes"] == len(IMAGE) and doc["same_drive"] and doc["after"]["al_state"] == "PREOP"
+    assert "restarted" in doc["verdict"]
+    copy = tmp_path / "copy.bin"
+    back = cli(pair, "ecat", "foe", "read", "AKD_test.i00", "-o", str(copy))
+    assert back.returncode == 0, back.stderr
+    assert copy.read_bytes() == IMAGE
+    err_pcap = tmp_path / "err.pcap"
+    missing = cli(pair, "--pcap", str(err_pcap), "ecat", "foe", "read", "nope.bin", "-o", str(tmp_path / "x"))
+    assert missing.returncode == 1 and "0x8001 Not found" in missing.stderr
+    assert len(missing.stderr.strip().splitlines()) == 1
+    text = cli(pair, "firmware", "update", str(tmp_path / "missing.i00"))
+    assert text.returncode == 2 and "Traceback" not in text.stderr
+    if shutil.which("tshark") is None:
+        if CI:
+            raise AssertionError("tshark missing in CI")
+        pytest.skip("tshark not installed")
+    fields = ["ecat_mailbox.foe_opmode", "ecat_mailbox.foe_filename", "ecat_mailbox.foe_filelength",
+              "ecat_mailbox.foe_packetno", "ecat_mailbox.foe.data"]
+    rows = _run("tshark", "-r", str(pcap), "-Y", "ecat_mailbox.foe_opmode", "-T", "fields",
+                *[a for f in fields[:4] for a in ("-e", f)], timeout=60).stdout.splitlines()
+    ops = [r.split("\t") for r in rows]
+    assert any(r[0] == "0x02" and r[1] == "AKD_test.i00" and r[2] == "0" for r in ops), ops[:5]  # WRQ, password 0
+    numbers = sorted({int(r[3]) for r in ops if r[0] in ("0x03", "0x04") and r[3]})
+    assert numbers[0] in (0, 1) and numbers[-1] == len(IMAGE) // 500 + 1  # DATA/ACK numbers 1..n (+ ACK 0)
+    data_rows = _run("tshark", "-r", str(pcap), "-Y", "ecat_mailbox.foe_opmode == 3", "-T", "fields", "-e",
+                     "ecat_mailbox.foe_packetno", "-e", "ecat_mailbox.length", timeout=60).stdout.split()
+    assert data_rows, "no FoE DATA frame dissected"
+    rrq = _run("tshark", "-r", str(err_pcap), "-Y", "ecat_mailbox.foe_opmode", "-T", "fields", "-e",
+               "ecat_mailbox.foe_opmode", "-e", "ecat_mailbox.foe_filename", "-e", "ecat_mailbox.foe_errcode", "-e",
+               "ecat_mailbox.foe_errtext", timeout=60).stdout.splitlines()
+    cells = [r.split("\t") for r in rrq]
+    assert any(c[0] == "0x01" and c[1] == "nope.bin" for c in cells), cells  # RRQ with its file name
+    assert any(c[0] == "0x05" and int(c[2], 0) == 0x8001 and "nope.bin" in c[3] for c in cells), cells  # ERR
+
+
+def test_cli_register_and_sii_commands(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
+    r = cli(pair, "--json", "ecat", "reg", "read", "0x0130", "2")
+    assert r.returncode == 0 and json.loads(r.stdout)["size"] == 2
+    r = cli(pair, "ecat", "reg", "read", "0xFFFF", "4")
+    assert r.returncode == 2 and "outside the ESC" in r.stderr
+    r = cli(pair, "-y", "ecat", "reg", "write", "0x0120", "1")
+    assert r.returncode == 4 and "AL control" in r.stderr
+    hexfile = tmp_path / "akd.hex"
+    r = cli(pair, "ecat", "sii", "read", "-o", str(hexfile))
+    assert r.returncode == 0 and hexfile.read_text().startswith(":10000000")
+    r = cli(pair, "-y", "ecat", "sii", "write", str(hexfile))
+    assert r.returncode == 0, r.stderr  # the same image: nothing to change, verified
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(b"\x00" * 200)
+    r = cli(pair, "-y", "ecat", "sii", "write", str(bad))
+    assert r.returncode == 2 and "CRC" in r.stderr
+
+
+def test_cli_pdo_watch(pair: VethPair, slave: SimServer) -> None:
+    r = cli(pair, "--json", "ecat", "pdo", "watch", "--for", "0.5")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["cycles"] > 5 and doc["expected_wkc"] == 3 and doc["ended"] == "time"
+    r = cli(pair, "ecat", "pdo", "watch", "--for", "0.5", "--out", "0x6040:0=15")
+    assert r.returncode == 4  # explicit outputs need consent
+    r = cli(pair, "ecat", "state")
+    assert "PREOP" in r.stdout
+
+
+def test_soem_transport_firmware_update_and_foe_read(pair: VethPair, slave: SimServer, tmp_path: Path) -> None:
+    _need_pysoem()
+    fw = tmp_path / "soem.i00"
+    fw.write_bytes(IMAGE)
+    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "1"]
+    result = run_akdctl(*target, "-y", "--json", "firmware", "update", str(fw), netns=pair.a)
+    assert result.returncode == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["bytes"] == len(IMAGE) and doc["same_drive"]
+    copy = tmp_path / "copy.bin"
+    back = run_akdctl(*target, "ecat", "foe", "read", "soem.i00", "-o", str(copy), netns=pair.a)
+    assert back.returncode == 0, back.stderr
+    assert copy.read_bytes() == IMAGE
+
+
+def test_busy_slave_pysoem_and_tshark(pair: VethPair, tmp_path: Path) -> None:
+    """A slave that answers BUSY while flashing (``--ecat-foe-busy 1``): pysoem's foe_write and akdctl both send the
+    packet again; tshark decodes the BUSY frames' done/entire fields from akdctl's --pcap."""
+    _need_pysoem()
+    with slave_server(pair, "--ecat-foe-busy", "1"):
+        out = _pysoem(pair, f"""
+            m.config_init()
+            s = m.slaves[0]
+            s.state = pysoem.INIT_STATE; s.write_state(); s.state_check(pysoem.INIT_STATE, 2_000_000)
+            s.amend_mbx("out", 0x1800, 512); s.amend_mbx("in", 0x1C00, 512)
+            s.state = pysoem.BOOT_STATE; s.write_state()
+            out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
+            out["result"] = s.foe_write("p.bin", 0, {IMAGE[:1200]!r}, 6_000_000)
+            s.state = pysoem.INIT_STATE; s.write_state()
+        """)
+        assert out["boot"] == 3 and out["result"] > 0
+        fw = tmp_path / "b.bin"
+        fw.write_bytes(IMAGE)
+        pcap = tmp_path / "busy.pcap"
+        _answers_again(pair)  # the slave restarts (1 s) after pysoem's BOOT -> INIT
+        result = cli(pair, "-y", "--json", "--pcap", str(pcap), "ecat", "foe", "write", str(fw))
+        assert result.returncode == 0, result.stderr
+        doc = json.loads(result.stdout)
+        assert doc["download"]["busy"] == doc["download"]["packets"]
+    if shutil.which("tshark") is None:
+        if CI:
+            raise AssertionError("tshark missing in CI")
+        pytest.skip("tshark not installed")
+    rows = _run("tshark", "-r", str(pcap), "-Y", "ecat_mailbox.foe_opmode == 6", "-T", "fields", "-e",
+                "ecat_mailbox.foe_busydone", "-e", "ecat_mailbox.foe_busyentire", timeout=60).stdout.splitlines()
+    pairs = {tuple(int(x, 0) for x in r.split("\t")) for r in rows if r.strip()}
+    assert (0, 1) in pairs and (1, 2) in pairs, sorted(pairs)[:5]
+
+
+def test_cli_state_boot_and_back(pair: VethPair, slave: SimServer) -> None:
+    r = cli(pair, "ecat", "state", "BOOT")
+    assert r.returncode == 0 and "BOOT" in r.stdout, r.stderr
+    r = cli(pair, "sdo", "read", "0x1018:1")  # the mailbox is re-established from BOOT (restart, INIT, PRE-OP)
+    assert r.returncode == 0 and "106" in r.stdout, r.stderr
+    assert cli(pair, "ecat", "state", "BOOT").returncode == 0
+    r = cli(pair, "ecat", "state", "PREOP")
+    assert r.returncode == 0 and "PREOP" in r.stdout, r.stderr
+
+
+def test_pysoem_writes_the_alias_as_eepromtool_does(pair: VethPair, slave: SimServer) -> None:
+    """SOEM's eepromtool -walias: word 4, then word 7 = CRC; the simulated AKD takes it as FBUS.PARAM03."""
+    _need_pysoem()
+    out = _pysoem(pair, """
+        m.config_init()
+        s = m.slaves[0]
+        words = [int.from_bytes(s.eeprom_read(w), "little") & 0xFFFF for w in range(7)]
+        words[4] = 7
+        crc = 0xFF
+        for byte in b"".join(w.to_bytes(2, "little") for w in words):
+            crc ^= byte
+            for _ in range(8):
+                crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        s.eeprom_write(4, (7).to_bytes(2, "little"))
+        s.eeprom_write(7, crc.to_bytes(2, "little"))
+        out["crc"] = crc
+    """)
+    doc = json.loads(cli(pair, "--json", "ecat", "alias").stdout)
+    assert doc["sii_word4"] == 7 and doc["sii_crc_ok"] and doc["sii_word7"] & 0xFF == out["crc"]
+    assert doc["fbus_param03"] == 7 and doc["register_0x0012"] == 0 and doc["pending_power_cycle"]

@@ -1,0 +1,61 @@
+"""Issue 23 item 5: a move or jog stopped by another command is noticed within a poll or two and said in words,
+not after its whole timeout; and this command then writes nothing (a stop or disable from elsewhere is obeyed).
+
+Through the real CLI on the simulated drive in real time: a `move 10` at 60 rpm would take ~10 s; a `stop` or
+`disable` from a second process ends it, and the move must exit within a second of that command's end.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from akdctl.drive.axis.base import AxisStatus
+from akdctl.drive.motion_run import ended_elsewhere
+from akdctl.sim.drive import SimDrive
+from tests.harness import finish, wait_until
+from tests.harness import run_akdctl as run
+from tests.harness import start_akdctl as popen
+
+
+def _status(**kw: object) -> AxisStatus:
+    base = dict(profile="cia402", state="operation enabled", state_text="operation enabled", word=0x0237,
+                control=0x2F, mode=1, mode_text="profile position", enabled=True, fault=False, warning=False)
+    base.update(kw)
+    return AxisStatus(**base)  # type: ignore[arg-type]
+
+
+def test_words_for_each_way_a_motion_is_ended_elsewhere() -> None:
+    assert ended_elsewhere(_status(), 0x2F) is None
+    assert "control word from 0x002F to 0x010F" in ended_elsewhere(_status(control=0x10F), 0x2F)
+    assert "power stage was disabled" in ended_elsewhere(_status(enabled=False, state_text="switch on disabled"), 0x2F)
+    assert "quick stop" in ended_elsewhere(_status(state_text="quick stop active"), 0x2F)
+    assert "switch-off" in ended_elsewhere(_status(profile="profidrive", state="S5", state_text="switching off"), 0x43F)
+
+
+def _moving() -> bool:
+    with SimDrive("default").transaction() as model:
+        return not model.component("motion").standstill
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("profile, home", [("profidrive", "0"), ("cia402", "35")])
+@pytest.mark.parametrize("other", ["stop", "disable"])
+def test_a_stop_or_disable_from_a_second_process_ends_the_move_at_once(profile: str, home: str, other: str) -> None:
+    target = f"sim?drive={profile}"
+    assert run("sim", "speed", "--realtime").code == 0
+    assert run("-T", target, "-y", "home", "--mode", home).code == 0
+    proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
+    try:
+        wait_until(_moving, "the move to start")
+        assert run("-T", target, other).code == 0
+        stopped = time.monotonic()
+        result = finish(proc, timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert time.monotonic() - stopped < 1.5, "the move waited after another command stopped it"
+    assert result.code == 1, result.err
+    assert "ended by something else" in result.err and "did not finish within" not in result.err
+    assert "akdctl stop" in result.err or "disabled" in result.err
