@@ -84,10 +84,15 @@ def test_a_name_is_gated_exactly_as_its_object() -> None:
         if by_index is not None:
             assert by_name == by_index, row.name
     assert names.classify(names.resolve("MT.P")).reason == gate.classify_object(0x607A, 0).reason  # type: ignore[union-attr]
-    for name in ("DRV.EN", "MT.MOVE", "HOME.MOVE", "VL.CMDU", "IL.CMDU", "DRV.CMDSOURCE", "COGCOMP.TEACH", "WS.ARM"):
+    for name in ("DRV.EN", "MT.MOVE", "HOME.MOVE", "VL.CMDU", "IL.CMDU", "COGCOMP.TEACH", "WS.ARM"):
         verdict = names.classify(names.resolve(name))
         assert verdict is not None and not verdict.when_enabled, name
-    assert names.classify(names.resolve("DRV.OPMODE")).when_enabled    # type: ignore[union-attr]
+    for name in ("DRV.OPMODE", "DRV.CMDSOURCE", "MT.LOAD", "HOME.SET"):
+        assert names.classify(names.resolve(name)).when_enabled, name    # type: ignore[union-attr]
+    for row in akd_params.all_params():   # by name exactly as the gate's name classes say
+        by_gate = gate.classify_name(row.name)
+        if by_gate is not None and row.coe is None:
+            assert names.classify(row) == by_gate, row.name
     for name in ("DRV.DIS", "DRV.STOP", "DRV.CLRFAULTS", "DRV.NVSAVE", "VL.KP", "UNIT.PIN"):
         assert names.classify(names.resolve(name)) is None, name
 
