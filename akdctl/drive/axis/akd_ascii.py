@@ -45,7 +45,7 @@ class AkdAsciiAxis(Axis):
         except (AkdError, ValueError, IndexError):
             return None
 
-    def read_status(self) -> AxisStatus:
+    def _read_status(self) -> AxisStatus:
         active = self._int("DRV.ACTIVE")
         faults = _fault_entries(_numbers(self.link.command("DRV.FAULTS")))
         try:
