@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from akdctl.config import Profile
     from akdctl.drive.axis.base import Axis
     from akdctl.io.owner_lock import OwnerLock
-    from akdctl.links import MailboxLink, NativeSdoClient, RecordLink
+    from akdctl.links import CommandLink, MailboxLink, NativeSdoClient, RecordLink, RegisterLink
     from akdctl.profiles.vocabulary import Channel, DriveProfile
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.eip_io import IoConnection
@@ -96,6 +96,8 @@ class Connection:
         #: The axis's owner lock while this command owns the axis (:meth:`own_axis`), else None.
         self.axis_owner: "OwnerLock | None" = None
         self._closed = False
+        self._commands: "CommandLink | None" = None   # issue 24: the AKD's ASCII channel (akd://)
+        self._registers: "RegisterLink | None" = None  # issue 24: Modbus registers (mb://)
 
     @classmethod
     def over(cls, transport: "Transport", profile: "Profile | None" = None) -> "Connection":
@@ -176,16 +178,6 @@ class Connection:
         """The device's I&M0 (PROFINET), or None where the network defines none."""
         return self.transport().read_im0()
 
-    @property
-    def has_commands(self) -> bool:
-        """Whether the target offers the AKD's ASCII command link (the ``akd://`` transport, branch wip/names,
-        overrides this with its link); no built-in target offers one yet."""
-        return False
-
-    def commands(self) -> "object":
-        """The ASCII command link's factory; UsageError where the target has none (:attr:`has_commands`)."""
-        raise UsageError(f"target {self.target.display} offers no AKD ASCII command link")
-
     def own_axis(self, command: str) -> None:
         """Own this target's axis until :meth:`close` (the kernel frees it if the process dies).
 
@@ -249,6 +241,9 @@ class Connection:
 
             self._cip = CipAttributes(transport.message_link, self.target.display)
 
+        self._commands = transport.command_link    # declared by every Transport (transport/base.py): None
+        self._registers = transport.register_link  # where the target has no such link
+
     def _coe_channel(self, link: "MailboxLink") -> "ObjectChannel":
         from akdctl.channels.coe_sdo import CoeObjectChannel
 
@@ -285,6 +280,28 @@ class Connection:
         """Whether the target offers CIP explicit messaging (opens the transport)."""
         self.transport()
         return self._cip is not None
+
+    @property
+    def has_commands(self) -> bool:
+        """Whether the target speaks the AKD's ASCII command channel (akd://; opens the transport)."""
+        self.transport()
+        return self._commands is not None
+
+    def commands(self) -> "CommandLink":
+        """The AKD's ASCII command channel; UsageError naming the alternative if the target has none."""
+        self.transport()
+        return self._offered(self._commands, "no AKD command channel (ASCII service port); use an akd://HOST target")
+
+    @property
+    def has_registers(self) -> bool:
+        """Whether the target offers Modbus holding registers (mb://; opens the transport)."""
+        self.transport()
+        return self._registers is not None
+
+    def registers(self) -> "RegisterLink":
+        """The Modbus register link; UsageError naming the alternative if the target has none."""
+        self.transport()
+        return self._offered(self._registers, "no Modbus registers; use an mb://HOST target")
 
     def cip(self) -> "CipAttributes":
         """The CIP attribute channel; UsageError naming the alternative if the target has none."""
@@ -344,6 +361,7 @@ class Connection:
         self._closed = True
         channels = [c for c in (self._objects, self._parameters) if c is not None]
         self._parameters = self._objects = self._cip = None
+        self._commands = self._registers = None
         self._record_link = None
         for channel in channels:
             with contextlib.suppress(Exception):

@@ -189,6 +189,18 @@ class InternalError(AkdError):
     kind = "internal"
 
 
+class CommandRefused(DriveError):
+    """An ``Error:`` reply of the AKD's ASCII command channel (akd://): the drive's own words (issue 24)."""
+
+    kind = "akd-error"
+
+
+class ModbusRefused(DriveError):
+    """A Modbus exception response (function code + 0x80, exception code) from an mb:// target (issue 24)."""
+
+    kind = "modbus-exception"
+
+
 class TriggerTimeout(CommError):
     """A scope's trigger did not fire, or the drive's recorder did not finish, within ``--timeout`` (exit 3)."""
 

@@ -237,4 +237,32 @@ class SoemSdoClient(Record):
 
 NativeSdoClient = CanopenSdoClient | SoemSdoClient
 
-__all__ = ["Budget", "Deadline", "RecordLink", "MailboxLink", "MessageLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient"]
+
+class CommandLink(ABC):
+    """The AKD's own ASCII command channel (the service port's "Telnet", ``akd://``): one command line in,
+    the drive's reply text out -- without the echo of the line and without the ``-->`` prompt.
+
+    A reply that begins with ``Error:`` raises :class:`akdctl.errors.DriveError` (a subclass naming the drive's
+    text); link failures raise :class:`akdctl.errors.CommError` subclasses; every wait is bounded by the
+    command's timeout. Issue 24.
+    """
+
+    @abstractmethod
+    def command(self, line: str) -> str: ...
+
+
+class RegisterLink(ABC):
+    """Modbus holding registers (``mb://``): read and write 16-bit registers by address (issue 24).
+
+    Refusals (Modbus exception responses) raise :class:`akdctl.errors.DriveError` subclasses, link failures
+    :class:`akdctl.errors.CommError` subclasses.
+    """
+
+    @abstractmethod
+    def read_registers(self, address: int, count: int) -> list[int]: ...
+
+    @abstractmethod
+    def write_registers(self, address: int, values: list[int]) -> None: ...
+
+__all__ = ["Budget", "Deadline", "RecordLink", "MailboxLink", "MessageLink", "CanopenSdoClient", "SoemSdoClient", "NativeSdoClient",
+           "CommandLink", "RegisterLink"]

@@ -22,7 +22,9 @@ _akdctl() {
             ":fault") path="fault" ;;
             ":support") path="support" ;;
             ":scope") path="scope" ;;
+            ":param") path="param" ;;
             ":params") path="params" ;;
+            ":cmd") path="cmd" ;;
             ":commission") path="commission" ;;
             ":diagnose") path="diagnose" ;;
             ":shell") path="shell" ;;
@@ -61,9 +63,24 @@ _akdctl() {
             "support:bundle") path="support bundle" ;;
             "support:diff") path="support diff" ;;
             "support:show") path="support show" ;;
+            "param:backup") path="param backup" ;;
+            "param:diff") path="param diff" ;;
+            "param:dump") path="param dump" ;;
+            "param:get") path="param get" ;;
+            "param:help") path="param help" ;;
+            "param:list") path="param list" ;;
+            "param:restore") path="param restore" ;;
+            "param:save") path="param save" ;;
+            "param:set") path="param set" ;;
             "params:backup") path="params backup" ;;
             "params:diff") path="params diff" ;;
+            "params:dump") path="params dump" ;;
+            "params:get") path="params get" ;;
+            "params:help") path="params help" ;;
+            "params:list") path="params list" ;;
             "params:restore") path="params restore" ;;
+            "params:save") path="params save" ;;
+            "params:set") path="params set" ;;
             "pn:blink") path="pn blink" ;;
             "pn:scan") path="pn scan" ;;
             "pn:set-ip") path="pn set-ip" ;;
@@ -104,7 +121,7 @@ _akdctl() {
         esac
     done
     case "$path" in
-        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope params commission diagnose shell info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
+        "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope param params cmd commission diagnose shell info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
         "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -145,10 +162,27 @@ _akdctl() {
         "support diff") COMPREPLY=($(compgen -W "--all --help --other-drive" -- "$cur")) ;;
         "support show") COMPREPLY=($(compgen -W "--format --help --html --trace-all" -- "$cur")) ;;
         "scope") COMPREPLY=($(compgen -W "--accel --continuous --csv --dry-run --for --help --jog --jog-for --max-following-error --max-settle-time --no-plot --plot --png --pretrigger --rate --ring --samples --settle-band --source --svg --timeout --trigger" -- "$cur")) ;;
-        "params") COMPREPLY=($(compgen -W "backup diff restore --help" -- "$cur")) ;;
+        "param") COMPREPLY=($(compgen -W "backup diff dump get help list restore save set --help" -- "$cur")) ;;
+        "param backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
+        "param diff") COMPREPLY=($(compgen -W "--against --all --defaults --help" -- "$cur")) ;;
+        "param dump") COMPREPLY=($(compgen -W "--help --only" -- "$cur")) ;;
+        "param get") COMPREPLY=($(compgen -W "--help --live --raw" -- "$cur")) ;;
+        "param help") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "param list") COMPREPLY=($(compgen -W "--help --live --refresh" -- "$cur")) ;;
+        "param restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
+        "param save") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
+        "param set") COMPREPLY=($(compgen -W "--dry-run --help --live --raw" -- "$cur")) ;;
+        "params") COMPREPLY=($(compgen -W "backup diff dump get help list restore save set --help" -- "$cur")) ;;
         "params backup") COMPREPLY=($(compgen -W "--group --help --only --output --source -o" -- "$cur")) ;;
-        "params diff") COMPREPLY=($(compgen -W "--all --help" -- "$cur")) ;;
+        "params diff") COMPREPLY=($(compgen -W "--against --all --defaults --help" -- "$cur")) ;;
+        "params dump") COMPREPLY=($(compgen -W "--help --only" -- "$cur")) ;;
+        "params get") COMPREPLY=($(compgen -W "--help --live --raw" -- "$cur")) ;;
+        "params help") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "params list") COMPREPLY=($(compgen -W "--help --live --refresh" -- "$cur")) ;;
         "params restore") COMPREPLY=($(compgen -W "--dry-run --force --help --save" -- "$cur")) ;;
+        "params save") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
+        "params set") COMPREPLY=($(compgen -W "--dry-run --help --live --raw" -- "$cur")) ;;
+        "cmd") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "commission") COMPREPLY=($(compgen -W "--allow-outside-includes --dry-run --help --output-dir --report" -- "$cur")) ;;
         "diagnose") COMPREPLY=($(compgen -W "--help --mode" -- "$cur")) ;;
         "shell") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -195,7 +229,7 @@ _akdctl() {
         "sim speed") COMPREPLY=($(compgen -W "--help --name --realtime --watchdog" -- "$cur")) ;;
         "sim set") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "sim reset") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
-        "sim serve") COMPREPLY=($(compgen -W "--can --can-heartbeat --dcp --duration --ecat-foe-busy --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
+        "sim serve") COMPREPLY=($(compgen -W "--akd --akd-clients --akd-quirks --can --can-heartbeat --dcp --duration --ecat-foe-busy --ecat-inject --ecat-raw-inject --ecat-serial --ecat-stations --eip-identity --eip-inject --eip-io-port --eip-refuse-session --ethercat-raw --ethercat-udp --ethernetip --help --modbus --name --pn-api --pn-ar-timeout --pn-ars --pn-delay --pn-fragment --pn-inject --pn-refuse-ar --pn-slot --pn-station --pn-subslot --profinet" -- "$cur")) ;;
         "sim show") COMPREPLY=($(compgen -W "--help --name" -- "$cur")) ;;
         "firmware") COMPREPLY=($(compgen -W "update --help" -- "$cur")) ;;
         "firmware update") COMPREPLY=($(compgen -W "--dry-run --help --name --password --restart-timeout" -- "$cur")) ;;

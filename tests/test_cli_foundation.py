@@ -130,7 +130,7 @@ BAD_INPUTS = [
     (["-T", "pn://", "pnu", "get", "930"], EXIT_USAGE, "needs a host"),
     (["-T", "can://socketcan/can0", "sdo", "read", "0x1000"], EXIT_USAGE, "can://INTERFACE/CHANNEL/NODE"),
     (["-T", "ecat-udp://gw/notanumber", "sdo", "read", "0x1000"], EXIT_USAGE, "STATION"),
-    (["-T", "foo://bar", "pnu", "get", "930"], EXIT_USAGE, "known schemes: can, ecat"),
+    (["-T", "foo://bar", "pnu", "get", "930"], EXIT_USAGE, "known schemes: akd, can, ecat"),
     (["-T", "sim?drive=bogus", "pnu", "get", "930"], EXIT_USAGE, "drive=profidrive"),
     (["--profile", "nope", "pnu", "get", "930"], EXIT_USAGE, "no profile 'nope'"),
     (["--config", "/nonexistent/akd.toml", "pnu", "get", "930"], EXIT_USAGE, "does not exist"),

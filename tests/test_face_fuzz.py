@@ -233,3 +233,58 @@ def test_ethernetip_face_survives_fuzz(drive: SimDrive, rng: random.Random, akd_
         assert code == 0 and '"vendor": 452' in out, err
     finally:
         face.stop()
+
+
+# ------------------------------------------------------------------ AKD ASCII channel (issue 24)
+def test_akd_ascii_face_survives_fuzz(drive: SimDrive, rng: random.Random, akd_inproc) -> None:
+    from akdctl.sim.face_akd import AkdFace
+
+    face = AkdFace(drive, "127.0.0.1", 0, clients=4)
+    face.start()
+    valid = [b"VL.KP\r\n", b"VL.KP 1.5\r\n", b"DRV.INFO\r\n", b"DRV.HELP HOME.MODE\r\n", b"\xff\xfc\x1fDRV.ACTIVE\n",
+             b"HOME.MODE 3\r", b"DRV.EN\r\n", b"REC.OFF\r\n", b"\xff\xfa\x1f\x00\x50\x00\x18\xff\xf0MT.LIST\r\n"]
+    try:
+        with socket.create_connection(("127.0.0.1", face.port), timeout=2) as tcp:
+            tcp.settimeout(0.05)
+            for data in hostile(rng, valid):
+                tcp.sendall(data.replace(b"DRV.EN", b"DRV.XX"))   # nothing powers the simulated axis here
+                try:
+                    tcp.recv(65536)
+                except socket.timeout:
+                    pass
+        code, out, err = akd_inproc("-T", f"akd://127.0.0.1:{face.port}", "--timeout", "2", "param", "get", "VL.KP")
+        assert code == 0 and "[A/(rad/s)]" in out, err
+    finally:
+        face.stop()
+
+
+# ------------------------------------------------------------------ Modbus TCP (issue 24)
+def test_modbus_face_survives_fuzz(drive: SimDrive, rng: random.Random, akd_inproc) -> None:
+    pytest.importorskip("pymodbus")
+    import struct
+
+    from akdctl.sim.face_modbus import ModbusFace
+
+    face = ModbusFace(drive, "127.0.0.1", 0)
+    face.start()
+
+    def adu(pdu: bytes, tid: int = 1) -> bytes:
+        return struct.pack(">HHHB", tid, 0, len(pdu) + 1, 1) + pdu
+
+    valid = [adu(bytes.fromhex("03 0368 0002")), adu(bytes.fromhex("10 0368 0002 04 0000 05dc")),
+             adu(bytes.fromhex("06 0368 0005")), adu(bytes.fromhex("03 0000 007d")), adu(bytes.fromhex("2b 0e 01 00"))]
+    try:
+        for n, data in enumerate(hostile(rng, valid, count=max(60, COUNT // 5))):
+            with socket.create_connection(("127.0.0.1", face.port), timeout=2) as tcp:
+                tcp.sendall(data)
+                tcp.shutdown(socket.SHUT_WR)
+                tcp.settimeout(0.5)
+                try:
+                    while tcp.recv(4096):
+                        pass
+                except (socket.timeout, ConnectionResetError):
+                    pass
+        code, out, err = akd_inproc("-T", f"mb://127.0.0.1:{face.port}", "--timeout", "2", "param", "get", "VL.KP")
+        assert code == 0 and "[A/(rad/s)]" in out, err
+    finally:
+        face.stop()

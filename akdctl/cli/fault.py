@@ -94,6 +94,19 @@ def dump_doc(data: dict[str, Any], title: str = "fault dump") -> Doc:
                           title="emergencies received in this session")
             for section, text in (co.get("errors") or {}).items():
                 doc.line(f"{section}: not readable ({text})")
+    for key, where in (("akd", "DRV.FAULTS / DRV.WARNINGS"), ("modbus", "DRV.FAULT1 over Modbus")):  # issue 24
+        named = data.get(key)
+        if named is None:
+            continue
+        if "error" in named:
+            doc.kv(where, f"not readable: {named['error']}")
+            continue
+        doc.table(["#", "code", "kind", "name"], _entry_rows(named.get("faults", [])) or [["-", "", "", "none"]],
+                  title=f"active faults ({where})")
+        doc.table(["#", "code", "kind", "name"], _entry_rows(named.get("warnings", [])) or [["-", "", "", "none"]],
+                  title="active warnings")
+        if named.get("note"):
+            doc.line(named["note"])
     return doc
 
 

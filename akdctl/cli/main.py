@@ -40,7 +40,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "fault": ("akdctl.cli.fault", "fault"),
     "support": ("akdctl.cli.support", "support"),
     "scope": ("akdctl.cli.scope", "scope"),
-    "params": ("akdctl.cli.params", "params"),
+    "param": ("akdctl.cli.param", "param"),
+    "params": ("akdctl.cli.param", "param"),
+    "cmd": ("akdctl.cli.cmd", "cmd"),
     "commission": ("akdctl.cli.commission", "commission"),
     "diagnose": ("akdctl.cli.diagnose", "diagnose"),
     "shell": ("akdctl.cli.shell", "shell"),
@@ -88,8 +90,12 @@ SHORT_HELP: dict[str, str] = {
         "Write a support bundle from a drive, or show one without a drive.",
     "scope":
         "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6 and more) and plot them.",
+    "param":
+        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP ...).",
     "params":
-        "Back up, restore and compare drive parameters (TOML or JSON files).",
+        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP ...).",
+    "cmd":
+        "Send one command line to the AKD's ASCII channel (akd:// targets) and print the reply.",
     "commission":
         "Run a commissioning recipe (TOML): set/expect parameters, map process data, select a telegram, enable, home, move, wait, check faults, save, back up.",
     "diagnose":
@@ -169,7 +175,7 @@ def _line_only(ctx: click.Context, param: click.Parameter, value: Any) -> None:
 EPILOG = (
     "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
-    "can://INTERFACE/CHANNEL/NODE, eip://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
+    "can://INTERFACE/CHANNEL/NODE, eip://HOST, akd://HOST, mb://HOST. Exit codes: 0 ok, 1 drive refused, 2 usage, 3 communication, "
     "4 safety refusal, 5 check failed, 130 interrupted."
 )
 

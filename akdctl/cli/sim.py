@@ -14,12 +14,12 @@ from akdctl.cli.context import get_app
 from akdctl.cli.main import LazyGroup
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
-from akdctl.sim import face_can, face_ethercat_raw, face_ethercat_udp, face_ethernetip, face_profinet
+from akdctl.sim import face_akd, face_can, face_ethercat_raw, face_ethercat_udp, face_ethernetip, face_modbus, face_profinet
 from akdctl.sim.face import FaceOption
 
 # Network faces of `sim serve`, one module each (see docs/internals.md): each declares ``OPTIONS`` (data) and
 # ``from_options(drive, **kwargs) -> Face | None``. Listed by import, so a face missing from a package fails loudly.
-FACES = (face_profinet, face_ethercat_udp, face_ethercat_raw, face_can, face_ethernetip)
+FACES = (face_profinet, face_ethercat_udp, face_ethercat_raw, face_can, face_ethernetip, face_akd, face_modbus)
 
 SIM_COMMANDS = {
     "fault": ("akdctl.cli.sim_fault", "fault", "Inject a fault (e.g. F501) into the simulated drive."),

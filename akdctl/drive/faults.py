@@ -323,6 +323,10 @@ def read_canopen_faults(channel: "ObjectChannel", *, max_attempts: int = MAX_ATT
 # ---------------------------------------------------------------------------- whole dump
 def _sources(conn: "Connection") -> list[str]:
     """Which views to read: the one ``?drive=``/profile selects, else every channel the target offers."""
+    if conn.has_commands:
+        return ["akd"]  # the AKD's own DRV.FAULTS / DRV.WARNINGS (issue 24, read_akd_faults)
+    if conn.has_registers:
+        return ["modbus"]  # DRV.FAULT1 by its register (issue 24, read_modbus_faults)
     has_pnu, has_obj = conn.has_parameters, conn.has_objects
     chosen = conn.drive_profile
     if chosen == "profidrive" and has_pnu:
@@ -340,7 +344,11 @@ def dump(conn: "Connection") -> dict[str, Any]:
         raise UsageError(f"target {conn.target.display} offers neither PNU nor object access; no fault dump possible")
     for source in sources:
         try:
-            if source == "profidrive":
+            if source == "akd":
+                data["akd"] = read_akd_faults(conn)
+            elif source == "modbus":
+                data["modbus"] = read_modbus_faults(conn)
+            elif source == "profidrive":
                 data["profidrive"] = read_profidrive_faults(conn.parameters()).to_json()
             else:
                 data["canopen"] = read_canopen_faults(conn.objects()).to_json()
@@ -355,7 +363,7 @@ def summary(data: dict[str, Any]) -> dict[str, Any]:
     """Active faults/warnings of a dump, merged over its views (for status lines and exit decisions)."""
     codes: list[str] = []
     warnings: list[str] = []
-    pd, co = data.get("profidrive") or {}, data.get("canopen") or {}
+    pd, co = data.get("profidrive") or {}, data.get("canopen") or data.get("akd") or data.get("modbus") or {}
     for entry in pd.get("active", []) + co.get("faults", []):
         if entry["code"] not in codes:
             codes.append(entry["code"])
@@ -413,6 +421,31 @@ def clear_history(conn: "Connection") -> dict[str, Any]:
     conn.objects().download(0x1003, 0, b"\x00")
     remaining = _upload_int(conn.objects(), 0x1003, 0)
     return {"target": conn.target.display, "cleared": "0x1003", "entries_left": remaining}
+
+
+def read_akd_faults(conn: "Connection") -> dict[str, Any]:
+    """Active faults and warnings over the AKD's command channel (``DRV.FAULTS``/``DRV.WARNINGS`` lines
+    ``<number>: <text>.``; "No faults active" when none), decoded by the one fault table (issue 24)."""
+    from akdctl.drive.axis.akd_ascii import _numbers
+
+    link = conn.commands()
+    faults = [decode_number(n).to_json() for n in _numbers(link.command("DRV.FAULTS"))]
+    try:
+        warnings = [decode_number(n, warning=True).to_json() for n in _numbers(link.command("DRV.WARNINGS"))]
+    except AkdError:
+        warnings = []
+    return {"faults": faults, "warnings": warnings, "fault_present": bool(faults), "warning_present": bool(warnings)}
+
+
+def read_modbus_faults(conn: "Connection") -> dict[str, Any]:
+    """The first active fault over Modbus: DRV.FAULT1 (n 478, register 954 [V]); the other slots and the warnings
+    have no published register, so the dump says so (issue 24)."""
+    from akdctl.drive import names
+
+    number = int(names.read(conn, names.resolve("DRV.FAULT1")).value)
+    faults = [decode_number(number).to_json()] if number else []
+    return {"faults": faults, "warnings": [], "fault_present": bool(faults), "warning_present": False,
+            "note": "only DRV.FAULT1 has a published Modbus register; more faults may be active"}
 
 
 # ---------------------------------------------------------------------------- acknowledge as a write plan

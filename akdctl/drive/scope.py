@@ -122,9 +122,8 @@ def source_for(conn: Connection, request: ScopeRequest) -> str:
 
 def command_link_factory(conn: Connection) -> Callable[[], Any] | None:
     """A factory of the target's ASCII command link (:class:`~akdctl.drive.scope_recorder.CommandLink`), or None:
-    the ``akd://`` transport's ``Connection.commands()`` once it is merged (engineer "names"), the in-process
-    simulated recorder for ``sim`` targets (transport/sim_commands.py)."""
-    # Connection.has_commands is declared (False) until the akd:// transport (branch wip/names) offers the link
+    the ``akd://`` transport's ``Connection.commands()``, the in-process simulated recorder for ``sim`` targets
+    (transport/sim_commands.py)."""
     if conn.has_commands:
         return conn.commands  # type: ignore[return-value]
     if conn.target.scheme == "sim":
@@ -196,7 +195,6 @@ def _poll_signals(conn: Connection, names: Sequence[str], trigger: Trigger) -> t
 
     from akdctl.drive.axis.choice import profile_name
 
-    # akd:// (Connection.has_commands is declared; the link arrives with branch wip/names)
     has_commands = conn.has_commands
     resolver = Resolver(conn.has_parameters, conn.has_objects, singleturn_bits,
                         prefer_objects=not has_commands and profile_name(conn) == "cia402", has_commands=has_commands)

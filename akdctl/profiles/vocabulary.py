@@ -23,6 +23,8 @@ class Channel(str):
     PARAMETERS: ClassVar[Channel]  # PROFIdrive base-mode parameter access (PNUs)
     OBJECTS: ClassVar[Channel]  # CoE/CANopen SDO (index:subindex)
     ATTRIBUTES: ClassVar[Channel]  # CIP explicit messaging (class/instance/attribute)
+    COMMANDS: ClassVar[Channel]  # the AKD's ASCII command channel (NAME[ value] lines)
+    REGISTERS: ClassVar[Channel]  # Modbus TCP holding registers
     ALL: ClassVar[tuple[Channel, ...]]
 
     @property
@@ -39,12 +41,16 @@ class Channel(str):
 Channel.PARAMETERS = Channel("parameters")
 Channel.OBJECTS = Channel("objects")
 Channel.ATTRIBUTES = Channel("attributes")
-Channel.ALL = (Channel.PARAMETERS, Channel.OBJECTS, Channel.ATTRIBUTES)
+Channel.COMMANDS = Channel("commands")
+Channel.REGISTERS = Channel("registers")
+Channel.ALL = (Channel.PARAMETERS, Channel.OBJECTS, Channel.ATTRIBUTES, Channel.COMMANDS, Channel.REGISTERS)
 
 _CHANNEL_WORDS = {
     Channel.PARAMETERS: "a PROFIdrive parameter channel (PNUs)",
     Channel.OBJECTS: "an object channel (SDO)",
     Channel.ATTRIBUTES: "a CIP attribute channel (EtherNet/IP)",
+    Channel.COMMANDS: "the AKD's command channel (akd://)",
+    Channel.REGISTERS: "Modbus TCP registers (mb://)",
 }
 
 
@@ -55,6 +61,7 @@ class DriveProfile(str):
     PROFIDRIVE: ClassVar[DriveProfile]  # STW1/ZSW1, telegrams (PROFINET, the simulator)
     CIA402: ClassVar[DriveProfile]  # controlword/statusword over SDO (EtherCAT, CANopen, the simulator)
     CIP: ClassVar[DriveProfile]  # the Position Controller object 0x25 (EtherNet/IP)
+    AKD: ClassVar[DriveProfile]  # the AKD's own DRV.* commands over its command channel (akd://)
     ALL: ClassVar[tuple[DriveProfile, ...]]
 
     @property
@@ -71,12 +78,14 @@ class DriveProfile(str):
 DriveProfile.PROFIDRIVE = DriveProfile("profidrive")
 DriveProfile.CIA402 = DriveProfile("cia402")
 DriveProfile.CIP = DriveProfile("cip")
-DriveProfile.ALL = (DriveProfile.PROFIDRIVE, DriveProfile.CIA402, DriveProfile.CIP)
+DriveProfile.AKD = DriveProfile("akd")
+DriveProfile.ALL = (DriveProfile.PROFIDRIVE, DriveProfile.CIA402, DriveProfile.CIP, DriveProfile.AKD)
 
 _PROFILE_CHANNEL = {
     DriveProfile.PROFIDRIVE: Channel.PARAMETERS,
     DriveProfile.CIA402: Channel.OBJECTS,
     DriveProfile.CIP: Channel.ATTRIBUTES,
+    DriveProfile.AKD: Channel.COMMANDS,
 }
 _CHANNELS = {c.value: c for c in Channel.ALL}
 _PROFILES = {p.value: p for p in DriveProfile.ALL}
@@ -103,9 +112,18 @@ def profiles_text(profiles: tuple[DriveProfile, ...] = DriveProfile.ALL) -> str:
 
 def default_profile(offered: frozenset[Channel]) -> DriveProfile:
     """The profile a target speaks when nobody chose one: the CIP Position Controller where CIP is
-    offered, PROFIdrive where parameters are, else CiA 402."""
+    offered, the AKD's own commands on its command channel, PROFIdrive where parameters are, else CiA 402.
+    Modbus offers no axis: no published AKD register holds the enable state (issue 24)."""
     if Channel.ATTRIBUTES in offered:
         return DriveProfile.CIP
+    if Channel.COMMANDS in offered:
+        return DriveProfile.AKD
+    if offered == frozenset({Channel.REGISTERS}):
+        from akdctl.errors import UsageError
+
+        raise UsageError("the axis (status, enable, motion) is not offered over Modbus: no published AKD register "
+                         "holds its enable state; read 'akdctl param get DRV.MOTIONSTAT DRV.FAULT1' there, or use "
+                         "akd://HOST or a fieldbus target")
     if Channel.PARAMETERS in offered:
         return DriveProfile.PROFIDRIVE
     return DriveProfile.CIA402

@@ -296,9 +296,18 @@ ACTIONS: dict[str, Callable[[Session, dict[str, Any]], dict[str, Any]]] = {
     "set": do_set, "expect": do_expect, "wait": do_wait, "map": do_map, "telegram": do_telegram,
     "enable": do_enable, "disable": do_disable, "stop": do_stop, "acknowledge": do_acknowledge, "home": do_home,
     "move": do_move, "check_faults": do_check_faults, "save": do_save, "backup": do_backup, "restore": do_restore,
+    "param": lambda session, params: do_param(session, params),
     "scope": do_scope,
 }
 
 
 def run_step(session: Session, step: PlannedStep) -> dict[str, Any]:
     return ACTIONS[step.action](session, step.params)
+
+
+def do_param(session: Session, params: dict[str, Any]) -> dict[str, Any]:
+    """AKD parameters by name: the plan and execute of ``param set`` (drive/names.py), one rule for both."""
+    from akdctl.drive import names
+
+    plan = names.plan(session.conn, params["assignments"], raw=params["raw"])
+    return {"written": names.execute(session.conn, plan), "notes": plan.notes}

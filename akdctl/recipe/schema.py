@@ -47,13 +47,14 @@ ACTIONS: dict[str, dict[str, Any]] = {
     "save": {},
     "backup": {"file": str, "source": str, "groups": list, "only": list},
     "restore": {"file": str, "force": bool},
+    "param": {"set": dict, "raw": bool},   # AKD parameters by name (issue 24, drive/names.py)
     "scope": {"signals": list, "for": NUMBER, "samples": int, "rate": NUMBER, "source": str, "trigger": str,
               "pretrigger": NUMBER, "timeout": NUMBER, "jog": NUMBER, "jog_for": NUMBER, "accel": NUMBER,
               "csv": str, "svg": str, "json": str, "max_following_error": NUMBER, "max_settle_time": NUMBER,
               "settle_band": NUMBER, "ring": int},
 }
 REQUIRED = {"telegram": ("telegram",), "move": ("target",), "backup": ("file",), "restore": ("file",),
-            "scope": ("signals",)}
+            "scope": ("signals",), "param": ("set",)}
 MOTION = {"enable", "home", "move"}
 MAX_WAIT_S = 3600.0
 
@@ -321,6 +322,8 @@ def _file_in_folder(data: dict[str, Any], ctx: Context, *, must_exist: bool) -> 
 
 # ---------------------------------------------------------------------------- per action
 def _check(action: str, data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:
+    if action == "param":
+        return _check_param(data)
     if action == "set":
         targets = _targets(data, write=True, multi=True)
         verify = data.get("verify", True)
@@ -550,6 +553,10 @@ def _gated(action: str, params: dict[str, Any]) -> list[Any]:
         from akdctl.drive import pdo as dp
 
         return dp.gated(params["request"]) if params.get("request") is not None else []
+    if action == "param":
+        from akdctl.drive import names
+
+        return [g for g in (names.classify(names.resolve(n)) for n, _ in params["assignments"]) if g is not None]
     if action != "set":
         return []
     from akdctl.drive import raw_write
@@ -580,6 +587,29 @@ def validate(recipe: RawRecipe, ctx: Context, structural: list[str]) -> list[Pla
     if problems:
         raise RecipeError(problems)
     return planned
+
+
+def _check_param(data: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """A ``param`` step: ``set = {"VL.KP" = 0.5, ...}`` checked offline by the rules ``param set`` uses (names,
+    class, value, published range); reachability and the wire form are planned on the drive (drive/names.py)."""
+    from akdctl.drive import names
+    from akdctl.profiles.akd_values import format_value
+
+    raw = bool(data.get("raw", False))
+    assignments: list[tuple[str, str]] = []
+    for name, value in dict(data["set"]).items():
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise StepProblem(f"set.{name}: a number or a text, got {value!r}", "set")
+        try:
+            row = names.resolve(str(name))
+            text = format_value(row.kind, value) if isinstance(value, float) else str(value)
+            names.check_value(row, text, raw)
+        except AkdError as exc:
+            raise StepProblem(exc.message, "set") from None
+        assignments.append((row.name, text))
+    if not assignments:
+        raise StepProblem("'set' names no parameter", "set")
+    return {"assignments": assignments, "raw": raw}, "param set " + " ".join(f"{n}={v}" for n, v in assignments)
 
 
 def _check_scope(data: dict[str, Any], ctx: Context) -> tuple[dict[str, Any], str]:

@@ -181,7 +181,7 @@ class ParameterObject(CipObject):
             return self._fault1(service, path)
         key = self.instances.get(path.instance or 0)
         if key is None:
-            raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
+            return self._named_parameter(service, path, data, path.instance or 0)
         pc = self.device.pc
         command = key == "home"
         value = 0 if command else (pc.posunit if key == "posunit" else pc.profunit)
@@ -204,6 +204,32 @@ class ParameterObject(CipObject):
         self.device.axis.save_unit(key, units)
         return b""
 
+
+    def _named_parameter(self, service: int, path: cip.Path, data: bytes, instance: int) -> bytes:
+        """Any other catalogue parameter with a number ``n``: served from the one drive model by name
+        (:mod:`akdctl.sim.akd_params`), 4 bytes, floats x1000 (issue 24)."""
+        from akdctl.sim import akd_params as store
+
+        row = store.by_number(instance)
+        if row is None or row.is_command or row.kind in ("text", "string"):
+            raise CipRefusal(cip.OBJECT_DOES_NOT_EXIST)
+        signed = row.kind == "float" or not row.coe_type.startswith("u")
+        if path.attribute in (5, 6):
+            if service != cip.GET_ATTRIBUTE_SINGLE:
+                raise CipRefusal(cip.ATTRIBUTE_NOT_SETTABLE)
+            return bytes([0xC4 if signed else 0xC8]) if path.attribute == 5 else b"\x04"
+        if path.attribute != 1:
+            raise CipRefusal(cip.ATTRIBUTE_NOT_SUPPORTED)
+        with self.device.axis.model() as model:
+            try:
+                if service == cip.GET_ATTRIBUTE_SINGLE:
+                    return (store.wire(model, row) & 0xFFFFFFFF).to_bytes(4, "little")
+                if len(data) != 4:
+                    raise CipRefusal(cip.NOT_ENOUGH_DATA if len(data) < 4 else cip.TOO_MUCH_DATA)
+                store.write_wire(model, row, int.from_bytes(data, "little", signed=signed))
+            except store.ParamError:
+                raise CipRefusal(cip.INVALID_ATTRIBUTE_VALUE) from None
+        return b""
 
     def _fault1(self, service: int, path: cip.Path) -> bytes:
         """DRV.FAULT1 (the first active fault number, 0 for none) at instance 478 [I: its EIP.RSPMAP id, M-34;

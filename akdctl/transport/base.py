@@ -19,7 +19,7 @@ from akdctl.links import Budget
 from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
-    from akdctl.links import MailboxLink, MessageLink, NativeSdoClient, RecordLink
+    from akdctl.links import CommandLink, MailboxLink, MessageLink, NativeSdoClient, RecordLink, RegisterLink
     from akdctl.transport.target import Target
 
 
@@ -73,6 +73,9 @@ class Transport(ABC):
         self.mailbox_link: "MailboxLink | None" = None
         self.sdo_client: "NativeSdoClient | None" = None
         self.message_link: "MessageLink | None" = None
+        #: The AKD's ASCII command channel (akd://) and Modbus registers (mb://), issue 24.
+        self.command_link: "CommandLink | None" = None
+        self.register_link: "RegisterLink | None" = None
 
     @abstractmethod
     def open(self) -> None: ...

@@ -125,6 +125,13 @@ BUILTIN: dict[str, TransportSpec] = {
         TransportSpec("eip", "akdctl.transport.ethernetip", "EthernetIpTransport",
                       "EtherNet/IP: CIP explicit messaging (UCMM over TCP), Parameter and Position Controller objects",
                       "eip://HOST[:44818]", frozenset({Channel.ATTRIBUTES}), check=_need_host),
+        TransportSpec("akd", "akdctl.transport.akd_ascii", "AkdAsciiTransport",
+                      "The AKD's ASCII command channel (service port, \"Telnet\"): parameters by name, DRV.* commands",
+                      "akd://HOST[:23]", frozenset({Channel.COMMANDS}), check=_need_host),
+        TransportSpec("mb", "akdctl.transport.modbus", "ModbusTransport",
+                      "Modbus TCP (pymodbus): AKD parameters at holding register 2(n-1) (optional extra akdctl[modbus])",
+                      "mb://HOST[:502][?unit=N]", frozenset({Channel.REGISTERS}), requires=("pymodbus",),
+                      check=_need_host, extra="modbus", query=("unit",)),
     )
 }
 

@@ -29,6 +29,10 @@ def axis_class(conn: "Connection") -> type[Axis]:
         from akdctl.drive.axis.cip import CipAxis
 
         return CipAxis
+    if chosen is DriveProfile.AKD:
+        from akdctl.drive.axis.akd_ascii import AkdAsciiAxis
+
+        return AkdAsciiAxis
     return ProfidriveAxis if chosen is DriveProfile.PROFIDRIVE else Cia402Axis
 
 
@@ -42,6 +46,10 @@ def open_axis(conn: "Connection") -> Axis:
         from akdctl.drive.axis.cip import CipAxis
 
         axis = CipAxis(conn.cip(), timeout=timeout, target=target)
+    elif chosen is DriveProfile.AKD:
+        from akdctl.drive.axis.akd_ascii import AkdAsciiAxis
+
+        axis = AkdAsciiAxis(conn.commands(), timeout=timeout, target=target)
     elif chosen is DriveProfile.PROFIDRIVE:
         axis = ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)

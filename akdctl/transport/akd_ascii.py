@@ -1,0 +1,244 @@
+"""``akd://HOST[:23]``: the AKD's ASCII command channel (the service port's "Telnet") as a transport.
+
+What the public record says (reference akd-ascii-channel.md 0-2): plain TCP on port 23, one command per line
+sent as ``NAME[ value]\\r\\n``, the reply text followed by ``\\r\\n-->``, errors as replies beginning ``Error:``,
+replies in Latin-1 (units such as µs). What it leaves open and this client therefore tolerates [I]: Telnet option
+negotiation from the drive (every option is refused once, RFC 854/1143: ``DO`` -> ``WONT``, ``WILL`` -> ``DONT``,
+subnegotiations skipped, later repeats ignored so an IAC storm cannot make us talk forever), an echo of the
+command line (dropped when the reply's first line repeats it), a banner or prompt on connect (drained), and one
+client at a time (a drive that closes a new connection at once is reported as busy).
+
+Every wait is bounded: the connect by the command's timeout, each command (its send and every receive until the
+prompt) by one deadline of the command's Budget, and a reply is at most :data:`MAX_REPLY` bytes, so an endless
+reply without a prompt ends in one error. After a command that got no prompt the connection is out of step (a late
+reply would answer the next command), so the link refuses further commands.
+"""
+
+from __future__ import annotations
+
+import socket
+from typing import TYPE_CHECKING
+
+from akdctl.errors import CommandRefused, CommError, MalformedReply, NoAnswer, UsageError
+from akdctl.links import CommandLink
+from akdctl.transport.base import LinkOptions, Transport
+
+if TYPE_CHECKING:
+    from akdctl.transport.target import Target
+
+PORT = 23
+PROMPT = b"-->"
+MAX_REPLY = 1 << 20       # a DRV.HELPALL is long; a reply larger than this never ends
+MAX_LINE = 256            # a command line akdctl sends (the drive's own limit is not public)
+IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
+#: How long the client listens for a banner, a prompt or options right after connecting (at most).
+SETTLE = 0.15
+
+
+class Telnet:
+    """Strips Telnet commands from received bytes and collects the refusals to send (each option once)."""
+
+    def __init__(self) -> None:
+        self.refused: set[tuple[int, int]] = set()
+        self.pending = b""      # an IAC sequence cut by a segment boundary
+        self.in_sb = False
+
+    def feed(self, data: bytes) -> tuple[bytes, bytes]:
+        """(text bytes, bytes to send back)."""
+        data = self.pending + data
+        self.pending = b""
+        text = bytearray()
+        reply = bytearray()
+        i = 0
+        while i < len(data):
+            byte = data[i]
+            if self.in_sb:
+                if byte == IAC and i + 1 < len(data) and data[i + 1] == SE:
+                    self.in_sb = False
+                    i += 2
+                    continue
+                if byte == IAC and i + 1 == len(data):
+                    self.pending = data[i:]
+                    break
+                i += 1
+                continue
+            if byte != IAC:
+                text.append(byte)
+                i += 1
+                continue
+            if i + 1 >= len(data):
+                self.pending = data[i:]
+                break
+            command = data[i + 1]
+            if command == IAC:
+                text.append(IAC)
+                i += 2
+            elif command in (DO, DONT, WILL, WONT):
+                if i + 2 >= len(data):
+                    self.pending = data[i:]
+                    break
+                option = data[i + 2]
+                answer = {DO: WONT, WILL: DONT}.get(command)
+                if answer is not None and (command, option) not in self.refused:
+                    self.refused.add((command, option))
+                    reply += bytes([IAC, answer, option])
+                i += 3
+            elif command == SB:
+                self.in_sb = True
+                i += 2
+            else:  # NOP, GA, DM ... carry no text
+                i += 2
+        return bytes(text), bytes(reply)
+
+
+class AsciiLink(CommandLink):
+    """One TCP connection to the service channel. Not thread-safe (one invocation, one caller)."""
+
+    def __init__(self, sock: socket.socket, options: LinkOptions, label: str) -> None:
+        self.sock = sock
+        self.options = options
+        self.label = label
+        self.telnet = Telnet()
+        self.buffer = b""
+        self.broken = ""
+
+    # ---------------------------------------------------------------- bytes
+    def _receive(self, wait: float, what: str) -> bool:
+        """Receive what arrives within ``wait`` s into the buffer; False on nothing. CommError on close."""
+        self.sock.settimeout(max(wait, 0.001))
+        try:
+            data = self.sock.recv(65536)
+        except socket.timeout:
+            return False
+        except OSError as exc:
+            raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+        if not data:
+            raise CommError(f"{self.label}: the drive closed the connection during {what}")
+        if self.options.tracer.active:
+            self._trace("rx", data, what)
+        text, answer = self.telnet.feed(data)
+        if answer:
+            self._send(answer, what)
+        self.buffer += text
+        if len(self.buffer) > MAX_REPLY:
+            self.broken = "a reply without a prompt"
+            raise MalformedReply(f"{self.label}: {what}: more than {MAX_REPLY} bytes without the '-->' prompt")
+        return True
+
+    def _trace(self, direction: str, data: bytes, note: str) -> None:
+        """The wire bytes as TCP segments (``--trace``, ``--pcap``; layer ``akd``)."""
+        local, remote = self.sock.getsockname()[:2], self.sock.getpeername()[:2]
+        src, dst = (local, remote) if direction == "tx" else (remote, local)
+        self.options.tracer.frame(direction, "akd", data, note=note,  # type: ignore[arg-type]
+                                  meta={"proto": "tcp", "src": src, "dst": dst})
+
+    def _send(self, data: bytes, what: str) -> None:
+        if self.options.tracer.active:
+            self._trace("tx", data, what)
+        try:
+            self.sock.sendall(data)
+        except socket.timeout:
+            raise NoAnswer(f"{self.label}: could not send {what} in time") from None
+        except OSError as exc:
+            raise CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})") from None
+
+    def settle(self, budget: float) -> None:
+        """Drain a banner, a first prompt and option offers right after connecting; a drive that hangs up at
+        once is busy with another client."""
+        import time
+
+        end = time.monotonic() + budget
+        try:
+            while time.monotonic() < end and self._receive(end - time.monotonic(), "connecting"):
+                pass
+        except CommError as exc:
+            if "closed" in exc.message:
+                raise CommError(f"{self.label}: the drive closed the connection at once: its service channel is "
+                                "probably in use by another client (WorkBench, a terminal, another akdctl); it "
+                                "serves one at a time") from None
+            raise
+        self.buffer = b""
+
+    # ---------------------------------------------------------------- the contract
+    def command(self, line: str) -> str:
+        line = line.strip()
+        if not line or len(line) > MAX_LINE or any(not 32 <= ord(c) < 127 for c in line):
+            raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
+        if self.broken:
+            raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
+        what = repr(line)
+        with self.options.budget.request(attempts=1) as deadline:
+            self.buffer = b""
+            self._send(line.encode("ascii") + b"\r\n", what)
+            while True:
+                cut = self.buffer.find(PROMPT)
+                if cut >= 0:
+                    break
+                left = deadline.remaining()
+                if left <= 0 or not self._receive(left, what):
+                    if deadline.remaining() > 0:
+                        continue
+                    self.broken = "a command without a prompt"
+                    got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
+                    raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
+        reply = self.buffer[:cut]
+        self.buffer = self.buffer[cut + len(PROMPT):]
+        return self._text(line, reply)
+
+    def _text(self, line: str, reply: bytes) -> str:
+        text = reply.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
+        lines = text.split("\n")
+        while lines and not lines[0].strip():
+            lines.pop(0)
+        if lines and lines[0].strip().upper() == line.upper():   # an echo of our line [I: echo unknown]
+            lines.pop(0)
+        text = "\n".join(lines).strip()
+        if text.startswith("Error:") or text.lower().startswith("error:"):
+            raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
+                                 details={"reply": text[:2000]})
+        return text
+
+    def close(self) -> None:
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+
+class AkdAsciiTransport(Transport):
+    """``akd://HOST[:23]``: offers the AKD's command channel as a :class:`~akdctl.links.CommandLink`."""
+
+    scheme = "akd"
+
+    def __init__(self, target: "Target", options: LinkOptions) -> None:
+        super().__init__(target, options)
+        self._link: AsciiLink | None = None
+
+    def open(self) -> None:
+        host, port = self.target.host, self.target.port or PORT
+        label = f"akd://{host}:{port}"
+        timeout = self.options.budget.left()
+        try:
+            sock = socket.create_connection((host, port), timeout=timeout)
+        except socket.timeout:
+            raise NoAnswer(f"{label}: no answer within {timeout:g} s (TCP connect)") from None
+        except (socket.gaierror, UnicodeError) as exc:
+            raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
+        except ConnectionRefusedError:
+            raise CommError(f"{label}: connection refused (is this the drive's service port? default 23)") from None
+        except OSError as exc:
+            raise CommError(f"{label}: cannot connect ({exc.strerror or exc})") from None
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        link = AsciiLink(sock, self.options, label)
+        self._link = link
+        link.settle(min(SETTLE, timeout / 4))
+        self.command_link = link
+
+    def close(self) -> None:
+        link, self._link = self._link, None
+        self.command_link = None
+        if link is not None:
+            link.close()
+
+
+__all__ = ["AkdAsciiTransport", "AsciiLink", "Telnet", "PORT"]
