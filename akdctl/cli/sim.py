@@ -109,7 +109,6 @@ def show(name: str | None) -> None:
 
 def _serve_callback(**kwargs: Any) -> None:
     from akdctl.cli.output import message
-    from akdctl.sim.drive import SimDrive
 
     duration = kwargs.pop("duration")
     from akdctl.sim.drive import FACE_LOCK_TIMEOUT
