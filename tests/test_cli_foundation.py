@@ -241,6 +241,7 @@ class _FakeTransport:
         self.parameters = None
         self.objects = None
         self.record_link = self.mailbox_link = self.sdo_client = self.message_link = None
+        self.command_link = self.register_link = None  # every link a Transport declares (transport/base.py)
 
     def open(self) -> None:
         from akdctl.links import RecordLink

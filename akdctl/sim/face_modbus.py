@@ -162,7 +162,8 @@ class ModbusFace(Face):
             self._error = OSError(f"address {self.host}:{self.port} not available")
             self._ready.set()
             return
-        sockets = getattr(server.transport, "sockets", None) or []
+        listener = server.transport  # pymodbus's listener: an asyncio.Server once serving (its sockets bound)
+        sockets = list(listener.sockets or []) if listener is not None else []
         if sockets:
             self.port = sockets[0].getsockname()[1]
         self._ready.set()

@@ -180,11 +180,14 @@ class FaceStats:
 
 def _read_identity(drive: BmpHandler) -> tuple[int, int]:
     """Vendor and device ID from the drive's own PNU 964, so every face reports one identity."""
-    request = bytes.fromhex("01 01 00 01 10 02 03 C4 00 00")   # read PNU 964[0..1]
+    from akdctl.protocol import bmp
+
+    request = bmp.ParameterRequest(1, bmp.REQ_READ, 1, (bmp.ParameterAddress(964, 0, 2),))  # PNU 964[0..1]
     try:
-        response = drive.handle_bmp(request)
-        if len(response) >= 10 and response[1] == 0x01 and response[4] in (0x06, 0x42) and response[5] >= 2:
-            return int.from_bytes(response[6:8], "big"), int.from_bytes(response[8:10], "big")
+        response = bmp.decode_response(drive.handle_bmp(bmp.encode_request(request)), request)
+        result = response.results[0] if response.results else None
+        if isinstance(result, bmp.ParameterValue) and len(result.values) >= 2:
+            return int(result.values[0]), int(result.values[1])
     except Exception:  # noqa: BLE001 - any failure of the simulated model falls back to defaults
         pass
     return 0x0100, 0x0001
