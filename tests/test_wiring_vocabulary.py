@@ -137,7 +137,7 @@ def test_eip_recipe_with_enable_step_plans_on_the_cip_axis(tmp_path: Path) -> No
 def test_each_word_is_one_constant() -> None:
     from akdctl.profiles.vocabulary import PROFILE_WORDS, channel, drive_profile
 
-    assert PROFILE_WORDS == ("profidrive", "cia402", "cip")
+    assert PROFILE_WORDS == ("profidrive", "cia402", "cip", "akd")
     assert all(drive_profile(word) is p for word, p in zip(PROFILE_WORDS, DriveProfile.ALL))
     assert channel("objects") is Channel.OBJECTS and channel("pnu") is None and drive_profile("ds402") is None
     assert DriveProfile.CIA402 == "cia402" and DriveProfile.CIA402.channel is Channel.OBJECTS

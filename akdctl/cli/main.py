@@ -91,9 +91,9 @@ SHORT_HELP: dict[str, str] = {
     "scope":
         "Record SIGNALs (VL.FB, VL.CMD, PL.FB, PL.ERR, IL.FB, 0x606C:0, PNU 6 and more) and plot them.",
     "param":
-        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP ...).",
+        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP and the rest).",
     "params":
-        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP ...).",
+        "Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP and the rest).",
     "cmd":
         "Send one command line to the AKD's ASCII channel (akd:// targets) and print the reply.",
     "commission":

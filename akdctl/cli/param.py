@@ -18,7 +18,7 @@ from akdctl.errors import CheckFailed, UsageError
 
 @click.group()
 def param() -> None:
-    """Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP ...).
+    """Read, write, list, save, dump and restore AKD parameters by name (DRV.OPMODE, VL.KP and the rest).
 
     Names work on every target: akd:// speaks them, sim/ecat/can use the CoE object and its scale,
     eip:// the Parameter instance, mb:// the register 2(n-1), pn:// the PNU where one exists.

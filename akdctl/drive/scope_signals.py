@@ -172,26 +172,20 @@ class Resolver:
 
 def _akd_names_coe(upper: str) -> tuple[int, int, str, float | None, str, str] | None:
     """(index, sub, type, factor, unit, scale mark) of an AKD name from the AKD-names catalogue
-    (``catalog/akd_params.py``, branch wip/names: ``lookup(name)`` -> a row with ``.coe`` = (index, sub),
-    ``.coe_type``, ``.scale`` = "1000" when wire 1000 is 1.000, "var" when it depends on UNIT.*, ``.unit``,
-    ``.mark("scale")``); None when the catalogue is not installed or has no CoE address for the name."""
-    try:
-        from akdctl.catalog import akd_params  # type: ignore[attr-defined]
-    except ImportError:
-        return None
+    (:mod:`akdctl.catalog.akd_params`: ``coe`` = (index, sub), ``coe_type``, ``scale`` = "1000" when wire 1000 is
+    1.000, "var" when it depends on UNIT.*, ``unit``, ``mark("scale")``); None when the name has no CoE address."""
+    from akdctl.catalog import akd_params
+
     row = akd_params.lookup(upper)
-    coe = getattr(row, "coe", None) if row is not None else None
-    if not coe:
+    if row is None or not row.coe:
         return None
-    scale_text = str(getattr(row, "scale", "") or "")
     try:
-        scale = float(scale_text)
+        scale = float(row.scale or "")
         factor: float | None = 1.0 / scale if scale else None
     except ValueError:
         factor = None  # "var" (depends on UNIT.*) or unknown: the raw integer, said so by the unit
-    mark = row.mark("scale") if hasattr(row, "mark") else ""
-    unit = str(getattr(row, "unit", "") or "") if factor is not None else "raw"
-    return int(coe[0]), int(coe[1]), str(getattr(row, "coe_type", "") or ""), factor, unit, str(mark or "")
+    unit = (row.unit or "") if factor is not None else "raw"
+    return int(row.coe[0]), int(row.coe[1]), row.coe_type or "", factor, unit, str(row.mark("scale") or "")
 
 
 class Sampler:
