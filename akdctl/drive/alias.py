@@ -38,11 +38,9 @@ CHANGES_ALIAS = Gated("0x36E7:0 (FBUS.PARAM03)", "changes the drive's station al
 
 def raw_bus(conn: "Connection") -> Any:
     """The raw master's transport (open, slave in PRE-OP or higher); the alias needs SII and register access."""
-    transport = conn.transport()
-    if conn.target.scheme != "ecat":
-        raise UsageError(f"'ecat alias' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
-                         f"{conn.target.display} gives no access to the slave's registers and SII")
-    return transport
+    from akdctl.drive.ecat_registers import raw_bus as registers_bus
+
+    return registers_bus(conn, "'ecat alias' needs")
 
 
 def require_position(conn: "Connection", transport: Any) -> None:

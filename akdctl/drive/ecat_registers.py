@@ -48,12 +48,13 @@ def guarded(address: int, size: int) -> list[str]:
     return [f"0x{lo:04X}-0x{hi:04X} {why}" for lo, hi, why in GUARDED if address <= hi and lo < address + size]
 
 
-def raw_bus(conn: "Connection") -> Any:
-    transport = conn.transport()
+def raw_bus(conn: "Connection", what: str = "register and SII access need") -> Any:
+    """The raw master's transport: the one way to the slave's registers and SII (``ecat reg``, ``ecat sii``,
+    ``ecat alias``); a UsageError naming ``what`` needs it on any other target."""
     if conn.target.scheme != "ecat":
-        raise UsageError(f"register and SII access need akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
-                         f"{conn.target.display} offers no register access")
-    return transport
+        raise UsageError(f"{what} akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
+                         f"{conn.target.display} gives no access to the slave's registers and SII")
+    return conn.transport()
 
 
 def read_registers(conn: "Connection", address: int, size: int) -> bytes:
