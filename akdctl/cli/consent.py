@@ -29,11 +29,23 @@ if TYPE_CHECKING:
 def require_consent(app: "AppContext", action: str) -> None:
     """Return when the user consents to ``action`` on this target; SafetyRefusal (exit 4) otherwise."""
     text = f"{action} on {app.target.display}"
-    if not app.yes and not sys.stdin.isatty():
+    refuse_without_terminal(text, app.yes)
+    own_axis(app)
+    ask(text, app.yes)
+
+
+def refuse_without_terminal(text: str, yes: bool) -> None:
+    """SafetyRefusal (exit 4) when consent to ``text`` can be neither given (--yes) nor asked (no terminal)."""
+    if not yes and not sys.stdin.isatty():
         raise SafetyRefusal(f"refusing to {text}: no terminal to ask for consent and --yes was not given; "
                             "nothing was written")
-    own_axis(app)
-    if app.yes:
+
+
+def ask(text: str, yes: bool) -> None:
+    """The one consent question (``--yes`` answers it): return on yes, SafetyRefusal (exit 4) otherwise.
+    Used for one axis here and for a whole line of drives (cli/line.py)."""
+    refuse_without_terminal(text, yes)
+    if yes:
         return
     from akdctl.cli.output import inert
 

@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from akdctl.errors import EXIT_COMM, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SafetyRefusal, UsageError
+from akdctl.errors import EXIT_COMM, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
 
 #: The options this module takes out of the command line (the rest goes to every drive's process).
 LINE_OPTIONS = {"--inventory": True, "--select": True, "--parallel": True, "--stop-on-error": False}
@@ -545,18 +545,11 @@ def finish(line: LineArgs, inv: Any, runs: Sequence[DriveRun], completed: bool,
 
 
 def confirm_line(text: str, yes: bool) -> None:
-    """The one consent for a whole line: ``--yes``, else a prompt on a terminal, else exit 4."""
-    import click
+    """The one consent for a whole line: the CLI's one question (:func:`akdctl.cli.consent.ask`); each drive's
+    process then runs with ``--yes`` and takes its own axis's owner lock."""
+    from akdctl.cli.consent import ask
 
-    from akdctl.cli.output import inert
-
-    if yes:
-        return
-    if not sys.stdin.isatty():
-        raise SafetyRefusal(f"refusing to {text}: no terminal to ask for consent and --yes was not given; "
-                            "nothing was written")
-    if not click.confirm(inert(f"About to {text}. Proceed?"), default=False, err=True):
-        raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
+    ask(text, yes)
 
 
 __all__ = ["LINE_COMMANDS", "DriveRun", "LineArgs", "confirm_line", "finish", "run", "run_all", "split_args",
