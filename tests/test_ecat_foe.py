@@ -4,8 +4,6 @@ FoE client's packet rules against a scripted slave (BUSY, wrong packet numbers, 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -18,23 +16,9 @@ from akdctl.protocol import ethercat as ec
 from akdctl.protocol import foe
 from akdctl.protocol import mailbox as mbx
 from akdctl.sim.drive import SimDrive
-from tests.test_ecat_raw_inprocess import Wire, transport
+from tests.test_ecat_raw_inprocess import Wire, drive, transport, wire  # noqa: F401 - drive, wire: fixtures
 
 IMAGE = bytes(range(256)) * 9 + b"\x00\x01tail"  # binary, not a multiple of the packet size
-
-
-@pytest.fixture
-def drive(tmp_path: Path) -> SimDrive:
-    return SimDrive("default", tmp_path)
-
-
-@pytest.fixture
-def wire(drive: SimDrive) -> Iterator[Wire]:
-    w = Wire(drive)
-    try:
-        yield w
-    finally:
-        w.close()
 
 
 def _conn(wire: Wire) -> Connection:

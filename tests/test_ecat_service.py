@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -18,8 +17,7 @@ from akdctl.errors import CheckFailed, SafetyRefusal, UsageError
 from akdctl.protocol import ethercat as ec
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.sii import akd_sii_image, build_sii, crc8, decode_ihex, encode_ihex
-from akdctl.sim.drive import SimDrive
-from tests.test_ecat_raw_inprocess import Wire, transport
+from tests.test_ecat_raw_inprocess import Wire, drive, transport, wire  # noqa: F401 - drive, wire: fixtures
 
 AKD_WORDS = [0x0009, 0x0800, 0x0000, 0x0000]  # SII words 0-3 of the real AKD (reference B)
 
@@ -28,20 +26,6 @@ AKD_WORDS = [0x0009, 0x0800, 0x0000, 0x0000]  # SII words 0-3 of the real AKD (r
 def test_crc8_vectors_of_the_reference(alias: int, crc: int) -> None:
     assert crc8(struct.pack("<7H", *AKD_WORDS, alias, 0, 0)) == crc
     assert alias_op.crc_of([*AKD_WORDS, alias, 0, 0, 0]) == crc
-
-
-@pytest.fixture
-def drive(tmp_path: Path) -> SimDrive:
-    return SimDrive("default", tmp_path)
-
-
-@pytest.fixture
-def wire(drive: SimDrive) -> Iterator[Wire]:
-    w = Wire(drive)
-    try:
-        yield w
-    finally:
-        w.close()
 
 
 @pytest.fixture
