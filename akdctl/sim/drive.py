@@ -39,7 +39,6 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
-from akdctl.io.atomic import atomic_open
 from akdctl.io.state_dir import state_dir  # re-exported: sim users name it here
 from akdctl.sim.errors import DamagedState
 from akdctl.sim.model import DriveModel
@@ -244,10 +243,10 @@ class SimDrive:
         if text is None:
             model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
-        import json  # only when a state file exists
+        from akdctl.io.json_text import loads  # json.loads without importing json (issue 29)
 
         try:
-            state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+            state = loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
             if not isinstance(state, dict):
                 raise ValueError("not a JSON object")
             meta = state.pop("sim", {})
@@ -447,6 +446,13 @@ def factory_model(name: str) -> DriveModel:
 
 
 _TMP_CHARS = frozenset("abcdefghijklmnopqrstuvwxyz0123456789_")
+
+
+def atomic_open(path: Path, mode: str = "w", *, prefix: str | None = None) -> Any:
+    """The one crash-safe writer (``akdctl/io/atomic.py``), imported by the first save: most commands never save."""
+    from akdctl.io.atomic import atomic_open as open_atomic
+
+    return open_atomic(path, mode, prefix=prefix)
 
 
 def _refuse_constant(name: str) -> float:
