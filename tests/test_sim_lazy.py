@@ -84,9 +84,8 @@ def test_a_damaged_lazy_component_is_reported_corrupt_when_first_used(isolated_e
     try:
         with fresh.transaction() as model:  # the axis alone still works
             model.pnu_read_raw(930, 0, 1)
-        with pytest.raises(SimStateError, match="corrupt.*pdo"):
-            with fresh.transaction() as model:
-                model.pnu_read_raw(922, 0, 1)
+        with pytest.raises(SimStateError, match="corrupt.*pdo"), fresh.transaction() as model:
+            model.pnu_read_raw(922, 0, 1)
         with pytest.raises(SimStateError, match="corrupt.*pdo"):  # also where a server turns it into a refusal
             fresh.handle_bmp(bytes.fromhex("01 01 00 01 10 01 03 9A 00 00"))
     finally:

@@ -40,7 +40,7 @@ def loads(text: str, *, parse_float: Callable[[str], Any], parse_constant: Calla
         import json
 
         return json.loads(text, parse_float=parse_float, parse_constant=parse_constant)
-    scan = make_scanner(_Settings(parse_float, parse_constant))
+    scan = make_scanner(_Settings(parse_float, parse_constant))  # type: ignore[arg-type]  # duck-typed decoder
     start = len(text) - len(text.lstrip(_WHITESPACE))
     try:
         value, end = scan(text, start)

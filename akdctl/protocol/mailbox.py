@@ -58,7 +58,7 @@ class Mailbox(Record):
 
     __slots__ = ("type", "data", "address", "channel", "priority", "counter")
 
-    def __init__(self, type: int, data: bytes, address: int = 0, channel: int = 0, priority: int = 0,  # noqa: A002
+    def __init__(self, type: int, data: bytes, address: int = 0, channel: int = 0, priority: int = 0,
                  counter: int = 0) -> None:
         self.type = type
         self.data = data
