@@ -25,18 +25,23 @@ class CipAttributes:
         self.label = label
 
     def call(self, service: int, path: cip.Path, data: bytes = b"") -> bytes:
-        from akdctl.catalog.texts import cip_status_text
+        return self._call(service, path.encode(), data, path)
 
-        response = self.link.request(cip.Request(service, path.encode(), data))
-        if not response.ok:
+    def _call(self, service: int, path: bytes, data: bytes, named: "cip.Path | None" = None) -> bytes:
+        """One request by its encoded path; words for a refusal are looked up only when one comes."""
+        response = self.link.request(cip.Request(service, path, data))
+        if response.status:
+            from akdctl.catalog.texts import cip_status_text
+
             name = cip.SERVICE_NAMES.get(service, f"service 0x{service:02X}")
-            raise CipRefused(f"{self.label}: {name} {path.label} refused: "
+            label = (named or cip.decode_path(path)).label
+            raise CipRefused(f"{self.label}: {name} {label} refused: "
                              f"{cip_status_text(response.status, response.extended)}", code=response.status,
                              details={"general_status": response.status, "extended_status": list(response.extended)})
         return response.data
 
     def get(self, class_id: int, instance: int, attribute: int) -> bytes:
-        return self.call(cip.GET_ATTRIBUTE_SINGLE, cip.Path(class_id, instance, attribute))
+        return self._call(cip.GET_ATTRIBUTE_SINGLE, cip.attribute_path(class_id, instance, attribute), b"")
 
     def set(self, class_id: int, instance: int, attribute: int, data: bytes) -> None:
         """Set_Attribute_Single. A set whose answer never came is an unknown outcome, not "no answer": the

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from functools import lru_cache
 
 from akdctl.protocol.errors import CodecError
 
@@ -505,3 +506,12 @@ class IdentityAttributes:
         # OpENer appends further attributes (state, configuration consistency ...) after the name
         return cls(vendor, dtype, code, (major, minor), status, serial, data[15:15 + nlen].decode("ascii", "replace"))
 
+
+
+# ---------------------------------------------------------------- a client's per-request path
+
+@lru_cache(maxsize=1024)
+def attribute_path(class_id: int, instance: int, attribute: int | None = None) -> bytes:
+    """``Path(class_id, instance, attribute).encode()``, remembered: a client asks the same few attributes again
+    and again (a poll), and the encoded path is the same bytes each time."""
+    return Path(class_id, instance, attribute).encode()
