@@ -25,23 +25,27 @@ class CipAttributes:
         self.label = label
 
     def call(self, service: int, path: cip.Path, data: bytes = b"") -> bytes:
-        return self._call(service, path.encode(), data, path)
-
-    def _call(self, service: int, path: bytes, data: bytes, named: "cip.Path | None" = None) -> bytes:
-        """One request by its encoded path; words for a refusal are looked up only when one comes."""
-        response = self.link.request(cip.Request(service, path, data))
+        request = cip.Request(service, path.encode(), data)
+        response = self.link.request(request)
         if response.status:
-            from akdctl.catalog.texts import cip_status_text
-
-            name = cip.SERVICE_NAMES.get(service, f"service 0x{service:02X}")
-            label = (named or cip.decode_path(path)).label
-            raise CipRefused(f"{self.label}: {name} {label} refused: "
-                             f"{cip_status_text(response.status, response.extended)}", code=response.status,
-                             details={"general_status": response.status, "extended_status": list(response.extended)})
+            raise self._refused(request, response, path)
         return response.data
 
     def get(self, class_id: int, instance: int, attribute: int) -> bytes:
-        return self._call(cip.GET_ATTRIBUTE_SINGLE, cip.attribute_path(class_id, instance, attribute), b"")
+        request = cip.get_attribute_single(class_id, instance, attribute)
+        response = self.link.request(request)
+        if response.status:
+            raise self._refused(request, response)
+        return response.data
+
+    def _refused(self, request: cip.Request, response: cip.Response, path: cip.Path | None = None) -> CipRefused:
+        """The error for a reply with a general status; its words are looked up only when one comes."""
+        from akdctl.catalog.texts import cip_status_text
+
+        label = (path or cip.decode_path(request.path)).label
+        return CipRefused(f"{self.label}: {request.name} {label} refused: "
+                          f"{cip_status_text(response.status, response.extended)}", code=response.status,
+                          details={"general_status": response.status, "extended_status": list(response.extended)})
 
     def set(self, class_id: int, instance: int, attribute: int, data: bytes) -> None:
         """Set_Attribute_Single. A set whose answer never came is an unknown outcome, not "no answer": the

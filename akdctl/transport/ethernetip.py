@@ -21,6 +21,8 @@ from __future__ import annotations
 import contextlib
 import itertools
 import socket
+import struct
+import sys
 import time
 from typing import TYPE_CHECKING
 
@@ -35,7 +37,28 @@ if TYPE_CHECKING:
 
 #: How much earlier than the deadline a socket timeout may end a wait and still be kept (the wait then resumes
 #: for the rest): a request whose deadline is within this of the last one's sets no socket timeout at all.
-TIMEOUT_SLACK = 0.005
+TIMEOUT_SLACK = 0.01
+#: Linux bounds a blocking socket's waits itself (SO_RCVTIMEO/SO_SNDTIMEO): each send and receive is then one
+#: system call, where Python's own socket timeout polls before each. The kernel's timer wheel may end such a wait
+#: up to an eighth of it (plus a tick) late, so it is set to end that much early, and a wait it ended before the
+#: deadline resumes with Python's precise (polled) timeout for the rest. Elsewhere Python's timeout does it all.
+KERNEL_TIMEOUTS = sys.platform.startswith("linux")
+_TIMEVAL = struct.Struct("@ll")  # the OS's struct timeval (seconds, microseconds), not a wire layout
+#: What a wait that ran out raises: Python's socket timeout, or EAGAIN from a kernel-bounded blocking socket.
+_TIMED_OUT = (socket.timeout, BlockingIOError)
+
+
+def _kernel_bound(sock: socket.socket, seconds: float) -> None:
+    """Bound each of a blocking socket's next sends and receives by ``seconds`` (at least 1 ms: 0 is forever)."""
+    micro = max(1000, round(seconds * 1e6))
+    timeval = _TIMEVAL.pack(micro // 1_000_000, micro % 1_000_000)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, timeval)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, timeval)
+
+
+def _early(left: float) -> float:
+    """When a kernel-bounded wait must be set to end so that it ends before ``left`` s have passed."""
+    return left * 0.875 - 0.01  # a tick: 10 ms at HZ=100
 
 
 class EnipSession(MessageLink):
@@ -54,7 +77,6 @@ class EnipSession(MessageLink):
         self._context = itertools.count(1)
         self._confused = False      # the stream lost its framing (a reply cut off by the deadline): reconnect
         self._rest = b""            # bytes read past the last packet (the start of the next one)
-        self._timeout = 0.0         # the socket's timeout now (set only when it changes)
         self.host, self.port = host, port
         self.late_replies = 0
         self.sock = self._connect()
@@ -71,7 +93,8 @@ class EnipSession(MessageLink):
             raise CommError(f"{label}: cannot connect to {host}:{port} ({exc.strerror or exc})") from None
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a request is one segment: send it now
         sock.settimeout(timeout)
-        self._timeout = timeout
+        self._timeout = timeout     # the socket's timeout now (Python's or the kernel's); set only when it changes
+        self._polled = True         # Python's (polled) timeout is on
         self._rest = b""
         self.local = sock.getsockname()[:2]
         self.remote = sock.getpeername()[:2]
@@ -99,11 +122,26 @@ class EnipSession(MessageLink):
         self.options.tracer.frame(direction, "enip", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "tcp", "src": src, "dst": dst})
 
-    def _wait_within(self, deadline: Deadline) -> None:
-        """The socket timeout for the next wait: kept if it ends within TIMEOUT_SLACK before the deadline."""
-        left = deadline.at - time.monotonic()
-        if left < 0.001:
-            left = 0.001  # no time left: a last look at what is already there
+    def _wait_within(self, deadline: Deadline, precise: bool = False) -> None:
+        """Bound the next wait by the deadline. The socket's timeout is kept while it ends within TIMEOUT_SLACK
+        before it (no system call); ``precise`` (a kernel-bounded wait ran out early) takes Python's polled
+        timeout for the rest."""
+        left = max(deadline.at - time.monotonic(), 0.001)  # no time left: a last look at what is already there
+        if KERNEL_TIMEOUTS:
+            early = _early(left)
+            if precise or early < 0.001:
+                self._polled = True
+                self.sock.settimeout(left)
+                return
+            current = self._timeout
+            if self._polled:
+                self._polled = False
+                self.sock.settimeout(None)
+                current = -1.0
+            if current > early or current < early - TIMEOUT_SLACK:
+                self._timeout = max(0.001, early - TIMEOUT_SLACK / 2)
+                _kernel_bound(self.sock, self._timeout)
+            return
         current = self._timeout
         if current > left or current < left - TIMEOUT_SLACK:
             current = self._timeout = max(0.001, left - TIMEOUT_SLACK / 2)
@@ -112,13 +150,15 @@ class EnipSession(MessageLink):
     def _recv(self, what: "str | cip.Request", deadline: Deadline, partial: bool) -> bytes:
         """The next bytes of the stream within the deadline. ``partial``: a packet has begun (a timeout then
         leaves the stream mid-packet, so the session is confused)."""
+        precise = False
         while True:
-            self._wait_within(deadline)
+            self._wait_within(deadline, precise)
             try:
                 chunk = self.sock.recv(4096)
-            except socket.timeout:
+            except _TIMED_OUT:
                 if not deadline.expired():
-                    continue  # the socket's timeout ended a little before the deadline: wait for the rest
+                    precise = True  # the socket's timeout ended before the deadline: wait for the rest
+                    continue
                 self._confused = self._confused or partial
                 raise NoAnswer(f"{self.label}: no answer to {_name(what)} within {deadline.describe()}") from None
             except OSError as exc:
@@ -133,9 +173,9 @@ class EnipSession(MessageLink):
 
     def _read_packet(self, what: "str | cip.Request", deadline: Deadline) -> tuple[tuple[int, ...], bytes, bytes]:
         """(header fields, command data, the whole packet) of the next packet on the stream."""
-        data = self._rest
+        data = self._rest or self._recv(what, deadline, False)
         while len(data) < enip.HEADER_SIZE:
-            data += self._recv(what, deadline, bool(data))
+            data += self._recv(what, deadline, True)
         head = enip.unpack_header(data)
         if head[1] > enip.MAX_DATA:
             self._confused = True
@@ -172,7 +212,7 @@ class EnipSession(MessageLink):
         self._wait_within(deadline)
         try:
             self.sock.sendall(raw)
-        except socket.timeout:
+        except _TIMED_OUT:
             self._confused = True  # part of the request may be on the wire
             raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
         except OSError as exc:
@@ -244,7 +284,7 @@ class EnipSession(MessageLink):
             raise CommError(f"{self.label}: the target refused {_name(req)} at the encapsulation layer: "
                             f"{enip_status_text(head[3])}", code=head[3])
         try:
-            response = cip.Response.decode(enip.ucmm_reply_message(body))
+            response = cip.decode_response(enip.ucmm_reply_message(body))
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed reply to {_name(req)}: {exc}") from None
         if response.service != req.service:
