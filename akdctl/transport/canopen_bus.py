@@ -73,6 +73,8 @@ if TYPE_CHECKING:
 for _name in ("canopen", "can"):
     logging.getLogger(_name).addHandler(logging.NullHandler())
 
+#: How many distinct frames a session's network keeps built for sending again (SDO requests of a poll, NMT).
+FRAME_CACHE = 256
 #: Query parameters akdctl reads itself; the rest go to the python-can bus.
 OWN_QUERY = frozenset({"block", "context"})
 #: INTERFACE names that mean "python-can's configuration decides".
@@ -163,12 +165,28 @@ def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "canopen.Network":
     import can
     import canopen
 
+    frames: dict[tuple[int, bytes, bool], can.Message] = {}
+
     class TracingNetwork(canopen.Network):
         def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+            """canopen's ``Network.send_message`` with the frame built once per distinct request: a poll sends the
+            same few frames again and again, and python-can's buses read a message when they send it (its own
+            periodic tasks send one message object again and again too)."""
+            data = bytes(data)
             if tracer.active:
-                tracer.frame("tx", "can", bytes(data), note=frame_note(can_id),
-                             meta=frame_meta(can_id, can_id > 0x7FF, remote))
-            super().send_message(can_id, data, remote)
+                tracer.frame("tx", "can", data, note=frame_note(can_id), meta=frame_meta(can_id, can_id > 0x7FF, remote))
+            if not self.bus:
+                raise RuntimeError("Not connected to CAN bus")
+            key = (can_id, data, remote)
+            message = frames.get(key)
+            if message is None:
+                message = can.Message(is_extended_id=can_id > 0x7FF, arbitration_id=can_id, data=data,
+                                      is_remote_frame=remote)
+                if len(frames) < FRAME_CACHE:
+                    frames[key] = message
+            with self.send_lock:
+                self.bus.send(message)
+            self.check()
 
     class TraceListener(can.Listener):
         def on_message_received(self, msg: "can.Message") -> None:
