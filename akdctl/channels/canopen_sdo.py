@@ -128,9 +128,9 @@ class CanopenObjectChannel(ObjectChannel):
             self.node.emcy.callbacks.remove(self._on_emcy)
         except ValueError:
             pass
-        if self._subscribed:
+        network = self.node.network
+        if self._subscribed and network is not None:
             self._subscribed = False
-            network = self.node.network
             try:
                 network.unsubscribe(self.sdo.tx_cobid, self._on_reply)
             except (KeyError, ValueError):
