@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from akdctl.profiles.vocabulary import Channel, DriveProfile
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.eip_io import IoConnection
+    from akdctl.transport.ethercat_raw import ProcessDataCycle
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -280,6 +281,25 @@ class Connection:
         """Whether the target offers CIP explicit messaging (opens the transport)."""
         self.transport()
         return self._cip is not None
+
+    @property
+    def has_process_data(self) -> bool:
+        """Whether this host can run cyclic process data with the target's slave as the bus master (``ecat://``);
+        known without opening the target (its transport class declares it)."""
+        if self._given is not None:
+            return bool(self._given.cyclic_master)
+        from akdctl.transport.registry import transport_class
+
+        return bool(transport_class(self.target).cyclic_master)
+
+    def process_data(self, rx_bytes: int, tx_bytes: int) -> "ProcessDataCycle":
+        """The cyclic exchange with the slave (not yet configured: drive/ecat_pdo_watch.enter does that);
+        UsageError where this host is not the master of one."""
+        cycle = self.transport().process_data(rx_bytes, tx_bytes)
+        if cycle is None:
+            raise UsageError(f"target {self.target.display} has no cyclic process data with this host as the "
+                             "EtherCAT master; use an ecat://IFNAME[/POSITION] target")
+        return cycle
 
     @property
     def has_commands(self) -> bool:

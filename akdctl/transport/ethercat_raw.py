@@ -626,6 +626,14 @@ class EthercatRawTransport(Transport):
                                "power-cycle it and check its firmware with 'akdctl ecat scan'")
             time.sleep(0.2)
 
+    cyclic_master = True
+
+    def process_data(self, rx_bytes: int, tx_bytes: int) -> "ProcessDataCycle":
+        """Our master's cyclic exchange with the slave this target names (opened: its station is known)."""
+        if self.master is None or self.slave is None:
+            raise CommError(f"{self.target.display}: the bus is not open")
+        return ProcessDataCycle(self.master, self.slave.station, rx_bytes, tx_bytes)
+
     def al_state(self) -> str | None:
         """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
 
@@ -695,3 +703,18 @@ class ProcessDataCycle:
         self.cycles += 1
         al = None if not with_status else (struct.unpack("<H", got[1].data)[0] if got[1].wkc == 1 else 0)
         return bytes(got[0].data[self.rx_bytes:]), got[0].wkc, al
+
+    # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
+    # slave this cycle serves, so they take the cycle alone, never the transport behind it.
+    def al_status(self) -> tuple[int, int]:
+        """(AL status, AL status code) of the slave now."""
+        return self.master.al_status(self.station)
+
+    def request_state(self, state: int) -> tuple[int, int]:
+        """Take the slave to ``state`` (:meth:`EcatMaster.request_state`)."""
+        return self.master.request_state(self.station, state)
+
+    @property
+    def safeop_wkc(self) -> int:
+        """The LRW's working counter in SAFE-OP: the inputs only (the slave takes no outputs before OP)."""
+        return 1 if self.tx_bytes else 0
