@@ -122,10 +122,23 @@ def test_late_cycles_are_gaps_and_too_many_are_rate_not_reached() -> None:
     recording, failure = _record(FakeInputs(_ramp(40), late=frozenset({3, 4})), ["0x606C"], cycles=20)
     assert failure is None  # 18 of 20 cycles: within the tolerance
     assert recording.times[3] - recording.times[2] == pytest.approx(3 * CYCLE)
-    assert any("late for 2 of 20" in n for n in recording.notes)
+    assert any("no sample for 2 of 20 bus cycles" in n for n in recording.notes)
     recording, failure = _record(FakeInputs(_ramp(40), late=frozenset(range(2, 12, 2))), ["0x606C"], cycles=20)
     assert isinstance(failure, RateNotReached) and failure.exit_code == 3
     assert recording.partial and "15 of 20" in recording.partial
+
+
+def test_cycles_spent_in_the_recorded_motions_sdo_requests_do_not_count_against_the_rate() -> None:
+    import time
+
+    spec, trig = _spec(["0x606C"], None, 20)
+    recording = Recording("t", "pdo", [c.channel for c in spec.columns[:spec.width]])
+    # the jog's start takes the host 11+ cycles (SDO writes, the drive enabling): those cycles are gaps
+    failure = scope_pdo.record(FakeInputs(_ramp(40), late=frozenset(range(1, 11))), spec, recording, trig,  # type: ignore[arg-type]
+                               stopped=lambda: False, timeout_s=1.0, on_first=lambda: time.sleep(0.022))
+    assert failure is None and recording.partial is None
+    assert recording.times[1] - recording.times[0] == pytest.approx(11 * CYCLE)
+    assert any("while the host sent the recorded motion's SDO requests" in n for n in recording.notes)
 
 
 def test_the_cycle_stopping_keeps_the_rows_taken() -> None:
@@ -235,6 +248,32 @@ def test_bus_wkc_drop_is_comm_error_and_leaving_safeop_is_drive_error_both_left_
         with BusInputs(cycle, CYCLE, clock=clock, sleep=clock.sleep) as bus:
             bus.next_inputs(1.0)
     assert drive_info.value.exit_code == 1 and cycle.calls[-1] == "state PREOP"
+
+
+def test_a_lost_frame_is_a_gap_and_frames_lost_past_the_limit_stop_the_cycle() -> None:
+    from akdctl.errors import NoAnswer
+
+    cycle, clock = FakeCycle(), Clock()
+    real = cycle.exchange
+    lose = {"n": 0}
+
+    def exchange(outputs: bytes, with_status: bool = True) -> tuple[bytes, int, int | None]:
+        if lose["n"]:
+            lose["n"] -= 1
+            clock.now += 0.2  # the master's frame timeout
+            raise NoAnswer("no EtherCAT frame came back")
+        return real(outputs, with_status)
+
+    cycle.exchange = exchange  # type: ignore[method-assign]
+    with pytest.raises(NoAnswer) as info:
+        with BusInputs(cycle, CYCLE, clock=clock, sleep=clock.sleep, lost_limit_s=1.0) as bus:
+            assert bus.next_inputs(1.0)[0] == 0
+            lose["n"] = 1
+            number, _ = bus.next_inputs(1.0)  # cycle 1's frame lost: 0.2 s of slots passed, the next is a gap later
+            assert number in (100, 101) and bus.lost == 1  # 0.202 s after cycle 0 (float rounding either side)
+            lose["n"] = 10
+            bus.next_inputs(1.0)  # lost for more than 1 s: the cycle stopped
+    assert info.value.exit_code == 3 and cycle.calls[-1] == "state PREOP"
 
 
 def test_bus_is_left_in_preop_on_ctrl_c() -> None:

@@ -325,10 +325,13 @@ def _record_pdo(conn: Connection, plan_: WritePlan, stopped: Callable[[], bool],
             raise DriveFault("drive fault during the recorded motion (status word 0x"
                              f"{int(row[spec.status_slot]):04X} in the TxPDO)")
 
-    with BusInputs(conn.process_data(spec.rx.bytes, spec.tx.bytes), spec.cycle_s) as bus:
+    with BusInputs(conn.process_data(spec.rx.bytes, spec.tx.bytes), spec.cycle_s,
+                   lost_limit_s=conn.options.timeout) as bus:
         failure = scope_pdo.record(bus, spec, recording, trigger, stopped=stopped, timeout_s=request.timeout_s,
                                    on_first=start_motion, on_row=on_row, on_tick=tick, on_sample=on_sample,
                                    events=events)
+    if bus.lost:
+        recording.notes.append(f"{bus.lost} frame(s) did not come back within the frame timeout: gaps")
     return recording, failure
 
 

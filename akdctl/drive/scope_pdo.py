@@ -25,6 +25,7 @@ drive's recorder do), and ``Recording.trigger_index`` is the trigger row.
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
@@ -227,6 +228,21 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
     stamped meanwhile) become the recording's events on the bus clock. Returns the error that ended the
     recording early (it is then marked partial and keeps its rows), else None."""
     width, cycle_s = spec.width, spec.cycle_s
+    paused = [0]  # cycles the host spent in a recorded motion's SDO requests (start, end, watch)
+
+    def timed(call: Callable[[], None] | None) -> Callable[[], None] | None:
+        if call is None:
+            return None
+
+        def run() -> None:
+            began = time.monotonic()
+            try:
+                call()
+            finally:
+                paused[0] += int((time.monotonic() - began) / cycle_s)
+        return run
+
+    on_first, on_tick = timed(on_first), timed(on_tick)
     ring: deque[tuple[int, list[float]]] = deque()
     fired = trigger.kind == "immediate"
     previous: float | None = None
@@ -282,14 +298,14 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
             for n, r in ring:
                 recording.add(n * cycle_s, r[:width])
         recording.mark_partial(_why(exc, len(recording)))
-        _finish(recording, spec, taken, first, last, inputs, events)
+        _finish(recording, spec, taken, first, last, inputs, events, paused[0])
         return exc
-    _finish(recording, spec, taken, first, last, inputs, events)
-    return _check_kept(recording, spec, taken, first, last)
+    _finish(recording, spec, taken, first, last, inputs, events, paused[0])
+    return _check_kept(recording, spec, taken, first, last, paused[0])
 
 
 def _finish(recording: Recording, spec: PdoSpec, taken: int, first: int | None, last: int, inputs: CyclicInputs,
-            events: dict[str, float] | None) -> None:
+            events: dict[str, float] | None, paused: int) -> None:
     if events:
         recording.events = {name: inputs.bus_time(t) for name, t in events.items()}
     recording.shift_to_trigger()
@@ -297,14 +313,19 @@ def _finish(recording: Recording, spec: PdoSpec, taken: int, first: int | None, 
     if first is not None and last > first:
         spanned = last - first + 1
         if taken < spanned:
-            recording.notes.append(f"the host was late for {spanned - taken} of {spanned} bus cycles: each is a gap "
-                                   "at its place on the time axis")
+            recording.notes.append(f"no sample for {spanned - taken} of {spanned} bus cycles (the host late, a frame "
+                                   "lost): each is a gap at its place on the time axis")
+        if paused:
+            recording.notes.append(f"{paused} of those cycles passed while the host sent the recorded motion's SDO "
+                                   "requests (its start and end): not counted against the rate")
 
 
-def _check_kept(recording: Recording, spec: PdoSpec, taken: int, first: int | None, last: int) -> AkdError | None:
+def _check_kept(recording: Recording, spec: PdoSpec, taken: int, first: int | None, last: int,
+                paused: int) -> AkdError | None:
+    """Fewer than RATE_TOLERANCE of the cycles exchanged, the motion's SDO pauses aside: partial, exit 3."""
     if first is None or last <= first:
         return None
-    spanned = last - first + 1
+    spanned = max(taken, last - first + 1 - paused)
     if taken < RATE_TOLERANCE * spanned:
         why = (f"the host exchanged {taken} of {spanned} bus cycles of {spec.cycle_s * 1e3:g} ms "
                f"({100 * taken / spanned:.0f} %)")

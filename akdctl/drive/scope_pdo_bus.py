@@ -38,9 +38,13 @@ class BusInputs:
     process_data``): a context manager that takes the slave to SAFE-OP on entry and back to PRE-OP on exit."""
 
     def __init__(self, cycle: Any, cycle_s: float, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+                 sleep: Callable[[float], None] = time.sleep, lost_limit_s: float = 1.0) -> None:
         self.cycle = cycle
         self.cycle_s = cycle_s
+        #: frames that did not come back (each a gap); the cycle counts as stopped after ``lost_limit_s`` of them
+        self.lost = 0
+        self.lost_limit_s = lost_limit_s
+        self._last_good: float | None = None
         self._clock, self._sleep = clock, sleep
         self._zeros = bytes(cycle.rx_bytes)
         self.t0: float | None = None  # host instant of bus cycle 0
@@ -67,6 +71,19 @@ class BusInputs:
 
         leave(self.cycle)
 
+    def _slot(self) -> tuple[int, float]:
+        """Wait for the next cycle's slot: (its number, the host instant); a slot already past is skipped."""
+        now = self._clock()
+        number = self._number + 1
+        if self.t0 is None:
+            self.t0 = self._last_good = now
+            return 0, now
+        due = self.t0 + number * self.cycle_s
+        if now < due:
+            self._sleep(due - now)
+            return number, self._clock()
+        return max(number, int((now - self.t0) / self.cycle_s)), now  # late: the slots passed are gaps
+
     def bus_time(self, host_t: float) -> float:
         """The bus time (s since cycle 0) of a host monotonic instant."""
         return host_t - (self.t0 if self.t0 is not None else host_t)
@@ -77,22 +94,24 @@ class BusInputs:
         master's frame timeout (exit 3), a working-counter drop CommError (exit 3), the slave out of SAFE-OP a
         DriveError naming its AL status code (exit 1)."""
         from akdctl.drive.ecat_pdo_watch import left_state, wkc_dropped
+        from akdctl.errors import NoAnswer
         from akdctl.protocol import ethercat as ec
 
         cycle = self.cycle
-        now = self._clock()
-        number = self._number + 1
-        if self.t0 is None:
-            self.t0, number = now, 0
-        else:
-            due = self.t0 + number * self.cycle_s
-            if now < due:
-                self._sleep(due - now)
-                now = self._clock()
-            else:
-                number = max(number, int((now - self.t0) / self.cycle_s))  # late: those slots are gaps
-        check = now >= self._next_status
-        inputs, wkc, al = cycle.exchange(self._zeros, with_status=check)
+        while True:
+            number, now = self._slot()
+            check = now >= self._next_status
+            try:
+                inputs, wkc, al = cycle.exchange(self._zeros, with_status=check)
+            except NoAnswer:
+                # one lost frame is one gap (a loaded host or wire); frames lost for lost_limit_s: the cycle stopped
+                self.lost += 1
+                self._number = number
+                if self._last_good is None or self._clock() - self._last_good > self.lost_limit_s:
+                    raise
+                continue
+            break
+        self._last_good = now
         if check:
             self._next_status = now + STATUS_EVERY_S
         expected = cycle.safeop_wkc
