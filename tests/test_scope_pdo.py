@@ -355,3 +355,17 @@ def test_ctrl_c_over_the_raw_master_ends_partial_and_leaves_preop(conn: Connecti
     recording, failure = op.execute(conn, op.plan(conn, request), stopped=stopped)
     assert isinstance(failure, Interrupted) and len(recording) == 5 and recording.partial
     assert conn.al_state() == "PREOP"
+
+
+def test_cli_and_recipe_build_the_same_pdo_plan(conn: Connection) -> None:
+    from akdctl.recipe.loader import RawStep
+    from akdctl.recipe.schema import Context, validate_step
+
+    raw = RawStep({"action": "scope", "signals": ["STATUSWORD"], "source": "pdo", "rate": 500, "samples": 50,
+                   "trigger": "bit:3", "pretrigger": 10}, Path("r.toml"), 4, number=1)
+    step = validate_step(raw, Context(folder=Path("."), conn=conn))
+    cli = op.build_request(["STATUSWORD"], source="pdo", rate_hz=500, samples=50, trigger="bit:3", pretrigger=10)
+    assert step.params["request"] == cli
+    recipe_plan, cli_plan = op.plan(conn, step.params["request"]), op.plan(conn, cli)
+    assert recipe_plan.to_json() == cli_plan.to_json()
+    assert (recipe_plan.data["pdo"].cycles, recipe_plan.data["pdo"].pre) == (50, 5)
