@@ -98,19 +98,19 @@ class BusInputs:
         from akdctl.protocol import ethercat as ec
 
         cycle = self.cycle
-        while True:
+        got: tuple[bytes, int, int | None] | None = None
+        while got is None:
             number, now = self._slot()
             check = now >= self._next_status
             try:
-                inputs, wkc, al = cycle.exchange(self._zeros, with_status=check)
+                got = cycle.exchange(self._zeros, with_status=check)
             except NoAnswer:
                 # one lost frame is one gap (a loaded host or wire); frames lost for lost_limit_s: the cycle stopped
                 self.lost += 1
                 self._number = number
                 if self._last_good is None or self._clock() - self._last_good > self.lost_limit_s:
                     raise
-                continue
-            break
+        inputs, wkc, al = got
         self._last_good = now
         if check:
             self._next_status = now + STATUS_EVERY_S
