@@ -30,6 +30,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
+from akdctl.drive.ecat_pdo_watch import field_value
 from akdctl.drive.scope_model import Channel, Recording, utc_now
 from akdctl.drive.scope_trigger import Trigger
 from akdctl.errors import AkdError, Interrupted, TriggerTimeout, UsageError
@@ -98,9 +99,8 @@ class PdoSpec(Record):
         self.notes = notes or []
 
     def decode(self, image: bytes) -> list[float]:
-        """One row (recorded and hidden values) out of one cycle's input image."""
-        from akdctl.drive.ecat_pdo_watch import field_value
-
+        """One row (recorded and hidden values) out of one cycle's input image (drive/ecat_pdo_watch.field_value:
+        the one reading of an entry out of the image)."""
         value = int.from_bytes(image, "little")
         return [float(c.convert(field_value(value, c.bit, c.bits, c.signed))) for c in self.columns]
 

@@ -25,6 +25,10 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any
 
+from akdctl.drive.ecat_pdo_watch import enter, leave, left_state, wkc_dropped
+from akdctl.errors import NoAnswer
+from akdctl.protocol import ethercat as ec
+
 #: How often the AL status rides along in the cycle's frame (a working-counter drop is seen at once anyway).
 STATUS_EVERY_S = 0.1
 #: Cycles exchanged and dropped after SAFE-OP is reached, before cycle 0: the first input images can predate the
@@ -52,9 +56,6 @@ class BusInputs:
         self._next_status = 0.0
 
     def __enter__(self) -> "BusInputs":
-        from akdctl.drive.ecat_pdo_watch import enter, leave
-        from akdctl.protocol import ethercat as ec
-
         try:
             enter(self.cycle, ec.AlState.SAFEOP)
             for _ in range(max(1, round(WARMUP_S / self.cycle_s))):
@@ -67,8 +68,6 @@ class BusInputs:
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
-        from akdctl.drive.ecat_pdo_watch import leave
-
         leave(self.cycle)
 
     def _slot(self) -> tuple[int, float]:
@@ -93,10 +92,6 @@ class BusInputs:
         :data:`STATUS_EVERY_S`, the AL status: (cycle number, TxPDO image). A lost frame is FrameLost after the
         master's frame timeout (exit 3), a working-counter drop CommError (exit 3), the slave out of SAFE-OP a
         DriveError naming its AL status code (exit 1)."""
-        from akdctl.drive.ecat_pdo_watch import left_state, wkc_dropped
-        from akdctl.errors import NoAnswer
-        from akdctl.protocol import ethercat as ec
-
         cycle = self.cycle
         got: tuple[bytes, int, int | None] | None = None
         while got is None:
@@ -117,9 +112,10 @@ class BusInputs:
         expected = cycle.safeop_wkc
         if al is None and wkc != expected:
             al = cycle.exchange(self._zeros)[2]  # why did it drop: a slave out of SAFE-OP says so
-        left = left_state(cycle, al, ec.AlState.SAFEOP)
-        if left is not None:
-            raise left
+        if al is not None:  # read every STATUS_EVERY_S, or after a working-counter drop
+            left = left_state(cycle, al, ec.AlState.SAFEOP)
+            if left is not None:
+                raise left
         if wkc != expected:
             raise wkc_dropped(cycle, wkc, expected)
         self._number = number
