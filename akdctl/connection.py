@@ -190,9 +190,28 @@ class Connection:
         from akdctl.io.owner_lock import OwnerLock
         from akdctl.io.state_dir import state_dir
 
-        lock = OwnerLock(state_dir() / "owners" / f"{owner_key(self.target)}.lock")
+        owners = state_dir() / "owners"
+        lock = OwnerLock(owners / f"{owner_key(self.target)}.lock")
         lock.acquire(command)
         self.axis_owner = lock
+        if self.target.scheme != "sim":  # a simulated drive's address is already its only name
+            from akdctl.drive.gate import serial_owner_key
+            from akdctl.drive.identity import serial_number
+
+            try:
+                serial = serial_number(self)
+                if serial is not None:
+                    lock.also(OwnerLock(owners / f"{serial_owner_key(serial)}.lock"), command)
+            except BaseException:
+                self.axis_owner = None
+                lock.release()
+                raise
+
+    def release_axis(self) -> None:
+        """Let go of the axis (:meth:`own_axis`) and keep the link: the end of one command in the shell."""
+        owner, self.axis_owner = self.axis_owner, None
+        if owner is not None:
+            owner.release()
 
     # ---------------------------------------------------------------- transport and channels
     def new_transport(self) -> "Transport":
