@@ -8,6 +8,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -292,19 +293,28 @@ def drive(tmp_path: Path) -> SimDrive:
 
 
 @pytest.fixture
-def conn(drive: SimDrive) -> Iterator[Connection]:
-    from tests.test_ecat_raw_inprocess import Wire, transport
+def wire(drive: SimDrive) -> Iterator[Any]:
+    from tests.test_ecat_raw_inprocess import Wire
 
-    wire = Wire(drive)
-    assert wire.face.pd is not None
-    wire.face.pd.start()
+    w = Wire(drive)
+    assert w.face.pd is not None
+    w.face.pd.start()
+    try:
+        yield w
+    finally:
+        w.face.pd.stop()
+        w.close()
+
+
+@pytest.fixture
+def conn(wire: Any) -> Iterator[Connection]:
+    from tests.test_ecat_raw_inprocess import transport
+
     c = Connection.over(transport(wire))
     try:
         yield c
     finally:
         c.close()
-        wire.face.pd.stop()
-        wire.close()
 
 
 def test_plan_refuses_a_target_that_is_not_a_cyclic_master(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -369,3 +379,39 @@ def test_cli_and_recipe_build_the_same_pdo_plan(conn: Connection) -> None:
     recipe_plan, cli_plan = op.plan(conn, step.params["request"]), op.plan(conn, cli)
     assert recipe_plan.to_json() == cli_plan.to_json()
     assert (recipe_plan.data["pdo"].cycles, recipe_plan.data["pdo"].pre) == (50, 5)
+
+
+def test_the_slave_leaving_safeop_ends_the_recording_with_exit_1(conn: Connection, drive: SimDrive) -> None:
+    import threading
+
+    def leave() -> None:
+        with drive.transaction() as model:
+            model.pdo.set_al_state("PREOP")  # someone else took the slave out of SAFE-OP
+
+    request = op.build_request(["STATUSWORD"], samples=300, rate_hz=100.0, source="pdo")
+    plan = op.plan(conn, request)
+    timer = threading.Timer(0.3, leave)
+    timer.start()
+    try:
+        recording, failure = op.execute(conn, plan, stopped=lambda: False)
+    finally:
+        timer.cancel()
+    assert isinstance(failure, DriveError) and failure.exit_code == 1 and "left SAFEOP" in failure.message
+    assert recording.partial and "left SAFEOP" in recording.partial and 5 <= len(recording) < 300
+    assert conn.al_state() == "PREOP"
+
+
+def test_a_silent_slave_stops_the_cycle_with_exit_3_after_the_link_timeout(conn: Connection, wire: Any) -> None:
+    import threading
+
+    request = op.build_request(["STATUSWORD"], samples=300, rate_hz=100.0, source="pdo")
+    plan = op.plan(conn, request)
+    timer = threading.Timer(0.3, lambda: setattr(wire, "silent", True))
+    timer.start()
+    try:
+        recording, failure = op.execute(conn, plan, stopped=lambda: False)
+    finally:
+        timer.cancel()
+    assert failure is not None and failure.exit_code == 3 and "no EtherCAT frame came back" in failure.message
+    assert recording.partial and 5 <= len(recording) < 300
+    assert any("did not come back" in n for n in recording.notes)
