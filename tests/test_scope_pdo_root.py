@@ -105,6 +105,9 @@ def test_a_recorded_jog_without_consent_moves_nothing(pair: VethPair, slave: Sim
 
 
 def test_an_unmapped_signal_and_an_unreachable_rate_are_exit_2(pair: VethPair, slave: SimServer) -> None:
+    dry = cli(pair, "scope", "VL.FB", "--source", "pdo", "--for", "1s", "--dry-run")
+    assert dry.returncode == 0 and "source: pdo" in dry.stdout and "SAFE-OP" in dry.stdout, dry.stderr
+    assert "the drive's cycle time 0x60C2 = 2e-3 s" in dry.stdout and "500 cycles" in dry.stdout
     result = cli(pair, "scope", "PL.FB", "--source", "pdo", "--no-plot")
     assert result.returncode == 2
     _one_line(result, "0x6064:00 is not in the mapped TxPDO (0x606C:00, 0x6041:00)")

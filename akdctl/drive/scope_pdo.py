@@ -113,12 +113,14 @@ def cycle_for(rate_hz: float | None, drive_cycle: tuple[int, int] | None) -> tup
 
     tick, shortest = float(cycle_tick_s()), float(min_cycle_s())
     if rate_hz is None:
-        if drive_cycle is not None:
-            from akdctl.profiles.units import cycle_time_problem, cycle_time_s
+        if drive_cycle is None:
+            return 0.002, "2 ms: the drive did not answer 0x60C2"
+        from akdctl.profiles.units import cycle_time_problem, cycle_time_s
 
-            if cycle_time_problem(*drive_cycle) is None and cycle_time_s(*drive_cycle) <= MAX_CYCLE_S:
-                return float(cycle_time_s(*drive_cycle)), f"the drive's cycle time 0x60C2 ({drive_cycle[0]}e{drive_cycle[1]} s)"
-        return 0.002, "2 ms (the drive's 0x60C2 is not a cycle the scope runs)"
+        units, exponent = drive_cycle
+        if cycle_time_problem(units, exponent) is None and cycle_time_s(units, exponent) <= MAX_CYCLE_S:
+            return float(cycle_time_s(units, exponent)), f"the drive's cycle time 0x60C2 = {units}e{exponent} s"
+        return 0.002, f"2 ms: the drive's 0x60C2 = {units}e{exponent} s is not a cycle the scope runs"
     cycle = 1.0 / rate_hz
     ticks = cycle / tick
     if cycle < shortest - 1e-12:
