@@ -230,21 +230,21 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
     stamped meanwhile) become the recording's events on the bus clock. Returns the error that ended the
     recording early (it is then marked partial and keeps its rows), else None."""
     width, cycle_s = spec.width, spec.cycle_s
-    paused = [0]  # cycles the host spent in a recorded motion's SDO requests (start, end, watch)
+    paused = [0]  # cycles the host spent between cycles on purpose: a recorded motion's SDO requests, the live plot
 
-    def timed(call: Callable[[], None] | None) -> Callable[[], None] | None:
+    def timed(call: Callable[..., None] | None) -> Callable[..., None] | None:
         if call is None:
             return None
 
-        def run() -> None:
+        def run(*args: Any) -> None:
             began = time.monotonic()
             try:
-                call()
+                call(*args)
             finally:
                 paused[0] += int((time.monotonic() - began) / cycle_s)
         return run
 
-    on_first, on_tick = timed(on_first), timed(on_tick)
+    on_first, on_tick, on_sample = timed(on_first), timed(on_tick), timed(on_sample)
     ring: deque[tuple[int, list[float]]] = deque()
     fired = trigger.kind == "immediate"
     previous: float | None = None
@@ -318,8 +318,9 @@ def _finish(recording: Recording, spec: PdoSpec, taken: int, first: int | None, 
             recording.notes.append(f"no sample for {spanned - taken} of {spanned} bus cycles (the host late, a frame "
                                    "lost): each is a gap at its place on the time axis")
         if paused:
-            recording.notes.append(f"{paused} of those cycles passed while the host sent the recorded motion's SDO "
-                                   "requests (its start and end): not counted against the rate")
+            recording.notes.append(f"{paused} of those cycles passed while the host worked between cycles on "
+                                   "purpose (the recorded motion's SDO requests, the live plot): not counted against "
+                                   "the rate")
 
 
 def _check_kept(recording: Recording, spec: PdoSpec, taken: int, first: int | None, last: int,
