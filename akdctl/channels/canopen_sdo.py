@@ -3,7 +3,11 @@
 The canopen library already implements the CiA 301 SDO client (expedited,
 segmented and block transfer, toggle bits, CRC), so this module only chooses
 the transfer, translates the library's exceptions into akdctl's errors and
-collects emergencies:
+collects emergencies. One exception, for the request a poll makes again and
+again: a normal upload is framed by akdctl's own SDO codec and takes its reply
+straight from the node's SDO response COB-ID (``_on_reply`` into a C queue),
+without canopen's stream and queue objects per request; downloads and block
+transfers stay canopen's. The library's errors become akdctl's:
 
 * ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` through
   :func:`~akdctl.channels.base.sdo_aborted`, worded by the catalogue and, for codes
