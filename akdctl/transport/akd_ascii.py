@@ -9,8 +9,10 @@ command line (dropped when the reply's first line repeats it), a banner or promp
 client at a time (a drive that closes a new connection at once is reported as busy).
 
 Every wait is bounded: the connect by the command's timeout, each command (its send and every receive until the
-prompt) by one deadline of the command's Budget, and a reply is at most :data:`MAX_REPLY` bytes, so an endless
-reply without a prompt ends in one error. After a command that got no prompt the connection is out of step (a late
+prompt) by one deadline of the command's Budget (the socket waits through :mod:`akdctl.transport.tcp_stream`), and
+a reply is at most :data:`MAX_REPLY` bytes, so an endless reply without a prompt ends in one error. A command costs
+one send and, for a short reply, one receive: a reply without Telnet bytes skips the option parser, a one-line reply
+skips the line splitting, and nothing is traced unless the tracer is active. After a command that got no prompt the connection is out of step (a late
 reply would answer the next command), so the link refuses further commands.
 """
 
@@ -22,6 +24,7 @@ from typing import TYPE_CHECKING
 from akdctl.errors import CommandRefused, CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.links import CommandLink
 from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import TcpStream
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
@@ -31,6 +34,7 @@ PROMPT = b"-->"
 MAX_REPLY = 1 << 20       # a DRV.HELPALL is long; a reply larger than this never ends
 MAX_LINE = 256            # a command line akdctl sends (the drive's own limit is not public)
 IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
+IAC_BYTE = bytes([IAC])
 #: How long the client listens for a banner, a prompt or options right after connecting (at most).
 SETTLE = 0.15
 
@@ -45,6 +49,8 @@ class Telnet:
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(text bytes, bytes to send back)."""
+        if not self.pending and not self.in_sb and IAC_BYTE not in data:
+            return data, b""   # the usual reply: no Telnet command in it
         data = self.pending + data
         self.pending = b""
         text = bytearray()
@@ -94,27 +100,28 @@ class Telnet:
 class AsciiLink(CommandLink):
     """One TCP connection to the service channel. Not thread-safe (one invocation, one caller)."""
 
-    def __init__(self, sock: socket.socket, options: LinkOptions, label: str) -> None:
-        self.sock = sock
+    def __init__(self, stream: TcpStream, options: LinkOptions, label: str) -> None:
+        self.stream = stream
         self.options = options
+        self.tracer = options.tracer
         self.label = label
         self.telnet = Telnet()
         self.buffer = b""
         self.broken = ""
+        self._lines: dict[str, bytes] = {}   # command line -> its wire bytes, checked once
 
     # ---------------------------------------------------------------- bytes
     def _receive(self, wait: float, what: str) -> bool:
         """Receive what arrives within ``wait`` s into the buffer; False on nothing. CommError on close."""
-        self.sock.settimeout(max(wait, 0.001))
         try:
-            data = self.sock.recv(65536)
-        except socket.timeout:
-            return False
+            data = self.stream.recv(max(wait, 0.001))
         except OSError as exc:
             raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+        if data is None:
+            return False
         if not data:
             raise CommError(f"{self.label}: the drive closed the connection during {what}")
-        if self.options.tracer.active:
+        if self.tracer.active:
             self._trace("rx", data, what)
         text, answer = self.telnet.feed(data)
         if answer:
@@ -127,16 +134,19 @@ class AsciiLink(CommandLink):
 
     def _trace(self, direction: str, data: bytes, note: str) -> None:
         """The wire bytes as TCP segments (``--trace``, ``--pcap``; layer ``akd``)."""
-        local, remote = self.sock.getsockname()[:2], self.sock.getpeername()[:2]
-        src, dst = (local, remote) if direction == "tx" else (remote, local)
-        self.options.tracer.frame(direction, "akd", data, note=note,  # type: ignore[arg-type]
-                                  meta={"proto": "tcp", "src": src, "dst": dst})
+        ends = self.stream.local_and_remote()
+        meta: dict[str, object] = {}
+        if ends is not None:
+            local, remote = ends
+            src, dst = (local, remote) if direction == "tx" else (remote, local)
+            meta = {"proto": "tcp", "src": src, "dst": dst}
+        self.tracer.frame(direction, "akd", data, note=note, meta=meta)  # type: ignore[arg-type]
 
     def _send(self, data: bytes, what: str) -> None:
-        if self.options.tracer.active:
+        if self.tracer.active:
             self._trace("tx", data, what)
         try:
-            self.sock.sendall(data)
+            self.stream.send(data)
         except socket.timeout:
             raise NoAnswer(f"{self.label}: could not send {what} in time") from None
         except OSError as exc:
@@ -160,16 +170,26 @@ class AsciiLink(CommandLink):
         self.buffer = b""
 
     # ---------------------------------------------------------------- the contract
+    def _wire(self, line: str) -> bytes:
+        """The bytes of a command line (checked and encoded once per distinct line)."""
+        wire = self._lines.get(line)
+        if wire is None:
+            text = line.strip()
+            if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
+                raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
+            wire = text.encode("ascii") + b"\r\n"
+            if len(self._lines) < 256:
+                self._lines[line] = wire
+        return wire
+
     def command(self, line: str) -> str:
-        line = line.strip()
-        if not line or len(line) > MAX_LINE or any(not 32 <= ord(c) < 127 for c in line):
-            raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
+        wire = self._wire(line)
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
-        what = repr(line)
         with self.options.budget.request(attempts=1) as deadline:
             self.buffer = b""
-            self._send(line.encode("ascii") + b"\r\n", what)
+            what = repr(line.strip())
+            self._send(wire, what)
             while True:
                 cut = self.buffer.find(PROMPT)
                 if cut >= 0:
@@ -183,26 +203,33 @@ class AsciiLink(CommandLink):
                     raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
         reply = self.buffer[:cut]
         self.buffer = self.buffer[cut + len(PROMPT):]
-        return self._text(line, reply)
+        return self._text(wire[:-2].decode("ascii"), reply)
 
     def _text(self, line: str, reply: bytes) -> str:
-        text = reply.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
+        text = reply.decode("latin-1").strip()
+        if "\n" not in text and "\r" not in text:   # one line (the usual read): no splitting
+            if text.upper() == line.upper():   # only an echo of our line [I: echo unknown]
+                text = ""
+        else:
+            text = self._lines_of(line, text)
+        if text[:6].lower() == "error:":
+            raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
+                                 details={"reply": text[:2000]})
+        return text
+
+    @staticmethod
+    def _lines_of(line: str, text: str) -> str:
+        """A reply of several lines: CR, LF or CRLF between them, an echo of our line dropped."""
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
         lines = text.split("\n")
         while lines and not lines[0].strip():
             lines.pop(0)
         if lines and lines[0].strip().upper() == line.upper():   # an echo of our line [I: echo unknown]
             lines.pop(0)
-        text = "\n".join(lines).strip()
-        if text.startswith("Error:") or text.lower().startswith("error:"):
-            raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
-                                 details={"reply": text[:2000]})
-        return text
+        return "\n".join(lines).strip()
 
     def close(self) -> None:
-        try:
-            self.sock.close()
-        except OSError:
-            pass
+        self.stream.close()
 
 
 class AkdAsciiTransport(Transport):
@@ -219,7 +246,7 @@ class AkdAsciiTransport(Transport):
         label = f"akd://{host}:{port}"
         timeout = self.options.budget.left()
         try:
-            sock = socket.create_connection((host, port), timeout=timeout)
+            stream = TcpStream.connect(host, port, timeout)
         except socket.timeout:
             raise NoAnswer(f"{label}: no answer within {timeout:g} s (TCP connect)") from None
         except (socket.gaierror, UnicodeError) as exc:
@@ -228,8 +255,7 @@ class AkdAsciiTransport(Transport):
             raise CommError(f"{label}: connection refused (is this the drive's service port? default 23)") from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect ({exc.strerror or exc})") from None
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        link = AsciiLink(sock, self.options, label)
+        link = AsciiLink(stream, self.options, label)
         self._link = link
         link.settle(min(SETTLE, timeout / 4))
         self.command_link = link
