@@ -1,22 +1,30 @@
-"""``mb://HOST[:502][?unit=N]``: Modbus TCP through pymodbus's client, for the AKD's parameter registers.
+"""``mb://HOST[:502][?unit=N]``: Modbus TCP to the AKD's parameter registers, through akdctl's own codec.
 
 The AKD's map (AKD User Guide ch. 22, reference ethernetip.md 3 and akd-parameter-names.md 2.4): parameter ``n``
 sits at holding register ``2(n-1)``; a parameter of 32 bits or less is two registers read or written in one
 message, the lower address holding the most significant word [V]; floats travel x1000 [V]. Which names have
 which ``n`` is the catalogue's business (``drive/names.py`` turns a name into registers); this transport only
-reads and writes registers, every wait bounded by the command's timeout (pymodbus's own retries are off: a
-request is sent once, as the Budget's rule for writes asks).
+reads and writes registers. The bytes are :mod:`akdctl.protocol.modbus`'s, the socket waits are
+:mod:`akdctl.transport.tcp_stream`'s: a request is one send and, on loopback or a LAN, one receive, every wait
+bounded by one deadline of the command's Budget. A request is sent once (the Budget's rule for writes); a reply
+whose transaction identifier is not the request's (a late answer to an earlier request that timed out) is
+skipped, so the connection stays in step.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import socket
+from typing import TYPE_CHECKING
 
-from akdctl.errors import CommError, ModbusRefused, NoAnswer, UsageError
+from akdctl.errors import CommError, MalformedReply, ModbusRefused, NoAnswer, UsageError
 from akdctl.links import RegisterLink
+from akdctl.protocol import modbus as codec
+from akdctl.protocol.errors import CodecError
 from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import TcpStream
 
 if TYPE_CHECKING:
+    from akdctl.links import Deadline
     from akdctl.transport.target import Target
 
 PORT = 502
@@ -26,42 +34,110 @@ EXCEPTIONS = {1: "illegal function", 2: "illegal data address", 3: "illegal data
 
 
 class ModbusLink(RegisterLink):
-    def __init__(self, client: Any, unit: int, options: LinkOptions, label: str) -> None:
-        self.client = client
+    """One TCP connection to the drive's Modbus server. Not thread-safe (one invocation, one caller)."""
+
+    def __init__(self, stream: TcpStream, unit: int, options: LinkOptions, label: str) -> None:
+        self.stream = stream
         self.unit = unit
         self.options = options
+        self.tracer = options.tracer
         self.label = label
+        self.transaction = 0
+        self.buffer = b""   # bytes received after the last whole reply
 
-    def _call(self, what: str, call: Any) -> Any:
-        from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+    def _trace(self, direction: str, adu: bytes) -> None:
+        """A Modbus TCP ADU as a TCP segment (``--trace``, ``--pcap``; layer ``mb``)."""
+        meta: dict[str, object] = {}
+        ends = self.stream.local_and_remote()
+        if ends is not None:
+            local, remote = ends
+            src, dst = (local, remote) if direction == "tx" else (remote, local)
+            meta = {"proto": "tcp", "src": src, "dst": dst}
+        self.tracer.frame(direction, "mb", adu, note=self.label, meta=meta)  # type: ignore[arg-type]
 
+    def _exchange(self, adu: bytes, function: int, what: str) -> bytes:
+        """Send one request ADU, return the data of its reply (after the function code)."""
         with self.options.budget.request(attempts=1) as deadline:
-            self.client.comm_params.timeout_connect = max(deadline.remaining(), 0.001)
+            if self.tracer.active:
+                self._trace("tx", adu)
             try:
-                result = call()
-            except ModbusIOException:
-                raise NoAnswer(f"{self.label}: no answer to {what} within {deadline.describe()}") from None
-            except ConnectionException as exc:
-                raise CommError(f"{self.label}: connection failed during {what} ({exc})") from None
-            except ModbusException as exc:
-                raise CommError(f"{self.label}: {what} failed ({exc})") from None
-            except OSError as exc:   # pymodbus lets a reset or refused socket through as it is
+                self.stream.send(adu)
+            except socket.timeout:
+                raise NoAnswer(f"{self.label}: could not send {what} in time") from None
+            except OSError as exc:
                 raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
-        if result.isError():
-            code = getattr(result, "exception_code", None)
-            text = EXCEPTIONS.get(code, "exception") if code is not None else "error"
-            raise ModbusRefused(f"{self.label}: the drive refused {what}: {text} (exception {code})", code=code)
-        return result
+            while True:
+                reply = self._reply(deadline, what)
+                if codec.transaction_of(reply) == codec.transaction_of(adu):
+                    break   # else a late reply to an earlier request: skipped
+        if self.tracer.active:
+            self._trace("rx", reply)
+        try:
+            exception, data = codec.unpack_reply(reply, self.unit, function)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: {what}: {exc}") from None
+        if exception is not None:
+            text = EXCEPTIONS.get(exception, "exception")
+            raise ModbusRefused(f"{self.label}: the drive refused {what}: {text} (exception {exception})",
+                                code=exception)
+        return data
+
+    def _reply(self, deadline: "Deadline", what: str) -> bytes:
+        """The next whole ADU from the stream, within the deadline."""
+        buffer = self.buffer
+        size = 0
+        while True:
+            if len(buffer) >= 6:
+                if not size:
+                    try:
+                        size = codec.adu_size(buffer)
+                    except CodecError as exc:
+                        self.buffer = b""
+                        raise MalformedReply(f"{self.label}: {what}: {exc}") from None
+                if len(buffer) >= size:
+                    self.buffer = buffer[size:]
+                    return buffer[:size]
+            left = deadline.remaining()
+            try:
+                data = self.stream.recv(left) if left > 0 else None
+            except OSError as exc:
+                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+            if data is None:
+                self.buffer = buffer
+                raise NoAnswer(f"{self.label}: no answer to {what} within {deadline.describe()}")
+            if not data:
+                raise CommError(f"{self.label}: the drive closed the connection during {what}")
+            buffer = buffer + data if buffer else data
+
+    def _next(self) -> int:
+        self.transaction = (self.transaction + 1) & 0xFFFF
+        return self.transaction
 
     def read_registers(self, address: int, count: int) -> list[int]:
-        what = f"reading registers {address}..{address + count - 1}"
-        result = self._call(what, lambda: self.client.read_holding_registers(address, count=count,
-                                                                             device_id=self.unit))
-        return list(result.registers)
+        try:
+            adu = codec.pack_read_holding(self._next(), self.unit, address, count)
+        except CodecError as exc:
+            raise UsageError(f"{self.label}: {exc}") from None
+        data = self._exchange(adu, codec.READ_HOLDING, f"reading registers {address}..{address + count - 1}")
+        try:
+            return codec.unpack_read_holding(data, count)
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: reading registers {address}..: {exc}") from None
 
     def write_registers(self, address: int, values: list[int]) -> None:
+        try:
+            adu = codec.pack_write_multiple(self._next(), self.unit, address, list(values))
+        except CodecError as exc:
+            raise UsageError(f"{self.label}: {exc}") from None
         what = f"writing registers {address}..{address + len(values) - 1}"
-        self._call(what, lambda: self.client.write_registers(address, list(values), device_id=self.unit))
+        data = self._exchange(adu, codec.WRITE_MULTIPLE, what)
+        try:
+            codec.check_write_multiple(data, address, len(values))
+        except CodecError as exc:
+            raise MalformedReply(f"{self.label}: {what}: {exc}") from None
+
+    def close(self) -> None:
+        self.stream.close()
 
 
 class ModbusTransport(Transport):
@@ -71,17 +147,9 @@ class ModbusTransport(Transport):
 
     def __init__(self, target: "Target", options: LinkOptions) -> None:
         super().__init__(target, options)
-        self._client: Any = None
+        self._link: ModbusLink | None = None
 
     def open(self) -> None:
-        import logging
-
-        from pymodbus.client import ModbusTcpClient
-
-        # pymodbus logs its failures itself; akdctl says them once, in its one error line
-        logging.getLogger("pymodbus").addHandler(logging.NullHandler())
-        logging.getLogger("pymodbus").propagate = False
-
         host, port = self.target.host, self.target.port or PORT
         label = f"mb://{host}:{port}"
         try:
@@ -91,39 +159,25 @@ class ModbusTransport(Transport):
         if not 0 <= unit <= 247:
             raise UsageError(f"{label}: unit must be 0..247")
         timeout = self.options.budget.left()
-        tracer = self.options.tracer
-
-        def trace(sending: bool, packet: bytes) -> bytes:   # the Modbus TCP ADUs (--trace, --pcap; layer mb)
-            if tracer.active:
-                meta: dict[str, object] = {}
-                sock = getattr(client, "socket", None)
-                try:
-                    local, remote = sock.getsockname()[:2], sock.getpeername()[:2]  # type: ignore[union-attr]
-                    src, dst = (local, remote) if sending else (remote, local)
-                    meta = {"proto": "tcp", "src": src, "dst": dst}
-                except (AttributeError, OSError):
-                    pass
-                tracer.frame("tx" if sending else "rx", "mb", packet, note=label, meta=meta)
-            return packet
-
-        client = ModbusTcpClient(host, port=port, timeout=timeout, retries=0, reconnect_delay=0, trace_packet=trace)
-        self._client = client
         try:
-            connected = client.connect()
+            stream = TcpStream.connect(host, port, timeout)
+        except socket.timeout:
+            raise NoAnswer(f"{label}: no answer within {timeout:g} s (TCP connect)") from None
+        except (socket.gaierror, UnicodeError) as exc:
+            raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
+        except ConnectionRefusedError:
+            raise CommError(f"{label}: cannot connect (no Modbus TCP server answering; the AKD listens on 502)") \
+                from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect ({exc.strerror or exc})") from None
-        if not connected:
-            raise CommError(f"{label}: cannot connect (no Modbus TCP server answering; the AKD listens on 502)")
-        self.register_link = ModbusLink(client, unit, self.options, label)
+        self._link = ModbusLink(stream, unit, self.options, label)
+        self.register_link = self._link
 
     def close(self) -> None:
-        client, self._client = self._client, None
+        link, self._link = self._link, None
         self.register_link = None
-        if client is not None:
-            try:
-                client.close()
-            except Exception:  # noqa: BLE001 - closing must not fail the command
-                pass
+        if link is not None:
+            link.close()
 
 
 __all__ = ["ModbusTransport", "ModbusLink", "PORT"]
