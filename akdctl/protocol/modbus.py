@@ -41,7 +41,8 @@ def _check_address(address: int, count: int, limit: int) -> None:
 
 def pack_read_holding(transaction: int, unit: int, address: int, count: int) -> bytes:
     """Read Holding Registers ``address``..``address+count-1`` as one ADU."""
-    _check_address(address, count, MAX_READ)
+    if not (1 <= count <= MAX_READ and 0 <= address and address + count <= 0x10000):
+        _check_address(address, count, MAX_READ)
     return _READ.pack(transaction & 0xFFFF, 0, 6, unit, READ_HOLDING, address, count)
 
 
@@ -97,7 +98,29 @@ def unpack_read_holding(data: bytes, count: int) -> list[int]:
     """The registers of a Read Holding Registers reply's data (byte count + values), ``count`` of them."""
     if len(data) != 1 + 2 * count or data[0] != 2 * count:
         raise CodecError(f"{len(data) - 1} bytes of registers where {count} were asked for")
-    return list(struct.unpack_from(f">{count}H", data, 1))
+    return list(_registers(count).unpack_from(data, 1))
+
+
+def unpack_read_reply(adu: bytes, unit: int, count: int) -> tuple[int | None, list[int]]:
+    """(exception code or None, the ``count`` registers) of a whole reply ADU to Read Holding Registers: the common
+    reply checked in one pass, anything else through :func:`unpack_reply`."""
+    if (len(adu) == MBAP_SIZE + 2 + 2 * count and adu[7] == READ_HOLDING and adu[8] == 2 * count and adu[6] == unit
+            and adu[2] == adu[3] == 0 and (adu[4] << 8 | adu[5]) == len(adu) - 6):
+        return None, list(_registers(count).unpack_from(adu, MBAP_SIZE + 2))
+    exception, data = unpack_reply(adu, unit, READ_HOLDING)
+    if exception is not None:
+        return exception, []
+    return None, unpack_read_holding(data, count)
+
+
+_REGISTERS: dict[int, struct.Struct] = {}
+
+
+def _registers(count: int) -> struct.Struct:
+    layout = _REGISTERS.get(count)
+    if layout is None:
+        layout = _REGISTERS[count] = struct.Struct(f">{count}H")
+    return layout
 
 
 def check_write_multiple(data: bytes, address: int, count: int) -> None:
@@ -107,4 +130,4 @@ def check_write_multiple(data: bytes, address: int, count: int) -> None:
 
 
 __all__ = ["READ_HOLDING", "WRITE_MULTIPLE", "MBAP_SIZE", "pack_read_holding", "pack_write_multiple", "adu_size",
-           "transaction_of", "unpack_reply", "unpack_read_holding", "check_write_multiple"]
+           "transaction_of", "unpack_reply", "unpack_read_holding", "unpack_read_reply", "check_write_multiple"]

@@ -27,6 +27,7 @@ from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.tcp_stream import TcpStream
 
 if TYPE_CHECKING:
+    from akdctl.links import Deadline
     from akdctl.transport.target import Target
 
 PORT = 23
@@ -34,7 +35,6 @@ PROMPT = b"-->"
 MAX_REPLY = 1 << 20       # a DRV.HELPALL is long; a reply larger than this never ends
 MAX_LINE = 256            # a command line akdctl sends (the drive's own limit is not public)
 IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
-IAC_BYTE = bytes([IAC])
 #: How long the client listens for a banner, a prompt or options right after connecting (at most).
 SETTLE = 0.15
 
@@ -49,7 +49,7 @@ class Telnet:
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(text bytes, bytes to send back)."""
-        if not self.pending and not self.in_sb and IAC_BYTE not in data:
+        if not self.pending and not self.in_sb and IAC not in data:
             return data, b""   # the usual reply: no Telnet command in it
         data = self.pending + data
         self.pending = b""
@@ -114,7 +114,7 @@ class AsciiLink(CommandLink):
     def _receive(self, wait: float, what: str) -> bool:
         """Receive what arrives within ``wait`` s into the buffer; False on nothing. CommError on close."""
         try:
-            data = self.stream.recv(max(wait, 0.001))
+            data = self.stream.recv(wait if wait > 0.001 else 0.001)
         except OSError as exc:
             raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
         if data is None:
@@ -147,10 +147,13 @@ class AsciiLink(CommandLink):
             self._trace("tx", data, what)
         try:
             self.stream.send(data)
-        except socket.timeout:
-            raise NoAnswer(f"{self.label}: could not send {what} in time") from None
         except OSError as exc:
-            raise CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})") from None
+            raise self._send_failed(exc, what) from None
+
+    def _send_failed(self, exc: OSError, what: str) -> CommError:
+        if isinstance(exc, socket.timeout):
+            return NoAnswer(f"{self.label}: could not send {what} in time")
+        return CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})")
 
     def settle(self, budget: float) -> None:
         """Drain a banner, a first prompt and option offers right after connecting; a drive that hangs up at
@@ -173,7 +176,7 @@ class AsciiLink(CommandLink):
     def _wire(self, line: str) -> bytes:
         """The bytes of a command line (checked and encoded once per distinct line)."""
         wire = self._lines.get(line)
-        if wire is None:
+        if not wire:
             text = line.strip()
             if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
                 raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
@@ -183,24 +186,50 @@ class AsciiLink(CommandLink):
         return wire
 
     def command(self, line: str) -> str:
-        wire = self._wire(line)
+        wire = self._lines.get(line) or self._wire(line)
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
         with self.options.budget.request(attempts=1) as deadline:
-            self.buffer = b""
-            what = repr(line.strip())
-            self._send(wire, what)
-            while True:
-                cut = self.buffer.find(PROMPT)
-                if cut >= 0:
-                    break
-                left = deadline.remaining()
-                if left <= 0 or not self._receive(left, what):
-                    if deadline.remaining() > 0:
-                        continue
-                    self.broken = "a command without a prompt"
-                    got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
-                    raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
+            tracing = self.tracer.active
+            if tracing:
+                self._trace("tx", wire, repr(wire[:-2].decode()))
+            try:
+                self.stream.send(wire)
+            except OSError as exc:   # socket.timeout included
+                raise self._send_failed(exc, repr(wire[:-2].decode())) from None
+            if not self.buffer and not tracing:   # the usual reply: one segment, value and prompt, no Telnet bytes
+                try:
+                    data = self.stream.recv(deadline.remaining() or 0.001)
+                except OSError:
+                    data = None
+                if data and data.endswith(b"\r\n-->") and data.find(PROMPT) == len(data) - 3 \
+                        and IAC not in data and not self.telnet.pending and not self.telnet.in_sb:
+                    return self._text(wire[:-2].decode("ascii"), data[:-3])
+                if data:
+                    self.buffer = self._fed(data, wire)
+            return self._rest(wire, deadline)
+
+    def _fed(self, data: bytes, wire: bytes) -> bytes:
+        """A first segment that is not a whole plain reply: Telnet bytes stripped, options answered."""
+        text, answer = self.telnet.feed(data)
+        if answer:
+            self._send(answer, repr(wire[:-2].decode()))
+        return text
+
+    def _rest(self, wire: bytes, deadline: "Deadline") -> str:
+        """Receive until the prompt, within the request's deadline (several segments, Telnet bytes, tracing)."""
+        what = repr(wire[:-2].decode())
+        while True:
+            cut = self.buffer.find(PROMPT)
+            if cut >= 0:
+                break
+            left = deadline.remaining()
+            if left <= 0 or not self._receive(left, what):
+                if deadline.remaining() > 0:
+                    continue
+                self.broken = "a command without a prompt"
+                got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
+                raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
         reply = self.buffer[:cut]
         self.buffer = self.buffer[cut + len(PROMPT):]
         return self._text(wire[:-2].decode("ascii"), reply)

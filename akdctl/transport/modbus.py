@@ -55,34 +55,42 @@ class ModbusLink(RegisterLink):
             meta = {"proto": "tcp", "src": src, "dst": dst}
         self.tracer.frame(direction, "mb", adu, note=self.label, meta=meta)  # type: ignore[arg-type]
 
-    def _exchange(self, adu: bytes, function: int, what: str) -> bytes:
-        """Send one request ADU, return the data of its reply (after the function code)."""
+    def _exchange(self, adu: bytes, what: tuple[str, int, int]) -> bytes:
+        """Send one request ADU, return its whole reply ADU (``what``: verb, address, count -- words for an error,
+        built only then)."""
+        stream = self.stream
         with self.options.budget.request(attempts=1) as deadline:
             if self.tracer.active:
                 self._trace("tx", adu)
             try:
-                self.stream.send(adu)
+                stream.send(adu)
             except socket.timeout:
-                raise NoAnswer(f"{self.label}: could not send {what} in time") from None
+                raise NoAnswer(f"{self.label}: could not send {self._words(what)} in time") from None
             except OSError as exc:
-                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
-            while True:
+                raise CommError(f"{self.label}: connection failed during {self._words(what)} "
+                                f"({exc.strerror or exc})") from None
+            reply = None
+            if not self.buffer:   # the usual case: the reply arrives whole, in one segment
+                try:
+                    data = stream.recv(deadline.remaining() or 0.001)
+                except OSError as exc:
+                    raise CommError(f"{self.label}: connection failed during {self._words(what)} "
+                                    f"({exc.strerror or exc})") from None
+                if data is not None and len(data) >= 6 and data[4] << 8 | data[5] == len(data) - 6:
+                    reply = data
+                elif data:
+                    self.buffer = data
+            while reply is None or reply[:2] != adu[:2]:   # a reply to an earlier request is skipped
                 reply = self._reply(deadline, what)
-                if codec.transaction_of(reply) == codec.transaction_of(adu):
-                    break   # else a late reply to an earlier request: skipped
         if self.tracer.active:
             self._trace("rx", reply)
-        try:
-            exception, data = codec.unpack_reply(reply, self.unit, function)
-        except CodecError as exc:
-            raise MalformedReply(f"{self.label}: {what}: {exc}") from None
-        if exception is not None:
-            text = EXCEPTIONS.get(exception, "exception")
-            raise ModbusRefused(f"{self.label}: the drive refused {what}: {text} (exception {exception})",
-                                code=exception)
-        return data
+        return reply
 
-    def _reply(self, deadline: "Deadline", what: str) -> bytes:
+    def _words(self, what: tuple[str, int, int]) -> str:
+        verb, address, count = what
+        return f"{verb} registers {address}..{address + count - 1}"
+
+    def _reply(self, deadline: "Deadline", what: tuple[str, int, int]) -> bytes:
         """The next whole ADU from the stream, within the deadline."""
         buffer = self.buffer
         size = 0
@@ -93,7 +101,7 @@ class ModbusLink(RegisterLink):
                         size = codec.adu_size(buffer)
                     except CodecError as exc:
                         self.buffer = b""
-                        raise MalformedReply(f"{self.label}: {what}: {exc}") from None
+                        raise MalformedReply(f"{self.label}: {self._words(what)}: {exc}") from None
                 if len(buffer) >= size:
                     self.buffer = buffer[size:]
                     return buffer[:size]
@@ -101,40 +109,52 @@ class ModbusLink(RegisterLink):
             try:
                 data = self.stream.recv(left) if left > 0 else None
             except OSError as exc:
-                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+                raise CommError(f"{self.label}: connection failed during {self._words(what)} "
+                                f"({exc.strerror or exc})") from None
             if data is None:
                 self.buffer = buffer
-                raise NoAnswer(f"{self.label}: no answer to {what} within {deadline.describe()}")
+                raise NoAnswer(f"{self.label}: no answer to {self._words(what)} within {deadline.describe()}")
             if not data:
-                raise CommError(f"{self.label}: the drive closed the connection during {what}")
+                raise CommError(f"{self.label}: the drive closed the connection during {self._words(what)}")
             buffer = buffer + data if buffer else data
 
-    def _next(self) -> int:
-        self.transaction = (self.transaction + 1) & 0xFFFF
-        return self.transaction
+    def _refused(self, what: tuple[str, int, int], exception: int) -> ModbusRefused:
+        text = EXCEPTIONS.get(exception, "exception")
+        return ModbusRefused(f"{self.label}: the drive refused {self._words(what)}: {text} (exception {exception})",
+                             code=exception)
 
     def read_registers(self, address: int, count: int) -> list[int]:
+        self.transaction = transaction = (self.transaction + 1) & 0xFFFF
         try:
-            adu = codec.pack_read_holding(self._next(), self.unit, address, count)
+            adu = codec.pack_read_holding(transaction, self.unit, address, count)
         except CodecError as exc:
             raise UsageError(f"{self.label}: {exc}") from None
-        data = self._exchange(adu, codec.READ_HOLDING, f"reading registers {address}..{address + count - 1}")
+        what = ("reading", address, count)
+        reply = self._exchange(adu, what)
         try:
-            return codec.unpack_read_holding(data, count)
+            exception, registers = codec.unpack_read_reply(reply, self.unit, count)
         except CodecError as exc:
-            raise MalformedReply(f"{self.label}: reading registers {address}..: {exc}") from None
+            raise MalformedReply(f"{self.label}: {self._words(what)}: {exc}") from None
+        if exception is not None:
+            raise self._refused(what, exception)
+        return registers
 
     def write_registers(self, address: int, values: list[int]) -> None:
+        self.transaction = transaction = (self.transaction + 1) & 0xFFFF
         try:
-            adu = codec.pack_write_multiple(self._next(), self.unit, address, list(values))
+            adu = codec.pack_write_multiple(transaction, self.unit, address, list(values))
         except CodecError as exc:
             raise UsageError(f"{self.label}: {exc}") from None
-        what = f"writing registers {address}..{address + len(values) - 1}"
-        data = self._exchange(adu, codec.WRITE_MULTIPLE, what)
+        what = ("writing", address, len(values))
+        reply = self._exchange(adu, what)
         try:
-            codec.check_write_multiple(data, address, len(values))
+            exception, data = codec.unpack_reply(reply, self.unit, codec.WRITE_MULTIPLE)
+            if exception is None:
+                codec.check_write_multiple(data, address, len(values))
         except CodecError as exc:
-            raise MalformedReply(f"{self.label}: {what}: {exc}") from None
+            raise MalformedReply(f"{self.label}: {self._words(what)}: {exc}") from None
+        if exception is not None:
+            raise self._refused(what, exception)
 
     def close(self) -> None:
         self.stream.close()

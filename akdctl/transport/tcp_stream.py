@@ -4,8 +4,9 @@ allows: the one place the stream transports (``akd://``, ``mb://``) wait on a so
 Why a module of its own: a request/response client on loopback spends most of its CPU in system calls, and
 Python's socket timeout costs two per receive (``poll(2)`` then ``recv(2)``) plus one per ``settimeout``. On
 Linux the kernel's own receive timeout (``SO_RCVTIMEO`` on a blocking socket) bounds a receive in the one
-``recv(2)``; it is set again only when the wait asked for differs from the one set by more than :data:`SLACK`
-(a request asks for what its deadline has left, which shrinks by microseconds from one request to the next).
+``recv(2)``; it is set again only when the wait asked for differs from the one set by more than :data:`SLACK` of
+it (at least :data:`MIN_SLACK`): a request asks for what its deadline has left, which shrinks by microseconds from
+one request to the next, so a command's requests set it once.
 Elsewhere the same rule drives Python's ``settimeout``. Sends are bounded once, at connect, by the command's
 timeout (``SO_SNDTIMEO``): a request is a few bytes into an empty send buffer.
 
@@ -18,8 +19,10 @@ import socket
 import struct
 import sys
 
-#: How far a receive may overrun its deadline rather than pay a system call to reset the wait (seconds).
-SLACK = 0.001
+#: How far a receive may overrun its deadline rather than pay a system call to reset the wait: a share of the wait,
+#: and at least MIN_SLACK seconds.
+SLACK = 0.01
+MIN_SLACK = 0.001
 #: The kernel's timeouts are a ``struct timeval`` here (two C longs); elsewhere Python's timeout is used.
 _KERNEL_TIMEOUT = sys.platform.startswith("linux")
 _TIMEVAL = struct.Struct("@ll")
@@ -58,7 +61,8 @@ class TcpStream:
     def recv(self, wait: float, size: int = 65536) -> bytes | None:
         """What arrives within ``wait`` s (at most ``size`` bytes); ``None`` when nothing did, ``b""`` when the
         peer closed the connection. Other failures raise ``OSError``."""
-        if abs(wait - self._wait) > SLACK:
+        slack = SLACK * wait
+        if abs(wait - self._wait) > (slack if slack > MIN_SLACK else MIN_SLACK):
             self._wait = wait
             if _KERNEL_TIMEOUT:
                 self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(wait))
@@ -90,4 +94,4 @@ class TcpStream:
             pass
 
 
-__all__ = ["TcpStream", "SLACK"]
+__all__ = ["TcpStream", "SLACK", "MIN_SLACK"]
