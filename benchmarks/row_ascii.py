@@ -20,7 +20,7 @@ SCRIPT = r"""
 import socket, sys, time
 kind, where = sys.argv[1], sys.argv[2]
 host, port = where.rsplit(":", 1)
-COMMAND = %r
+COMMAND = @COMMAND@
 if kind == "akdctl":
     from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
@@ -53,7 +53,7 @@ elif kind == "socket":
             raise SystemExit(f"socket: unexpected reply {reply!r}")
 else:
     raise SystemExit(f"unknown worker {kind}")
-""" % (COMMAND,)
+""".replace("@COMMAND@", repr(COMMAND))
 
 
 def ascii_vs_socket(s: Settings) -> Result:

@@ -21,7 +21,7 @@ SCRIPT = r"""
 import sys, time
 kind, where = sys.argv[1], sys.argv[2]
 host, port = where.rsplit(":", 1)
-REGISTER, COUNT = %d, %d
+REGISTER, COUNT = @REGISTER@, @COUNT@
 if kind == "akdctl":
     from akdctl.connection import Connection
     from akdctl.transport.base import LinkOptions
@@ -49,7 +49,7 @@ elif kind == "pyModbusTCP":
             raise SystemExit(f"pyModbusTCP: {client.last_error_as_txt}")
 else:
     raise SystemExit(f"unknown worker {kind}")
-""" % (REGISTER, COUNT)
+""".replace("@REGISTER@", str(REGISTER)).replace("@COUNT@", str(COUNT))
 
 
 def modbus_vs_pymodbus(s: Settings) -> Result:

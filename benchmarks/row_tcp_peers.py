@@ -33,7 +33,7 @@ class ScriptWorker(Worker):
     """A :class:`row_peers.Worker` running ``script`` (which defines ``op`` for ``kind``) instead of the CANopen/CIP
     worker."""
 
-    def __init__(self, script: str, kind: str, where: str) -> None:  # noqa: D107 - Worker's protocol
+    def __init__(self, script: str, kind: str, where: str) -> None:
         self.kind = kind
         self.proc = subprocess.Popen([sys.executable, "-c", script + BLOCK_LOOP, kind, where],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
