@@ -190,24 +190,26 @@ class AsciiLink(CommandLink):
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
         with self.options.budget.request(attempts=1) as deadline:
-            tracing = self.tracer.active
-            if tracing:
-                self._trace("tx", wire, repr(wire[:-2].decode()))
-            try:
-                self.stream.send(wire)
-            except OSError as exc:   # socket.timeout included
-                raise self._send_failed(exc, repr(wire[:-2].decode())) from None
-            if not self.buffer and not tracing:   # the usual reply: one segment, value and prompt, no Telnet bytes
-                try:
-                    data = self.stream.recv(deadline.remaining() or 0.001)
-                except OSError:
-                    data = None
-                if data and data.endswith(b"\r\n-->") and data.find(PROMPT) == len(data) - 3 \
-                        and IAC not in data and not self.telnet.pending and not self.telnet.in_sb:
-                    return self._text(wire[:-2].decode("ascii"), data[:-3])
-                if data:
-                    self.buffer = self._fed(data, wire)
+            if self.buffer or self.tracer.active:
+                return self._general(wire, deadline)
+            try:   # the usual exchange: the line out, its reply back whole in one segment
+                data = self.stream.request(wire, deadline.remaining() or 0.001)
+            except OSError as exc:
+                what = repr(wire[:-2].decode())
+                if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
+                    raise self._send_failed(exc, what) from None
+                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+            if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
+                    and not self.telnet.pending and not self.telnet.in_sb:
+                return self._text(wire[:-2].decode("ascii"), data[:-3])
+            if data:
+                self.buffer = self._fed(data, wire)
             return self._rest(wire, deadline)
+
+    def _general(self, wire: bytes, deadline: "Deadline") -> str:
+        """Bytes left from before or tracing on: the send and every receive through the general path."""
+        self._send(wire, repr(wire[:-2].decode()))
+        return self._rest(wire, deadline)
 
     def _fed(self, data: bytes, wire: bytes) -> bytes:
         """A first segment that is not a whole plain reply: Telnet bytes stripped, options answered."""

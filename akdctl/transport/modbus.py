@@ -58,24 +58,15 @@ class ModbusLink(RegisterLink):
     def _exchange(self, adu: bytes, what: tuple[str, int, int]) -> bytes:
         """Send one request ADU, return its whole reply ADU (``what``: verb, address, count -- words for an error,
         built only then)."""
-        stream = self.stream
         with self.options.budget.request(attempts=1) as deadline:
-            if self.tracer.active:
-                self._trace("tx", adu)
-            try:
-                stream.send(adu)
-            except socket.timeout:
-                raise NoAnswer(f"{self.label}: could not send {self._words(what)} in time") from None
-            except OSError as exc:
-                raise CommError(f"{self.label}: connection failed during {self._words(what)} "
-                                f"({exc.strerror or exc})") from None
             reply = None
-            if not self.buffer:   # the usual case: the reply arrives whole, in one segment
+            if self.buffer or self.tracer.active:
+                self._send(adu, what)
+            else:   # the usual exchange: the request out, its reply back whole in one segment
                 try:
-                    data = stream.recv(deadline.remaining() or 0.001)
+                    data = self.stream.request(adu, deadline.remaining() or 0.001)
                 except OSError as exc:
-                    raise CommError(f"{self.label}: connection failed during {self._words(what)} "
-                                    f"({exc.strerror or exc})") from None
+                    raise self._failed(exc, what) from None
                 if data is not None and len(data) >= 6 and data[4] << 8 | data[5] == len(data) - 6:
                     reply = data
                 elif data:
@@ -85,6 +76,19 @@ class ModbusLink(RegisterLink):
         if self.tracer.active:
             self._trace("rx", reply)
         return reply
+
+    def _send(self, adu: bytes, what: tuple[str, int, int]) -> None:
+        if self.tracer.active:
+            self._trace("tx", adu)
+        try:
+            self.stream.send(adu)
+        except OSError as exc:
+            raise self._failed(exc, what) from None
+
+    def _failed(self, exc: OSError, what: tuple[str, int, int]) -> CommError:
+        if isinstance(exc, socket.timeout):   # only a send waits in a way that raises
+            return NoAnswer(f"{self.label}: could not send {self._words(what)} in time")
+        return CommError(f"{self.label}: connection failed during {self._words(what)} ({exc.strerror or exc})")
 
     def _words(self, what: tuple[str, int, int]) -> str:
         verb, address, count = what

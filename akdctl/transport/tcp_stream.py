@@ -63,15 +63,34 @@ class TcpStream:
         peer closed the connection. Other failures raise ``OSError``."""
         slack = SLACK * wait
         if abs(wait - self._wait) > (slack if slack > MIN_SLACK else MIN_SLACK):
-            self._wait = wait
-            if _KERNEL_TIMEOUT:
-                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(wait))
-            else:
-                self.sock.settimeout(max(wait, 0.001))
+            self._set_wait(wait)
         try:
             return self.sock.recv(size)
         except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
             return None
+
+    def request(self, data: bytes, wait: float, size: int = 65536) -> bytes | None:
+        """Send all of ``data``, then :meth:`recv` what arrives within ``wait`` s: a request and the first segment
+        of its reply in one call (the hot path of a request/response client)."""
+        sock = self.sock
+        try:
+            sock.sendall(data)
+        except BlockingIOError:   # SO_SNDTIMEO expired
+            raise socket.timeout("send timed out") from None
+        slack = SLACK * wait
+        if abs(wait - self._wait) > (slack if slack > MIN_SLACK else MIN_SLACK):
+            self._set_wait(wait)
+        try:
+            return sock.recv(size)
+        except (BlockingIOError, socket.timeout):
+            return None
+
+    def _set_wait(self, wait: float) -> None:
+        self._wait = wait
+        if _KERNEL_TIMEOUT:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(wait))
+        else:
+            self.sock.settimeout(max(wait, 0.001))
 
     def send(self, data: bytes) -> None:
         """All of ``data``; ``socket.timeout`` when the send buffer stayed full for the command's timeout."""
