@@ -108,7 +108,8 @@ class AsciiLink(CommandLink):
         self.telnet = Telnet()
         self.buffer = b""
         self.broken = ""
-        self._lines: dict[str, bytes] = {}   # command line -> its wire bytes, checked once
+        self.budget = options.budget
+        self._lines: dict[str, tuple[bytes, str]] = {}   # command line -> (its wire bytes, the line), checked once
 
     # ---------------------------------------------------------------- bytes
     def _receive(self, wait: float, what: str) -> bool:
@@ -173,27 +174,28 @@ class AsciiLink(CommandLink):
         self.buffer = b""
 
     # ---------------------------------------------------------------- the contract
-    def _wire(self, line: str) -> bytes:
-        """The bytes of a command line (checked and encoded once per distinct line)."""
-        wire = self._lines.get(line)
-        if not wire:
+    def _wire(self, line: str) -> tuple[bytes, str]:
+        """The bytes of a command line and the line as sent (checked and encoded once per distinct line)."""
+        known = self._lines.get(line)
+        if known is None:
             text = line.strip()
             if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
                 raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
-            wire = text.encode("ascii") + b"\r\n"
+            known = (text.encode("ascii") + b"\r\n", text)
             if len(self._lines) < 256:
-                self._lines[line] = wire
-        return wire
+                self._lines[line] = known
+        return known
 
     def command(self, line: str) -> str:
-        wire = self._lines.get(line) or self._wire(line)
+        wire, sent = self._lines.get(line) or self._wire(line)
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
-        with self.options.budget.request(attempts=1) as deadline:
+        with self.budget.request(attempts=1) as deadline:
             if self.buffer or self.tracer.active:
                 return self._general(wire, deadline)
-            try:   # the usual exchange: the line out, its reply back whole in one segment
-                data = self.stream.request(wire, deadline.remaining() or 0.001)
+            try:   # the usual exchange: the line out, its reply back whole in one segment; the deadline was
+                # set microseconds ago, so its total is what is left (within tcp_stream's slack)
+                data = self.stream.request(wire, deadline.total or 0.001)
             except OSError as exc:
                 what = repr(wire[:-2].decode())
                 if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
@@ -201,7 +203,7 @@ class AsciiLink(CommandLink):
                 raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
             if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
                     and not self.telnet.pending and not self.telnet.in_sb:
-                return self._text(wire[:-2].decode("ascii"), data[:-3])
+                return self._text(sent, data[:-3])
             if data:
                 self.buffer = self._fed(data, wire)
             return self._rest(wire, deadline)

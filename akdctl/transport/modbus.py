@@ -41,6 +41,7 @@ class ModbusLink(RegisterLink):
         self.unit = unit
         self.options = options
         self.tracer = options.tracer
+        self.budget = options.budget
         self.label = label
         self.transaction = 0
         self.buffer = b""   # bytes received after the last whole reply
@@ -58,13 +59,14 @@ class ModbusLink(RegisterLink):
     def _exchange(self, adu: bytes, what: tuple[str, int, int]) -> bytes:
         """Send one request ADU, return its whole reply ADU (``what``: verb, address, count -- words for an error,
         built only then)."""
-        with self.options.budget.request(attempts=1) as deadline:
+        with self.budget.request(attempts=1) as deadline:
             reply = None
             if self.buffer or self.tracer.active:
                 self._send(adu, what)
-            else:   # the usual exchange: the request out, its reply back whole in one segment
+            else:   # the usual exchange: the request out, its reply back whole in one segment (the deadline was
+                # set microseconds ago, so its total is what is left, within tcp_stream's slack)
                 try:
-                    data = self.stream.request(adu, deadline.remaining() or 0.001)
+                    data = self.stream.request(adu, deadline.total or 0.001)
                 except OSError as exc:
                     raise self._failed(exc, what) from None
                 if data is not None and len(data) >= 6 and data[4] << 8 | data[5] == len(data) - 6:
