@@ -120,15 +120,16 @@ def _markdown(runs: list[list[tuple[Row, Result]]]) -> str:
 
 
 def _verdict(runs: list[list[tuple[Row, Result]]]) -> str:
-    """One line: every goal met in every run, or which rows were short (or skipped) in which run."""
+    """One line: every goal met in every run, or which rows were short (or skipped) in which runs."""
     missed = []
-    for k, run in enumerate(runs, start=1):
-        for row, result in run:
-            if result.ok is not True:
-                missed.append(f"{row.name} ({_mark(result.ok).lower()} in run {k})")
+    for i, (row, _) in enumerate(runs[0]):
+        bad = [str(k) for k, run in enumerate(runs, start=1) if run[i][1].ok is not True]
+        if bad:
+            marks = sorted({_mark(run[i][1].ok).lower() for run in runs if run[i][1].ok is not True})
+            missed.append(f"{row.name} ({'/'.join(marks)} in run{'s' if len(bad) > 1 else ''} {', '.join(bad)})")
     if not missed:
         return f"every goal met in {len(runs)} of {len(runs)} run(s)"
-    return f"goals not met: {', '.join(missed)}"
+    return f"goals not met: {'; '.join(missed)}"
 
 
 def _settings(quick: bool, tmp: Path) -> Settings:
