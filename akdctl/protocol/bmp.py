@@ -29,7 +29,7 @@ Every malformed input raises :class:`BmpError` (a
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -939,3 +939,70 @@ def pack_read_response(request: bytes, blocks: "list[bytes]", negative: bool) ->
     """A read response to ``request`` from its value/error blocks, already packed: the request's reference,
     axis and number of parameters, the response ID (negative when any block is an error block)."""
     return bytes((request[0], RESP_READ_NAK if negative else RESP_READ_OK, request[2], len(blocks))) + b"".join(blocks)
+
+
+# ---------------------------------------------------------------------------- the client's read, once per shape
+# A poll reads the same parameters again and again. The client encodes a read request once per list of addresses
+# (with encode_request) and patches the reference per call; it reads the usual response - the reference, axis and one
+# block per parameter it asked for - with the one block decoder, and leaves anything else to decode_response, which
+# words what is wrong. tests/test_bmp_read_template.py holds both equal to the general codec.
+
+_REFERENCE_BYTE = [bytes((i,)) for i in range(256)]
+
+
+def address_key(addresses: Sequence[object]) -> tuple[tuple[int, int, int, int], ...] | None:
+    """(PNU, subindex, count, attribute) of every address when each is a ParameterAddress of plain ints that
+    :func:`check_address` accepts, as one hashable key; None when one is not (check_address then says why)."""
+    key = []
+    for a in addresses:
+        if a.__class__ is not ParameterAddress:
+            return None
+        pnu, subindex, count, attribute = a.pnu, a.subindex, a.count, a.attribute  # type: ignore[attr-defined]
+        if not (type(pnu) is int and type(subindex) is int and type(count) is int and type(attribute) is int
+                and attribute in ATTRIBUTES and 1 <= pnu <= 0xFFFF and 0 <= subindex <= MAX_SUBINDEX
+                and 1 <= count <= MAX_ELEMENTS):
+            return None
+        key.append((pnu, subindex, count, attribute))
+    return tuple(key)
+
+
+class ReadTemplate:
+    """The read request of ``addresses`` on ``axis``, encoded once by :func:`encode_request`; :meth:`request` gives
+    it with a reference, :meth:`results` reads the usual answer."""
+
+    __slots__ = ("addresses", "axis", "_tail")
+
+    def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]") -> None:
+        self.axis = axis
+        self.addresses = addresses
+        self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses))[1:]
+
+    def request(self, reference: int) -> bytes:
+        """The request's bytes with ``reference`` (1..255)."""
+        return _REFERENCE_BYTE[reference] + self._tail
+
+    def results(self, data: bytes, reference: int) -> "list[ParameterResult] | None":
+        """One result per address - what ``decode_response(data, request).results`` gives - when ``data`` is a read
+        response (positive or negative) with ``reference``, the axis, one block per address and, for values, the
+        number of values asked for; else None (decode_response decides and words what is wrong)."""
+        addresses = self.addresses
+        size = len(data)
+        if size > MAX_BLOCK or size < HEADER_SIZE or data[0] != reference or data[2] != self.axis \
+                or data[3] != len(addresses) or (data[1] != RESP_READ_OK and data[1] != RESP_READ_NAK):
+            return None
+        offset = HEADER_SIZE
+        results: list[ParameterResult] = []
+        try:
+            for address in addresses:
+                result, offset = decode_value_block(data, offset)
+                if result is None or (result.__class__ is ParameterValue and address.attribute == ATTR_VALUE
+                                      and result.count != address.count):  # type: ignore[union-attr]
+                    return None
+                results.append(result)
+        except BmpError:
+            return None
+        return results if offset == size else None
+
+    def request_object(self, reference: int) -> ParameterRequest:
+        """The request as a message (for :func:`decode_response` when :meth:`results` leaves the answer to it)."""
+        return ParameterRequest(reference, REQ_READ, self.axis, self.addresses)
