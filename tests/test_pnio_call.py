@@ -97,3 +97,32 @@ def test_plain_response_leaves_stale_foreign_and_fragmented_replies_to_the_gener
     working = bytearray(good)
     working[1] = dcerpc.PT_WORKING
     assert plain_response(bytes(working), 7, activity.bytes, activity.bytes_le) is None
+
+
+rw_addresses = st.builds(pnio.RecordAddress, api=u32, slot=u16, subslot=u16, index=u16)
+
+
+@settings(max_examples=300, deadline=None)
+@given(seq=u16, ar=st.uuids(), address=rw_addresses, status=statuses, data=st.binary(max_size=40),
+       tail=st.binary(max_size=6), mutations=st.lists(st.tuples(st.integers(0, 70), st.integers(0, 255)), max_size=2))
+def test_record_responses_read_as_the_general_block_rules_read_them(seq: int, ar: uuid.UUID, address: pnio.RecordAddress,
+                                                               status: pnio.PnioStatus, data: bytes, tail: bytes,
+                                                               mutations: list[tuple[int, int]]) -> None:
+    write = bytearray(pnio.IODWriteRes(seq, ar, address, len(data), status).encode() + tail)
+    read = bytearray(pnio.IODReadRes(seq, ar, address, data).encode() + tail)
+    assert pnio.write_response(bytes(write)) == (seq, address.index, status)
+    assert pnio.read_response(bytes(read)) == (seq, address.index, data)
+    for at, value in mutations:
+        for raw in (write, read):
+            if at < len(raw):
+                raw[at] = value
+    for fast, general, raw in ((pnio.write_response, pnio._write_response, bytes(write)),
+                               (pnio.read_response, pnio._read_response, bytes(read))):
+        try:
+            expected = general(raw)
+        except CodecError:
+            expected = None
+        try:
+            assert fast(raw) == expected
+        except CodecError:
+            assert expected is None

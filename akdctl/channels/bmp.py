@@ -135,7 +135,10 @@ class BmpParameterChannel(ParameterChannel):
         else:
             wanted = [self._checked_address(a) for a in addresses]
             results = self._read(wanted, self.element_size, key)
-        if not any(type(r) is ParameterFailure for r in results):
+        for r in results:
+            if r.__class__ is ParameterFailure:
+                break
+        else:
             return results
         # A per-parameter "response too long" means the 4-byte estimate was short: retry those in smaller ranges.
         retry = [i for i, (a, r) in enumerate(zip(wanted, results))

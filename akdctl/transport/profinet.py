@@ -120,7 +120,7 @@ class RpcClient:
         """
         sequence = self.sequence
         tracing = self.options.tracer.active
-        reassembler: list[dcerpc.Reassembler] = []  # made for the first fragment (responses rarely are)
+        reassembler: list[dcerpc.Reassembler] | None = None  # made when the general path first takes a datagram
         attempts = deadline.attempts
         sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
         for sent in range(attempts):
@@ -152,6 +152,8 @@ class RpcClient:
                     result = plain_response(data, sequence, activity_be, activity_le)
                     if result is not None:
                         return result
+                if reassembler is None:
+                    reassembler = []  # (a reassembler goes in for the first fragment: responses rarely are)
                 result = self._accept(data, _opname(opnum), reassembler)
                 if result is not None:
                     return result
