@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar, cast
+from typing import TYPE_CHECKING, TypeVar
 
 from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
@@ -270,8 +270,8 @@ class CoeObjectChannel(ObjectChannel):
              left: int, toggle: int | None = None) -> coe.SdoMessage:
         """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
         self._want = (wanted, index, subindex, verb, toggle)
-        # (the checker joins the union's members to their base class when it infers T: name the type)
-        return cast("coe.SdoMessage", self._exchange(request, self._accept_sdo, deadline.share(left), deadline))
+        message: coe.SdoMessage = self._exchange(request, self._accept_sdo, deadline.share(left), deadline)
+        return message
 
     def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
         """The server message if this reply answers the SDO request in ``self._want``, else None."""
@@ -399,7 +399,7 @@ class CoeObjectChannel(ObjectChannel):
         accept: Callable[[int, bytes, bool], T | None],
         wait: float,
         deadline: Deadline,
-        until: Callable[[T], bool] = lambda value: True,
+        until: Callable[[T], bool] | None = None,
     ) -> T:
         """Send once, then read until ``accept`` returns a value ``until`` approves.
 
@@ -417,10 +417,15 @@ class CoeObjectChannel(ObjectChannel):
             log.info("sending the request was not confirmed (%s); listening for an answer anyway", exc)
             counter = self._counter
         self.filter.sent(counter)
-        end = min(deadline.at, time.monotonic() + wait)
+        now = time.monotonic()
+        end = min(deadline.at, now + wait)
+        left = max(0.0, end - now)
         while True:
-            raw = self.link.receive(max(0.0, end - time.monotonic()))
-            if raw is None or time.monotonic() > end:
+            raw = self.link.receive(left)
+            if raw is not None:
+                now = time.monotonic()
+                left = end - now
+            if raw is None or left < 0:
                 # Silence -- or only mailboxes that are not the answer until the wait ran out: a slave that keeps
                 # presenting a foreign reply (SM1 in buffered mode, issue 23 item 12) must not hold us forever.
                 self._stale = True
@@ -439,7 +444,8 @@ class CoeObjectChannel(ObjectChannel):
                 continue
             self.filter.accepted(raw, got)
             self._proven = mine
-            if until(value):
+            if until is None or until(value):
                 return value
-            end = min(deadline.at, time.monotonic() + wait)  # a fragment arrived: wait for the next one
+            end = min(deadline.at, now + wait)  # a fragment arrived: wait for the next one
+            left = max(0.0, end - now)
 
