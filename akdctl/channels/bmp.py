@@ -129,9 +129,14 @@ class BmpParameterChannel(ParameterChannel):
         """One result (value or failure) per address, in order, in as few round trips as the limits allow."""
         key = address_key(addresses)
         plan = self._plans.get(key) if key is not None else None
+        wanted: Sequence[ParameterAddress]
         if plan is not None:  # this list of addresses was read before: its batches and requests are known
-            wanted = list(addresses)
-            results = self._read_planned(plan, self.element_size)
+            wanted = addresses
+            templates = plan[1]
+            if len(templates) == 1 and len(addresses) == 1:
+                results = self._read_request(templates[0])  # (one parameter: no request to halve)
+            else:
+                results = self._read_planned(plan, self.element_size)
         else:
             wanted = [self._checked_address(a) for a in addresses]
             results = self._read(wanted, self.element_size, key)
@@ -255,7 +260,7 @@ class BmpParameterChannel(ParameterChannel):
     def _read_request(self, template: ReadTemplate) -> list[ParameterResult]:
         """One round trip of a read request built from its template; the usual answer is read by the template,
         anything else by :func:`decode_response` (which says what is wrong)."""
-        reference = self._take_reference()
+        self._reference = next_reference(reference := self._reference)
         raw = template.request(reference)
         self.requests += 1
         reply = self.link.exchange(raw)

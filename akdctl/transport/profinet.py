@@ -128,7 +128,10 @@ class RpcClient:
                 break
             if tracing:
                 self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}" + (" (retransmission)" if sent else ""))
-            self._send(datagram, opnum)
+            try:
+                sock.send(datagram)
+            except OSError as exc:
+                self._send_failed(exc, opnum)
             if sent:
                 self.retransmissions += 1
             now = time.monotonic()
@@ -160,14 +163,13 @@ class RpcClient:
                 wait = resend_at - time.monotonic()
         raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
 
-    def _send(self, datagram: bytes, opnum: int) -> None:
-        try:
-            self.sock.send(datagram)
-        except ConnectionRefusedError:
+    def _send_failed(self, exc: OSError, opnum: int) -> None:
+        """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
+        follows as if the datagram were lost), or the socket failed."""
+        if isinstance(exc, ConnectionRefusedError):
             raise self._refused(_opname(opnum)) from None
-        except OSError as exc:
-            if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
-                raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
+        if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
+            raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
 
     def _refused(self, name: str) -> CommError:
         """ICMP port unreachable came back (ECONNREFUSED on the connected socket): nothing listens there,
@@ -429,8 +431,15 @@ class ProfinetTransport(Transport):
                 return self.write_record(data, own)
         calls = self._calls or self._record_calls()  # (made for an AR: raises "not connected" without one)
         rpc = self._need_rpc()
-        status, blocks = rpc.exchange(calls.write(rpc.next_sequence(), self._next_rw_seq(), data), pnio.OP_WRITE,
-                                      deadline)
+        self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
+        status, blocks = rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE, deadline)
+        if status is pnio.OK and blocks:  # (the usual answer: its IODWriteResHeader holds the write's own status)
+            try:
+                status = pnio.write_response(blocks)[2]
+            except CodecError as exc:
+                raise MalformedReply(f"{self.label}: malformed Write response: {exc}") from None
+            if status is pnio.OK:
+                return status, b""
         if status.ok and blocks:
             try:
                 status = pnio.write_response(blocks)[2]
@@ -448,8 +457,15 @@ class ProfinetTransport(Transport):
                 return self.read_record(own)
         calls = self._calls or self._record_calls()
         rpc = self._need_rpc()
-        seq = self._next_rw_seq()
+        self._rw_seq = seq = (self._rw_seq + 1) & 0xFFFF
         status, blocks = rpc.exchange(calls.read(rpc.next_sequence(), seq), pnio.OP_READ, deadline)
+        if status is pnio.OK:  # the usual answer: the record's data after its header, for our index and sequence
+            try:
+                got_seq, got_index, data = pnio.read_response(blocks)
+            except CodecError:
+                got_seq = -1
+            if got_seq == seq and got_index == self.address.index:
+                return status, data
         return self._read_reply(self.address, seq, status, blocks)
 
     def _record_calls(self) -> RecordCalls:
