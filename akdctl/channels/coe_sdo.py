@@ -270,7 +270,7 @@ class CoeObjectChannel(ObjectChannel):
              left: int, toggle: int | None = None) -> coe.SdoMessage:
         """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
         self._want = (wanted, index, subindex, verb, toggle)
-        message: coe.SdoMessage = self._exchange(request, self._accept_sdo, deadline.share(left), deadline)
+        message: coe.SdoMessage = self._exchange(request, self._accept_sdo, left, deadline)
         return message
 
     def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
@@ -331,7 +331,7 @@ class CoeObjectChannel(ObjectChannel):
                 result.append(done)
                 return True
 
-            self._exchange(data, accept, deadline.share(left), deadline, until=lambda value: value is True)
+            self._exchange(data, accept, left, deadline, until=lambda value: value is True)
             try:
                 message = coe_info.unpack_info(result[0])
             except CodecError as exc:
@@ -397,14 +397,14 @@ class CoeObjectChannel(ObjectChannel):
         self,
         coe_data: bytes,
         accept: Callable[[int, bytes, bool], T | None],
-        wait: float,
+        left: int,
         deadline: Deadline,
         until: Callable[[T], bool] | None = None,
     ) -> T:
         """Send once, then read until ``accept`` returns a value ``until`` approves.
 
-        Waits at most ``wait`` seconds for each reply (never past ``deadline``); raises _Silence
-        when none comes.
+        Waits for each reply at most this attempt's share of what is left of ``deadline`` (``left``: the
+        attempts left, this one included), never past it; raises _Silence when none comes.
         """
         if self._stale:
             self._drain()
@@ -418,14 +418,15 @@ class CoeObjectChannel(ObjectChannel):
             counter = self._counter
         self.filter.sent(counter)
         now = time.monotonic()
-        end = min(deadline.at, now + wait)
-        left = max(0.0, end - now)
+        wait = max(0.0, deadline.at - now) / max(1, left)  # (Deadline.share, with the clock read once)
+        end = now + wait
+        remaining = wait
         while True:
-            raw = self.link.receive(left)
+            raw = self.link.receive(remaining)
             if raw is not None:
                 now = time.monotonic()
-                left = end - now
-            if raw is None or left < 0:
+                remaining = end - now
+            if raw is None or remaining < 0:
                 # Silence -- or only mailboxes that are not the answer until the wait ran out: a slave that keeps
                 # presenting a foreign reply (SM1 in buffered mode, issue 23 item 12) must not hold us forever.
                 self._stale = True
@@ -447,5 +448,5 @@ class CoeObjectChannel(ObjectChannel):
             if until is None or until(value):
                 return value
             end = min(deadline.at, now + wait)  # a fragment arrived: wait for the next one
-            left = max(0.0, end - now)
+            remaining = max(0.0, end - now)
 

@@ -69,7 +69,9 @@ class GatewayMailboxLink(MailboxLink):
         return {"proto": "udp", "src": src, "dst": dst}
 
     def send(self, mailbox: bytes) -> None:
-        sock = self._socket()
+        sock = self.sock
+        if sock is None:
+            raise self._closed()
         if mailbox[2:4] != self._address:  # the mailbox names the gateway's station (the channel writes it)
             mailbox = mailbox[:2] + self._address + mailbox[4:]
         try:
@@ -88,7 +90,9 @@ class GatewayMailboxLink(MailboxLink):
         self.sent += 1
 
     def receive(self, timeout: float) -> bytes | None:
-        sock = self._socket()
+        sock = self.sock
+        if sock is None:
+            raise self._closed()
         now = time.monotonic()
         deadline = now + max(0.0, timeout)
         tracer = self.tracer
@@ -137,10 +141,9 @@ class GatewayMailboxLink(MailboxLink):
         return CommError(f"no answer from an EtherCAT gateway: nothing listens on UDP port {self.port} of {self.host} "
                          "(ICMP port unreachable); is the master's mailbox gateway enabled on that port?")
 
-    def _socket(self) -> socket.socket:
-        if self.sock is None:
-            raise CommError("the EtherCAT gateway link is closed")
-        return self.sock
+    @staticmethod
+    def _closed() -> CommError:
+        return CommError("the EtherCAT gateway link is closed")
 
     def close(self) -> None:
         if self.sock is not None:
