@@ -25,8 +25,11 @@ def _answer(address: ParameterAddress, draw: st.DrawFn) -> bmp.ParameterResult:
     if draw(st.booleans()):
         return ParameterFailure(draw(st.integers(0, 0x30)), draw(st.none() | st.integers(0, 0xFFFF)))
     count = address.count if draw(st.integers(0, 9)) else draw(st.integers(1, 5))  # now and then a wrong count
-    return ParameterValue(bmp.Format.WORD, tuple(draw(st.lists(st.integers(0, 0xFFFF), min_size=count,
-                                                               max_size=count))))
+    fmt = draw(st.sampled_from([bmp.Format.WORD, bmp.Format.BYTE, bmp.Format.DWORD, bmp.Format.INT8]))
+    bits = {bmp.Format.WORD: 16, bmp.Format.BYTE: 8, bmp.Format.DWORD: 32, bmp.Format.INT8: 8}[fmt]
+    low = -(1 << (bits - 1)) if fmt == bmp.Format.INT8 else 0
+    high = (1 << (bits - 1)) - 1 if fmt == bmp.Format.INT8 else (1 << bits) - 1
+    return ParameterValue(fmt, tuple(draw(st.lists(st.integers(low, high), min_size=count, max_size=count))))
 
 
 @settings(max_examples=300, deadline=None)
@@ -43,6 +46,10 @@ def test_template_equals_the_general_codec(asked: list[ParameterAddress], axis: 
     reply = bytearray(bmp.encode_response(bmp.ParameterResponse(
         data.draw(st.sampled_from([reference, reference % 255 + 1])) if data.draw(st.booleans()) else reference,
         bmp.RESP_READ_NAK if negative else bmp.RESP_READ_OK, axis, results)))
+    learnt = template.results(bytes(reply), reference)  # a valid answer first: the template learns its layout
+    if learnt is not None:
+        assert learnt == list(bmp.decode_response(bytes(reply), request).results)
+        assert template.results(bytes(reply), reference) == learnt  # and reads it again by that layout
     for at, value in data.draw(st.lists(st.tuples(st.integers(0, 40), st.integers(0, 255)), max_size=2)):
         if at < len(reply):
             reply[at] = value
@@ -55,6 +62,17 @@ def test_template_equals_the_general_codec(asked: list[ParameterAddress], axis: 
         general = None
     if fast is not None:
         assert fast == general
+    if not data.draw(st.integers(0, 3)):  # the learnt layout against another answer of the same size
+        other = bytearray(reply)
+        if len(other) > 5:
+            other[4] = data.draw(st.sampled_from([bmp.Format.WORD, bmp.Format.BYTE, bmp.Format.ERROR, 0x09, 0x0A]))
+        fast = template.results(bytes(other), reference)
+        try:
+            general = list(bmp.decode_response(bytes(other), request).results)
+        except bmp.BmpError:
+            general = None
+        if fast is not None:
+            assert fast == general
 
 
 @settings(max_examples=200, deadline=None)

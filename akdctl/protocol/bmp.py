@@ -28,8 +28,9 @@ Every malformed input raises :class:`BmpError` (a
 
 from __future__ import annotations
 
+import operator
 import struct
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -970,12 +971,17 @@ class ReadTemplate:
     """The read request of ``addresses`` on ``axis``, encoded once by :func:`encode_request`; :meth:`request` gives
     it with a reference, :meth:`results` reads the usual answer."""
 
-    __slots__ = ("addresses", "axis", "_tail")
+    __slots__ = ("addresses", "axis", "_tail", "_shape")
 
     def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]") -> None:
         self.axis = axis
         self.addresses = addresses
         self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses))[1:]
+        #: The layout of the last answer when every block was numeric values: (the whole response as one Struct,
+        #: the positions of each block's format and count in what it unpacks, their values, each block's format
+        #: and the span of its values). A poll's answers keep their shape; one that does not is read block by block.
+        self._shape: tuple[struct.Struct, "Callable[[tuple[object, ...]], tuple[int, ...]]", tuple[int, ...],
+                           list[tuple[int, int, int]]] | None = None
 
     def request(self, reference: int) -> bytes:
         """The request's bytes with ``reference`` (1..255)."""
@@ -990,6 +996,12 @@ class ReadTemplate:
         if size > MAX_BLOCK or size < HEADER_SIZE or data[0] != reference or data[2] != self.axis \
                 or data[3] != len(addresses) or (data[1] != RESP_READ_OK and data[1] != RESP_READ_NAK):
             return None
+        shape = self._shape
+        if shape is not None and shape[0].size == size:  # the answer looks like the last one: one unpack
+            layout, heads, expected, blocks = shape
+            fields = layout.unpack(data)
+            if heads(fields) == expected:
+                return [ParameterValue(fmt, fields[start:stop]) for fmt, start, stop in blocks]
         offset = HEADER_SIZE
         results: list[ParameterResult] = []
         try:
@@ -1001,8 +1013,40 @@ class ReadTemplate:
                 results.append(result)
         except BmpError:
             return None
-        return results if offset == size else None
+        if offset != size:
+            return None
+        self._shape = _numeric_shape(results, size)
+        return results
 
     def request_object(self, reference: int) -> ParameterRequest:
         """The request as a message (for :func:`decode_response` when :meth:`results` leaves the answer to it)."""
         return ParameterRequest(reference, REQ_READ, self.axis, self.addresses)
+
+
+def _numeric_shape(results: "list[ParameterResult]", size: int) -> "tuple[struct.Struct, Callable[[tuple[object, ...]], tuple[int, ...]], tuple[int, ...], list[tuple[int, int, int]]] | None":
+    """The layout of a read response whose blocks are all numeric values, as :func:`decode_value_block` reads them
+    (format, count, the values by the format's struct code, a pad byte after an odd number of value bytes); None
+    when a block is anything else or the layout does not span ``size`` bytes."""
+    codes = [">4x"]
+    heads: list[int] = []
+    expected: list[int] = []
+    blocks: list[tuple[int, int, int]] = []
+    at = 0  # position in the unpacked fields
+    for result in results:
+        if result.__class__ is not ParameterValue:
+            return None
+        fmt = result.format  # type: ignore[union-attr]
+        code = _STRUCT.get(fmt)
+        count = len(result.values)  # type: ignore[union-attr]
+        if code is None or fmt == _ERROR or not 1 <= count <= MAX_ELEMENTS:
+            return None
+        odd = count * _SIZES[fmt] & 1
+        codes.append(f"BB{count}{code}{'x' if odd else ''}")
+        heads += (at, at + 1)
+        expected += (fmt, count)
+        blocks.append((fmt, at + 2, at + 2 + count))
+        at += 2 + count
+    layout = struct.Struct("".join(codes))
+    if layout.size != size or len(heads) < 2:
+        return None
+    return layout, operator.itemgetter(*heads), tuple(expected), blocks
