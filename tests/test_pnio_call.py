@@ -105,9 +105,9 @@ rw_addresses = st.builds(pnio.RecordAddress, api=u32, slot=u16, subslot=u16, ind
 @settings(max_examples=300, deadline=None)
 @given(seq=u16, ar=st.uuids(), address=rw_addresses, status=statuses, data=st.binary(max_size=40),
        tail=st.binary(max_size=6), mutations=st.lists(st.tuples(st.integers(0, 70), st.integers(0, 255)), max_size=2))
-def test_record_responses_read_as_the_general_block_rules_read_them(seq: int, ar: uuid.UUID, address: pnio.RecordAddress,
-                                                               status: pnio.PnioStatus, data: bytes, tail: bytes,
-                                                               mutations: list[tuple[int, int]]) -> None:
+def test_record_responses_read_as_the_general_block_rules(seq: int, ar: uuid.UUID, address: pnio.RecordAddress,
+                                                          status: pnio.PnioStatus, data: bytes, tail: bytes,
+                                                          mutations: list[tuple[int, int]]) -> None:
     write = bytearray(pnio.IODWriteRes(seq, ar, address, len(data), status).encode() + tail)
     read = bytearray(pnio.IODReadRes(seq, ar, address, data).encode() + tail)
     assert pnio.write_response(bytes(write)) == (seq, address.index, status)

@@ -949,6 +949,10 @@ def pack_read_response(request: bytes, blocks: "list[bytes]", negative: bool) ->
 # words what is wrong. tests/test_bmp_read_template.py holds both equal to the general codec.
 
 _REFERENCE_BYTE = [bytes((i,)) for i in range(256)]
+#: A read answer's layout (ReadTemplate._shape): the whole response as one Struct, what picks each block's format and
+#: count out of what it unpacks, their expected values, and each block's format and the span of its values.
+_Shape = tuple[struct.Struct, Callable[[tuple[object, ...]], tuple[int, ...]], tuple[int, ...],
+               list[tuple[int, int, int]]]
 
 
 def address_key(addresses: Sequence[object]) -> tuple[tuple[int, int, int, int], ...] | None:
@@ -977,11 +981,9 @@ class ReadTemplate:
         self.axis = axis
         self.addresses = addresses
         self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses))[1:]
-        #: The layout of the last answer when every block was numeric values: (the whole response as one Struct,
-        #: the positions of each block's format and count in what it unpacks, their values, each block's format
-        #: and the span of its values). A poll's answers keep their shape; one that does not is read block by block.
-        self._shape: tuple[struct.Struct, "Callable[[tuple[object, ...]], tuple[int, ...]]", tuple[int, ...],
-                           list[tuple[int, int, int]]] | None = None
+        #: The layout of the last answer when every block was numeric values (_Shape). A poll's answers keep their
+        #: shape; one that does not is read block by block.
+        self._shape: _Shape | None = None
 
     def request(self, reference: int) -> bytes:
         """The request's bytes with ``reference`` (1..255)."""
@@ -1023,7 +1025,7 @@ class ReadTemplate:
         return ParameterRequest(reference, REQ_READ, self.axis, self.addresses)
 
 
-def _numeric_shape(results: "list[ParameterResult]", size: int) -> "tuple[struct.Struct, Callable[[tuple[object, ...]], tuple[int, ...]], tuple[int, ...], list[tuple[int, int, int]]] | None":
+def _numeric_shape(results: list[ParameterResult], size: int) -> _Shape | None:
     """The layout of a read response whose blocks are all numeric values, as :func:`decode_value_block` reads them
     (format, count, the values by the format's struct code, a pad byte after an odd number of value bytes); None
     when a block is anything else or the layout does not span ``size`` bytes."""

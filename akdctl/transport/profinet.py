@@ -469,7 +469,7 @@ class ProfinetTransport(Transport):
         return self._read_reply(self.address, seq, status, blocks)
 
     def _record_calls(self) -> RecordCalls:
-        """The parameter record's Write and Read datagrams for this AR, encoded once (:mod:`~akdctl.protocol.pnio_call`)."""
+        """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
         ar = self._need_ar()
         self._calls = RecordCalls(self._need_rpc().template, ar.bytes, self.address, MAX_RECORD)
         return self._calls
