@@ -32,28 +32,18 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.cia402_machine import MODES, Cia402Machine
 from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
-from akdctl.sim.kinematics import (
-    COAST_RPM_S,
-    DEFAULT_RAMP_RPM_S,
-    HOMING_FAST_RPM,
-    HOMING_SLOW_RPM,
-    QUICK_STOP_RPM_S,
-    STOPPING,
-    Kinematics,
-    rpm_s,
-)
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
-from akdctl.sim.stw1_machine import Stw1Machine
-from akdctl.sim.task_table import TaskTable
 
 if TYPE_CHECKING:
+    from akdctl.sim.cia402_machine import Cia402Machine
+    from akdctl.sim.kinematics import Kinematics
     from akdctl.sim.model import DriveModel
+    from akdctl.sim.stw1_machine import Stw1Machine
+    from akdctl.sim.task_table import TaskTable
 
 DEFAULT_FE_WINDOW_REV = 0.5  # ZSW1 bit 8 / SW bit 13 window when 0x6065 is 0
 DEFAULT_WATCHDOG_S = 1.0
@@ -63,6 +53,19 @@ SIM_PEAK_CURRENT_A = 18.0
 #: The warning the watchdog raises: a simulator-only number (catalog/data/faults.csv marks it so); a real AKD has
 #: no watchdog on acyclic access, hence no warning for it (docs/fidelity.md F4).
 WATCHDOG_WARNING = "n990"
+
+#: The component's parts, built on first use (issue 29, cold start: ``pnu get 930`` reads the mode, which is the
+#: component's own field, and needs no axis): name -> (module, class, the fields the part persists). The fields are a
+#: copy of each class's ``FIELDS``, kept here so writing back a part never built imports nothing
+#: (tests/test_sim_lazy.py fails when they differ). Listed in save order.
+PARTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "pd": ("akdctl.sim.stw1_machine", "Stw1Machine", ("stw1", "plc_control_allowed", "aktsatz", "frozen_vel")),
+    "cia": ("akdctl.sim.cia402_machine", "Cia402Machine", ("controlword", "quick_stop_code")),
+    "tasks": ("akdctl.sim.task_table", "TaskTable", ("tasks", "mt_num")),
+    "axis": ("akdctl.sim.kinematics", "Kinematics", (
+        "pos", "vel", "acc_now", "offset", "gen", "activity", "task", "task_paused", "last_target", "task_ack",
+        "homed", "homing", "homing_error", "homing_done", "internal_limit")),
+}
 
 
 class MotionComponent(Component):
@@ -84,12 +87,54 @@ class MotionComponent(Component):
         self.quick_stop_option = 2  # the option code of the quick stop in progress (0x605A when CiA 402 began it)
         self.enabling_words = 0  # control words with "enable operation" received (tests: none without consent)
         self.last_writer = "pd"  # "pd" or "cia": whose ramps and homing speeds apply
-        self.axis = Kinematics(self)
-        self.pd = Stw1Machine(self)
-        self.cia = Cia402Machine(self)
-        self.tasks = TaskTable(self)
+        # The parts (PARTS) built so far, and the persisted state they are built from (from load_state; empty for
+        # a new drive, whose parts start at their defaults)
+        self._parts: dict[str, Any] = {}
+        self._loaded: dict[str, Any] = {}
         self._bind()
-        self.tasks.bind()
+
+    # ================================================================== parts, built on first use
+    def _part(self, name: str) -> Any:
+        """The part ``name``, built and given the loaded state on first use. Building is no change of persisted
+        state (the part holds what the file held), so the model's and this component's revisions are kept: a read
+        that builds a part never rewrites the file."""
+        part = self._parts.get(name)
+        if part is not None:
+            return part
+        import importlib
+
+        module, cls, _ = PARTS[name]
+        model = self.model
+        revision, own = model.revision, self.revision
+        part = vars(importlib.import_module(module))[cls](self)
+        self._parts[name] = part
+        part.load_state(self._loaded)
+        model.revision = revision
+        self.__dict__["revision"] = own
+        return part
+
+    @property
+    def axis(self) -> "Kinematics":
+        return self._parts.get("axis") or self._part("axis")  # type: ignore[no-any-return]
+
+    @property
+    def pd(self) -> "Stw1Machine":
+        return self._parts.get("pd") or self._part("pd")  # type: ignore[no-any-return]
+
+    @property
+    def cia(self) -> "Cia402Machine":
+        return self._parts.get("cia") or self._part("cia")  # type: ignore[no-any-return]
+
+    @property
+    def tasks(self) -> "TaskTable":
+        return self._parts.get("tasks") or self._part("tasks")  # type: ignore[no-any-return]
+
+    def _resting_unbuilt_axis(self) -> bool:
+        """The axis was never built and its loaded state has nothing to integrate (no velocity, no acceleration,
+        no set point generator): a tick need not build it. Anything else builds it and asks it."""
+        loaded = self._loaded
+        return ("axis" not in self._parts and loaded.get("gen") is None and not loaded.get("vel")
+                and not loaded.get("acc_now"))
 
     # ================================================================== contract
     @property
@@ -98,16 +143,21 @@ class MotionComponent(Component):
 
     @property
     def position_counts(self) -> int:
-        return round((self.axis.pos + self.axis.offset) * self.counts_per_rev)
+        return self._position_counts(self.axis.pos, self.axis.offset)
+
+    def _position_counts(self, pos: float, offset: float) -> int:
+        return round((pos + offset) * self.counts_per_rev)
 
     @property
     def velocity_rpm(self) -> float:
-        return self.axis.vel * 60.0
+        return _rpm(self.axis.vel)
 
     def on_fault(self, code: str) -> None:
         """A fault was raised: react at once (fault reaction = quick stop, then power off)."""
         if code.lower().startswith("n"):
             return
+        from akdctl.sim.kinematics import COAST_RPM_S, QUICK_STOP_RPM_S
+
         axis = self.axis
         axis.abort_tasks(error=True)
         self.pd.frozen_vel = None
@@ -171,6 +221,8 @@ class MotionComponent(Component):
     def coast_off(self) -> None:
         """OFF2 / disable voltage: pulses off, a moving motor coasts down, switch on disabled."""
         if self.state in (ENABLED, QUICK_STOP) and not self.axis.at_rest():
+            from akdctl.sim.kinematics import COAST_RPM_S
+
             self.axis.abort_tasks()
             self.axis.ramp_to_zero(COAST_RPM_S, "coast")
         self.state, self.stopping_to = SOD, None
@@ -237,11 +289,15 @@ class MotionComponent(Component):
         return window / CIA_COUNTS_PER_REV if window else DEFAULT_FE_WINDOW_REV
 
     def ramp_dec_rpm_s(self) -> float:
+        from akdctl.sim.kinematics import DEFAULT_RAMP_RPM_S
+
         dec = self.model.signed_pnu(1007)[0] if self.last_writer == "pd" \
             else self._obj(0x6084) * 60.0 / CIA_COUNTS_PER_REV
         return float(dec) if dec > 0 else DEFAULT_RAMP_RPM_S
 
     def homing_profile(self) -> tuple[float, float, float]:
+        from akdctl.sim.kinematics import DEFAULT_RAMP_RPM_S, HOMING_FAST_RPM, HOMING_SLOW_RPM, rpm_s
+
         if self.last_writer == "cia":
             fast, slow = self._obj(0x6099, 1) / CIA_COUNTS_PER_REV, self._obj(0x6099, 2) / CIA_COUNTS_PER_REV
             acc = self._obj(0x609A) / CIA_COUNTS_PER_REV
@@ -258,6 +314,10 @@ class MotionComponent(Component):
         if faults.fault_present and self.state not in (FAULT, FAULT_REACTION):
             codes = [c for c in faults.active() if not c.lower().startswith("n")]
             self.on_fault(codes[0] if codes else "F0")
+        if self._resting_unbuilt_axis():  # at rest, nothing to integrate (as below) without building the axis
+            if self.since_access:
+                self.since_access = 0.0
+            return
         axis = self.axis
         if axis.at_rest():
             # The watchdog only guards motion; a resting axis keeps a constant state, so an idle
@@ -266,7 +326,7 @@ class MotionComponent(Component):
                 self.since_access = 0.0
             if not (axis.vel or axis.acc_now):
                 return  # nothing moves, nothing to integrate
-        elif self.watchdog_s > 0 and axis.activity not in STOPPING:
+        elif self.watchdog_s > 0 and axis.activity not in _stopping():
             threshold = self.watchdog_s * float(self.model.time_scale or 1.0)
             remaining = threshold - self.since_access
             if dt > remaining:
@@ -290,7 +350,8 @@ class MotionComponent(Component):
 
     # ================================================================== bindings
     def _bind(self) -> None:
-        m, pd, cia, axis = self.model, self.pd, self.cia, self.axis
+        # The parts are named through self at each call (they are built on first use), never held here.
+        m = self.model
 
         def pnu_reader(func: Any) -> Any:
             def read(sub: int, count: int) -> list[int]:
@@ -298,15 +359,17 @@ class MotionComponent(Component):
                 return [func()]
             return read
 
-        m.bind_pnu(1, read=pnu_reader(lambda: pd.stw1), write=pd.write_stw1)
-        m.bind_pnu(2, read=pnu_reader(pd.zsw1))
-        m.bind_pnu(5, write=pd.write_nsoll)
+        m.bind_pnu(1, read=pnu_reader(lambda: self.pd.stw1),
+                   write=lambda sub, values: self.pd.write_stw1(sub, values))
+        m.bind_pnu(2, read=pnu_reader(lambda: self.pd.zsw1()))
+        m.bind_pnu(5, write=lambda sub, values: self.pd.write_nsoll(sub, values))
         m.bind_pnu(6, read=pnu_reader(lambda: units.rpm_to_x(max(-12000.0, min(12000.0, self.velocity_rpm)), 15)))
         m.bind_pnu(4, read=pnu_reader(lambda: 0))  # ZSW2: no clock synchronism, so no slave sign of life
         m.bind_pnu(28, read=pnu_reader(lambda: _clamp32(self.position_counts)))  # XIST_A, 2^PNU1002 per rev
-        m.bind_pnu(33, read=pnu_reader(lambda: pd.aktsatz))
+        m.bind_pnu(33, read=pnu_reader(lambda: self.pd.aktsatz))
         m.bind_pnu(52, read=pnu_reader(lambda: round(self._current_fraction() * (1 << 14))))
-        m.bind_pnu(930, read=pnu_reader(lambda: self.opmode), write=pd.write_opmode)
+        m.bind_pnu(930, read=pnu_reader(lambda: self.opmode),
+                   write=lambda sub, values: self.pd.write_opmode(sub, values))
 
         def obj_reader(fmt: str, func: Any) -> Any:
             def read(sub: int) -> bytes:
@@ -319,35 +382,42 @@ class MotionComponent(Component):
         def counts(rev: float) -> int:
             return _clamp32(round(rev * CIA_COUNTS_PER_REV))
 
-        m.bind_object(0x6040, read=obj_reader("<H", lambda: cia.controlword), write=cia.write_controlword)
-        m.bind_object(0x6041, read=obj_reader("<H", cia.statusword))
-        m.bind_object(0x6060, read=obj_reader("<b", lambda: self.mode), write=cia.write_mode)
+        m.bind_object(0x6040, read=obj_reader("<H", lambda: self.cia.controlword),
+                      write=lambda sub, data: self.cia.write_controlword(sub, data))
+        m.bind_object(0x6041, read=obj_reader("<H", lambda: self.cia.statusword()))
+        m.bind_object(0x6060, read=obj_reader("<b", lambda: self.mode),
+                      write=lambda sub, data: self.cia.write_mode(sub, data))
         m.bind_object(0x6061, read=obj_reader("<b", lambda: self.mode))
-        m.bind_object(0x6063, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
-        m.bind_object(0x6064, read=obj_reader("<i", lambda: counts(axis.pos + axis.offset)))
-        m.bind_object(0x606C, read=obj_reader("<i", lambda: counts(axis.vel)))
-        m.bind_object(0x606B, read=obj_reader("<i", lambda: counts(axis.vel)))  # velocity demand (VL.CMD): the ramp
+        m.bind_object(0x6063, read=obj_reader("<i", lambda: counts(self.axis.pos + self.axis.offset)))
+        m.bind_object(0x6064, read=obj_reader("<i", lambda: counts(self.axis.pos + self.axis.offset)))
+        m.bind_object(0x606C, read=obj_reader("<i", lambda: counts(self.axis.vel)))
+        m.bind_object(0x606B, read=obj_reader("<i", lambda: counts(self.axis.vel)))  # velocity demand (VL.CMD)
         m.bind_object(0x6077, read=obj_reader("<h", lambda: round(self._current_fraction() * 1000)))
-        m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(axis.following_error)))
+        m.bind_object(0x60F4, read=obj_reader("<i", lambda: counts(self.axis.following_error)))
         # The AKD names of the same actual values (issue 23.7): one live value, every address of it.
         # VL.FB is 3618h *and* 606Ch [V reference/akd-parameter-names.md, G1]: the same reader.
-        m.bind_object(0x3618, read=obj_reader("<i", lambda: counts(axis.vel)))
+        m.bind_object(0x3618, read=obj_reader("<i", lambda: counts(self.axis.vel)))
         # Actual current: 2077h is scaled in mA [V seed 001, "Actual Current 0x2077 sub 0, 32 bit, scaled in mA"];
         # IL.FB 3558h in the 1000:1 float scaling of the AKD's CoE objects [I: its own scale row was not read].
         m.bind_object(0x2077, read=obj_reader("<i", self.current_ma))
         m.bind_object(0x3558, read=obj_reader("<i", self.current_ma))
         # PL.ERR is the following error 60F4h shows [I: same quantity, same counts assumed].
-        m.bind_object(0x35C5, read=obj_reader("<i", lambda: counts(axis.following_error)))
+        m.bind_object(0x35C5, read=obj_reader("<i", lambda: counts(self.axis.following_error)))
         m.bind_object(0x5084, read=obj_reader("<I", lambda: round(SIM_PEAK_CURRENT_A * 1000)))  # DRV.IPEAK, 1000:1 [I]
-        m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(axis.demand + axis.offset)))
-        m.bind_object(0x60FF, write=cia.write_target_velocity)
-        m.bind_object(0x6071, write=cia.write_target_torque)          # torque mode (4)
-        m.bind_object(0x60C1, write=cia.write_ip_setpoint)            # interpolated position (7)
-        m.bind_object(0x607A, write=cia.write_target_position)        # profile position (1) and CSP (8)
-        m.bind_object(0x605A, read=cia.read_quick_stop_code, write=cia.write_quick_stop_code)
+        m.bind_object(0x60FC, read=obj_reader("<i", lambda: counts(self.axis.demand + self.axis.offset)))
+        m.bind_object(0x60FF, write=lambda sub, data: self.cia.write_target_velocity(sub, data))
+        # torque mode (4), interpolated position (7), profile position (1) and CSP (8)
+        m.bind_object(0x6071, write=lambda sub, data: self.cia.write_target_torque(sub, data))
+        m.bind_object(0x60C1, write=lambda sub, data: self.cia.write_ip_setpoint(sub, data))
+        m.bind_object(0x607A, write=lambda sub, data: self.cia.write_target_position(sub, data))
+        m.bind_object(0x605A, read=lambda sub: self.cia.read_quick_stop_code(sub),
+                      write=lambda sub, data: self.cia.write_quick_stop_code(sub, data))
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
-        m.bind_object(0x6502, read=obj_reader("<I", lambda: sw.drive_modes_word(MODES)))
+        m.bind_object(0x6502, read=obj_reader("<I", _drive_modes_word))
         m.bind_object(0x3443, read=obj_reader("<H", self.dissources))
+        from akdctl.sim.task_table import TaskTable
+
+        TaskTable.bind(m, lambda: self.tasks)
 
     def current_ma(self) -> int:
         """The actual current in mA (signed, as a fraction of the simulated drive's peak current)."""
@@ -363,21 +433,24 @@ class MotionComponent(Component):
     def to_state(self) -> dict[str, Any]:
         """One flat dict (the keys of the state files written before the split, so old files load)."""
         data = FieldState.to_state(self)
-        data.update(self.pd.to_state())
-        data.update(self.cia.to_state())
-        data.update(self.tasks.to_state())
-        data.update(self.axis.to_state())
+        loaded = self._loaded
+        for name, (_, _, fields) in PARTS.items():  # a part never built writes back what it was loaded with
+            part = self._parts.get(name)
+            if part is None and all(key in loaded for key in fields):
+                data.update((key, loaded[key]) for key in fields)
+            else:
+                data.update((part or self._part(name)).to_state())
         data["last_writer"] = self.last_writer
-        data["position_counts"] = self.position_counts  # for `sim show`; ignored on load
-        data["velocity_rpm"] = round(self.velocity_rpm, 6)
+        # for `sim show`; ignored on load
+        data["position_counts"] = self._position_counts(data["pos"], data["offset"])
+        data["velocity_rpm"] = round(_rpm(data["vel"]), 6)
         return data
 
     def load_state(self, state: dict[str, Any]) -> None:
         FieldState.load_state(self, state)
-        self.pd.load_state(state)
-        self.cia.load_state(state)
-        self.tasks.load_state(state)
-        self.axis.load_state(state)
+        self._loaded = state
+        for part in self._parts.values():
+            part.load_state(state)
         if state.get("last_writer") in ("pd", "cia"):
             self.last_writer = state["last_writer"]
         if self.state not in CIA_WORD:
@@ -386,3 +459,21 @@ class MotionComponent(Component):
 
 def _clamp32(value: int) -> int:
     return max(-(1 << 31), min((1 << 31) - 1, value))
+
+
+def _stopping() -> tuple[str, ...]:
+    from akdctl.sim.kinematics import STOPPING
+
+    return STOPPING
+
+
+def _drive_modes_word() -> int:
+    """0x6502: the modes the CiA 402 machine accepts, as the object's bit field."""
+    from akdctl.profiles import statusword as sw
+    from akdctl.sim.cia402_machine import MODES
+
+    return sw.drive_modes_word(MODES)
+
+
+def _rpm(rev_s: float) -> float:
+    return rev_s * 60.0
