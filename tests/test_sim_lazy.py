@@ -102,3 +102,73 @@ def test_the_model_module_imports_no_lazy_component() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
     assert out.stdout.strip() == "[]", out.stdout
     assert model_module.LAZY  # the table is the module's
+
+
+# ---------------------------------------------------------------- the motion component's parts (issue 29, 2nd pass)
+from akdctl.sim.motion import PARTS, TASK_TABLE_OBJECTS  # noqa: E402
+
+
+@pytest.mark.parametrize("name", list(PARTS))
+def test_the_part_table_names_each_parts_class_and_fields(name: str) -> None:
+    model = DriveModel()
+    part = getattr(model.motion, name)
+    module, cls, fields = PARTS[name]
+    assert (type(part).__module__, type(part).__name__) == (module, cls)
+    assert fields == type(part).FIELDS
+
+
+def test_the_task_table_objects_are_what_the_table_binds() -> None:
+    model = DriveModel()
+    before = set(model._object_bindings)
+    model.motion.tasks
+    assert set(model._object_bindings) - before == set(TASK_TABLE_OBJECTS)
+
+
+def test_reading_the_mode_builds_no_part_of_the_axis() -> None:
+    model = DriveModel()
+    model.advance(0.1)
+    assert model.pnu_read_raw(930, 0, 1) == (0x42, [1])  # profile velocity (0x6060 = 3) is PNU 930 = 1
+    assert model.motion._parts == {}
+    model.object_read(0x6041, 0)  # the status word asks the axis and the CiA 402 machine
+    assert set(model.motion._parts) == {"axis", "cia"}
+
+
+def _moving_state() -> dict:  # type: ignore[type-arg]
+    """A drive jogging at 100 rpm through PNU 1/5 (STW1 enable sequence), saved and reloaded as JSON."""
+    model = DriveModel()
+    model.pnu_write_raw(1, 0, 0x42, [0x047E])
+    model.pnu_write_raw(1, 0, 0x42, [0x047F])
+    model.pnu_write_raw(5, 0, 0x42, [0x0555])  # a set point
+    model.advance(0.05)
+    return json.loads(json.dumps(model.to_state()))
+
+
+def test_an_axis_never_built_writes_back_its_loaded_state_and_the_revision_stays() -> None:
+    state = _moving_state()
+    loaded = DriveModel.from_state(state)
+    revision = loaded.revision
+    assert json.loads(json.dumps(loaded.to_state())) == state  # no part built: the loaded fields, unread
+    assert loaded.motion._parts == {}
+    loaded.motion.axis, loaded.motion.pd, loaded.motion.cia, loaded.motion.tasks  # noqa: B018 - building is no change
+    assert loaded.revision == revision
+    assert json.loads(json.dumps(loaded.to_state())) == state
+
+
+def test_a_moving_axis_loaded_from_its_state_moves_as_the_one_that_saved_it() -> None:
+    state = _moving_state()
+    assert state["components"]["motion"]["vel"]  # it moves
+    eager = DriveModel.from_state(state)
+    for name in PARTS:  # every part built at once, as before issue 29
+        getattr(eager.motion, name)
+    lazy = DriveModel.from_state(state)
+    eager.advance(0.2)
+    lazy.advance(0.2)  # the tick builds the axis: it has something to integrate
+    assert "axis" in lazy.motion._parts
+    assert lazy.to_state() == eager.to_state()
+    assert lazy.pnu_read_raw(2, 0, 1) == eager.pnu_read_raw(2, 0, 1)
+
+
+def test_a_resting_axis_is_not_built_by_the_clock() -> None:
+    model = DriveModel.from_state(json.loads(json.dumps(DriveModel().to_state())))
+    model.advance(1.0)
+    assert "axis" not in model.motion._parts

@@ -121,6 +121,8 @@ class DriveModel:
         # pnu_read_raw's lookups, once per PNU: entry, wire format, value mask, reader, is an array
         self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
+        # Object indices a component binds only once a part of it is built (bind_object_later): index -> builder
+        self._object_builders: dict[int, Callable[[], object]] = {}
         # The components, named here as typed handles for each other and for the faces. ``motion`` (the one that
         # moves with time) is built now; the LAZY ones on first use (module doc), each from its persisted state
         # if the loaded state had one (``_pending``).
@@ -191,6 +193,11 @@ class DriveModel:
         """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
         self._object_bindings[index] = _ObjectBinding(read, write)
 
+    def bind_object_later(self, index: int, build: Callable[[], object]) -> None:
+        """An object whose binding a component makes only when the part that owns it is built (the motion task
+        table, sim/motion.py): the first access calls ``build``, which binds it, and finds that binding."""
+        self._object_builders[index] = build
+
     def component(self, name: str) -> Component | None:
         if name in LAZY:
             return self._build(name)  # type: ignore[no-any-return]
@@ -207,8 +214,13 @@ class DriveModel:
 
     def _object_binding(self, index: int) -> _ObjectBinding | None:
         binding = self._object_bindings.get(index)
-        if binding is None and index in LAZY_OBJECTS and LAZY_OBJECTS[index] not in self._built:
-            self._build(LAZY_OBJECTS[index])
+        if binding is None:
+            if index in LAZY_OBJECTS and LAZY_OBJECTS[index] not in self._built:
+                self._build(LAZY_OBJECTS[index])
+            elif index in self._object_builders:
+                self._object_builders.pop(index)()
+            else:
+                return None
             binding = self._object_bindings.get(index)
         return binding
 

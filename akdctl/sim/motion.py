@@ -33,6 +33,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from akdctl.profiles import units
+from akdctl.profiles.motion_tasks import MT_LOAD, MT_NUM, MT_SET
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
@@ -66,6 +67,9 @@ PARTS: dict[str, tuple[str, str, tuple[str, ...]]] = {
         "pos", "vel", "acc_now", "offset", "gen", "activity", "task", "task_paused", "last_target", "task_ack",
         "homed", "homing", "homing_error", "homing_done", "internal_limit")),
 }
+
+#: The objects the task table binds when it is built (MT.NUM, MT.LOAD, MT.SET; the numbers are profiles/motion_tasks).
+TASK_TABLE_OBJECTS = (MT_NUM, MT_LOAD, MT_SET)
 
 
 class MotionComponent(Component):
@@ -109,6 +113,8 @@ class MotionComponent(Component):
         part = vars(importlib.import_module(module))[cls](self)
         self._parts[name] = part
         part.load_state(self._loaded)
+        if name == "tasks":
+            part.bind()
         model.revision = revision
         self.__dict__["revision"] = own
         return part
@@ -415,9 +421,10 @@ class MotionComponent(Component):
         # 0x6502 lists the modes 0x6060 accepts (EtherCAT manual 5.8 table: 1, 3, 4, 6, 7, 8)
         m.bind_object(0x6502, read=obj_reader("<I", _drive_modes_word))
         m.bind_object(0x3443, read=obj_reader("<H", self.dissources))
-        from akdctl.sim.task_table import TaskTable
-
-        TaskTable.bind(m, lambda: self.tasks)
+        # The task table binds its own objects (sim/task_table.py) when built; these are the ones it binds
+        # (tests/test_sim_lazy.py checks it), so the first access to one builds it
+        for index in TASK_TABLE_OBJECTS:
+            m.bind_object_later(index, lambda: self.tasks)
 
     def current_ma(self) -> int:
         """The actual current in mA (signed, as a fraction of the simulated drive's peak current)."""

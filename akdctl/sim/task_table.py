@@ -39,9 +39,6 @@ from akdctl.sim.component import ABORT_VALUE_RANGE, FieldState
 from akdctl.sim.errors import SdoAccessError
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
-    from akdctl.sim.model import DriveModel
     from akdctl.sim.motion import MotionComponent
 
 #: The table a new simulated drive starts with (program mode, SATZANW 1..4): AKD MT.* parameters.
@@ -71,14 +68,11 @@ class TaskTable(FieldState):
             return None
         return entry
 
-    @staticmethod
-    def bind(model: "DriveModel", table: "Callable[[], TaskTable]") -> None:
-        """Bind the table's objects to ``table()``: the motion component builds its table on first use (issue 29,
-        cold start), so the bindings name the table through it rather than hold one."""
-        model.bind_object(MT_NUM, read=lambda sub: table()._read_num(sub),
-                          write=lambda sub, data: table()._write_num(sub, data))
-        model.bind_object(MT_LOAD, write=lambda sub, data: table()._load(sub, data))
-        model.bind_object(MT_SET, write=lambda sub, data: table()._set(sub, data))
+    def bind(self) -> None:
+        m = self.drive.model
+        m.bind_object(MT_NUM, read=self._read_num, write=self._write_num)
+        m.bind_object(MT_LOAD, write=self._load)
+        m.bind_object(MT_SET, write=self._set)
 
     # ------------------------------------------------------------------ objects
     def _read_num(self, sub: int) -> bytes:
