@@ -23,7 +23,7 @@ bit stays clear short of it; homing, jogging and a mode change forget it.
 from __future__ import annotations
 
 import math
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
 from akdctl.sim.component import FieldState, Tracked
@@ -65,23 +65,24 @@ def rpm_s(value: float) -> float:
     return value / 60.0
 
 
-class KinematicsHost(Protocol):
-    """What the axis needs from the drive around it (the motion component implements it)."""
+if TYPE_CHECKING:  # a typing-only contract: a Protocol class costs a cold start more than the rest of the module
+    class KinematicsHost(Protocol):
+        """What the axis needs from the drive around it (the motion component implements it)."""
 
-    def soft_limits(self) -> tuple[float, float] | None:
-        """Software position limits in physical rev, or None when disabled."""
+        def soft_limits(self) -> tuple[float, float] | None:
+            """Software position limits in physical rev, or None when disabled."""
 
-    def ramp_dec_rpm_s(self) -> float:
-        """The deceleration of a normal (ramp) stop."""
+        def ramp_dec_rpm_s(self) -> float:
+            """The deceleration of a normal (ramp) stop."""
 
-    def homing_profile(self) -> tuple[float, float, float]:
-        """Homing (fast rev/s, slow rev/s, acceleration rev/s²) of the profile that started homing."""
+        def homing_profile(self) -> tuple[float, float, float]:
+            """Homing (fast rev/s, slow rev/s, acceleration rev/s²) of the profile that started homing."""
 
-    def home_offset_rev(self) -> float:
-        """The position the reference point reports after homing (0x607C)."""
+        def home_offset_rev(self) -> float:
+            """The position the reference point reports after homing (0x607C)."""
 
-    def stop_complete(self) -> None:
-        """A stop ramp reached standstill: the power stage takes its next state."""
+        def stop_complete(self) -> None:
+            """A stop ramp reached standstill: the power stage takes its next state."""
 
 
 class Kinematics(FieldState):
@@ -90,7 +91,7 @@ class Kinematics(FieldState):
     FIELDS = ("pos", "vel", "acc_now", "offset", "gen", "activity", "task", "task_paused", "last_target",
               "task_ack", "homed", "homing", "homing_error", "homing_done", "internal_limit")
 
-    def __init__(self, host: KinematicsHost) -> None:
+    def __init__(self, host: "KinematicsHost") -> None:
         super().__init__(host if isinstance(host, Tracked) else None)  # the motion component owns the axis
         self.host = host
         self.pos = 0.0  # physical position, rev
