@@ -21,6 +21,9 @@ components that move with time (``motion``) are built at once; the others
 found in :data:`LAZY_PNUS`/:data:`LAZY_OBJECTS` (``tests/test_sim_lazy.py``
 fails when that index no longer matches what the components bind). A component
 never built keeps its persisted state as loaded and writes it back unchanged.
+The motion component itself builds its parts (axis, word machines, task table:
+``sim/motion.PARTS``) the same way, so reading the operating mode builds none of
+them and a resting axis is not built by the clock.
 """
 
 from __future__ import annotations
