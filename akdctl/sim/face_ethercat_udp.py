@@ -179,6 +179,9 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatUdpFace | None:
 
 
 def _face_drive(new: "SimDrive", like: "SimDrive") -> "SimDrive":
-    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout)."""
+    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout) and
+    keeps it between requests as the served one does."""
     new.lock_timeout = like.lock_timeout
+    if like.keeps_lock:
+        new.serve_faces()
     return new
