@@ -51,3 +51,30 @@ def test_expedited_upload_response_equals_the_general_encoder(index: int, subind
     assert coe.pack_expedited_upload_response(index, subindex, value) == general
     request = coe.encode_sdo(coe.SdoUploadInitiate(index, subindex))
     assert request[0] == coe.UPLOAD_INITIATE_COMMAND and coe.sdo_address(request) == (index, subindex)
+
+
+@given(st.integers(0, 0xFFFF), st.integers(0, 7), st.integers(0, 0xFFFF), st.integers(0, 0xFF),
+       st.binary(min_size=1, max_size=4))
+def test_the_upload_mailbox_in_one_step_equals_the_general_codecs(address: int, counter: int, index: int,
+                                                                  subindex: int, value: bytes) -> None:
+    """coe.plain_upload_initiate / pack_expedited_upload_mailbox (issue 29) read and write what mailbox.split,
+    decode_coe and the expedited encoders do; a request of any other shape is left to the general path."""
+    from akdctl.protocol import mailbox as mbx
+
+    assert coe._MAILBOX_TYPE_COE == mbx.MailboxType.COE
+    sdo = coe.encode_sdo(coe.SdoUploadInitiate(index, subindex))
+    request = mbx.pack(mbx.MailboxType.COE, coe.encode_coe(coe.CoeService.SDO_REQUEST, sdo), address, counter)
+    assert coe.plain_upload_initiate(request) == (address, counter, index, subindex)
+    mtype, got_counter, got_address, data = mbx.split(request)
+    service, _number, payload = coe.decode_coe(data)
+    assert (mtype, service, got_counter, got_address) == (mbx.MailboxType.COE, coe.CoeService.SDO_REQUEST, counter,
+                                                         address)
+    assert coe.sdo_address(payload) == (index, subindex)
+    reply = mbx.pack(mbx.MailboxType.COE, coe.coe_header(coe.CoeService.SDO_RESPONSE)
+                     + coe.encode_sdo(coe.SdoUploadResponse(index, subindex, value, len(value), True)), address, counter)
+    assert coe.pack_expedited_upload_mailbox(address, counter, index, subindex, value) == reply
+    for other in (request + b"\0", request[:-1], request[:4] + bytes([request[4] | 1]) + request[5:],
+                  request[:5] + bytes([(request[5] & 0xF0) | mbx.MailboxType.FOE]) + request[6:],
+                  request[:6] + coe.encode_coe(coe.CoeService.SDO_RESPONSE, sdo),
+                  request[:8] + bytes([0x60]) + request[9:]):
+        assert coe.plain_upload_initiate(other) is None

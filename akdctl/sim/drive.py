@@ -32,9 +32,12 @@ Why it is cheap (a network face answers thousands of requests a second):
   the lock once the request in progress has ended, and waits until the asker
   holds the lock (it lets go of the turn then) before its faces may take it
   again. The next face request takes the lock the ordinary way, reads the token
-  and reloads what the asker saved before it answers. The watcher also drops the
-  lock after a moment without requests (a locker that does not ask still gets
-  it) and when the lock file was removed.
+  and reloads what the asker saved before it answers. While others want the
+  drive (it was asked, or had to wait for the lock) it takes the lock per
+  request for a while, as every other process does, so a crowd of writers is
+  not queued behind one hand-over each. The watcher also drops the lock after a
+  moment without requests (a locker that does not ask still gets it) and when
+  the lock file was removed.
 """
 
 from __future__ import annotations
@@ -78,6 +81,9 @@ HOLD_TICK_S = 0.05
 HOLD_IDLE_S = 0.1
 #: Poll interval of a process that holds the turn (it asked the holder and waits for the lock).
 TURN_POLL_S = 0.001
+#: After handing the lock over, a served drive takes it per request (as every other process does) for this long
+#: before it keeps it again: while others want the drive, keeping it would make each of them wait for a hand-over.
+HOLD_BACKOFF_S = 0.25
 
 
 class SimStateError(UsageError):
@@ -124,6 +130,7 @@ class SimDrive:
         self._trusted = False  # the held model is current: the lock was kept since the last transaction
         self._turn_fd = -1
         self._watcher: threading.Thread | None = None
+        self._keep_from = 0.0  # monotonic time from which a lock taken is kept again (HOLD_BACKOFF_S)
         self._tmp_name = re.compile(rf"\.sim-{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp")
 
     def serve_faces(self) -> None:
@@ -203,7 +210,7 @@ class SimDrive:
                     time.sleep(TURN_POLL_S if turn else 0.005)
                     continue
                 if os.fstat(self._lock_fd).st_nlink:
-                    if self._keep:
+                    if self._keep and (deadline is None and time.monotonic() >= self._keep_from):
                         self._start_holding()
                     return self._lock_fd
                 # The lock file was removed (a user cleaning the state directory): others lock the new one.
@@ -302,6 +309,8 @@ class SimDrive:
         go of the turn once it holds the lock -- so this drive's next request cannot take it back first."""
         self._holding = self._trusted = False
         fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+        if wait_for_asker:
+            self._keep_from = time.monotonic() + HOLD_BACKOFF_S
         if not os.fstat(self._lock_fd).st_nlink:
             os.close(self._lock_fd)
             self._lock_fd = -1
@@ -534,16 +543,34 @@ class SimDrive:
         return server.handle(mailbox)  # type: ignore[union-attr]
 
     def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
-        """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs."""
+        """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs.
+
+        With the lock kept since the last transaction (:attr:`_trusted`), the held model is current: the steps of
+        :meth:`_begin` and :meth:`_commit` that matter then -- the clock advanced, a save when the mark moved --
+        are done here without their token read and calls (the same rules; any other case takes them)."""
         lock_fd = self._acquire()
         try:
-            held = self._begin(lock_fd, True)
+            held = self._held
+            if held is None or not self._trusted:
+                held = self._begin(lock_fd, True)
+            else:
+                self._held = None  # dropped unless the request succeeds (a failed one reloads)
+                model, meta = held.model, held.meta
+                now = time.time()
+                model.time_scale = scale = meta["time_scale"]
+                if now > meta["wall"]:
+                    model.advance((now - meta["wall"]) * scale)
+                meta["wall"] = now
             server.access = held.model
             try:
                 result = answer(request)
             finally:
                 server.access = _OUTSIDE
-            self._commit(held, lock_fd)
+            mark = held.mark
+            if held.model.revision != mark[0] or held.meta.get("time_scale") != mark[1] or not self._trusted:
+                self._commit(held, lock_fd)
+            else:
+                self._held = held
             return result
         finally:
             self._release(lock_fd)
