@@ -78,3 +78,18 @@ def test_the_upload_mailbox_in_one_step_equals_the_general_codecs(address: int, 
                   request[:6] + coe.encode_coe(coe.CoeService.SDO_RESPONSE, sdo),
                   request[:8] + bytes([0x60]) + request[9:]):
         assert coe.plain_upload_initiate(other) is None
+
+
+@given(st.binary(min_size=80, max_size=120), st.booleans(), st.integers(0, 0xFFFFFFFF),
+       st.tuples(st.integers(0, 255), st.integers(0, 255), st.integers(0, 255), st.integers(0, 255)),
+       st.binary(max_size=300))
+def test_the_record_response_in_one_step_equals_the_general_codecs(data: bytes, little: bool, boot: int,
+                                                                   codes: tuple[int, int, int, int],
+                                                                   blocks: bytes) -> None:
+    """pnio_record.pack_record_response (issue 29) writes what reply_head + pnio.encode_response_args write."""
+    from akdctl.protocol import dcerpc, pnio, pnio_record
+
+    for status in (pnio.OK, pnio.PnioStatus(*codes)):
+        general = pnio_record.reply_head(data, little, dcerpc.PT_RESPONSE, boot, 20 + len(blocks)) \
+            + pnio.encode_response_args(status, blocks, little=little)
+        assert pnio_record.pack_record_response(data, little, boot, status, blocks) == general

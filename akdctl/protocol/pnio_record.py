@@ -130,3 +130,20 @@ def record_request_plain(blocks: bytes, block_type: int) -> RecordCall | None:
             if block_type == BT_WRITE_REQ and size == 64 + length:
                 return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
     return None
+
+
+# --- the whole response to a plain record call in one step (the simulator's PROFINET face, issue 29) -------------
+_NDR_RESPONSE = {False: struct.Struct(">4sIIII"), True: struct.Struct("<4sIIII")}  # PNIOStatus, NDR array header
+
+
+def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.PnioStatus, blocks: bytes) -> bytes:
+    """The response datagram to the plain record call ``data``: what ``reply_head(data, little, PT_RESPONSE, boot,
+    n) + pnio.encode_response_args(status, blocks, little=little)`` writes, in one buffer."""
+    n = len(blocks)
+    frame = bytearray(data[:dcerpc.HEADER_SIZE])
+    frame[1], frame[2], frame[3] = dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0
+    _HEAD_TAIL[little].pack_into(frame, 56, boot)
+    _LENGTH_FRAGMENT[little].pack_into(frame, 74, 20 + n, 0)
+    frame += _NDR_RESPONSE[little].pack(_OK_BYTES if status is OK else status.encode(), n, n, 0, n)
+    frame += blocks
+    return bytes(frame)
