@@ -382,7 +382,8 @@ class ProfinetFace(Face):
             return
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
-            self._record_call(data, peer, *plain)
+            little, sequence, opnum, req = plain
+            self._record_call(data, peer, little, sequence, opnum, req)
             return
         try:
             view = dcerpc.view_packet(data)  # the header's fields, its UUIDs left as wire bytes
@@ -576,9 +577,10 @@ class ProfinetFace(Face):
         if implicit:
             # the parameter channel lives in the AR: Read Implicit cannot reach it
             return pnio.rw_error(False, 0xB6), b""
-        ar = self._ar_for(req.ar)
+        ar = self._ars.get(req.ar)
         if ar is None:
             return pnio.rw_error(False, 0xB6), b""
+        ar.last_activity = now = time.monotonic()
         if req.index == pnio.INDEX_KEEPALIVE:
             return pnio_record.read_res(req, b"")
         error = self._address_error(req, write=False)
@@ -587,7 +589,7 @@ class ProfinetFace(Face):
         if ar.pending is None:
             return pnio.rw_error(False, 0xA0), b""          # nothing was asked: read error
         ready_at, response = ar.pending
-        if ready_at > time.monotonic():
+        if ready_at > now:
             self.stats.busy_answers += 1
             return pnio.rw_error(False, 0xB5), b""          # busy: come back later
         ar.pending = None

@@ -185,6 +185,9 @@ def header_refusal(request: bytes) -> int | None:
     return None
 
 
+_ONE_READ_SIZE = HEADER_SIZE + ADDRESS_SIZE  # a read request of one parameter
+
+
 class PnuServer:
     """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
 
@@ -201,6 +204,15 @@ class PnuServer:
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = bytes(request)
+        if len(data) == _ONE_READ_SIZE and data[1] == REQ_READ and data[3] == 1 and data[0] and data[2] in self.axes:
+            # one parameter read, the poll's request: the checks header_refusal and _handle make of it, passed
+            try:
+                return self._read_all(data, 1)
+            except _WholeRequest as refusal:
+                return self._refuse(data, refusal.error)
+            except Exception as exc:  # noqa: BLE001 - as below
+                self.last_exception = exc
+                return self._refuse(data, ERR_OPERATING_STATE)
         code1 = header_refusal(data)
         if code1 is not None:
             what = "length" if code1 == EC1_WRITE_LENGTH else "header"
