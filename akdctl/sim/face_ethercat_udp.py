@@ -69,20 +69,21 @@ class GatewayHandler:
 
     def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
         from akdctl.protocol import mailbox
+        from akdctl.protocol.errors import CodecError
         from akdctl.sim.mailbox_repeat import MailboxRepeats
 
         self.stations = stations
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
-        self._unwrap, self._wrap = mailbox.unwrap_gateway, mailbox.wrap_gateway  # looked up once, not per datagram
+        # looked up once here, not imported per datagram
+        self._unwrap, self._wrap, self._header_size = mailbox.unwrap_gateway, mailbox.wrap_gateway, mailbox.HEADER_SIZE
+        self._codec_error = CodecError
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
-        from akdctl.protocol.errors import CodecError
-        from akdctl.protocol.mailbox import HEADER_SIZE
-
+        CodecError, header_size = self._codec_error, self._header_size  # noqa: N806 - the class, looked up once
         try:
             raw = self._unwrap(datagram)
         except CodecError:
@@ -108,7 +109,7 @@ class GatewayHandler:
                 replies = failure_reply(raw)
         out = []
         for reply in replies:
-            if len(reply) < HEADER_SIZE:
+            if len(reply) < header_size:
                 continue
             if reply[2] | reply[3] << 8 != address:
                 reply = reply[:2] + raw[2:4] + reply[4:]
