@@ -48,7 +48,8 @@ DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
-EXPIRY_TICK_S = 0.05  # the loop wakes this often without datagrams (AR timeouts, stop)
+EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
+IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
 
 
 def _timeval(seconds: float) -> bytes:
@@ -288,7 +289,7 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- loop
     def _run(self) -> None:
-        """One blocking receive per datagram: the kernel's receive timeout (SO_RCVTIMEO, EXPIRY_TICK_S) wakes the
+        """One blocking receive per datagram: the kernel's receive timeout (SO_RCVTIMEO, IDLE_WAKE_S) wakes the
         loop for the ARs' timeouts and the stop flag, :meth:`interrupt` shuts the socket down to wake it at once.
         Only while delayed sends (fault injection) are due does it wait in poll() for the earliest of them."""
         sock = self._sock
@@ -297,7 +298,7 @@ class ProfinetFace(Face):
         sock_fd = sock.fileno()
         poller.register(sock_fd, select.POLLIN)
         poller.register(self._wake_r, select.POLLIN)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(EXPIRY_TICK_S))
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
         buffer = bytearray(65535)  # one receive buffer: recvfrom(65535) allocates 64 KiB per datagram
         view = memoryview(buffer)
         receive, datagram, stop = sock.recvfrom_into, self._datagram, self._stop
@@ -324,7 +325,7 @@ class ProfinetFace(Face):
                 request_failed("profinet", exc)
 
     def _maybe_expire(self, next_expiry: float) -> float:
-        """Drop timed-out ARs at most every EXPIRY_TICK_S (an AR is dropped within that of its timeout)."""
+        """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
         now = time.monotonic()
         if now < next_expiry:
             return next_expiry
