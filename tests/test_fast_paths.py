@@ -93,3 +93,11 @@ def test_the_record_response_in_one_step_equals_the_general_codecs(data: bytes, 
         general = pnio_record.reply_head(data, little, dcerpc.PT_RESPONSE, boot, 20 + len(blocks)) \
             + pnio.encode_response_args(status, blocks, little=little)
         assert pnio_record.pack_record_response(data, little, boot, status, blocks) == general
+
+
+@given(st.lists(st.tuples(st.sampled_from([0x10, 0x20]), st.integers(1, 20), st.integers(1, 0xFFFF),
+                          st.integers(0, 0xFF)), min_size=1, max_size=5))
+def test_the_first_read_address_is_what_the_iterator_yields_first(addresses: list[tuple[int, int, int, int]]) -> None:
+    request = bmp.encode_request(bmp.ParameterRequest(
+        1, bmp.REQ_READ, 0, tuple(bmp.ParameterAddress(p, s, c, a) for a, c, p, s in addresses)))
+    assert bmp.first_read_address(request) == next(bmp.iter_read_addresses(request, len(addresses)))

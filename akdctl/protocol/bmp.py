@@ -939,3 +939,9 @@ def pack_read_response(request: bytes, blocks: "list[bytes]", negative: bool) ->
     """A read response to ``request`` from its value/error blocks, already packed: the request's reference,
     axis and number of parameters, the response ID (negative when any block is an error block)."""
     return bytes((request[0], RESP_READ_NAK if negative else RESP_READ_OK, request[2], len(blocks))) + b"".join(blocks)
+
+
+def first_read_address(data: bytes) -> tuple[int, int, int, int]:
+    """(attribute, number of elements, PNU, subindex) of the first address after the header: what
+    :func:`iter_read_addresses` yields first, without a generator (the server's one-parameter read, issue 29)."""
+    return _ADDRESS.unpack_from(data, HEADER_SIZE)  # type: ignore[return-value]
