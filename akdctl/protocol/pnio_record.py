@@ -133,17 +133,16 @@ def record_request_plain(blocks: bytes, block_type: int) -> RecordCall | None:
 
 
 # --- the whole response to a plain record call in one step (the simulator's PROFINET face, issue 29) -------------
-_NDR_RESPONSE = {False: struct.Struct(">4sIIII"), True: struct.Struct("<4sIIII")}  # PNIOStatus, NDR array header
+# The reply header's fields the request gave (version; drep .. activity UUID; interface version .. activity hint;
+# serial low, data representation's tail) around the ones a response sets, then PNIOStatus and the NDR array header.
+_RESPONSE = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII")
+             for little, order in ((False, ">"), (True, "<"))}
 
 
 def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.PnioStatus, blocks: bytes) -> bytes:
     """The response datagram to the plain record call ``data``: what ``reply_head(data, little, PT_RESPONSE, boot,
-    n) + pnio.encode_response_args(status, blocks, little=little)`` writes, in one buffer."""
+    n) + pnio.encode_response_args(status, blocks, little=little)`` writes, in one pack."""
     n = len(blocks)
-    frame = bytearray(data[:dcerpc.HEADER_SIZE])
-    frame[1], frame[2], frame[3] = dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0
-    _HEAD_TAIL[little].pack_into(frame, 56, boot)
-    _LENGTH_FRAGMENT[little].pack_into(frame, 74, 20 + n, 0)
-    frame += _NDR_RESPONSE[little].pack(_OK_BYTES if status is OK else status.encode(), n, n, 0, n)
-    frame += blocks
-    return bytes(frame)
+    return _RESPONSE[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
+                                  data[60:74], 20 + n, 0, data[78:80],
+                                  _OK_BYTES if status is OK else status.encode(), n, n, 0, n) + blocks
