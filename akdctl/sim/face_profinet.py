@@ -584,9 +584,9 @@ class ProfinetFace(Face):
         ar.last_activity = now = time.monotonic()
         if req.index == pnio.INDEX_KEEPALIVE:
             return pnio_record.read_res(req, b"")
-        error = self._address_error(req, write=False)
-        if error is not None:
-            return error, b""
+        if req.api != self.api or req.slot != self.slot or req.subslot != self.subslot or \
+                (req.index != INDEX_PROFIDRIVE and req.index != INDEX_PROFIDRIVE_ALT):
+            return self._address_error(req, write=False) or OK, b""
         if ar.pending is None:
             return pnio.rw_error(False, 0xA0), b""          # nothing was asked: read error
         ready_at, response = ar.pending
