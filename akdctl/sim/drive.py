@@ -47,7 +47,6 @@ import errno
 import fcntl
 import math
 import os
-import select
 import stat
 import threading
 import time
@@ -280,6 +279,8 @@ class SimDrive:
     def _watch(self, ask_fd: int) -> None:
         """The watcher: gives the kept lock up when asked, after HOLD_IDLE_S without a request, or when the lock
         file was removed; then it ends (a drive nobody uses keeps no thread), the next kept lock starts another."""
+        import select  # only sim serve keeps a lock: the CLI's read paths never load it
+
         try:
             while True:
                 ready = select.select([ask_fd], [], [], HOLD_TICK_S)[0]
