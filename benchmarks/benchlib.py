@@ -206,7 +206,7 @@ class BlockWorker:
         import tempfile
 
         self.kind, self.fields, self.block_timeout = kind, fields, block_timeout
-        self._err = tempfile.TemporaryFile(mode="w+b")
+        self._err = tempfile.TemporaryFile(mode="w+b")  # noqa: SIM115 - closed when the worker is reported dead
         self._pending = b""
         self._silent = False  # the last read ran out of time (the worker hangs): it is killed, not waited for
         self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err,

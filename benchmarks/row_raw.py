@@ -25,8 +25,19 @@ import statistics
 import sys
 from collections.abc import Callable
 
-from benchlib import (BlockWorker, Interleaved, Result, Sample, Settings, WorkerDied, akdctl_env, akdctl_root,
-                      fmt_ratio, fmt_us, interleave)
+from benchlib import (
+    BlockWorker,
+    Interleaved,
+    Result,
+    Sample,
+    Settings,
+    WorkerDied,
+    akdctl_env,
+    akdctl_root,
+    fmt_ratio,
+    fmt_us,
+    interleave,
+)
 
 #: Runs of interleaved blocks, each with fresh workers.
 RUNS = 5
@@ -91,7 +102,7 @@ def compare(start_ours: Callable[[int], BlockWorker], start_peer: Callable[[int]
             try:
                 peer = start_peer(k)
                 try:
-                    done.append(interleave(lambda: block(ours, n), lambda: block(peer, n), rounds=rounds))
+                    done.append(_run(ours, peer, rounds, n))
                 finally:
                     peer.stop()
             finally:
@@ -101,6 +112,10 @@ def compare(start_ours: Callable[[int], BlockWorker], start_peer: Callable[[int]
                       [f"{exc.kind} worker died in run {len(done) + 1} of {runs}: {exc.last_words}"],
                       {"runs_done": float(len(done))})
     return _verdict(done)
+
+
+def _run(ours: BlockWorker, peer: BlockWorker, rounds: int, n: int) -> Interleaved:
+    return interleave(lambda: block(ours, n), lambda: block(peer, n), rounds=rounds)
 
 
 def _verdict(done: list[Interleaved]) -> Result:
@@ -117,12 +132,12 @@ def _verdict(done: list[Interleaved]) -> Result:
     fo, fs = statistics.median(frames_ours), statistics.median(frames_soem)
     return Result(f"{fmt_ratio(median)}× median, {fmt_ratio(worst)}× worst of {len(done)}, frames {fo:.2g} vs {fs:.2g}",
                   ok, [
-                      f"per upload: ours {fmt_us(every.median(0))} wall, {fmt_us(every.median(0, lambda x: x.cpu_us))} "
-                      f"CPU; pysoem {fmt_us(every.median(1))} wall, {fmt_us(every.median(1, lambda x: x.cpu_us))} CPU "
-                      "(client side, medians of every block)",
-                      "speed ratio per run: " + ", ".join(fmt_ratio(x) for x in speeds)
-                      + "; frames per run (ours/pysoem): "
-                      + ", ".join(f"{a:.2g}/{b:.2g}" for a, b in zip(frames_ours, frames_soem)),
+                      (f"per upload: ours {fmt_us(every.median(0))} wall, "
+                       f"{fmt_us(every.median(0, lambda x: x.cpu_us))} CPU; pysoem {fmt_us(every.median(1))} wall, "
+                       f"{fmt_us(every.median(1, lambda x: x.cpu_us))} CPU (client side, medians of every block)"),
+                      ("speed ratio per run: " + ", ".join(fmt_ratio(x) for x in speeds)
+                       + "; frames per run (ours/pysoem): "
+                       + ", ".join(f"{a:.2g}/{b:.2g}" for a, b in zip(frames_ours, frames_soem))),
                   ],
                   {"speed_ratio": median, "speed_worst": worst, "frames_ours": fo, "frames_pysoem": fs})
 
@@ -138,6 +153,7 @@ def raw_vs_pysoem(s: Settings) -> Result:
     if root not in sys.path:
         sys.path.insert(0, root)
     from servers import sim_server
+
     from tests.netns import VethPair
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "raw")}

@@ -10,7 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 
-from benchlib import BlockWorker, WorkerDied  # noqa: E402
+from benchlib import BlockWorker, WorkerDied
 
 pytestmark = pytest.mark.slow
 
