@@ -389,3 +389,10 @@ def pack_expedited_upload_response(index: int, subindex: int, value: bytes) -> b
     ``encode_sdo(SdoUploadResponse(index, subindex, value, expedited=True))`` writes."""
     return _EXPEDITED_UPLOAD.pack(0x43 | (4 - len(value)) << 2, index, subindex, value)
 
+
+
+def is_upload_request(coe_data: bytes) -> bool:
+    """Whether CoE data (header + SDO) is a client's SDO upload request, initiate or segment: a read the
+    simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""
+    return (len(coe_data) >= COE_HEADER_SIZE + 1 and coe_data[1] >> 4 == CoeService.SDO_REQUEST
+            and coe_data[COE_HEADER_SIZE] >> 5 in (2, 3))  # ccs 2 upload initiate, 3 upload segment (CiA 301)

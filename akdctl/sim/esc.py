@@ -15,7 +15,11 @@ The ESC is pure: :meth:`Esc.process` takes the datagrams of a frame and
 returns them as they leave the slave (data filled in, WKC incremented, ADP
 incremented for auto-increment and broadcast commands). Mailbox requests are
 handed to whoever calls :meth:`take_request` (the face's worker thread, so a
-slow SDO never delays a frame) and replies come back through :meth:`post_replies`.
+slow SDO never delays a frame) and replies come back through :meth:`post_replies`
+-- except the requests :attr:`Esc.quick` picks (reads answered from memory),
+which the caller of :meth:`process` takes with :meth:`take_quick` once the
+frame has gone back: no thread hand-off, no frame waiting for an application
+thread to be scheduled.
 """
 
 from __future__ import annotations
@@ -86,6 +90,11 @@ class Esc:
         self.inputs_read = 0  # input process data frames served
         self.outputs_written = 0  # output process data frames taken (the application and the SM watchdog watch it)
         self.lost_frame = False  # set by process(): the face must not send this frame back
+        #: Requests (the whole SM0 buffer) the caller of process() answers itself through take_quick(), when no
+        #: earlier request is still with the application (replies keep the requests' order); None: none.
+        self.quick: Callable[[bytes], bool] | None = None
+        self._quick: deque[bytes] = deque()
+        self._owed = 0  # requests handed to the application whose replies it has not posted yet
         self.reset()
 
     # ------------------------------------------------------------------ power-on state
@@ -110,6 +119,8 @@ class Esc:
                              ec.EEP_READ_8_BYTES | (0 if crc_ok else ec.EEP_ERROR_CHECKSUM))
             self._requests.clear()
             self._replies.clear()
+            self._quick.clear()
+            self._owed = 0
             self._sm = [_MailboxSm() for _ in range(NUM_SM)]
 
     # ------------------------------------------------------------------ small accessors
@@ -312,9 +323,13 @@ class Esc:
                 if addr + n >= sm.start + sm.length:
                     self._set_full(i, True)
                     raw = bytes(self.mem[sm.start : sm.start + sm.length])
-                    self._requests.append(raw)
                     self.stats.mailbox_requests += 1
-                    self._have_request.notify_all()
+                    if self.quick is not None and not self._owed and self.quick(raw):
+                        self._quick.append(raw)
+                    else:
+                        self._requests.append(raw)
+                        self._owed += 1
+                        self._have_request.notify_all()
                 return True
             self.mem[addr : addr + n] = data
             return True
@@ -483,6 +498,8 @@ class Esc:
     def _clear_mailboxes(self) -> None:
         self._requests.clear()
         self._replies.clear()
+        self._quick.clear()
+        self._owed = 0
         for i in range(NUM_SM):
             self._set_full(i, False)
             self._sm[i].last = b""
@@ -495,23 +512,42 @@ class Esc:
                 self._have_request.wait(timeout)
             if not self._requests:
                 return None
-            raw = self._requests.popleft()
-            for i in range(NUM_SM):
-                sm = self.sync_manager(i)
-                if sm.enabled and sm.is_mailbox and sm.writes_to_slave:
-                    self._set_full(i, False)
-            length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
-            return raw[: min(len(raw), 6 + length)]
+            return self._taken(self._requests.popleft())
+
+    def take_quick(self) -> bytes | None:
+        """The next request :attr:`quick` picked (None: none waiting); answer it with :meth:`post_quick_replies`."""
+        with self._lock:
+            return self._taken(self._quick.popleft()) if self._quick else None
+
+    def _taken(self, raw: bytes) -> bytes:
+        """The PDI has read SM0: it is empty again; the mailbox without the buffer's tail."""
+        for i in range(NUM_SM):
+            sm = self.sync_manager(i)
+            if sm.enabled and sm.is_mailbox and sm.writes_to_slave:
+                self._set_full(i, False)
+        length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
+        return raw[: min(len(raw), 6 + length)]
 
     def post_replies(self, replies: list[bytes], drop: bool = False) -> None:
-        """Queue mailboxes for SM1; ``drop`` loses the frame that carries the first one to the master."""
+        """The application's replies to a request it took (none: it had none): queued for SM1; ``drop`` loses
+        the frame that carries the first one to the master."""
         with self._lock:
-            if not self._mailboxes_active():
-                return
-            if drop and replies:
-                self.drop_next_reply = True
-            self._replies.extend(replies)
-            self._load_reply()
+            if self._owed:
+                self._owed -= 1
+            self._post(replies, drop)
+
+    def post_quick_replies(self, replies: list[bytes], drop: bool = False) -> None:
+        """:meth:`post_replies` for a request taken with :meth:`take_quick`."""
+        with self._lock:
+            self._post(replies, drop)
+
+    def _post(self, replies: list[bytes], drop: bool) -> None:
+        if not self._mailboxes_active():
+            return
+        if drop and replies:
+            self.drop_next_reply = True
+        self._replies.extend(replies)
+        self._load_reply()
 
     def _load_reply(self) -> None:
         for i in range(NUM_SM):
