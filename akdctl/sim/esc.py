@@ -95,6 +95,8 @@ class Esc:
         self.quick: Callable[[bytes], bool] | None = None
         self._quick: deque[bytes] = deque()
         self._owed = 0  # requests handed to the application whose replies it has not posted yet
+        self._layout_key: tuple[int, ...] = ()
+        self._layout: tuple[tuple[int, int, int, bool], ...] = ()
         self.reset()
 
     # ------------------------------------------------------------------ power-on state
@@ -284,23 +286,38 @@ class Esc:
                     self.mem[sm.start:sm.start + len(chunk)] = chunk
                     return
 
-    def _mailbox_sm_at(self, addr: int, n: int) -> int | None:
+    def _mailboxes(self) -> tuple[tuple[int, int, int, bool], ...]:
+        """(n, start, length, written by the master) of every enabled mailbox SM, as its registers say now.
+
+        Why not decode the SMs each time: every mailbox access asked for them, eight SyncManager objects a
+        time, a dozen times per SDO. One struct call tells whether start, length, control or activate of
+        any SM changed since (whoever wrote them: the master, or a test writing ``mem``)."""
+        fields = ec.sync_manager_fields(self.mem, ec.REG_SM0, NUM_SM)
+        key = fields[0::6] + fields[1::6] + fields[2::6] + fields[4::6]
+        if key != self._layout_key:
+            self._layout_key = key
+            self._layout = tuple((i, sm.start, sm.length, sm.writes_to_slave)
+                                 for i, sm in ((i, self.sync_manager(i)) for i in range(NUM_SM))
+                                 if sm.enabled and sm.is_mailbox)
+        return self._layout
+
+    def _mailbox_sm_at(self, addr: int, n: int) -> tuple[int, int, int, bool] | None:
         """The enabled mailbox SM whose buffer overlaps [addr, addr+n)."""
-        for i in range(NUM_SM):
-            sm = self.sync_manager(i)
-            if sm.enabled and sm.is_mailbox and sm.length and addr < sm.start + sm.length and sm.start < addr + n:
-                return i
+        for sm in self._mailboxes():
+            _i, start, length, _writes = sm
+            if length and addr < start + length and start < addr + n:
+                return sm
         return None
 
     def _read(self, addr: int, n: int) -> bytes | None:
-        i = self._mailbox_sm_at(addr, n) if addr >= 0x1000 else None
-        if i is not None:
-            sm = self.sync_manager(i)
-            if sm.writes_to_slave or not self._sm[i].full:
+        found = self._mailbox_sm_at(addr, n) if addr >= 0x1000 else None
+        if found is not None:
+            i, start, length, writes = found
+            if writes or not self._sm[i].full:
                 return None  # reading an empty read-mailbox (or the write mailbox) is denied: WKC unchanged
             data = bytes(self.mem[addr : addr + n])
-            if addr + n >= sm.start + sm.length:  # the last byte was read: the buffer is the master's now
-                self._sm[i].last = bytes(self.mem[sm.start : sm.start + sm.length])
+            if addr + n >= start + length:  # the last byte was read: the buffer is the master's now
+                self._sm[i].last = bytes(self.mem[start : start + length])
                 self._set_full(i, False)
                 self.stats.mailbox_replies += 1
                 if self.drop_next_reply:
@@ -314,15 +331,15 @@ class Esc:
     def _write(self, addr: int, data: bytes) -> bool:
         n = len(data)
         if addr >= 0x1000:
-            i = self._mailbox_sm_at(addr, n)
-            if i is not None:
-                sm = self.sync_manager(i)
-                if not sm.writes_to_slave or self._sm[i].full or not self._mailboxes_active():
+            found = self._mailbox_sm_at(addr, n)
+            if found is not None:
+                i, start, length, writes = found
+                if not writes or self._sm[i].full or not self._mailboxes_active():
                     return False
                 self.mem[addr : addr + n] = data
-                if addr + n >= sm.start + sm.length:
+                if addr + n >= start + length:
                     self._set_full(i, True)
-                    raw = bytes(self.mem[sm.start : sm.start + sm.length])
+                    raw = bytes(self.mem[start : start + length])
                     self.stats.mailbox_requests += 1
                     if self.quick is not None and not self._owed and self.quick(raw):
                         self._quick.append(raw)
@@ -521,9 +538,8 @@ class Esc:
 
     def _taken(self, raw: bytes) -> bytes:
         """The PDI has read SM0: it is empty again; the mailbox without the buffer's tail."""
-        for i in range(NUM_SM):
-            sm = self.sync_manager(i)
-            if sm.enabled and sm.is_mailbox and sm.writes_to_slave:
+        for i, _start, _length, writes in self._mailboxes():
+            if writes:
                 self._set_full(i, False)
         length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
         return raw[: min(len(raw), 6 + length)]
@@ -550,13 +566,12 @@ class Esc:
         self._load_reply()
 
     def _load_reply(self) -> None:
-        for i in range(NUM_SM):
-            sm = self.sync_manager(i)
-            if sm.enabled and sm.is_mailbox and not sm.writes_to_slave and sm.length:
+        for i, start, length, writes in self._mailboxes():
+            if not writes and length:
                 if self._sm[i].full or not self._replies:
                     return
-                reply = self._replies.popleft()[: sm.length]
-                self.mem[sm.start : sm.start + sm.length] = reply.ljust(sm.length, b"\0")
+                reply = self._replies.popleft()[:length]
+                self.mem[start : start + length] = reply.ljust(length, b"\0")
                 self._set_full(i, True)
                 return
 
