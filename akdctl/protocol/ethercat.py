@@ -20,9 +20,11 @@ Datagram::
 
 from __future__ import annotations
 
+import operator
 import struct
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Any
 
 from akdctl.protocol.errors import CodecError
 
@@ -288,7 +290,8 @@ class FrameTemplate:
     sent (the ADP is not compared: position and broadcast commands count it on the way).
     """
 
-    __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_cmds", "_ados", "_lengths")
+    __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
+                 "_results")
 
     def __init__(self, datagrams: list[Datagram], src: bytes) -> None:
         self.frame = bytearray(encode_frame(datagrams, src))
@@ -303,8 +306,12 @@ class FrameTemplate:
         self._data_at = (ETH_HEADER + 12, ETH_HEADER + 12 + len(datagrams[0].data))
         # The datagrams as they come back: cmd, index, ADP, ADO, length, IRQ, data, WKC each (the layout above).
         self._reply = struct.Struct("<" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
+        self._fields = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
+        self._results = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (6, 7)))
         sent = self._reply.unpack_from(self.frame, ETH_HEADER + 2)
-        self._cmds, self._ados, self._lengths = sent[0::8], sent[3::8], sent[4::8]
+        self._expect = [tuple(v for k in range(self.count) for v in (sent[8 * k], index, sent[8 * k + 3],
+                                                                    sent[8 * k + 4]))
+                        for index in range(256)]  # what _fields reads from the reply, per index
 
     def stamp(self, index: int, data: bytes | None = None) -> bytes:
         """The frame with ``index`` in every datagram (and ``data`` in the first, of the template's length)."""
@@ -318,17 +325,16 @@ class FrameTemplate:
             frame[start:end] = data
         return bytes(frame)
 
-    def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> list[tuple[bytes, int]] | None:
-        """(data, working counter) per datagram if ``reply`` (its first ``size`` bytes: a receive buffer may be
-        longer) is this frame with ``index`` coming back, else None (another frame, a VLAN tag: the caller
-        decodes it the general way)."""
-        if (len(reply) if size is None else size) < self.size or reply[12:ETH_HEADER + 2] != self._head:
+    def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> tuple[Any, ...] | None:
+        """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if
+        ``reply`` (its first ``size`` bytes: a receive buffer may be longer) is this frame with ``index`` coming
+        back; else None (another frame, a VLAN tag: the caller decodes it the general way)."""
+        if (len(reply) if size is None else size) < self.size or not reply.startswith(self._head, 12):
             return None
         got = self._reply.unpack_from(reply, ETH_HEADER + 2)
-        if (got[1::8] != (index,) * self.count or got[0::8] != self._cmds or got[3::8] != self._ados
-                or got[4::8] != self._lengths):
+        if self._fields(got) != self._expect[index]:
             return None
-        return list(zip(got[6::8], got[7::8]))
+        return self._results(got)  # type: ignore[no-any-return]
 
 
 # --- SyncManager and FMMU register blocks --------------------------------------------------------------

@@ -22,6 +22,7 @@ import socket
 import struct
 import time
 from dataclasses import dataclass
+from typing import Any
 
 from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
 from akdctl.io import raw_socket
@@ -136,9 +137,9 @@ class EcatMaster:
         raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s "
                         f"({attempts} attempt{'s' if attempts > 1 else ''}): no slave connected, or the link is down")
 
-    def txrx_template(self, template: ec.FrameTemplate, data: bytes | None = None) -> list[tuple[bytes, int]]:
-        """:meth:`txrx` for a frame encoded once (mailbox polls): one try, (data, WKC) per datagram.
-        FrameLost when it does not come back."""
+    def txrx_template(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
+        """:meth:`txrx` for a frame encoded once (mailbox polls): one try; data and WKC of each datagram in
+        turn, flat (:meth:`FrameTemplate.read`). FrameLost when it does not come back."""
         sock = self.sock
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
@@ -162,17 +163,18 @@ class EcatMaster:
                 raise self._lost() from None
             except OSError as exc:
                 raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
-            got = template.read(buffer, index, size)
-            if got is None and buffer[6:12] != MASTER_MAC:  # not at the template's offsets: decode it the general way
+            own = buffer.startswith(MASTER_MAC, 6)  # our own frame, seen on the way out, is not the answer
+            got = None if own else template.read(buffer, index, size)
+            if got is None and not own:  # not at the template's offsets: decode it the general way
                 try:
                     _dst, _src, datagrams = ec.decode_frame(buffer[:size])
                 except CodecError:
                     datagrams = []
                 if len(datagrams) == template.count and datagrams[0].index == index:
-                    got = [(d.data, d.wkc) for d in datagrams]
-            if got is not None and buffer[6:12] != MASTER_MAC:  # (our own frame, seen on the way out, is not)
+                    got = tuple(x for d in datagrams for x in (d.data, d.wkc))
+            if got is not None:
                 if self.tracer.active:
-                    self._trace("rx", bytes(buffer[:size]), f"wkc {','.join(str(w) for _d, w in got)}")
+                    self._trace("rx", bytes(buffer[:size]), f"wkc {','.join(str(w) for w in got[1::2])}")
                 return got
             # Not the answer: wait for the rest of the frame's time only, so a peer flooding frames that are not
             # the answer does not hold us past it.
@@ -410,7 +412,7 @@ class RawMailboxLink(MailboxLink):
         if len(mailbox) > self.sm0.length:
             raise CommError(f"mailbox of {len(mailbox)} bytes exceeds the slave's {self.sm0.length}-byte SM0")
         data = bytes(mailbox).ljust(self.sm0.length, b"\0")
-        ((_data, wkc),) = self.master.txrx_template(self._write, data)
+        _data, wkc = self.master.txrx_template(self._write, data)
         if wkc == 1:
             return
         deadline = time.monotonic() + self.master.timeout
@@ -423,7 +425,7 @@ class RawMailboxLink(MailboxLink):
             if time.monotonic() > deadline:
                 raise NoAnswer(f"slave 0x{self.station:04X} does not empty its receive mailbox (SM0 stays full)")
             pause.wait(deadline)
-            ((_data, wkc),) = self.master.txrx_template(self._write, data)
+            _data, wkc = self.master.txrx_template(self._write, data)
             if wkc == 1:
                 return
 
@@ -439,8 +441,8 @@ class RawMailboxLink(MailboxLink):
             except FrameLost:
                 self._recover(deadline)
                 continue
-            data, data_wkc = got[0]
-            if data_wkc == 1 and (len(got) == 1 or got[1][1] == 1):  # SM1 was full: read, and the slave's again
+            data, data_wkc = got[0], got[1]
+            if data_wkc == 1 and (len(got) == 2 or got[3] == 1):  # SM1 was full: read, and the slave's again
                 length = min(MAILBOX_HEADER + (data[0] | data[1] << 8), self.sm1.length)
                 if length <= size:
                     self._read = max(self._first_read, length)
