@@ -21,6 +21,7 @@ import contextlib
 import socket
 import struct
 import time
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -173,8 +174,7 @@ class EcatMaster:
                 if len(datagrams) == template.count and datagrams[0].index == index:
                     got = tuple(x for d in datagrams for x in (d.data, d.wkc))
             if got is not None:
-                if self.tracer.active:
-                    self._trace("rx", bytes(buffer[:size]), f"wkc {','.join(str(w) for w in got[1::2])}")
+                self._traced_rx(buffer, size, got)
                 return got
             # Not the answer: wait for the rest of the frame's time only, so a peer flooding frames that are not
             # the answer does not hold us past it.
@@ -182,6 +182,55 @@ class EcatMaster:
             if left <= 0:
                 raise self._lost()
             self._wait_at_most(sock, left)
+
+    def txrx_pair(self, first: ec.FrameTemplate, data: bytes, second: ec.FrameTemplate
+                  ) -> tuple[tuple[Any, ...] | None, tuple[Any, ...] | None]:
+        """Two template frames sent back to back -- the second without waiting for the first's answer (a
+        mailbox write and the poll for its reply) -- and each one's answer as :meth:`txrx_template` gives it,
+        None for one that did not come back. Every receive waits at most the frame timeout and the pair at
+        most twice that."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        one = self._index = (self._index + 1) & 0xFF
+        two = self._index = (self._index + 1) & 0xFF
+        frames = (first.stamp(one, data), second.stamp(two))
+        try:
+            for frame in frames:
+                if self.tracer.active:
+                    self._trace("tx", frame, "mailbox write" if frame is frames[0] else "mailbox poll/fetch")
+                sock.send(frame)
+                self.frames += 1
+        except OSError as exc:
+            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+        sent = time.monotonic()
+        buffer = self._buffer
+        if self._waits != self.frame_timeout:
+            self._wait_at_most(sock, self.frame_timeout)
+        got_one = got_two = None
+        while got_one is None or got_two is None:
+            try:
+                size = sock.recv_into(buffer)
+            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+                break
+            except OSError as exc:
+                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if not buffer.startswith(MASTER_MAC, 6):  # (our own frames, seen on the way out, are not answers)
+                if got_one is None and (got_one := first.read(buffer, one, size)) is not None:
+                    self._traced_rx(buffer, size, got_one)
+                    continue
+                if got_two is None and (got_two := second.read(buffer, two, size)) is not None:
+                    self._traced_rx(buffer, size, got_two)
+                    continue
+            left = sent + self.frame_timeout - time.monotonic()  # not an answer: only the rest of the time
+            if left <= 0:
+                break
+            self._wait_at_most(sock, left)
+        return got_one, got_two
+
+    def _traced_rx(self, buffer: bytearray, size: int, got: tuple[Any, ...]) -> None:
+        if self.tracer.active:
+            self._trace("rx", bytes(buffer[:size]), f"wkc {','.join(str(w) for w in got[1::2])}")
 
     def _wait(self, index: int, count: int) -> list[ec.Datagram] | None:
         sock = self.sock
@@ -368,7 +417,12 @@ class RawMailboxLink(MailboxLink):
     """The mailbox of one slave: write SM0, poll SM1, read about the reply's length.
 
     Per request: one frame writes SM0 (the whole buffer, as SOEM and IgH do: the ESC takes the
-    mailbox when its last byte is written). Each poll is one frame of two datagrams: the first ``K``
+    mailbox when its last byte is written), and the first poll follows it at once, before the write's
+    answer is back: it reaches the slave right behind the request, so a slave that answers within a
+    frame's round trip (the simulator; a fast application) has the reply in SM1 when the poll passes,
+    and the master's turnaround between the two frames is off the request's critical path; a slower
+    slave costs that one poll, as polling right after the write's answer did. Each poll is one frame
+    of two datagrams: the first ``K``
     bytes of SM1 and SM1's last byte. While SM1 is empty the ESC refuses both reads (WKC 0, nothing
     happens); once it is full the frame brings the reply and hands the buffer back to the slave
     (reading the last byte does), so a reply costs one frame, not a status poll plus a read -- and the
@@ -394,6 +448,8 @@ class RawMailboxLink(MailboxLink):
         self._write = ec.FrameTemplate([ec.Datagram(ec.Cmd.FPWR, station, sm0.start, bytes(sm0.length))], MASTER_MAC)
         self._polls: dict[int, ec.FrameTemplate] = {}
         self._read = self._first_read = min(self.FIRST_READ, sm1.length)
+        #: Polls sent with a request (:meth:`send`) not yet looked at: (their answer or None if lost, bytes read).
+        self._early: deque[tuple[tuple[Any, ...] | None, int]] = deque()
 
     def _sm_reg(self, n: int, offset: int) -> int:
         return ec.REG_SM0 + ec.SM_STRIDE * n + offset
@@ -412,8 +468,13 @@ class RawMailboxLink(MailboxLink):
         if len(mailbox) > self.sm0.length:
             raise CommError(f"mailbox of {len(mailbox)} bytes exceeds the slave's {self.sm0.length}-byte SM0")
         data = bytes(mailbox).ljust(self.sm0.length, b"\0")
-        _data, wkc = self.master.txrx_template(self._write, data)
-        if wkc == 1:
+        size = self._read
+        self.polls += 1
+        wrote, poll = self.master.txrx_pair(self._write, data, self._polls.get(size) or self._poll_frame(size))
+        self._early.append((poll, size))
+        if wrote is None:
+            raise self.master._lost()  # the channel listens for the reply anyway (see below)
+        if wrote[1] == 1:
             return
         deadline = time.monotonic() + self.master.timeout
         pause = _Pause()
@@ -433,12 +494,19 @@ class RawMailboxLink(MailboxLink):
         deadline = time.monotonic() + max(0.0, timeout)
         pause: _Pause | None = None
         master = self.master
+        early = self._early
         while True:
-            size = self._read
-            self.polls += 1
-            try:
-                got = master.txrx_template(self._polls.get(size) or self._poll_frame(size))
-            except FrameLost:
+            got: tuple[Any, ...] | None
+            if early:  # the poll that went out with the request: its answer first
+                got, size = early.popleft()
+            else:
+                size = self._read
+                self.polls += 1
+                try:
+                    got = master.txrx_template(self._polls.get(size) or self._poll_frame(size))
+                except FrameLost:
+                    got = None
+            if got is None:  # the poll frame was lost, and perhaps the reply it read with it
                 self._recover(deadline)
                 continue
             data, data_wkc = got[0], got[1]
