@@ -376,16 +376,3 @@ class SyncManager:
         """Direction bits 2-3: 01 = ECAT writes (master -> slave)."""
         return (self.control & 0x0C) == 0x04
 
-
-_SM_BLOCKS: dict[int, struct.Struct] = {}
-
-
-def sync_manager_fields(buffer: bytes | bytearray, offset: int, count: int) -> tuple[int, ...]:
-    """The fields of ``count`` consecutive SyncManager blocks at ``offset``, flat, six per SM in
-    :class:`SyncManager`'s order (start, length, control, status, activate, PDI control): one struct call
-    where decoding them would build ``count`` objects (the simulated ESC looks at its SMs on every
-    mailbox access)."""
-    blocks = _SM_BLOCKS.get(count)
-    if blocks is None:
-        blocks = _SM_BLOCKS[count] = struct.Struct("<" + "HHBBBB" * count)
-    return blocks.unpack_from(buffer, offset)

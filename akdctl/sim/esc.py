@@ -43,6 +43,7 @@ WD_DIVIDER_DEFAULT = 2498
 WD_PD_TIME_DEFAULT = 1000
 SM_CONTROL_WATCHDOG = 0x40
 MBX_MIN = 40  # smallest mailbox the AKD accepts (ESI Sm MinSize)
+_SM_END = ec.REG_SM0 + ec.SM_STRIDE * NUM_SM
 
 # ECAT-read-only register bytes (writes by the master are ignored there)
 _READ_ONLY = [(0x0000, 0x000F), (0x0012, 0x0013), (0x0110, 0x0111), (0x0130, 0x0135), (0x0140, 0x0141),
@@ -95,7 +96,7 @@ class Esc:
         self.quick: Callable[[bytes], bool] | None = None
         self._quick: deque[bytes] = deque()
         self._owed = 0  # requests handed to the application whose replies it has not posted yet
-        self._layout_key: tuple[int, ...] = ()
+        self._sm_regs = bytearray()  # the SM registers the mailbox layout below was derived from
         self._layout: tuple[tuple[int, int, int, bool], ...] = ()
         self.reset()
 
@@ -158,8 +159,10 @@ class Esc:
     def _set_full(self, n: int, full: bool) -> None:
         self._sm[n].full = full
         addr = self._sm_status_addr(n)
-        self.mem[addr] = (self.mem[addr] | ec.SM_STATUS_MAILBOX_FULL) if full else (
+        status = self.mem[addr] = (self.mem[addr] | ec.SM_STATUS_MAILBOX_FULL) if full else (
             self.mem[addr] & ~ec.SM_STATUS_MAILBOX_FULL & 0xFF)
+        if len(self._sm_regs) == _SM_END - ec.REG_SM0:
+            self._sm_regs[addr - ec.REG_SM0] = status  # the layout does not depend on it: no decode for it
 
     def _mailboxes_active(self) -> bool:
         return (self.al_status & 0x0F) in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP, ec.AlState.BOOT)
@@ -290,12 +293,12 @@ class Esc:
         """(n, start, length, written by the master) of every enabled mailbox SM, as its registers say now.
 
         Why not decode the SMs each time: every mailbox access asked for them, eight SyncManager objects a
-        time, a dozen times per SDO. One struct call tells whether start, length, control or activate of
-        any SM changed since (whoever wrote them: the master, or a test writing ``mem``)."""
-        fields = ec.sync_manager_fields(self.mem, ec.REG_SM0, NUM_SM)
-        key = fields[0::6] + fields[1::6] + fields[2::6] + fields[4::6]
-        if key != self._layout_key:
-            self._layout_key = key
+        time, a dozen times per SDO. One comparison of the SM register block tells whether anything changed
+        since (whoever wrote it: the master, or a test writing ``mem``; :meth:`_set_full` keeps the status
+        bytes it changes itself in step, so a mailbox turning full or empty costs no new decode)."""
+        regs = self.mem[ec.REG_SM0:_SM_END]
+        if regs != self._sm_regs:
+            self._sm_regs = regs
             self._layout = tuple((i, sm.start, sm.length, sm.writes_to_slave)
                                  for i, sm in ((i, self.sync_manager(i)) for i in range(NUM_SM))
                                  if sm.enabled and sm.is_mailbox)
