@@ -253,7 +253,7 @@ def encode_ethernet(payload: bytes, src: bytes, dst: bytes = BROADCAST_MAC, ethe
     return frame + bytes(max(0, ETH_MIN_FRAME - len(frame)))
 
 
-def decode_ethernet(frame: bytes) -> tuple[bytes, bytes, int, bytes]:
+def decode_ethernet(frame: bytes | bytearray) -> tuple[bytes, bytes, int, bytes]:
     """(dst, src, ethertype, payload); a 802.1Q tag is skipped."""
     if len(frame) < ETH_HEADER:
         raise CodecError("Ethernet frame shorter than 14 bytes")
@@ -272,7 +272,7 @@ def encode_frame(datagrams: list[Datagram], src: bytes, dst: bytes = BROADCAST_M
     return encode_ethernet(encode_datagrams(datagrams), src, dst)
 
 
-def decode_frame(frame: bytes) -> tuple[bytes, bytes, list[Datagram]]:
+def decode_frame(frame: bytes | bytearray) -> tuple[bytes, bytes, list[Datagram]]:
     """(dst, src, datagrams) of an EtherCAT Ethernet frame."""
     dst, src, ethertype, payload = decode_ethernet(frame)
     if ethertype != ETHERTYPE_ECAT:
