@@ -499,6 +499,8 @@ class RawMailboxLink(MailboxLink):
             got: tuple[Any, ...] | None
             if early:  # the poll that went out with the request: its answer first
                 got, size = early.popleft()
+                if got is not None and got[1] != 1:
+                    continue  # it found SM1 empty: poll now (even a receive(0) polls once, as it always did)
             else:
                 size = self._read
                 self.polls += 1
