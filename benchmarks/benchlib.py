@@ -201,7 +201,7 @@ class BlockWorker:
     """
 
     def __init__(self, kind: str, argv: list[str], env: dict[str, str] | None = None, fields: int = 2,
-                 start_timeout: float = 60.0, block_timeout: float = 120.0) -> None:
+                 start_timeout: float = 60.0, block_timeout: float = 120.0, cwd: str | None = None) -> None:
         import subprocess
         import tempfile
 
@@ -210,7 +210,7 @@ class BlockWorker:
         self._pending = b""
         self._silent = False  # the last read ran out of time (the worker hangs): it is killed, not waited for
         self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err,
-                                     bufsize=0, env=env)
+                                     bufsize=0, env=env, cwd=cwd)
         line = self._line(start_timeout)
         if line != "ready":
             raise self._died(f"said {line!r} instead of ready" if line else

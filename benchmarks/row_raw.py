@@ -83,7 +83,9 @@ def start_worker(kind: str, ifname: str, netns: str | None = None) -> BlockWorke
     """One master (``ours`` or ``pysoem``) in its own process, inside ``netns`` when given; WorkerDied if it
     does not come up (its last words say why)."""
     prefix = ["ip", "netns", "exec", netns] if netns else []
-    return BlockWorker(kind, [*prefix, sys.executable, "-c", WORKER, kind, ifname], env=akdctl_env(), fields=3)
+    # cwd: ``python -c`` puts the working directory first on sys.path; the measured checkout, not another one
+    return BlockWorker(kind, [*prefix, sys.executable, "-c", WORKER, kind, ifname], env=akdctl_env(), fields=3,
+                       cwd=str(akdctl_root()))
 
 
 def block(worker: BlockWorker, n: int) -> Sample:
