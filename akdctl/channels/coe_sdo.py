@@ -36,7 +36,6 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
-from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.channels.reply_filter import ReplyFilter
 from akdctl.errors import CommError, MalformedReply, NoAnswer
@@ -377,6 +376,8 @@ class CoeObjectChannel(ObjectChannel):
                 reply = mbx.decode_error_reply(data)
             except CodecError as exc:
                 raise MalformedReply(f"the drive sent a mailbox error reply that does not decode: {exc}") from None
+            from akdctl.catalog.texts import mailbox_error_text  # here: the texts are read only for a refusal
+
             raise CommError(
                 f"the drive refused the mailbox request: {mailbox_error_text(reply.code)} (mailbox error {reply.code})", code=reply.code
             )

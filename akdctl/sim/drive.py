@@ -30,20 +30,17 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import json
 import math
 import os
-import re
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
-from akdctl.io.atomic import atomic_open
 from akdctl.io.state_dir import state_dir  # re-exported: sim users name it here
+from akdctl.sim.errors import DamagedState
 from akdctl.sim.model import DriveModel
 
 T = TypeVar("T")
@@ -70,14 +67,16 @@ def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
     return model.revision, meta.get("time_scale")
 
 
-@dataclass
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    model: DriveModel
-    meta: dict[str, Any]
-    token: bytes
-    mark: tuple[int, Any]  # the mark of what the state file holds
+    __slots__ = ("model", "meta", "token", "mark")
+
+    def __init__(self, model: DriveModel, meta: dict[str, Any], token: bytes, mark: tuple[int, Any]) -> None:
+        self.model = model
+        self.meta = meta
+        self.token = token
+        self.mark = mark  # the mark of what the state file holds
 
 
 class SimDrive:
@@ -96,7 +95,7 @@ class SimDrive:
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
         self._held: _Held | None = None
-        self._tmp_name = re.compile(rf"\.sim-{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp")
+        self._tmp_prefix = f".sim-{name}."  # atomic_open's temporaries: PREFIX + 8 of [a-z0-9_] + ".tmp"
 
     def close(self) -> None:
         """Close the lock file and forget the model (the state file stays)."""
@@ -202,9 +201,17 @@ class SimDrive:
         """Remove temporary state files a killed writer left (any one present while we hold the lock is stale)."""
         with contextlib.suppress(OSError), os.scandir(self.directory) as entries:
             for entry in entries:
-                if self._tmp_name.fullmatch(entry.name):
+                if self._is_temporary(entry.name):
                     with contextlib.suppress(OSError):
                         os.unlink(entry.path)
+
+    def _is_temporary(self, name: str) -> bool:
+        """A temporary state file of this drive (``.sim-NAME.`` + 8 of [a-z0-9_] + ``.tmp``), told without a
+        regular expression (compiling one costs every process start)."""
+        prefix = self._tmp_prefix
+        if len(name) != len(prefix) + 12 or not name.startswith(prefix) or not name.endswith(".tmp"):
+            return False
+        return all(c in _TMP_CHARS for c in name[len(prefix):-4])
 
     def _read_text(self) -> str | None:
         """The state file's text, None when there is none; anything but a small regular UTF-8 file is refused
@@ -236,8 +243,10 @@ class SimDrive:
         if text is None:
             model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
+        from akdctl.io.json_text import loads  # json.loads without importing json (issue 29)
+
         try:
-            state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+            state = loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
             if not isinstance(state, dict):
                 raise ValueError("not a JSON object")
             meta = state.pop("sim", {})
@@ -256,6 +265,8 @@ class SimDrive:
             raise self._corrupt(str(exc) or type(exc).__name__) from None
 
     def _save(self, model: DriveModel, meta: dict[str, Any]) -> None:
+        import json
+
         state = model.to_state()
         state["sim"] = meta
         try:
@@ -298,6 +309,8 @@ class SimDrive:
 
     def _commit(self, held: _Held, lock_fd: int) -> None:
         """Under the lock, after a body that did not raise: save if the mark moved, keep the model."""
+        if held.model.damage is not None:  # a lazy component's state was damaged (a server may have refused only)
+            raise self._corrupt(f"damaged simulator state: {held.model.damage}")
         mark = _mark(held.model, held.meta)
         if mark != held.mark:
             held.token = self._new_token(lock_fd)
@@ -315,7 +328,10 @@ class SimDrive:
         lock_fd = self._acquire()
         try:
             held = self._begin(lock_fd, advance)
-            yield held.model
+            try:
+                yield held.model
+            except DamagedState as exc:
+                raise self._corrupt(str(exc)) from None
             self._commit(held, lock_fd)
         finally:
             self._release(lock_fd)
@@ -382,6 +398,8 @@ class SimDrive:
             server.access = held.model
             try:
                 result = answer(request)
+            except DamagedState as exc:
+                raise self._corrupt(str(exc)) from None
             finally:
                 server.access = _OUTSIDE
             self._commit(held, lock_fd)
@@ -425,6 +443,16 @@ def factory_model(name: str) -> DriveModel:
     model = DriveModel()
     model.object_values[(0x1018, 4)] = serial_for(name).to_bytes(4, "little")
     return model
+
+
+_TMP_CHARS = frozenset("abcdefghijklmnopqrstuvwxyz0123456789_")
+
+
+def atomic_open(path: Path, mode: str = "w", *, prefix: str | None = None) -> Any:
+    """The one crash-safe writer (``akdctl/io/atomic.py``), imported by the first save: most commands never save."""
+    from akdctl.io.atomic import atomic_open as open_atomic
+
+    return open_atomic(path, mode, prefix=prefix)
 
 
 def _refuse_constant(name: str) -> float:
