@@ -451,3 +451,10 @@ def pack_expedited_upload_mailbox(address: int, counter: int, index: int, subind
     ``mailbox.pack(COE, coe_header(SDO_RESPONSE) + pack_expedited_upload_response(...), address, counter)`` writes."""
     return _EXPEDITED_MAILBOX.pack(_UPLOAD_MAILBOX_SIZE - 6, address, 0, _MAILBOX_TYPE_COE | counter << 4,
                                    CoeService.SDO_RESPONSE << 12, 0x43 | (4 - len(value)) << 2, index, subindex, value)
+
+
+def is_upload_request(coe_data: bytes) -> bool:
+    """Whether CoE data (header + SDO) is a client's SDO upload request, initiate or segment: a read the
+    simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""
+    return (len(coe_data) >= COE_HEADER_SIZE + 1 and coe_data[1] >> 4 == CoeService.SDO_REQUEST
+            and coe_data[COE_HEADER_SIZE] >> 5 in (2, 3))  # ccs 2 upload initiate, 3 upload segment (CiA 301)
