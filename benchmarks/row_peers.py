@@ -17,8 +17,18 @@ import os
 import sys
 from collections.abc import Sequence
 
-from benchlib import (BlockWorker, Result, Sample, Settings, WorkerDied, akdctl_env, akdctl_root, fmt_ratio, fmt_us,
-                      interleave)
+from benchlib import (
+    BlockWorker,
+    Result,
+    Sample,
+    Settings,
+    WorkerDied,
+    akdctl_env,
+    akdctl_root,
+    fmt_ratio,
+    fmt_us,
+    interleave,
+)
 
 GROUP = "239.74.163.9"
 NODE = 3
@@ -116,6 +126,7 @@ def canopen_vs_python_canopen(s: Settings) -> Result:
     if root not in sys.path:
         sys.path.insert(0, root)
     from servers import sim_server
+
     from tests.netns import LoopbackNetns
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "can")}

@@ -16,8 +16,19 @@ from __future__ import annotations
 import os
 import sys
 
-from benchlib import (BlockWorker, Interleaved, Result, Sample, Settings, WorkerDied, akdctl_env, akdctl_root,
-                      fmt_ratio, fmt_us, interleave)
+from benchlib import (
+    BlockWorker,
+    Interleaved,
+    Result,
+    Sample,
+    Settings,
+    WorkerDied,
+    akdctl_env,
+    akdctl_root,
+    fmt_ratio,
+    fmt_us,
+    interleave,
+)
 
 # argv: kind (ours|pysoem) ifname. Reads "pdo N" / "poll N" / "soem N" per line, answers "wall cpu" per block.
 WORKER = r"""
@@ -106,6 +117,7 @@ def scope_pdo_cpu(s: Settings) -> Result:
     if root not in sys.path:
         sys.path.insert(0, root)
     from servers import sim_server
+
     from tests.netns import VethPair
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "scope-pdo")}
