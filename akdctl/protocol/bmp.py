@@ -1052,3 +1052,9 @@ def _numeric_shape(results: list[ParameterResult], size: int) -> _Shape | None:
     if layout.size != size or len(heads) < 2:
         return None
     return layout, operator.itemgetter(*heads), tuple(expected), blocks
+
+
+def first_read_address(data: bytes) -> tuple[int, int, int, int]:
+    """(attribute, number of elements, PNU, subindex) of the first address after the header: what
+    :func:`iter_read_addresses` yields first, without a generator (the server's one-parameter read, issue 29)."""
+    return _ADDRESS.unpack_from(data, HEADER_SIZE)  # type: ignore[return-value]

@@ -397,12 +397,13 @@ class DriveModel:
 
     def object_read(self, index: int, subindex: int) -> bytes:
         binding = self._object_binding(index)
-        entry = self.object_entry(index, subindex) if not (binding and binding.read) else None
         if binding and binding.read:
             return binding.read(subindex)
+        entry = self.object_entry(index, subindex)
         if entry.access == "wo":
             raise SdoAccessError(ABORT_WRITE_ONLY)
-        return self.stored_object(index, subindex)
+        data = self.object_values.get((index, subindex))  # stored_object's rule, the entry looked up once
+        return _default_bytes(entry) if data is None else data
 
     def object_write(self, index: int, subindex: int, data: bytes) -> None:
         entry = self.object_entry(index, subindex)

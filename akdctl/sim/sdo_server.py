@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
-from akdctl.protocol.coe import CoeError, CoeService
+from akdctl.protocol.coe import CoeError, CoeService, pack_expedited_upload_mailbox, plain_upload_initiate
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -171,9 +171,24 @@ class SdoServer:
         return out
 
     def handle(self, mailbox: bytes) -> list[bytes]:
-        """Answer one request mailbox; returns the mailboxes the slave puts in SM1, in order."""
+        """Answer one request mailbox; returns the mailboxes the slave puts in SM1, in order.
+
+        The poll's request, an upload initiate, is read and, answered expedited, written by one codec call each
+        (``coe.plain_upload_initiate``/``pack_expedited_upload_mailbox``); the same rules as :meth:`_upload_fast`,
+        which answers it when the value is not expedited."""
         try:
-            replies = self._handle(bytes(mailbox))
+            upload = plain_upload_initiate(mailbox)
+            if upload is not None:
+                address, counter, index, subindex = upload
+                self._download = None
+                self._upload = None
+                value = self._read(index, subindex)
+                if isinstance(value, bytes) and 1 <= len(value) <= 4:
+                    replies = [pack_expedited_upload_mailbox(address, counter, index, subindex, value)]
+                else:
+                    replies = [self._upload_answer(_Request(address, counter), index, subindex, value)]
+            else:
+                replies = self._handle(bytes(mailbox))
         except Exception:  # the simulator must never die on a request; log and refuse
             log.exception("SDO server failed on a mailbox request")
             replies = [self._error_reply(None, mbx.ERR_SYNTAX)]
@@ -244,7 +259,10 @@ class SdoServer:
         index, subindex = coe.sdo_address(payload)
         self._download = None
         self._upload = None
-        value = self._read(index, subindex)
+        return self._upload_answer(request, index, subindex, self._read(index, subindex))
+
+    def _upload_answer(self, request: _Request, index: int, subindex: int, value: bytes | coe.SdoAbort) -> bytes:
+        """The answer mailbox to an upload initiate whose value (or abort) was read."""
         if isinstance(value, bytes) and 1 <= len(value) <= 4:
             return self._reply(request, CoeService.SDO_RESPONSE,
                                coe.pack_expedited_upload_response(index, subindex, value))
