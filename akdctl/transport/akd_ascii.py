@@ -47,6 +47,7 @@ class Telnet:
         self.refused: set[tuple[int, int]] = set()
         self.pending = b""      # an IAC sequence cut by a segment boundary
         self.in_sb = False
+        self.idle = True        # neither of the two: the next bytes start fresh
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(text bytes, bytes to send back)."""
@@ -95,6 +96,7 @@ class Telnet:
                 i += 2
             else:  # NOP, GA, DM ... carry no text
                 i += 2
+        self.idle = not self.pending and not self.in_sb
         return bytes(text), bytes(reply)
 
 
@@ -205,7 +207,11 @@ class AsciiLink(CommandLink):
             with budget.request(attempts=1, at=at):
                 raise self._request_failed(exc, wire) from None
         if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
-                and not self.telnet.pending and not self.telnet.in_sb:
+                and self.telnet.idle:
+            # one whole plain reply: the usual read (one line, no echo, no refusal) answered here, the rest by _text
+            text = data[:-5].decode("latin-1").strip()
+            if len(text) != len(sent) and text[:1] not in _E and "\n" not in text and "\r" not in text:
+                return text
             return self._text(sent, data[:-3])
         with budget.request(attempts=1, at=at) as deadline:
             if data:

@@ -109,18 +109,28 @@ class TcpStream:
         """Send all of ``data``, then :meth:`recv` what arrives before ``at``: a request and the first segment of
         its reply in one call (the hot path of a request/response client)."""
         left = at - _monotonic()
-        self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
+        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
+            # _bound's window test inline (the hot path of a kernel-bounded socket): the timeout set ends within
+            # SLACK before early(left), never after it
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
+        sock = self.sock
         try:
-            self.sock.sendall(data)
+            sock.sendall(data)
         except BlockingIOError:   # SO_SNDTIMEO expired
             raise socket.timeout("send timed out") from None
-        return self._receive(at, size)
+        try:
+            return sock.recv(size)
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+            return self._rest(at, size)
 
     def _receive(self, at: float, size: int) -> bytes | None:
         try:
             return self.sock.recv(size)
         except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
-            pass
+            return self._rest(at, size)
+
+    def _rest(self, at: float, size: int) -> bytes | None:
+        """After a timeout: None at the deadline, or what arrives in the rest of the wait."""
         while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
             left = at - _monotonic()
             if left <= 0.0:
