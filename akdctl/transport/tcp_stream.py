@@ -105,9 +105,10 @@ class TcpStream:
         self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
         return self._receive(at, size)
 
-    def request(self, data: bytes, at: float, size: int = 65536) -> bytes | None:
+    def request(self, data: bytes, at: float, size: int = 4096) -> bytes | None:
         """Send all of ``data``, then :meth:`recv` what arrives before ``at``: a request and the first segment of
-        its reply in one call (the hot path of a request/response client)."""
+        its reply in one call (the hot path of a request/response client). ``size`` bounds that first receive only:
+        a longer reply comes through :meth:`recv`."""
         left = at - _monotonic()
         if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
             # _bound's window test inline (the hot path of a kernel-bounded socket): the timeout set ends within
