@@ -109,6 +109,12 @@ class EnipSession(MessageLink):
             self._confused = True
             raise CommError(f"{self.label}: connection failed during {_name(what)} "
                             f"({exc.strerror or exc})") from None
+        return self._checked(chunk, what, deadline, partial)
+
+    def _checked(self, chunk: bytes | None, what: "str | cip.Request", deadline: Deadline, partial: bool) -> bytes:
+        """A receive's bytes, or the error its None (nothing by the deadline) or b"" (closed) means."""
+        if chunk:
+            return chunk
         if chunk is None:
             self._confused = self._confused or partial
             raise NoAnswer(f"{self.label}: no answer to {_name(what)} within {deadline.describe()}")
@@ -156,14 +162,20 @@ class EnipSession(MessageLink):
         tracer = self.options.tracer
         if tracer.active:
             self._trace("tx", raw, _name(what))
-        try:
-            self.stream.send(raw)
-        except socket.timeout:
-            self._confused = True  # part of the request may be on the wire
-            raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
-        except OSError as exc:
-            self._confused = True
-            raise CommError(f"{self.label}: cannot send {_name(what)} ({exc.strerror or exc})") from None
+        stream = self.stream
+        if not self._rest:   # the usual request: sent, and the first segment of its reply read, in one call
+            try:
+                chunk = stream.request(raw, deadline.at, 4096)
+            except socket.timeout:
+                self._confused = True  # part of the request may be on the wire
+                raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
+            except OSError as exc:
+                self._confused = True
+                raise CommError(f"{self.label}: connection failed during {_name(what)} "
+                                f"({exc.strerror or exc})") from None
+            self._rest = self._checked(chunk, what, deadline, False)
+        else:
+            self._send(raw, what, deadline)
         while True:
             try:
                 head, body, packet = self._read_packet(what, deadline)
@@ -197,6 +209,17 @@ class EnipSession(MessageLink):
             raise MalformedReply(f"{self.label}: reply to {_name(what)} names session 0x{head[2]:08X}, "
                                  f"ours is 0x{self.session:08X}")
         return head, body
+
+    def _send(self, raw: bytes, what: "str | cip.Request", deadline: Deadline) -> None:
+        """Send a packet while bytes of an earlier reply wait to be read."""
+        try:
+            self.stream.send(raw)
+        except socket.timeout:
+            self._confused = True  # part of the request may be on the wire
+            raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
+        except OSError as exc:
+            self._confused = True
+            raise CommError(f"{self.label}: cannot send {_name(what)} ({exc.strerror or exc})") from None
 
     # ---------------------------------------------------------------- session
     def register(self) -> None:
