@@ -74,11 +74,14 @@ for line in sys.stdin:
 class Worker:
     """One client in its own process (inside ``netns`` if given), driven block by block over its stdin."""
 
-    def __init__(self, kind: str, where: str, netns: str | None = None) -> None:
+    def __init__(self, kind: str, where: str, netns: str | None = None, script: str = WORKER) -> None:
         prefix: Sequence[str] = ("ip", "netns", "exec", netns) if netns else ()
         self.kind = kind
-        self.proc = subprocess.Popen([*prefix, sys.executable, "-c", WORKER, kind, where], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=akdctl_env())
+        # cwd: ``python -c`` puts the working directory first on sys.path, so a worker started from another
+        # checkout would import that checkout's akdctl instead of the measured one
+        self.proc = subprocess.Popen([*prefix, sys.executable, "-c", script, kind, where], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=akdctl_env(),
+                                     cwd=str(akdctl_root()))
         if self._line() != "ready":
             raise RuntimeError(f"{kind} did not start: {self._last_words()}")
 

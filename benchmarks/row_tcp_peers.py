@@ -10,10 +10,7 @@ one :class:`row_peers.Worker` and :func:`benchlib.interleave` already implement.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
-from benchlib import Result, Settings, akdctl_env, akdctl_root, fmt_ratio, fmt_us, interleave
+from benchlib import Result, Settings, fmt_ratio, fmt_us, interleave
 from row_peers import Worker
 
 # The block loop every script ends with (``op`` is the one operation; it raises on a wrong answer).
@@ -34,14 +31,7 @@ class ScriptWorker(Worker):
     worker."""
 
     def __init__(self, script: str, kind: str, where: str) -> None:
-        self.kind = kind
-        # cwd: ``python -c`` puts the working directory first on sys.path, so a worker started from another
-        # checkout would import that checkout's akdctl instead of the measured one
-        self.proc = subprocess.Popen([sys.executable, "-c", script + BLOCK_LOOP, kind, where],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env=akdctl_env(), cwd=str(akdctl_root()))
-        if self._line() != "ready":
-            raise RuntimeError(f"{kind} did not start: {self._last_words()}")
+        super().__init__(kind, where, script=script + BLOCK_LOOP)
 
 
 def compare(script: str, where: dict[str, str], s: Settings, n: int, *, peer: str, yardsticks: tuple[str, ...] = (),

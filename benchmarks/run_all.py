@@ -59,7 +59,7 @@ ROWS = (
     Row("batch", "each extra PNU in a 39-PNU batch (worst of sim, pn://)", "≤ 8 µs", "row_network", "batch"),
     Row("raw", "raw ecat:// SDO uploads/s vs pysoem, same sim slave",
         "≥ 1.2× median and ≥ 1.0× worst of 5 runs, frames ≤ pysoem", "row_raw", "raw_vs_pysoem"),
-    Row("cold-start", "cold start pnu get / sdo read / status vs minimal click",
+    Row("cold-start", "cold start CPU pnu get / sdo read / status, param get vs minimal click",
         "≤ 1.3× each, --help ≤ 1.1×, param get ≤ 1.35×", "row_startup", "cold_start"),
     Row("home", "home at sim 1000×: return after the drive is done", "≤ 10 ms", "row_motion", "home_after_done"),
     Row("canopen", "CANopen SDO uploads/s, can:// vs python-canopen's own sdo.upload, same bus",
