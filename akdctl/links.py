@@ -92,15 +92,10 @@ class _Request:
         if current is not None:
             return current  # nested: the outer request's deadline
         self.outer = True
-        timeout = budget.timeout
-        left = timeout - budget.silent
-        # the Deadline built field by field, without its __init__'s conversions: a Budget's numbers are checked
-        deadline = _new(Deadline)
-        deadline.probe = probe = left < timeout * PROBE
-        deadline.total = total = timeout * PROBE if probe else left
-        attempts = self.attempts
-        deadline.attempts = budget.retries + 1 if attempts is None else (int(attempts) if attempts > 1 else 1)
-        deadline.at = _monotonic() + total
+        left = budget.timeout - budget.silent
+        probe = left < budget.timeout * PROBE
+        deadline = Deadline(budget.timeout * PROBE if probe else left,
+                            budget.attempts if self.attempts is None else self.attempts, probe)
         if self.at is not None:
             deadline.at = self.at   # a request begun on the fast path (Budget.lone): its end time stays
         budget._current = self.deadline = deadline
@@ -118,7 +113,6 @@ class _Request:
 
 
 _monotonic = time.monotonic
-_new = object.__new__
 
 #: The share of ``timeout`` a request waits once the command has waited all of it for a silent drive.
 PROBE = 0.1
