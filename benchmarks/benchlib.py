@@ -251,8 +251,9 @@ class BlockWorker:
             words = lines[-1][-300:] if lines else f"{what}, exit status {self.proc.returncode}"
         return WorkerDied(self.kind, words)
 
-    def block(self, n: int) -> list[float]:
-        """Tell the worker to do ``n`` operations; its answer's numbers (``fields`` of them)."""
+    def block(self, n: int | str) -> list[float]:
+        """Tell the worker to do ``n`` operations (or send it the words of a block, e.g. ``"poll 100"``); its
+        answer's numbers (``fields`` of them)."""
         assert self.proc.stdin is not None
         try:
             self.proc.stdin.write(f"{n}\n".encode())

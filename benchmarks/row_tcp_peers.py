@@ -46,7 +46,7 @@ def compare(script: str, where: dict[str, str], s: Settings, n: int, *, peer: st
         try:
             for kind in kinds:
                 workers.append(ScriptWorker(script, kind, where[kind]))
-            run = interleave(*(lambda w=w: w.block(n) for w in workers), rounds=s.rounds)
+            run = interleave(*(lambda w=w: w.sample(n) for w in workers), rounds=s.rounds)
         except RuntimeError as exc:
             failed = next((k for k in kinds if str(exc).startswith(k + " ")), "a worker")
             return Result(f"{failed} crashed", False, [str(exc)[:400]])
