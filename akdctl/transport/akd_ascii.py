@@ -35,6 +35,7 @@ PROMPT = b"-->"
 MAX_REPLY = 1 << 20       # a DRV.HELPALL is long; a reply larger than this never ends
 MAX_LINE = 256            # a command line akdctl sends (the drive's own limit is not public)
 IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
+_E = ("E", "e")   # how a refusal ("Error: ...") begins: checked before the slice and lower()
 #: How long the client listens for a banner, a prompt or options right after connecting (at most).
 SETTLE = 0.15
 
@@ -46,6 +47,7 @@ class Telnet:
         self.refused: set[tuple[int, int]] = set()
         self.pending = b""      # an IAC sequence cut by a segment boundary
         self.in_sb = False
+        self.idle = True        # neither of the two: the next bytes start fresh
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(text bytes, bytes to send back)."""
@@ -94,6 +96,7 @@ class Telnet:
                 i += 2
             else:  # NOP, GA, DM ... carry no text
                 i += 2
+        self.idle = not self.pending and not self.in_sb
         return bytes(text), bytes(reply)
 
 
@@ -112,10 +115,11 @@ class AsciiLink(CommandLink):
         self._lines: dict[str, tuple[bytes, str]] = {}   # command line -> (its wire bytes, the line), checked once
 
     # ---------------------------------------------------------------- bytes
-    def _receive(self, wait: float, what: str) -> bool:
-        """Receive what arrives within ``wait`` s into the buffer; False on nothing. CommError on close."""
+    def _receive(self, at: float, what: str) -> bool:
+        """Receive what arrives before the monotonic time ``at`` into the buffer; False on nothing. CommError on
+        close."""
         try:
-            data = self.stream.recv(wait if wait > 0.001 else 0.001)
+            data = self.stream.recv(at)
         except OSError as exc:
             raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
         if data is None:
@@ -163,7 +167,7 @@ class AsciiLink(CommandLink):
 
         end = time.monotonic() + budget
         try:
-            while time.monotonic() < end and self._receive(end - time.monotonic(), "connecting"):
+            while time.monotonic() < end and self._receive(end, "connecting"):
                 pass
         except CommError as exc:
             if "closed" in exc.message:
@@ -190,23 +194,35 @@ class AsciiLink(CommandLink):
         wire, sent = self._lines.get(line) or self._wire(line)
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
-        with self.budget.request(attempts=1) as deadline:
-            if self.buffer or self.tracer.active:
+        budget = self.budget
+        at = budget.lone()
+        if at is None or self.buffer or self.tracer.active:
+            with budget.request(attempts=1, at=at) as deadline:
                 return self._general(wire, deadline)
-            try:   # the usual exchange: the line out, its reply back whole in one segment; the deadline was
-                # set microseconds ago, so its total is what is left (within tcp_stream's slack)
-                data = self.stream.request(wire, deadline.total or 0.001)
-            except OSError as exc:
-                what = repr(wire[:-2].decode())
-                if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
-                    raise self._send_failed(exc, what) from None
-                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
-            if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
-                    and not self.telnet.pending and not self.telnet.in_sb:
-                return self._text(sent, data[:-3])
+        # the usual exchange, with no Deadline object (links.Budget.lone): the line out, its reply back whole in
+        # one segment; anything else continues as the same request under its Deadline
+        try:
+            data = self.stream.request(wire, at)
+        except OSError as exc:
+            with budget.request(attempts=1, at=at):
+                raise self._request_failed(exc, wire) from None
+        if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
+                and self.telnet.idle:
+            # one whole plain reply: the usual read (one line, no echo, no refusal) answered here, the rest by _text
+            text = data[:-5].decode("latin-1").strip()
+            if len(text) != len(sent) and text[:1] not in _E and "\n" not in text and "\r" not in text:
+                return text
+            return self._text(sent, data[:-3])
+        with budget.request(attempts=1, at=at) as deadline:
             if data:
                 self.buffer = self._fed(data, wire)
             return self._rest(wire, deadline)
+
+    def _request_failed(self, exc: OSError, wire: bytes) -> CommError:
+        what = repr(wire[:-2].decode())
+        if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
+            return self._send_failed(exc, what)
+        return CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})")
 
     def _general(self, wire: bytes, deadline: "Deadline") -> str:
         """Bytes left from before or tracing on: the send and every receive through the general path."""
@@ -227,10 +243,7 @@ class AsciiLink(CommandLink):
             cut = self.buffer.find(PROMPT)
             if cut >= 0:
                 break
-            left = deadline.remaining()
-            if left <= 0 or not self._receive(left, what):
-                if deadline.remaining() > 0:
-                    continue
+            if not self._receive(deadline.at, what):   # nothing before the deadline
                 self.broken = "a command without a prompt"
                 got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
                 raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
@@ -241,11 +254,11 @@ class AsciiLink(CommandLink):
     def _text(self, line: str, reply: bytes) -> str:
         text = reply.decode("latin-1").strip()
         if "\n" not in text and "\r" not in text:   # one line (the usual read): no splitting
-            if text.upper() == line.upper():   # only an echo of our line [I: echo unknown]
+            if len(text) == len(line) and text.upper() == line.upper():   # only an echo of our line [I: echo unknown]
                 text = ""
         else:
             text = self._lines_of(line, text)
-        if text[:6].lower() == "error:":
+        if text[:1] in _E and text[:6].lower() == "error:":
             raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
                                  details={"reply": text[:2000]})
         return text

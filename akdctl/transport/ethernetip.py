@@ -18,11 +18,8 @@ Query parameters: none yet; the port defaults to 44818.
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import socket
-import struct
-import sys
 import time
 from typing import TYPE_CHECKING
 
@@ -31,43 +28,17 @@ from akdctl.protocol import cip, enip
 from akdctl.protocol.errors import CodecError
 from akdctl.links import Deadline, MessageLink
 from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import TcpStream
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
-
-#: How much earlier than the deadline a socket timeout may end a wait and still be kept (the wait then resumes
-#: for the rest): a request whose deadline is within this of the last one's sets no socket timeout at all.
-TIMEOUT_SLACK = 0.01
-#: Linux bounds a blocking socket's waits itself (SO_RCVTIMEO/SO_SNDTIMEO): each send and receive is then one
-#: system call, where Python's own socket timeout polls before each. The kernel's timer wheel may end such a wait
-#: up to an eighth of it (plus a tick) late, so it is set to end that much early, and a wait it ended before the
-#: deadline resumes with Python's precise (polled) timeout for the rest. Elsewhere Python's timeout does it all.
-KERNEL_TIMEOUTS = sys.platform.startswith("linux")
-_TIMEVAL = struct.Struct("@ll")  # the OS's struct timeval (seconds, microseconds), not a wire layout
-#: What a wait that ran out raises: Python's socket timeout, or EAGAIN from a kernel-bounded blocking socket.
-_TIMED_OUT = (socket.timeout, BlockingIOError)
-
-
-def _kernel_bound(sock: socket.socket, seconds: float) -> None:
-    """Bound each of a blocking socket's next sends and receives by ``seconds`` (at least 1 ms: 0 is forever)."""
-    micro = max(1000, round(seconds * 1e6))
-    timeval = _TIMEVAL.pack(micro // 1_000_000, micro % 1_000_000)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, timeval)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, timeval)
-
-
-def _early(left: float) -> float:
-    """When a kernel-bounded wait must be set to end so that it ends before ``left`` s have passed."""
-    return left * 0.875 - 0.01  # a tick: 10 ms at HZ=100
-
 
 class EnipSession(MessageLink):
     """One encapsulation session on TCP. Not thread-safe (one CLI invocation, one caller).
 
     Per request: one packet packed by the codec, one send, usually one receive that holds the whole reply
-    (bytes past the reply stay for the next read), and no socket timeout set unless the deadline moved by more
-    than :data:`TIMEOUT_SLACK` -- each ``settimeout`` is a system call. A socket timeout never outlasts the
-    deadline; one that ends a wait early resumes it for what is left.
+    (bytes past the reply stay for the next read). The socket waits are :mod:`akdctl.transport.tcp_stream`'s:
+    no receive outlasts the deadline, and no timeout is set per request.
     """
 
     def __init__(self, host: str, port: int, options: LinkOptions, label: str) -> None:
@@ -79,35 +50,42 @@ class EnipSession(MessageLink):
         self._rest = b""            # bytes read past the last packet (the start of the next one)
         self.host, self.port = host, port
         self.late_replies = 0
-        self.sock = self._connect()
+        self.stream = self._connect()
 
-    def _connect(self) -> socket.socket:
+    @property
+    def sock(self) -> socket.socket:
+        """The session's socket (tests wrap it to count its system calls)."""
+        return self.stream.sock
+
+    @sock.setter
+    def sock(self, sock: socket.socket) -> None:
+        self.stream.sock = sock
+
+    def _connect(self) -> TcpStream:
         host, port, label, timeout = self.host, self.port, self.label, self.options.timeout
         try:
-            sock = socket.create_connection((host, port), timeout=timeout)
+            stream = TcpStream.connect(host, port, timeout)
         except socket.timeout:
             raise NoAnswer(f"{label}: no answer from {host}:{port} within {timeout:g} s (TCP connect)") from None
         except (socket.gaierror, UnicodeError) as exc:
             raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect to {host}:{port} ({exc.strerror or exc})") from None
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a request is one segment: send it now
-        sock.settimeout(timeout)
-        self._timeout = timeout     # the socket's timeout now (Python's or the kernel's); set only when it changes
-        self._polled = True         # Python's (polled) timeout is on
         self._rest = b""
-        self.local = sock.getsockname()[:2]
-        self.remote = sock.getpeername()[:2]
-        return sock
+        ends = stream.local_and_remote()
+        if ends is None:
+            stream.close()
+            raise CommError(f"{label}: the connection to {host}:{port} closed at once")
+        self.local, self.remote = ends
+        return stream
 
     def _fresh_session(self, what: "str | cip.Request", deadline: Deadline) -> None:
         """A new TCP connection and session after the old stream lost its framing: the next request (a stop
         above all) is still delivered. The old session's state on the target ends with its connection."""
-        with contextlib.suppress(OSError):
-            self.sock.close()
+        self.stream.close()
         self._confused = False
         self.session = 0
-        self.sock = self._connect()
+        self.stream = self._connect()
         reply = self._exchange(enip.REGISTER_SESSION, enip.register_session_data(),
                                f"RegisterSession (a fresh session for {_name(what)})", deadline)
         if reply.status != 0 or reply.session == 0:
@@ -122,54 +100,29 @@ class EnipSession(MessageLink):
         self.options.tracer.frame(direction, "enip", data, note=note,  # type: ignore[arg-type]
                                   meta={"proto": "tcp", "src": src, "dst": dst})
 
-    def _wait_within(self, deadline: Deadline, precise: bool = False) -> None:
-        """Bound the next wait by the deadline. The socket's timeout is kept while it ends within TIMEOUT_SLACK
-        before it (no system call); ``precise`` (a kernel-bounded wait ran out early) takes Python's polled
-        timeout for the rest."""
-        left = max(deadline.at - time.monotonic(), 0.001)  # no time left: a last look at what is already there
-        if KERNEL_TIMEOUTS:
-            early = _early(left)
-            if precise or early < 0.001:
-                self._polled = True
-                self.sock.settimeout(left)
-                return
-            current = self._timeout
-            if self._polled:
-                self._polled = False
-                self.sock.settimeout(None)
-                current = -1.0
-            if current > early or current < early - TIMEOUT_SLACK:
-                self._timeout = max(0.001, early - TIMEOUT_SLACK / 2)
-                _kernel_bound(self.sock, self._timeout)
-            return
-        current = self._timeout
-        if current > left or current < left - TIMEOUT_SLACK:
-            current = self._timeout = max(0.001, left - TIMEOUT_SLACK / 2)
-            self.sock.settimeout(current)
-
     def _recv(self, what: "str | cip.Request", deadline: Deadline, partial: bool) -> bytes:
         """The next bytes of the stream within the deadline. ``partial``: a packet has begun (a timeout then
         leaves the stream mid-packet, so the session is confused)."""
-        precise = False
-        while True:
-            self._wait_within(deadline, precise)
-            try:
-                chunk = self.sock.recv(4096)
-            except _TIMED_OUT:
-                if not deadline.expired():
-                    precise = True  # the socket's timeout ended before the deadline: wait for the rest
-                    continue
-                self._confused = self._confused or partial
-                raise NoAnswer(f"{self.label}: no answer to {_name(what)} within {deadline.describe()}") from None
-            except OSError as exc:
-                self._confused = True
-                raise CommError(f"{self.label}: connection failed during {_name(what)} "
-                                f"({exc.strerror or exc})") from None
-            if not chunk:
-                self._confused = True
-                raise CommError(f"{self.label}: the target closed the connection during {_name(what)}"
-                                + (" in the middle of a reply" if partial else ""))
+        try:
+            chunk = self.stream.recv(deadline.at, 4096)
+        except OSError as exc:
+            self._confused = True
+            raise CommError(f"{self.label}: connection failed during {_name(what)} "
+                            f"({exc.strerror or exc})") from None
+        return self._checked(chunk, what, deadline, partial)
+
+    def _checked(self, chunk: bytes | None, what: "str | cip.Request", deadline: Deadline, partial: bool) -> bytes:
+        """A receive's bytes, or the error its None (nothing by the deadline) or b"" (closed) means."""
+        if chunk:
             return chunk
+        if chunk is None:
+            self._confused = self._confused or partial
+            raise NoAnswer(f"{self.label}: no answer to {_name(what)} within {deadline.describe()}")
+        if not chunk:
+            self._confused = True
+            raise CommError(f"{self.label}: the target closed the connection during {_name(what)}"
+                            + (" in the middle of a reply" if partial else ""))
+        return chunk
 
     def _read_packet(self, what: "str | cip.Request", deadline: Deadline) -> tuple[tuple[int, ...], bytes, bytes]:
         """(header fields, command data, the whole packet) of the next packet on the stream."""
@@ -209,15 +162,20 @@ class EnipSession(MessageLink):
         tracer = self.options.tracer
         if tracer.active:
             self._trace("tx", raw, _name(what))
-        self._wait_within(deadline)
-        try:
-            self.sock.sendall(raw)
-        except _TIMED_OUT:
-            self._confused = True  # part of the request may be on the wire
-            raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
-        except OSError as exc:
-            self._confused = True
-            raise CommError(f"{self.label}: cannot send {_name(what)} ({exc.strerror or exc})") from None
+        stream = self.stream
+        if not self._rest:   # the usual request: sent, and the first segment of its reply read, in one call
+            try:
+                chunk = stream.request(raw, deadline.at, 4096)
+            except socket.timeout:
+                self._confused = True  # part of the request may be on the wire
+                raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
+            except OSError as exc:
+                self._confused = True
+                raise CommError(f"{self.label}: connection failed during {_name(what)} "
+                                f"({exc.strerror or exc})") from None
+            self._rest = self._checked(chunk, what, deadline, False)
+        else:
+            self._send(raw, what, deadline)
         while True:
             try:
                 head, body, packet = self._read_packet(what, deadline)
@@ -251,6 +209,17 @@ class EnipSession(MessageLink):
             raise MalformedReply(f"{self.label}: reply to {_name(what)} names session 0x{head[2]:08X}, "
                                  f"ours is 0x{self.session:08X}")
         return head, body
+
+    def _send(self, raw: bytes, what: "str | cip.Request", deadline: Deadline) -> None:
+        """Send a packet while bytes of an earlier reply wait to be read."""
+        try:
+            self.stream.send(raw)
+        except socket.timeout:
+            self._confused = True  # part of the request may be on the wire
+            raise NoAnswer(f"{self.label}: could not send {_name(what)} within {deadline.describe()}") from None
+        except OSError as exc:
+            self._confused = True
+            raise CommError(f"{self.label}: cannot send {_name(what)} ({exc.strerror or exc})") from None
 
     # ---------------------------------------------------------------- session
     def register(self) -> None:
@@ -297,16 +266,12 @@ class EnipSession(MessageLink):
                 raw = enip.pack_packet(enip.UNREGISTER_SESSION, b"", self.session, 0)
                 if self.options.tracer.active:
                     self._trace("tx", raw, "UnRegisterSession")
-                self.sock.settimeout(min(self.options.timeout, 1.0))
-                self.sock.sendall(raw)
+                self.stream.send_last(raw, min(self.options.timeout, 1.0))
         except OSError:
             pass
         finally:
             self.session = 0
-            try:
-                self.sock.close()
-            except OSError:
-                pass
+            self.stream.close()
 
 
 def _name(what: "str | cip.Request") -> str:

@@ -59,22 +59,30 @@ class ModbusLink(RegisterLink):
     def _exchange(self, adu: bytes, what: tuple[str, int, int]) -> bytes:
         """Send one request ADU, return its whole reply ADU (``what``: verb, address, count -- words for an error,
         built only then)."""
-        with self.budget.request(attempts=1) as deadline:
-            reply = None
-            if self.buffer or self.tracer.active:
-                self._send(adu, what)
-            else:   # the usual exchange: the request out, its reply back whole in one segment (the deadline was
-                # set microseconds ago, so its total is what is left, within tcp_stream's slack)
-                try:
-                    data = self.stream.request(adu, deadline.total or 0.001)
-                except OSError as exc:
+        budget = self.budget
+        at = budget.lone()
+        reply = None
+        if at is not None and not self.buffer and not self.tracer.active:
+            # the usual exchange, with no Deadline object (links.Budget.lone): the request out, its reply back
+            # whole in one segment; anything else continues as the same request under its Deadline
+            try:
+                data = self.stream.request(adu, at)
+            except OSError as exc:
+                with budget.request(attempts=1, at=at):
                     raise self._failed(exc, what) from None
-                if data is not None and len(data) >= 6 and data[4] << 8 | data[5] == len(data) - 6:
-                    reply = data
-                elif data:
-                    self.buffer = data
-            while reply is None or reply[:2] != adu[:2]:   # a reply to an earlier request is skipped
-                reply = self._reply(deadline, what)
+            if data is not None and len(data) >= 6 and data[4] << 8 | data[5] == len(data) - 6:
+                reply = data
+            elif data:
+                self.buffer = data
+            if reply is None or reply[:2] != adu[:2]:
+                with budget.request(attempts=1, at=at) as deadline:
+                    while reply is None or reply[:2] != adu[:2]:   # a reply to an earlier request is skipped
+                        reply = self._reply(deadline, what)
+        else:
+            with budget.request(attempts=1, at=at) as deadline:
+                self._send(adu, what)
+                while reply is None or reply[:2] != adu[:2]:   # a reply to an earlier request is skipped
+                    reply = self._reply(deadline, what)
         if self.tracer.active:
             self._trace("rx", reply)
         return reply
@@ -111,9 +119,8 @@ class ModbusLink(RegisterLink):
                 if len(buffer) >= size:
                     self.buffer = buffer[size:]
                     return buffer[:size]
-            left = deadline.remaining()
             try:
-                data = self.stream.recv(left) if left > 0 else None
+                data = self.stream.recv(deadline.at)
             except OSError as exc:
                 raise CommError(f"{self.label}: connection failed during {self._words(what)} "
                                 f"({exc.strerror or exc})") from None

@@ -1,14 +1,21 @@
-"""A TCP connection to a drive whose every receive waits at most a given time, with as few system calls as that
-allows: the one place the stream transports (``akd://``, ``mb://``) wait on a socket.
+"""A TCP connection to a drive whose every receive ends by a given time, with as few system calls as that allows:
+the one place the TCP transports (``akd://``, ``mb://``, ``eip://``) wait on a socket.
 
 Why a module of its own: a request/response client on loopback spends most of its CPU in system calls, and
 Python's socket timeout costs two per receive (``poll(2)`` then ``recv(2)``) plus one per ``settimeout``. On
 Linux the kernel's own receive timeout (``SO_RCVTIMEO`` on a blocking socket) bounds a receive in the one
-``recv(2)``; it is set again only when the wait asked for differs from the one set by more than :data:`SLACK` of
-it (at least :data:`MIN_SLACK`): a request asks for what its deadline has left, which shrinks by microseconds from
-one request to the next, so a command's requests set it once.
-Elsewhere the same rule drives Python's ``settimeout``. Sends are bounded once, at connect, by the command's
-timeout (``SO_SNDTIMEO``): a request is a few bytes into an empty send buffer.
+``recv(2)``. Two rules make that safe and cheap, and they live here only:
+
+* **never past the deadline**: the kernel's timer may end a wait up to an eighth of it (plus a tick) late, so the
+  timeout is set to end that much early (:func:`early`); a wait it ended before the deadline resumes with
+  Python's precise (polled) timeout for the rest. A receive therefore returns ``None`` no later than the deadline
+  (tests/test_late_replies.py saw a 30 ms overshoot without this);
+* **no system call per request**: the timeout is set again only when the wanted one moves out of a window
+  :data:`SLACK` wide below it (never above: that would end after the deadline). A command's requests each get
+  what their fresh deadline has, which differs by microseconds, so a command sets it once.
+
+Elsewhere Python's timeout is used under the same window rule. Sends are bounded once, at connect, by the
+command's timeout (``SO_SNDTIMEO``): a request is a few bytes into an empty send buffer.
 
 Errors are left as they are (``OSError``, ``socket.timeout``): each transport words them for its drive.
 """
@@ -18,14 +25,17 @@ from __future__ import annotations
 import socket
 import struct
 import sys
+import time
 
-#: How far a receive may overrun its deadline rather than pay a system call to reset the wait: a share of the wait,
-#: and at least MIN_SLACK seconds.
+#: How much earlier than wanted a socket timeout may end and still be kept (the wait then resumes for the rest):
+#: a wait within this below the one set costs no system call.
 SLACK = 0.01
-MIN_SLACK = 0.001
+#: The shortest timeout set: 0 would mean "wait forever"; a wait with no time left still looks once.
+MIN_WAIT = 0.001
 #: The kernel's timeouts are a ``struct timeval`` here (two C longs); elsewhere Python's timeout is used.
-_KERNEL_TIMEOUT = sys.platform.startswith("linux")
-_TIMEVAL = struct.Struct("@ll")
+KERNEL_TIMEOUTS = sys.platform.startswith("linux")
+_TIMEVAL = struct.Struct("@ll")   # the OS's struct timeval (seconds, microseconds), not a wire layout
+_monotonic = time.monotonic
 
 
 def _timeval(seconds: float) -> bytes:
@@ -33,20 +43,25 @@ def _timeval(seconds: float) -> bytes:
     return _TIMEVAL.pack(micros // 1_000_000, micros % 1_000_000)
 
 
-class TcpStream:
-    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once)."""
+def early(left: float) -> float:
+    """What kernel receive timeout ends a wait before ``left`` s have passed: the kernel may end it up to an eighth
+    late, plus a tick (10 ms at HZ=100)."""
+    return left * 0.875 - 0.01
 
-    __slots__ = ("sock", "_wait")
+
+class TcpStream:
+    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time."""
+
+    __slots__ = ("sock", "_wait", "_polled")
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         self.sock = sock
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self._wait = -1.0   # the receive timeout set on the socket (-1: none yet)
-        if _KERNEL_TIMEOUT:
-            sock.settimeout(None)   # blocking: recv(2) alone, bounded by SO_RCVTIMEO
+        self._wait = -1.0     # the receive timeout set on the socket (-1: none yet)
+        self._polled = True   # Python's polled timeout is on (elsewhere than Linux: always)
+        if KERNEL_TIMEOUTS:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, _timeval(send_timeout))
-        else:
-            sock.settimeout(send_timeout)
+        sock.settimeout(send_timeout)
 
     @classmethod
     def connect(cls, host: str, port: int, timeout: float) -> "TcpStream":
@@ -58,39 +73,74 @@ class TcpStream:
             sock.close()
             raise
 
-    def recv(self, wait: float, size: int = 65536) -> bytes | None:
-        """What arrives within ``wait`` s (at most ``size`` bytes); ``None`` when nothing did, ``b""`` when the
-        peer closed the connection. Other failures raise ``OSError``."""
-        slack = SLACK * wait
-        if abs(wait - self._wait) > (slack if slack > MIN_SLACK else MIN_SLACK):
-            self._set_wait(wait)
-        try:
-            return self.sock.recv(size)
-        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
-            return None
+    def _bound(self, left: float, precise: bool) -> None:
+        """Bound the next receive by ``left`` s: the kernel's timeout ending early, kept while within the
+        window; Python's exact one when ``precise`` or too little is left for the kernel's."""
+        if KERNEL_TIMEOUTS:
+            wait = left * 0.875 - 0.01   # early(left), inline: the hot path
+            if precise or wait < MIN_WAIT:
+                self._polled = True
+                self._wait = -1.0
+                self.sock.settimeout(left)
+                return
+            current = self._wait
+            if self._polled:
+                self._polled = False
+                self.sock.settimeout(None)   # blocking: recv(2) alone, bounded by SO_RCVTIMEO
+                current = -1.0
+            if current > wait or current < wait - SLACK:
+                self._wait = wait = max(MIN_WAIT, wait - SLACK / 2)
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(wait))
+            return
+        current = self._wait
+        if current > left or current < left - SLACK:
+            self._wait = wait = max(MIN_WAIT, left - SLACK / 2)
+            self.sock.settimeout(wait)
 
-    def request(self, data: bytes, wait: float, size: int = 65536) -> bytes | None:
-        """Send all of ``data``, then :meth:`recv` what arrives within ``wait`` s: a request and the first segment
-        of its reply in one call (the hot path of a request/response client)."""
+    def recv(self, at: float, size: int = 65536) -> bytes | None:
+        """What arrives before the monotonic time ``at`` (at most ``size`` bytes); ``None`` when nothing did by
+        then, ``b""`` when the peer closed the connection. Other failures raise ``OSError``. With no time left it
+        still looks once (a millisecond) at what is already there."""
+        left = at - _monotonic()
+        self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
+        return self._receive(at, size)
+
+    def request(self, data: bytes, at: float, size: int = 4096) -> bytes | None:
+        """Send all of ``data``, then :meth:`recv` what arrives before ``at``: a request and the first segment of
+        its reply in one call (the hot path of a request/response client). ``size`` bounds that first receive only:
+        a longer reply comes through :meth:`recv`."""
+        left = at - _monotonic()
+        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
+            # _bound's window test inline (the hot path of a kernel-bounded socket): the timeout set ends within
+            # SLACK before early(left), never after it
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
         sock = self.sock
         try:
             sock.sendall(data)
         except BlockingIOError:   # SO_SNDTIMEO expired
             raise socket.timeout("send timed out") from None
-        slack = SLACK * wait
-        if abs(wait - self._wait) > (slack if slack > MIN_SLACK else MIN_SLACK):
-            self._set_wait(wait)
         try:
             return sock.recv(size)
-        except (BlockingIOError, socket.timeout):
-            return None
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+            return self._rest(at, size)
 
-    def _set_wait(self, wait: float) -> None:
-        self._wait = wait
-        if _KERNEL_TIMEOUT:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(wait))
-        else:
-            self.sock.settimeout(max(wait, 0.001))
+    def _receive(self, at: float, size: int) -> bytes | None:
+        try:
+            return self.sock.recv(size)
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+            return self._rest(at, size)
+
+    def _rest(self, at: float, size: int) -> bytes | None:
+        """After a timeout: None at the deadline, or what arrives in the rest of the wait."""
+        while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
+            left = at - _monotonic()
+            if left <= 0.0:
+                return None
+            self._bound(left, True)
+            try:
+                return self.sock.recv(size)
+            except (BlockingIOError, socket.timeout):
+                continue
 
     def send(self, data: bytes) -> None:
         """All of ``data``; ``socket.timeout`` when the send buffer stayed full for the command's timeout."""
@@ -98,6 +148,14 @@ class TcpStream:
             self.sock.sendall(data)
         except BlockingIOError:   # SO_SNDTIMEO expired
             raise socket.timeout("send timed out") from None
+
+    def send_last(self, data: bytes, wait: float) -> None:
+        """A last send before closing (a goodbye such as UnRegisterSession), bounded by ``wait`` s whatever the
+        receive waits left set; errors as :meth:`send`."""
+        self._polled = True
+        self._wait = -1.0
+        self.sock.settimeout(wait)
+        self.sock.sendall(data)
 
     def local_and_remote(self) -> tuple[tuple[str, int], tuple[str, int]] | None:
         """(local, remote) addresses for a wire trace, or None once the socket is gone."""
@@ -113,4 +171,4 @@ class TcpStream:
             pass
 
 
-__all__ = ["TcpStream", "SLACK", "MIN_SLACK"]
+__all__ = ["TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
