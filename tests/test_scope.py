@@ -485,3 +485,64 @@ def test_a_long_recording_is_drawn_as_an_envelope_that_keeps_a_spike() -> None:
     assert len(drawn_t) <= MAX_DRAWN and max(drawn_v) == 7.0 and drawn_t == sorted(drawn_t)
     svg = render_svg(rec)
     assert "min/max envelope" in svg and len(svg) < 200_000
+
+
+# ------------------------------------------------------------------ a recorded motion starts when the trigger is armed
+def test_a_recorded_motion_starts_only_once_the_pretrigger_share_is_taken() -> None:
+    """A recorded jog with a rise trigger and pre-trigger: the motion used to start at the first sample, so its
+    edge passed while the pre-trigger share was still being taken (the trigger was not yet looked for) and the
+    recording timed out with no trigger. It starts when the trigger is armed; the edge is seen."""
+    clock = _Clock(0.001)
+    moving = {"since": None}
+
+    def read() -> list[float]:
+        clock.now += clock.read_cost
+        if moving["since"] is None:
+            return [0.0]
+        return [min(600.0, (clock.now - moving["since"]) * 4000.0)]  # a 4000 rpm/s ramp, fast against the ring
+
+    def start() -> None:
+        moving["since"] = clock.now
+
+    spec = PollSpec(samples=40, rate_hz=100.0, trigger=parse_trigger("rise:X:50"), pretrigger=25, timeout_s=1.0)
+    rec = Recording("t", "poll", [Channel("X", "rpm")], trigger=spec.trigger.text, rate_requested=spec.rate_hz)
+    failure = record(read, rec, spec, trigger_slot=0, clock=clock, sleep=clock.sleep, on_first=start)
+    assert failure is None, failure
+    assert rec.trigger_index == 10 and rec.values[0][:9] == [0.0] * 9  # at rest, the ramp's start, the edge at t = 0
+    assert 0 < rec.values[0][9] <= 50 < rec.values[0][10]
+
+
+def test_a_recorded_motion_on_the_bus_starts_only_once_the_pretrigger_ring_is_full() -> None:
+    """The pdo source's form of the same rule (one sample per bus cycle)."""
+    import struct
+
+    from akdctl.catalog.objects import PdoEntry
+    from akdctl.drive import scope_pdo
+    from akdctl.drive.ecat_pdo_watch import Layout
+
+    moving = {"at": None}
+
+    class Inputs:
+        cycle_s = 0.001
+
+        def __init__(self) -> None:
+            self.k = -1
+
+        def next_inputs(self, timeout: float) -> tuple[int, bytes]:
+            self.k += 1
+            v = 0 if moving["at"] is None else min(600, 200 * (self.k - moving["at"]))
+            return self.k, struct.pack("<i", v)
+
+        def bus_time(self, host_t: float) -> float:
+            return host_t
+
+    inputs = Inputs()
+    tx = Layout([(0x1A00, (PdoEntry(0x606C, 0, 32),))])
+    trigger = parse_trigger("rise:0x606C:0:100")
+    columns, width, trigger_slot, status_slot = scope_pdo.resolve_columns(tx, ["0x606C:0"], trigger)
+    spec = scope_pdo.PdoSpec(columns, width, 0.001, 20, 5, trigger_slot=trigger_slot, status_slot=status_slot)
+    rec = Recording("ecat://x", "pdo", [c.channel for c in columns[:width]], trigger=trigger.text)
+    failure = scope_pdo.record(inputs, spec, rec, trigger, stopped=lambda: False, timeout_s=1.0,
+                               on_first=lambda: moving.update(at=inputs.k))
+    assert failure is None, failure
+    assert moving["at"] == 5 and rec.trigger_index == 5 and rec.values[0][:5] == [0.0] * 5

@@ -225,7 +225,8 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
            on_sample: Callable[[Recording], None] | None = None,
            events: dict[str, float] | None = None) -> AkdError | None:
     """Fill ``recording`` with ``spec.cycles`` bus cycles, ``spec.pre`` of them before the trigger. ``on_first``
-    runs after the first cycle (a recorded motion starts there), ``on_row`` sees every row with its hidden values
+    runs once the trigger is armed: the first cycle, or once the pre-trigger ring is full (a recorded motion starts
+    there, so its edge is looked for), ``on_row`` sees every row with its hidden values
     (a recorded motion is watched there), ``on_tick`` runs before each cycle; ``events`` (host monotonic instants
     stamped meanwhile) become the recording's events on the bus clock. Returns the error that ended the
     recording early (it is then marked partial and keeps its rows), else None."""
@@ -246,6 +247,7 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
 
     on_first, on_tick, on_sample = timed(on_first), timed(on_tick), timed(on_sample)
     ring: deque[tuple[int, list[float]]] = deque()
+    armed = False
     fired = trigger.kind == "immediate"
     previous: float | None = None
     first: int | None = None
@@ -265,6 +267,10 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
             if first is None:
                 first = number
                 recording.started = utc_now()
+            if not armed and (fired or number - first >= spec.pre):
+                # armed: the pre-trigger ring is full, so a recorded motion starts now, never while the trigger
+                # is not yet looked for (its edge would pass unseen)
+                armed = True
                 if on_first is not None:
                     on_first()
             if on_row is not None:

@@ -55,8 +55,9 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
            on_first: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
            ) -> AkdError | None:
     """Fill ``recording`` from ``read()`` (one row: the recording's channels, then hidden trigger/status values);
-    ``trigger_slot`` is the row index the trigger watches; ``on_first`` runs after the first sample (a recorded
-    move starts there, so the recording shows the axis at rest first). Returns the error that ended it early (the
+    ``trigger_slot`` is the row index the trigger watches; ``on_first`` runs once the trigger is armed: after the
+    first sample, or once the pre-trigger share is taken (a recorded move starts there, so the recording shows the
+    axis at rest first and the move's edge is looked for). Returns the error that ended it early (the
     recording is then marked partial and keeps what it has), else None. ``on_tick`` runs before each sample
     (a recorded jog ends at its duration there)."""
     width = len(recording.channels)
@@ -66,6 +67,8 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
     read_times: list[float] = []  # how long each sample's reads took (its values are that far apart at most)
     previous: float | None = None
     fired = trig.kind == "immediate"
+    armed = False
+    full = False
     start = clock()
     due = start
     post_start = start
@@ -87,12 +90,17 @@ def record(read: Callable[[], list[float]], recording: Recording, spec: PollSpec
             read_times.append(clock() - t)
             if not recording.started:
                 recording.started = utc_now()
-                if on_first is not None:
-                    on_first()
             if not fired:
                 pre.append((t, row))
                 full = (len(pre) > (spec.pre_samples or 0)) if spec.samples is not None \
                     else (t - pre[0][0] >= spec.pre_seconds)
+            if not armed and (fired or full):
+                # armed: the pre-trigger ring is full, so a recorded motion starts now, never while the trigger
+                # is not yet looked for (its edge would pass unseen)
+                armed = True
+                if on_first is not None:
+                    on_first()
+            if not fired:
                 value = row[trigger_slot] if trigger_slot is not None else 0.0
                 if full and trig.fires(previous, value):
                     fired = True
