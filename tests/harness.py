@@ -468,3 +468,26 @@ def live_descendants(pid: int | None = None) -> dict[int, str]:
             continue
         found[child] = cmdline.strip()
     return found
+
+
+def run_akdctl_inproc(*args: str, input: str = "") -> CliResult:
+    """The CLI's entry point (``akdctl.cli.main.main``) run in this process, with stdin *input* (not a terminal) and
+    stdout/stderr captured, like :func:`run_akdctl` but without starting an interpreter.
+
+    Why: a test's *preparation* (``sim reset``, ``sim speed``, ``enable``, ``home``) is not what it tests, and one
+    subprocess costs a cold start (~0.3 s CPU); run it here and keep the subprocess for the runs under test.  Same
+    environment (the test's ``AKDCTL_STATE_DIR``), so a later subprocess sees what this run left on the drive."""
+    from click.testing import CliRunner
+
+    from akdctl.cli.main import main
+
+    with CliRunner().isolation(input=input) as (out, err, _):
+        try:
+            main(list(args))
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        out_text, err_text = out.getvalue().decode(errors="replace"), err.getvalue().decode(errors="replace")
+    return CliResult(code, out_text, err_text)
