@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from akdctl.profiles.vocabulary import Channel, DriveProfile
     from akdctl.transport.base import LinkOptions, Transport
     from akdctl.transport.eip_io import IoConnection
+    from akdctl.transport.ethercat_raw import ProcessDataCycle
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -189,9 +190,28 @@ class Connection:
         from akdctl.io.owner_lock import OwnerLock
         from akdctl.io.state_dir import state_dir
 
-        lock = OwnerLock(state_dir() / "owners" / f"{owner_key(self.target)}.lock")
+        owners = state_dir() / "owners"
+        lock = OwnerLock(owners / f"{owner_key(self.target)}.lock")
         lock.acquire(command)
         self.axis_owner = lock
+        if self.target.scheme != "sim":  # a simulated drive's address is already its only name
+            from akdctl.drive.gate import serial_owner_key
+            from akdctl.drive.identity import serial_number
+
+            try:
+                serial = serial_number(self)
+                if serial is not None:
+                    lock.also(OwnerLock(owners / f"{serial_owner_key(serial)}.lock"), command)
+            except BaseException:
+                self.axis_owner = None
+                lock.release()
+                raise
+
+    def release_axis(self) -> None:
+        """Let go of the axis (:meth:`own_axis`) and keep the link: the end of one command in the shell."""
+        owner, self.axis_owner = self.axis_owner, None
+        if owner is not None:
+            owner.release()
 
     # ---------------------------------------------------------------- transport and channels
     def new_transport(self) -> "Transport":
@@ -280,6 +300,25 @@ class Connection:
         """Whether the target offers CIP explicit messaging (opens the transport)."""
         self.transport()
         return self._cip is not None
+
+    @property
+    def has_process_data(self) -> bool:
+        """Whether this host can run cyclic process data with the target's slave as the bus master (``ecat://``);
+        known without opening the target (its transport class declares it)."""
+        if self._given is not None:
+            return bool(self._given.cyclic_master)
+        from akdctl.transport.registry import transport_class
+
+        return bool(transport_class(self.target).cyclic_master)
+
+    def process_data(self, rx_bytes: int, tx_bytes: int) -> "ProcessDataCycle":
+        """The cyclic exchange with the slave (not yet configured: drive/ecat_pdo_watch.enter does that);
+        UsageError where this host is not the master of one."""
+        cycle = self.transport().process_data(rx_bytes, tx_bytes)
+        if cycle is None:
+            raise UsageError(f"target {self.target.display} has no cyclic process data with this host as the "
+                             "EtherCAT master; use an ecat://IFNAME[/POSITION] target")
+        return cycle
 
     @property
     def has_commands(self) -> bool:

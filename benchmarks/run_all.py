@@ -62,6 +62,8 @@ ROWS = (
         "≥ 1.2×, client CPU ≤ the peer's", "row_peers", "cip_vs_pycomm3"),
     Row("line", "commission 32 simulated drives with --inventory / 32 single runs (and CPU per drive)",
         "≤ 0.25", "row_line", "line"),
+    Row("scope-pdo", "scope --source pdo client CPU per bus cycle / per polled sample, same ecat:// slave "
+        "(and vs pysoem's cycle)", "≤ 0.6", "row_scope_pdo", "scope_pdo_cpu"),
 )
 BY_NAME = {row.name: row for row in ROWS}
 

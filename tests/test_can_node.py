@@ -250,48 +250,51 @@ def test_canopen_base_node_402_as_peer(face: CanFace, channel: str) -> None:
 
 
 def test_malformed_block_reply_is_comm_error(link: CanopenTransport, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A canopen transfer (downloads and block transfers run on canopen's own client) that fails on a reply that
+    does not fit is a malformed reply, not a crash."""
     from canopen.sdo.exceptions import SdoCommunicationError
 
     def broken(*args: object, **kwargs: object) -> bytes:
         raise SdoCommunicationError("Toggle bit mismatch")
 
-    monkeypatch.setattr(link.objects().sdo, "request_response", broken)  # the channel's one request path
+    monkeypatch.setattr(link.objects().sdo, "request_response", broken)  # canopen's request path
     with pytest.raises(MalformedReply):
-        link.objects().upload(0x1018, 1)
+        link.objects().download(0x6060, 0, b"\x01")
 
 
 def test_a_reply_that_is_not_for_the_request_is_skipped_and_the_upload_goes_on(link: CanopenTransport) -> None:
     """A late answer to an earlier request (another object) arrives first: it is not taken as this one's."""
-    sdo = link.objects().sdo
-    real = sdo.request_response
+    objects = link.objects()
+    real = objects._send
 
-    def late_first(request: bytes) -> bytes:
-        answer = real(request)
-        sdo.responses.put(answer)  # the real answer waits in the queue behind a stray one
-        return bytes([0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00])  # 0x1000:0 (device type), not 0x1018:1
+    def late_first(request: bytes, index: int, subindex: int) -> None:
+        # the stray reply waits in the queue ahead of the real answer to this request
+        objects._replies.put(bytes([0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00]))  # 0x1000:0, not 0x1018:1
+        real(request, index, subindex)
 
-    sdo.request_response = late_first  # type: ignore[method-assign]
+    objects._send = late_first  # type: ignore[method-assign]
     try:
-        assert link.objects().upload(0x1018, 1) == (0x6A).to_bytes(4, "little")
+        assert objects.upload(0x1018, 1) == (0x6A).to_bytes(4, "little")
     finally:
-        sdo.request_response = real  # type: ignore[method-assign]
+        objects._send = real  # type: ignore[method-assign]
 
 
 def test_a_segmented_upload_with_a_wrong_toggle_bit_is_aborted(link: CanopenTransport) -> None:
-    sdo = link.objects().sdo
-    real = sdo.request_response
+    objects = link.objects()
+    real = objects._send
     sent: list[bytes] = []
 
-    def wrong_toggle(request: bytes) -> bytes:
+    def wrong_toggle(request: bytes, index: int, subindex: int) -> None:
         sent.append(bytes(request))
-        answer = bytes(real(request))
-        if request[0] & 0xE0 == 0x60:  # upload segment request: answer with the other toggle bit
-            answer = bytes([answer[0] ^ 0x10]) + answer[1:]
-        return answer
+        if request[0] & 0xE0 == 0x60:  # upload segment request: answered with the other toggle bit
+            objects._replies.put(bytes([0x00 | (request[0] & 0x10) ^ 0x10]) + b"AKD-SIM")
+            return
+        real(request, index, subindex)
 
-    sdo.request_response = wrong_toggle  # type: ignore[method-assign]
+    objects._send = wrong_toggle  # type: ignore[method-assign]
     try:
         with pytest.raises(MalformedReply, match="wrong toggle bit"):
-            link.objects().upload(0x100A, 0)  # software version: more than 4 bytes, segmented
+            objects.upload(0x100A, 0)  # software version: more than 4 bytes, segmented
     finally:
-        sdo.request_response = real  # type: ignore[method-assign]
+        objects._send = real  # type: ignore[method-assign]
+    assert sent[-1][0] == 0x80 and int.from_bytes(sent[-1][4:], "little") == 0x05030000  # aborted: toggle bit

@@ -77,3 +77,36 @@ def test_a_face_answers_busy_before_the_clients_default_timeout(akd, isolated_en
         assert "locked by another process for more than 0.5 s" in server.stderr
     assert result.returncode == 3
     assert "the drive stayed busy" in result.stderr, result.stderr  # the face's own answer arrived in time
+
+
+@pytest.mark.parametrize("face_option, scheme", [("profinet", "pn"), ("ethernetip", "eip")])
+def test_two_spellings_of_one_host_meet_in_the_drives_serial(
+        akd_inproc, isolated_env: Path, tmp_path: Path, face_option: str, scheme: str) -> None:
+    """Issue 23.15: a name and an address of one host are two address keys; the lock is also keyed on the serial
+    the drive reports (I&M0 over PROFINET, CIP Identity attribute 6 over EtherNet/IP). A command owning
+    ``SCHEME://127.0.0.1:PORT`` keeps out ``enable`` through ``SCHEME://localhost:PORT`` (exit 4, naming the
+    owner), and lets it through once it let go."""
+    from akdctl.connection import Connection
+    from akdctl.sim import face_ethernetip, face_profinet
+    from akdctl.sim.drive import SimDrive
+    from akdctl.transport.base import LinkOptions
+
+    module = {"profinet": face_profinet, "ethernetip": face_ethernetip}[face_option]
+    face = module.from_options(SimDrive("default", tmp_path / "served"), **{face_option: "127.0.0.1:0"})
+    assert face is not None
+    face.start()
+    try:
+        assert key(f"{scheme}://127.0.0.1:{face.port}") != key(f"{scheme}://localhost:{face.port}")
+        owner = Connection(split_target(f"{scheme}://127.0.0.1:{face.port}"), LinkOptions())
+        owner.own_axis("akdctl jog 100 --for 10s")
+        try:
+            assert len(list((isolated_env / "owners").glob("serial-*.lock"))) == 1
+            code, _, err = akd_inproc("-T", f"{scheme}://localhost:{face.port}", "-y", "enable")
+            assert code == 4, err
+            assert "is in use by pid" in err and "jog 100" in err
+        finally:
+            owner.close()
+        code, _, err = akd_inproc("-T", f"{scheme}://localhost:{face.port}", "-y", "enable")
+        assert code == 0, err
+    finally:
+        face.stop()

@@ -414,11 +414,14 @@ def test_a_fault_during_a_recorded_jog_ends_it_partial_and_stopped() -> None:
 
 def test_pdo_source_decodes_the_txpdo_image_of_each_cycle() -> None:
     """drive/scope_pdo.py against its CyclicInputs interface: the statusword and velocity of each cycle's TxPDO
-    image (little-endian, mapping order), one row per cycle, t = cycles x cycle time, trigger on a bit edge."""
+    image (little-endian, mapping order), one row per cycle, t = cycles x cycle time, trigger on a bit edge.
+    (tests/test_scope_pdo.py covers the pre-trigger ring, gaps, the bus adapter and the real master.)"""
     import struct
 
     from akdctl.catalog.objects import PdoEntry
-    from akdctl.drive.scope_pdo import record as pdo_record
+    from akdctl.drive import scope_pdo
+    from akdctl.drive.ecat_pdo_watch import Layout
+    from akdctl.drive.scope_model import Recording
 
     class Inputs:
         cycle_s = 0.001
@@ -426,22 +429,26 @@ def test_pdo_source_decodes_the_txpdo_image_of_each_cycle() -> None:
         def __init__(self) -> None:
             self.k = 0
 
-        def mapped_inputs(self) -> list[PdoEntry]:
-            return [PdoEntry(0x6041, 0, 16), PdoEntry(0x606C, 0, 32)]
-
-        def next_inputs(self, timeout: float) -> bytes:
+        def next_inputs(self, timeout: float) -> tuple[int, bytes]:
             self.k += 1
             word = 0x0637 if self.k >= 5 else 0x0631  # bit 2 (operation enabled) from cycle 5 on
-            return struct.pack("<Hi", word, 1000 * self.k)
+            return self.k - 1, struct.pack("<Hi", word, 1000 * self.k)
 
-    rec, failure = pdo_record(Inputs(), ["0x6041:0", "0x606C:0"], "ecat://x", cycles=4,
-                              trigger=parse_trigger("bit:2"), trigger_slot=0, stopped=lambda: False, timeout_s=1.0)
+        def bus_time(self, host_t: float) -> float:
+            return host_t
+
+    tx = Layout([(0x1A00, (PdoEntry(0x6041, 0, 16), PdoEntry(0x606C, 0, 32)))])
+    trigger = parse_trigger("bit:2")
+    columns, width, trigger_slot, status_slot = scope_pdo.resolve_columns(tx, ["0x6041:0", "0x606C:0"], trigger)
+    assert (width, trigger_slot, status_slot) == (2, 2, 2)  # the status word rides along hidden
+    spec = scope_pdo.PdoSpec(columns, width, 0.001, 4, 0, trigger_slot=trigger_slot, status_slot=status_slot)
+    rec = Recording("ecat://x", "pdo", [c.channel for c in columns[:width]], trigger=trigger.text)
+    failure = scope_pdo.record(Inputs(), spec, rec, trigger, stopped=lambda: False, timeout_s=1.0)
     assert failure is None and len(rec) == 4 and rec.trigger_index == 0
     assert rec.values[0] == [0x0637] * 4 and rec.values[1] == [5000.0, 6000.0, 7000.0, 8000.0]
     assert rec.times == pytest.approx([0.0, 0.001, 0.002, 0.003])
     with pytest.raises(UsageError, match="not in the mapped TxPDO"):
-        pdo_record(Inputs(), ["0x6077:0"], "ecat://x", cycles=2, trigger=parse_trigger(None), trigger_slot=None,
-                   stopped=lambda: False, timeout_s=1.0)
+        scope_pdo.resolve_columns(tx, ["0x6077:0"], parse_trigger(None))
 
 
 def test_poll_over_the_ascii_channel_reads_value_and_unit_lines() -> None:

@@ -210,7 +210,10 @@ def test_consent_prompt_at_the_terminal_and_the_owner_lock_between_commands(cia4
     cia402_shell.type("y\n")
     out = cia402_shell.prompt()
     assert "drive enabled" in out
-    # Between two commands the shell holds no axis: another process may take it, as between two CLI runs.
+    # Between two commands the shell holds no axis: another process may take it, as between two CLI runs
+    # (``enable`` takes the owner lock; ``disable`` never waits for it, so it alone would prove nothing).
+    other = run_akdctl("-T", "sim?drive=cia402", "-y", "enable")
+    assert other.code == 0, other.stderr
     other = run_akdctl("-T", "sim?drive=cia402", "-y", "disable")
     assert other.code == 0, other.stderr
     assert "switch on disabled" in cia402_shell.run("status")

@@ -3,7 +3,11 @@
 The canopen library already implements the CiA 301 SDO client (expedited,
 segmented and block transfer, toggle bits, CRC), so this module only chooses
 the transfer, translates the library's exceptions into akdctl's errors and
-collects emergencies:
+collects emergencies. One exception, for the request a poll makes again and
+again: a normal upload is framed by akdctl's own SDO codec and takes its reply
+straight from the node's SDO response COB-ID (``_on_reply`` into a C queue),
+without canopen's stream and queue objects per request; downloads and block
+transfers stay canopen's. The library's errors become akdctl's:
 
 * ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` through
   :func:`~akdctl.channels.base.sdo_aborted`, worded by the catalogue and, for codes
@@ -20,13 +24,15 @@ EMCY frames (COB-ID 0x80 + node) arrive through the node's
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from typing import TYPE_CHECKING
 
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
-from akdctl.errors import CommError, MalformedReply, NoAnswer
+from akdctl.errors import AkdError, CommError, MalformedReply, NoAnswer
 from akdctl.links import Budget, Deadline
+from akdctl.protocol import coe
 from akdctl.protocol.emcy import Emergency
 from akdctl.protocol.nmt import state_name
 
@@ -70,6 +76,21 @@ class CanopenObjectChannel(ObjectChannel):
         self._emcy_cond = threading.Condition()
         self._attached = True
         node.emcy.add_callback(self._on_emcy)
+        # Normal uploads take their replies straight from the SDO response COB-ID into a C queue (no Python lock,
+        # condition or queue object per reply, as canopen's ``SdoClient.responses`` needs): the channel's callback
+        # stands in for ``sdo.on_response`` on the network and hands replies on to canopen's client whenever one of
+        # canopen's own transfers (downloads, block transfers) is running instead.
+        self._replies: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._taking = False  # an upload of ours waits for replies
+        self._subscribed = False
+        network = node.network
+        if network is not None:
+            try:
+                network.unsubscribe(self.sdo.tx_cobid, self.sdo.on_response)
+            except (KeyError, ValueError):
+                pass
+            network.subscribe(self.sdo.tx_cobid, self._on_reply)
+            self._subscribed = True
 
     @property
     def timeout(self) -> float:
@@ -104,25 +125,41 @@ class CanopenObjectChannel(ObjectChannel):
         self.detach()
 
     def detach(self) -> None:
-        """Stop collecting emergencies (the node object may outlive this channel)."""
+        """Stop collecting emergencies and give SDO replies back to canopen's client (the node object may outlive
+        this channel)."""
         self._attached = False
         try:
             self.node.emcy.callbacks.remove(self._on_emcy)
         except ValueError:
             pass
+        network = self.node.network
+        if self._subscribed and network is not None:
+            self._subscribed = False
+            try:
+                network.unsubscribe(self.sdo.tx_cobid, self._on_reply)
+            except (KeyError, ValueError):
+                pass
+            network.subscribe(self.sdo.tx_cobid, self.sdo.on_response)
+
+    def _on_reply(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """The SDO response COB-ID's one subscriber (called by canopen's receive thread)."""
+        if self._taking:
+            self._replies.put(bytes(data))
+        else:
+            self.sdo.on_response(can_id, data, timestamp)
 
     # -- SDO --------------------------------------------------------------------------------------------------
     def upload(self, index: int, subindex: int) -> bytes:
-        what = sdo_what("upload", index, subindex)
         self.requests += 1
         with self.budget.request() as deadline:
-            self._pace(deadline, deadline.attempts)
             if self.block:
+                self._pace(deadline, deadline.attempts)
                 try:
-                    return self._call(what, deadline, self._read, index, subindex, True, deadline)
+                    return self._call(sdo_what("upload", index, subindex), deadline, self._read, index, subindex,
+                                      True, deadline)
                 except _BlockDeclined:
                     self.block = False
-            return self._call(what, deadline, self._upload, index, subindex, deadline)
+            return self._upload(index, subindex, deadline)
 
     def download(self, index: int, subindex: int, data: bytes) -> None:
         what = sdo_what("download", index, subindex)
@@ -142,34 +179,32 @@ class CanopenObjectChannel(ObjectChannel):
                 attempts = deadline.attempts - 1
 
                 def read_back() -> bytes:
-                    self._pace(deadline, attempts)
-                    return self._call(sdo_what("upload", index, subindex), deadline, self._upload, index, subindex,
-                                      deadline)
+                    return self._upload(index, subindex, deadline, attempts)
 
                 confirm_write(exc.message, data, None if attempts < 1 or deadline.expired() else read_back,
                               {"index": index, "subindex": subindex})
 
     def _pace(self, deadline: Deadline, tries: int, share: int | None = None) -> None:
-        """canopen's per-response timeout and repeats for the next call: a share of what is left."""
+        """canopen's per-response timeout and repeats for its next call (block transfers, downloads): a share of
+        what is left."""
         self.sdo.MAX_RETRIES = max(1, tries)
         self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.share(share or tries))
 
-    def _upload(self, index: int, subindex: int, deadline: Deadline) -> bytes:
-        """A normal (expedited or segmented) upload on canopen's request/response queue, framed by our own SDO
-        codec (:mod:`akdctl.protocol.coe`, the same CiA 301 frames CoE carries): no stream objects per call,
-        one request for an expedited value. A reply that is not for this request (a late answer to an earlier
-        one, another client's) is skipped and the wait goes on within the deadline; a wrong toggle bit aborts."""
-        from akdctl.protocol import coe
-
-        initiate = coe.encode_sdo(coe.SdoUploadInitiate(index, subindex))
-        first = self._exchange(initiate, deadline, lambda m: isinstance(m, coe.SdoUploadResponse)
-                               and m.index == index and m.subindex == subindex)
+    def _upload(self, index: int, subindex: int, deadline: Deadline, tries: int | None = None) -> bytes:
+        """A normal (expedited or segmented) upload, framed by our own SDO codec (:mod:`akdctl.protocol.coe`, the
+        same CiA 301 frames CoE carries) and answered through :meth:`_on_reply`: no stream objects, one request
+        for an expedited value. A reply that is not for this request (a late answer to an earlier one, another
+        client's) is skipped and the wait goes on within the deadline; a wrong toggle bit aborts."""
+        tries = deadline.attempts if tries is None else tries
+        first = self._exchange(coe.pack_upload_initiate(index, subindex), deadline, tries, index, subindex, False)
+        if isinstance(first, bytes):
+            return first  # expedited: the value itself
         assert isinstance(first, coe.SdoUploadResponse)
         size = first.size
         if first.expedited:
             return first.data
         if size is not None and size > self.max_upload:
-            self.sdo.abort(coe.ABORT_OUT_OF_MEMORY)
+            self._abort(coe.ABORT_OUT_OF_MEMORY, index, subindex)
             raise MalformedReply(f"{self.where} announces {size} bytes for SDO {sdo_what('upload', index, subindex)}"
                                  f", more than the {self.max_upload} bytes akdctl accepts from one object "
                                  "(transfer aborted)")
@@ -178,19 +213,19 @@ class CanopenObjectChannel(ObjectChannel):
         toggle = 0
         while True:
             if deadline.expired():
-                self.sdo.abort(coe.ABORT_TIMEOUT)
+                self._abort(coe.ABORT_TIMEOUT, index, subindex)
                 raise NoAnswer(f"SDO {sdo_what('upload', index, subindex)} from {self.where} did not finish "
                                f"within {deadline.describe()} (transfer aborted)")
-            segment = self._exchange(coe.encode_sdo(coe.SdoUploadSegment(toggle)), deadline,
-                                     lambda m: isinstance(m, coe.SdoUploadSegmentResponse))
+            segment = self._exchange(coe.encode_sdo(coe.SdoUploadSegment(toggle)), deadline, tries, index, subindex,
+                                     True)
             assert isinstance(segment, coe.SdoUploadSegmentResponse)
             if segment.toggle != toggle:
-                self.sdo.abort(coe.ABORT_TOGGLE)
+                self._abort(coe.ABORT_TOGGLE, index, subindex)
                 raise MalformedReply(f"{self.where} answered SDO {sdo_what('upload', index, subindex)} with a "
                                      "segment of the wrong toggle bit (transfer aborted)")
             data += segment.data
             if len(data) > limit:
-                self.sdo.abort(coe.ABORT_LENGTH_MISMATCH)
+                self._abort(coe.ABORT_LENGTH_MISMATCH, index, subindex)
                 raise MalformedReply(f"{self.where} sent more than the {limit} bytes "
                                      f"{'it announced' if size is not None else 'akdctl accepts'} for SDO "
                                      f"{sdo_what('upload', index, subindex)} (transfer aborted)")
@@ -198,24 +233,78 @@ class CanopenObjectChannel(ObjectChannel):
                 return bytes(data)
             toggle ^= 1
 
-    def _exchange(self, request: bytes, deadline: Deadline, mine):  # noqa: ANN001, ANN202
-        """Send ``request`` once (canopen repeats only within ``MAX_RETRIES`` when nothing came back) and return
-        the first reply ``mine`` accepts, skipping others until the deadline; an abort raises canopen's error."""
-        from akdctl.protocol import coe
+    def _exchange(self, request: bytes, deadline: Deadline, tries: int, index: int, subindex: int,
+                  segment: bool) -> "bytes | coe.SdoMessage":
+        """Send ``request`` (again after a silent share of the deadline, ``tries`` times in all) and return the
+        first reply that fits it: the value of an expedited upload response for ``index:subindex`` as bytes, else
+        the upload response (``segment`` False) or upload segment response (``segment`` True) decoded. Replies
+        that do not fit are skipped until the deadline; an abort raises :class:`~akdctl.errors.SdoAborted`; after
+        the last silent try the transfer is aborted (as canopen's client does) and :class:`NoAnswer` raised."""
+        replies = self._replies
+        while not replies.empty():  # answers that came after their own request's deadline
+            replies.get_nowait()
+        self._taking = True
+        try:
+            for left in range(max(1, tries), 0, -1):
+                self._send(request, index, subindex)
+                try:
+                    reply = replies.get(timeout=max(0.0, deadline.share(left)))
+                except queue.Empty:
+                    continue
+                while True:
+                    if not segment:
+                        value = coe.expedited_upload_value(reply, index, subindex)
+                        if value is not None:
+                            return value
+                    message = self._fitting(reply, index, subindex, segment)
+                    if message is not None:
+                        return message
+                    if deadline.expired():
+                        raise MalformedReply(f"{self.where} sent only replies that do not fit the request "
+                                             f"(last: {reply.hex(' ')})")
+                    try:
+                        reply = replies.get(timeout=deadline.remaining())
+                    except queue.Empty:
+                        raise self._silent(index, subindex, deadline) from None
+        finally:
+            self._taking = False
+        self._abort(coe.ABORT_TIMEOUT, index, subindex)
+        raise self._silent(index, subindex, deadline)
 
-        reply = self.sdo.request_response(request)
-        while True:
-            try:
-                message = coe.decode_sdo(reply, from_server=True)
-            except coe.CoeError:
-                message = None
-            if message is not None and mine(message):
-                return message
-            if deadline.expired():
-                raise MalformedReply(f"{self.where} sent only replies that do not fit the request "
-                                     f"(last: {bytes(reply).hex(' ')})")
-            self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.remaining())
-            reply = self.sdo.read_response()
+    def _fitting(self, reply: bytes, index: int, subindex: int, segment: bool) -> "coe.SdoMessage | None":
+        """The decoded reply if it answers the request; None if it does not (skipped); an abort raises."""
+        try:
+            message = coe.decode_sdo(reply, from_server=True)
+        except coe.CoeError:
+            return None
+        if isinstance(message, coe.SdoAbort):
+            from canopen.sdo.exceptions import SdoAbortedError
+
+            raise sdo_aborted(message.code, sdo_what("upload", index, subindex), where=self.where,
+                              fallback=SdoAbortedError.CODES)
+        if segment:
+            return message if isinstance(message, coe.SdoUploadSegmentResponse) else None
+        if isinstance(message, coe.SdoUploadResponse) and message.index == index and message.subindex == subindex:
+            return message
+        return None
+
+    def _silent(self, index: int, subindex: int, deadline: Deadline) -> NoAnswer:
+        return NoAnswer(f"no answer from {self.where} to SDO {sdo_what('upload', index, subindex)} within "
+                        f"{deadline.describe()}{self._nmt_hint()}")
+
+    def _send(self, request: bytes, index: int, subindex: int) -> None:
+        """One request frame on the SDO request COB-ID (canopen's ``send_request``: it repeats a send the bus
+        refused, as a full transmit queue does); a bus failure becomes a CommError."""
+        try:
+            self.sdo.send_request(request)
+        except Exception as exc:
+            error = _bus_error(exc, sdo_what("upload", index, subindex), self.where)
+            if error is None:
+                raise
+            raise error from None
+
+    def _abort(self, code: int, index: int, subindex: int) -> None:
+        self._send(coe.encode_sdo(coe.SdoAbort(index, subindex, code)), index, subindex)
 
     def _read(self, index: int, subindex: int, block: bool, deadline: Deadline) -> bytes:
         """One upload, segment by segment: never more than the declared size or ``max_upload``."""
@@ -271,24 +360,27 @@ class CanopenObjectChannel(ObjectChannel):
             raise
 
     def _call(self, what: str, deadline: Deadline, func, *args):  # noqa: ANN001, ANN202
-        """Run one canopen SDO call; every library failure becomes an akdctl error."""
-        import can
-        from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
-
+        """Run one canopen SDO call; every library failure becomes an akdctl error (the library's exception
+        classes are imported only when one is raised)."""
         try:
             return func(*args)
-        except SdoAbortedError as exc:
-            raise sdo_aborted(int(exc.code), what, where=self.where, fallback=SdoAbortedError.CODES) from None
-        except SdoCommunicationError as exc:
-            text = str(exc)
-            if "No SDO response" in text or "timed out" in text.lower():
-                raise NoAnswer(f"no answer from {self.where} to SDO {what} within {deadline.describe()}"
-                               f"{self._nmt_hint()}") from None
-            raise MalformedReply(f"unexpected reply from {self.where} to SDO {what}: {text}") from None
-        except can.CanError as exc:
-            raise CommError(f"CAN bus error during SDO {what} on {self.where}: {exc}") from None
-        except RuntimeError as exc:  # canopen: "Not connected to CAN bus" / network gone
-            raise CommError(f"CAN bus not usable for SDO {what} on {self.where}: {exc}") from None
+        except AkdError:
+            raise
+        except Exception as exc:
+            from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+            if isinstance(exc, SdoAbortedError):
+                raise sdo_aborted(int(exc.code), what, where=self.where, fallback=SdoAbortedError.CODES) from None
+            if isinstance(exc, SdoCommunicationError):
+                text = str(exc)
+                if "No SDO response" in text or "timed out" in text.lower():
+                    raise NoAnswer(f"no answer from {self.where} to SDO {what} within {deadline.describe()}"
+                                   f"{self._nmt_hint()}") from None
+                raise MalformedReply(f"unexpected reply from {self.where} to SDO {what}: {text}") from None
+            error = _bus_error(exc, what, self.where)
+            if error is None:
+                raise
+            raise error from None
 
     def _nmt_hint(self) -> str:
         """What the node's heartbeat last said, when it explains the silence (a STOPPED node answers no SDO)."""
@@ -301,6 +393,17 @@ class CanopenObjectChannel(ObjectChannel):
             return ("; its heartbeat says NMT state STOPPED, in which a node answers no SDO "
                     "(akdctl can nmt preop brings it back)")
         return f"; its heartbeat says NMT state {state}"
+
+
+def _bus_error(exc: Exception, what: str, where: str) -> CommError | None:
+    """The CommError for a python-can/canopen failure to use the bus; None for any other exception."""
+    import can
+
+    if isinstance(exc, can.CanError):
+        return CommError(f"CAN bus error during SDO {what} on {where}: {exc}")
+    if isinstance(exc, RuntimeError):  # canopen: "Not connected to CAN bus" / network gone
+        return CommError(f"CAN bus not usable for SDO {what} on {where}: {exc}")
+    return None
 
 
 class _BlockDeclined(Exception):

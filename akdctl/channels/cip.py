@@ -25,18 +25,27 @@ class CipAttributes:
         self.label = label
 
     def call(self, service: int, path: cip.Path, data: bytes = b"") -> bytes:
-        from akdctl.catalog.texts import cip_status_text
-
-        response = self.link.request(cip.Request(service, path.encode(), data))
-        if not response.ok:
-            name = cip.SERVICE_NAMES.get(service, f"service 0x{service:02X}")
-            raise CipRefused(f"{self.label}: {name} {path.label} refused: "
-                             f"{cip_status_text(response.status, response.extended)}", code=response.status,
-                             details={"general_status": response.status, "extended_status": list(response.extended)})
+        request = cip.Request(service, path.encode(), data)
+        response = self.link.request(request)
+        if response.status:
+            raise self._refused(request, response, path)
         return response.data
 
     def get(self, class_id: int, instance: int, attribute: int) -> bytes:
-        return self.call(cip.GET_ATTRIBUTE_SINGLE, cip.Path(class_id, instance, attribute))
+        request = cip.get_attribute_single(class_id, instance, attribute)
+        response = self.link.request(request)
+        if response.status:
+            raise self._refused(request, response)
+        return response.data
+
+    def _refused(self, request: cip.Request, response: cip.Response, path: cip.Path | None = None) -> CipRefused:
+        """The error for a reply with a general status; its words are looked up only when one comes."""
+        from akdctl.catalog.texts import cip_status_text
+
+        label = (path or cip.decode_path(request.path)).label
+        return CipRefused(f"{self.label}: {request.name} {label} refused: "
+                          f"{cip_status_text(response.status, response.extended)}", code=response.status,
+                          details={"general_status": response.status, "extended_status": list(response.extended)})
 
     def set(self, class_id: int, instance: int, attribute: int, data: bytes) -> None:
         """Set_Attribute_Single. A set whose answer never came is an unknown outcome, not "no answer": the

@@ -27,10 +27,12 @@ LIVE_REDRAW_S = 0.5
 @click.option("--for", "duration", metavar="DURATION", help="How long to record (2s, 500ms; default 1 s).")
 @click.option("--samples", type=int, metavar="N", help="How many samples to record (instead of --for).")
 @click.option("--rate", type=float, metavar="HZ",
-              help="Samples per second (poll: paced, the rate achieved is printed; recorder: 16000/REC.GAP).")
+              help="Samples per second (poll: paced, the rate achieved is printed; recorder: 16000/REC.GAP; "
+                   "pdo: the bus cycle, 16000/N up to 4000, default the drive's 0x60C2).")
 @click.option("--source", type=click.Choice(["auto", "poll", "recorder", "pdo"]), default="auto", show_default=True,
               help="poll: the host reads (every transport); recorder: the AKD's REC.* (akd://, sim); "
-                   "pdo: one sample per EtherCAT cycle (ecat://). auto: recorder on akd://, else poll.")
+                   "pdo: one sample per EtherCAT cycle from the mapped TxPDO (ecat://, this host the master, the "
+                   "slave in SAFE-OP). auto: recorder on akd://, else poll.")
 @click.option("--trigger", metavar="COND", help="immediate (default), rise:SIG:LEVEL, fall:SIG:LEVEL, "
                                                  "above:SIG:LEVEL, below:SIG:LEVEL, bit:N[=0|1], fault.")
 @click.option("--pretrigger", type=float, default=0.0, metavar="PCT", help="Share of the recording before the "
@@ -73,6 +75,7 @@ def scope(signals: tuple[str, ...], duration: str | None, samples: int | None, r
       akdctl -y scope VL.FB PL.ERR --jog 300 --jog-for 1s --for 2s --csv jog.csv --svg jog.svg
       akdctl scope VL.FB --source recorder --samples 2000 --rate 4000 --trigger rise:VL.FB:100 --pretrigger 10
       akdctl scope IL.FB --trigger fault --pretrigger 50 --for 1s --timeout 60 --json
+      akdctl -T ecat://eth0 -y scope VL.FB 0x606C --source pdo --rate 1000 --jog 300 --jog-for 1s --csv jog.csv
     """
     from akdctl.cli.motion import _duration
     from akdctl.drive import scope as op

@@ -61,7 +61,6 @@ class ShellApp(AppContext):
         self.session_verbose = base.verbose
         self.session_debug = base.debug
         self._session_cleanups: list[Callable[[], None]] = []
-        self.axis_owner: Any = None
 
     def _check_session(self) -> None:
         changed = [name for name, value in self.session.items() if getattr(self, name) != value]
@@ -102,7 +101,8 @@ class ShellApp(AppContext):
     def close(self) -> None:
         """The end of one command: release what it took (owner lock), keep the link."""
         super().close()
-        self.axis_owner = None
+        if self._connection is not None:
+            self._connection.release_axis()
         self.yes = False
 
     def drop_connection(self) -> None:

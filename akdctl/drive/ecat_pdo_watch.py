@@ -69,9 +69,7 @@ class Layout:
         value = int.from_bytes(data, "little")
         out = []
         for entry, bit, name, signed in self.fields:
-            raw = (value >> bit) & ((1 << entry.bits) - 1)
-            if signed and raw >> (entry.bits - 1):
-                raw -= 1 << entry.bits
+            raw = field_value(value, bit, entry.bits, signed)
             out.append({"address": f"0x{entry.index:04X}:{entry.subindex:02X}", "name": name, "value": raw,
                         "unit": UNITS.get(entry.index, ""), "shown": _shown(entry.index, raw)})
         return out
@@ -86,15 +84,39 @@ class Layout:
     def has(self, index: int, sub: int) -> bool:
         return any(e.index == index and e.subindex == sub for e, _b, _n, _s in self.fields)
 
+    def field(self, index: int, sub: int) -> tuple[int, int, bool] | None:
+        """(bit offset, bits, signed) of a mapped entry in the image; None when it is not mapped."""
+        for entry, bit, _name, signed in self.fields:
+            if entry.index == index and entry.subindex == sub:
+                return bit, entry.bits, signed
+        return None
 
-def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
+    def mapped(self) -> str:
+        """The mapped entries, for a message that names them (``0x6041:00, 0x6063:00``)."""
+        return ", ".join(f"0x{e.index:04X}:{e.subindex:02X}" for e, _b, _n, _s in self.fields) or "nothing"
+
+
+def field_value(image: int, bit: int, bits: int, signed: bool) -> int:
+    """One entry's raw value out of a process image read as one little-endian integer."""
+    raw = (image >> bit) & ((1 << bits) - 1)
+    if signed and raw >> (bits - 1):
+        raw -= 1 << bits
+    return raw
+
+
+def layouts(conn: "Connection") -> tuple[dict[str, Any], Layout, Layout]:
+    """The mapping as the slave holds it now (SDO reads) and the RxPDO/TxPDO images it gives."""
     from akdctl.drive.pdo import read_mapping
 
-    if conn.target.scheme != "ecat":
+    mapping = read_mapping(conn.objects())
+    return mapping, Layout(mapping["rx"].pdos), Layout(mapping["tx"].pdos)
+
+
+def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
+    if not conn.has_process_data:
         raise UsageError(f"'ecat pdo watch' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
                          f"{conn.target.display} cannot take the slave to OP")
-    mapping = read_mapping(conn.objects())
-    rx, tx = Layout(mapping["rx"].pdos), Layout(mapping["tx"].pdos)
+    mapping, rx, tx = layouts(conn)
     for index, sub in outputs:
         if not rx.has(index, sub):
             raise UsageError(f"0x{index:04X}:{sub:02X} is not in the assigned RxPDOs "
@@ -122,24 +144,15 @@ def execute(conn: "Connection", plan: WritePlan, duration: float, period: float,
     """PRE-OP -> SAFE-OP -> OP with the mapping, cycle for ``duration`` s, back to PRE-OP. The result document;
     CommError (WKC drop) or DriveError (left OP) end it early, after the slave was taken back to PRE-OP."""
     from akdctl.protocol import ethercat as ec
-    from akdctl.transport.ethercat_raw import ProcessDataCycle
 
-    transport: Any = conn.transport()
-    master, slave = transport.master, transport.slave
     rx, tx = plan.data["rx"], plan.data["tx"]
     outputs = rx.encode(plan.data["outputs"])
-    cycle = ProcessDataCycle(master, slave.station, rx.bytes, tx.bytes)
-    status, _code = master.al_status(slave.station)
-    if status & 0x0F != ec.AlState.PREOP:
-        master.request_state(slave.station, ec.AlState.PREOP)
-    cycle.configure()
+    cycle = conn.process_data(rx.bytes, tx.bytes)
     last_values: list[dict[str, Any]] = []
     started = time.monotonic()
     ended = "time"
     try:
-        master.request_state(slave.station, ec.AlState.SAFEOP)
-        cycle.exchange(bytes(rx.bytes))
-        master.request_state(slave.station, ec.AlState.OP)
+        enter(cycle, ec.AlState.OP)
         next_show = 0.0
         end = time.monotonic() + duration
         while True:
@@ -151,38 +164,72 @@ def execute(conn: "Connection", plan: WritePlan, duration: float, period: float,
             last_values = tx.decode(inputs)
             if al is None and wkc != cycle.expected_wkc:
                 al = cycle.exchange(outputs)[2]  # why did it drop: a slave out of OP says so
-            if al is not None and (al & 0x0F != ec.AlState.OP or al & ec.AL_ERROR_FLAG):
-                code = master.al_status(slave.station)[1]
+            left = left_state(cycle, al, ec.AlState.OP)
+            if left is not None:
                 ended = "left-op"
-                raise DriveError(f"the slave left OP at cycle {cycle.cycles}: now {al_status_line(al, code)}",
-                                 code=code, details={"al_status": al, "al_status_code": code})
+                raise left
             if wkc != cycle.expected_wkc:
                 on_sample(last_values, wkc, cycle.expected_wkc, cycle.cycles)
                 ended = "wkc"
-                raise CommError(f"working counter {wkc} where {cycle.expected_wkc} was expected at cycle "
-                                f"{cycle.cycles}: the slave did not exchange its process data",
-                                details={"wkc": wkc, "expected": cycle.expected_wkc, "cycle": cycle.cycles})
+                raise wkc_dropped(cycle, wkc, cycle.expected_wkc)
             if now >= next_show:
                 on_sample(last_values, wkc, cycle.expected_wkc, cycle.cycles)
                 next_show = now + show_every
             time.sleep(max(0.0, min(period, end - time.monotonic())))
     finally:
-        _leave(master, slave.station, cycle, rx.bytes)
+        leave(cycle)
     return {"target": conn.target.display, "cycles": cycle.cycles, "expected_wkc": cycle.expected_wkc,
             "seconds": round(time.monotonic() - started, 3), "period_s": period, "ended": ended,
             "outputs": {f"0x{i:04X}:{s:02X}": v for (i, s), v in plan.data["outputs"].items()},
             "inputs": last_values}
 
 
-def _leave(master: Any, station: int, cycle: Any, rx_bytes: int) -> None:
+# ---------------------------------------------------------------------- the steps every cyclic run shares
+# ``ecat pdo watch`` (OP) and the scope's pdo source (SAFE-OP: drive/scope_pdo_bus.py) bring the slave up, judge
+# each cycle and take it back the same way; the steps live here once.
+
+def enter(cycle: Any, state: int) -> None:
+    """PRE-OP (where the sync managers may be set), SM2/SM3 and FMMUs for the mapping, SAFE-OP with one exchange
+    of all-zero outputs, then OP when ``state`` asks for it. The caller runs :func:`leave` whatever happens."""
+    from akdctl.protocol import ethercat as ec
+
+    status, _code = cycle.al_status()
+    if status & 0x0F != ec.AlState.PREOP:
+        cycle.request_state(ec.AlState.PREOP)
+    cycle.configure()
+    cycle.request_state(ec.AlState.SAFEOP)
+    cycle.exchange(bytes(cycle.rx_bytes))
+    if state == ec.AlState.OP:
+        cycle.request_state(ec.AlState.OP)
+
+
+def left_state(cycle: Any, al: int | None, state: int) -> DriveError | None:
+    """The error when the AL status ``al`` (None: not read this cycle) shows the slave out of ``state`` or
+    flagging an error (exit 1, with the AL status code read now)."""
+    from akdctl.protocol import ethercat as ec
+
+    if al is None or (al & 0x0F == state and not al & ec.AL_ERROR_FLAG):
+        return None
+    code = cycle.al_status()[1]
+    return DriveError(f"the slave left {ec.al_state_name(state)} at cycle {cycle.cycles}: now "
+                      f"{al_status_line(al, code)}", code=code, details={"al_status": al, "al_status_code": code})
+
+
+def wkc_dropped(cycle: Any, wkc: int, expected: int) -> CommError:
+    """A working counter below the mapping's: the slave did not exchange its process data (exit 3)."""
+    return CommError(f"working counter {wkc} where {expected} was expected at cycle {cycle.cycles}: the slave did "
+                     "not exchange its process data", details={"wkc": wkc, "expected": expected, "cycle": cycle.cycles})
+
+
+def leave(cycle: Any) -> None:
     """Outputs 0 once more, then PRE-OP: a known state whatever ended the run (errors here are not the story)."""
     from akdctl.protocol import ethercat as ec
 
     try:
-        cycle.exchange(bytes(rx_bytes))
+        cycle.exchange(bytes(cycle.rx_bytes))
     except Exception:  # noqa: BLE001
         pass
     try:
-        master.request_state(station, ec.AlState.PREOP)
+        cycle.request_state(ec.AlState.PREOP)
     except Exception:  # noqa: BLE001
         pass

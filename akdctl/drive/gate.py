@@ -250,3 +250,11 @@ def owner_key(target: Any) -> str:
         who = f"{scheme}/{target.host.lower()}:{port}/{path}{extra}"
     readable = re.sub(r"[^A-Za-z0-9._-]+", "_", who).strip("_")[:80]
     return f"{readable}-{hashlib.sha256(who.encode()).hexdigest()[:12]}"
+
+
+def serial_owner_key(serial: str) -> str:
+    """The owner lock's second key: the serial number the drive reports (:func:`akdctl.drive.identity.serial_number`).
+
+    Two spellings of one host (a name and its address) give two :func:`owner_key` keys; the drive's serial is one,
+    so a command holds both locks and a second command on the same drive meets one of them (issue 23.15)."""
+    return "serial-" + re.sub(r"[^A-Za-z0-9._-]+", "_", serial)[:40] + "-" + hashlib.sha256(serial.encode()).hexdigest()[:8]

@@ -94,6 +94,34 @@ def read_identity(conn: "Connection", *, pnus: bool = True, objects: bool = True
     return result
 
 
+def serial_number(conn: "Connection") -> str | None:
+    """The serial number the drive reports, in decimal, from its cheapest source (one request), else None.
+
+    Why: the owner lock keys an axis by its address; two spellings of one drive (a host name and its address,
+    issue 23.15) meet only in what the drive says it is. One read: CoE/CANopen 0x1018:4, else PROFINET's I&M0,
+    else CIP Identity attribute 6. None where the drive offers none of them (the ASCII and Modbus channels) or
+    refuses the read; a link that does not answer raises, as the command's first read would."""
+    if conn.has_objects:
+        try:
+            data = conn.objects().upload(0x1018, 4)
+        except CommError:
+            raise
+        except AkdError:
+            return None
+        return str(int.from_bytes(data[:4], "little")) if len(data) >= 4 else None
+    if conn.has_cip:
+        try:
+            data = conn.cip().get(0x01, 1, 6)
+        except CommError:
+            raise
+        except AkdError:
+            return None
+        return str(int.from_bytes(data[:4], "little")) if len(data) >= 4 else None
+    record = conn.read_im0()
+    serial = record.get("serial_number") if record else None
+    return str(serial).strip() or None if serial is not None else None
+
+
 def backup_identity(identity: dict[str, Any]) -> dict[str, Any]:
     """The flat identity a parameter backup stores (``[identity]``), from a :func:`read_identity` result.
 

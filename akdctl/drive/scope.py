@@ -9,8 +9,8 @@ recording is armed (so the recording shows the start), records, and brings the a
 error or interrupt.
 
 Sources (docs/scope.md): ``poll`` (every transport, host-timed), ``recorder`` (the AKD's REC.* over a
-:class:`~akdctl.drive.scope_recorder.CommandLink`), ``pdo`` (cyclic process data on ``ecat://``:
-:mod:`akdctl.drive.scope_pdo`).
+:class:`~akdctl.drive.scope_recorder.CommandLink`), ``pdo`` (cyclic process data on ``ecat://``, the slave in SAFE-OP:
+:mod:`akdctl.drive.scope_pdo`, :mod:`akdctl.drive.scope_pdo_bus`).
 """
 
 from __future__ import annotations
@@ -144,10 +144,13 @@ def plan(conn: Connection, request: ScopeRequest, command_link: Callable[[], Any
     writes: list[PlannedWrite] = []
     notes: list[str] = []
     if source == "pdo":
-        from akdctl.drive.scope_pdo import refuse_without_cyclic
+        from akdctl.drive import scope_pdo
 
-        refuse_without_cyclic(conn)
-    if source == "recorder":
+        spec_pdo = scope_pdo.plan(conn, request, trigger)
+        data["pdo"] = spec_pdo
+        notes += spec_pdo.notes
+        notes.append(f"{spec_pdo.cycles} cycles, {spec_pdo.pre} of them before the trigger")
+    elif source == "recorder":
         from akdctl.drive import scope_recorder as rec
 
         rec.check_signals(request.signals)
@@ -238,11 +241,14 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
             started[0] = events["motion_start"] = time.monotonic()  # the jog's time runs from the drive's start
 
     watched = [0.0]
+    # the pdo source watches a recorded motion in the cycle's own status word when it is mapped (no SDO between
+    # cycles); every other source reads the axis
+    sdo_watch = not (source == "pdo" and data["pdo"].status_slot is not None)
 
     def tick() -> None:
         """While the motion runs: the axis is read every WATCH_S (a fault ends the recording, and the traffic tells
         the simulated drive's watchdog someone is there); a timed jog ends at its duration (ramp to standstill)."""
-        if started and time.monotonic() - watched[0] >= WATCH_S:
+        if started and sdo_watch and time.monotonic() - watched[0] >= WATCH_S:
             watched[0] = time.monotonic()
             _watch(axis)
         r = motion.request if motion is not None else None
@@ -261,6 +267,9 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
                                   rate_requested=spec.rate_hz)
             failure = rec.record(data["link"], spec, recording, stopped=stopped, on_armed=start_motion,
                                  on_wait=tick if motion is not None else None, on_chunk=on_sample)
+        elif source == "pdo":
+            recording, failure = _record_pdo(conn, plan_, stopped, start_motion, tick if motion is not None else None,
+                                             on_sample, events, started)
         else:
             from akdctl.drive import scope_poll
             from akdctl.drive.scope_model import Channel
@@ -292,6 +301,37 @@ def execute(conn: Connection, plan_: WritePlan, *, stopped: Callable[[], bool],
         if started:
             axis.safe_stop()
         raise
+    return recording, failure
+
+
+def _record_pdo(conn: Connection, plan_: WritePlan, stopped: Callable[[], bool], start_motion: Callable[[], None],
+                tick: Callable[[], None] | None, on_sample: Callable[[Recording], None] | None,
+                events: dict[str, float], started: list[float]) -> tuple[Recording, AkdError | None]:
+    """The pdo source: the bus in SAFE-OP for the recording (drive/scope_pdo_bus.py), a recorded motion watched
+    through the mapped status word (a fault ends the recording: DriveFault, exit 1)."""
+    from akdctl.drive import scope_pdo
+    from akdctl.drive.scope_pdo_bus import BusInputs
+    from akdctl.drive.scope_trigger import FAULT_BIT
+    from akdctl.errors import DriveFault
+
+    spec = plan_.data["pdo"]
+    trigger: Trigger = plan_.data["trigger"]
+    request: ScopeRequest = plan_.data["request"]
+    recording = Recording(plan_.target, "pdo", [c.channel for c in spec.columns[:spec.width]], trigger=trigger.text,
+                          rate_requested=1.0 / spec.cycle_s)
+
+    def on_row(row: list[float]) -> None:
+        if started and spec.status_slot is not None and int(row[spec.status_slot]) & (1 << FAULT_BIT):
+            raise DriveFault("drive fault during the recorded motion (status word 0x"
+                             f"{int(row[spec.status_slot]):04X} in the TxPDO)")
+
+    with BusInputs(conn.process_data(spec.rx.bytes, spec.tx.bytes), spec.cycle_s,
+                   lost_limit_s=conn.options.timeout) as bus:
+        failure = scope_pdo.record(bus, spec, recording, trigger, stopped=stopped, timeout_s=request.timeout_s,
+                                   on_first=start_motion, on_row=on_row, on_tick=tick, on_sample=on_sample,
+                                   events=events)
+    if bus.lost:
+        recording.notes.append(f"{bus.lost} frame(s) did not come back within the frame timeout: gaps")
     return recording, failure
 
 

@@ -41,6 +41,7 @@ class OwnerLock:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self._fd: int | None = None
+        self._also: list[OwnerLock] = []
 
     @property
     def held(self) -> bool:
@@ -64,7 +65,18 @@ class OwnerLock:
         os.pwrite(fd, record.encode() + b"\n", 0)
         self._fd = fd
 
+    def also(self, other: "OwnerLock", command: str) -> None:
+        """Take ``other`` too (raises :class:`OwnerBusy` as :meth:`acquire` does) and free it with this one.
+
+        Why: one axis can have two names (its address and the serial it reports); the holder of either keeps
+        out a second command that came by the other."""
+        other.acquire(command)
+        self._also.append(other)
+
     def release(self) -> None:
+        also, self._also = self._also, []
+        for other in also:
+            other.release()
         fd, self._fd = self._fd, None
         if fd is not None:
             try:

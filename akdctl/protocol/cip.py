@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from functools import lru_cache
 
 from akdctl.protocol.errors import CodecError
 
@@ -505,3 +506,27 @@ class IdentityAttributes:
         # OpENer appends further attributes (state, configuration consistency ...) after the name
         return cls(vendor, dtype, code, (major, minor), status, serial, data[15:15 + nlen].decode("ascii", "replace"))
 
+
+
+# ---------------------------------------------------------------- a client's per-request path
+
+@lru_cache(maxsize=1024)
+def attribute_path(class_id: int, instance: int, attribute: int | None = None) -> bytes:
+    """``Path(class_id, instance, attribute).encode()``, remembered: a client asks the same few attributes again
+    and again (a poll), and the encoded path is the same bytes each time."""
+    return Path(class_id, instance, attribute).encode()
+
+
+@lru_cache(maxsize=1024)
+def get_attribute_single(class_id: int, instance: int, attribute: int) -> Request:
+    """The Get_Attribute_Single request for one attribute, remembered (a Request is immutable): a poll asks the
+    same attributes again and again."""
+    return Request(GET_ATTRIBUTE_SINGLE, attribute_path(class_id, instance, attribute))
+
+
+def decode_response(data: bytes) -> Response:
+    """:meth:`Response.decode`, reading a reply without additional status words (nearly every reply) without
+    building a struct format for them."""
+    if len(data) >= 4 and data[0] & REPLY and not data[3]:
+        return Response(data[0] & 0x7F, data[2], (), data[4:])
+    return Response.decode(data)

@@ -389,3 +389,34 @@ def pack_expedited_upload_response(index: int, subindex: int, value: bytes) -> b
     ``encode_sdo(SdoUploadResponse(index, subindex, value, expedited=True))`` writes."""
     return _EXPEDITED_UPLOAD.pack(0x43 | (4 - len(value)) << 2, index, subindex, value)
 
+
+
+# --- a client's fast path, both layouts -------------------------------------------------------------------------
+# The same poll from the client's side: a CANopen client sends the 8-byte upload initiate and, for an object of up to
+# four bytes, gets the value back in one expedited response. These pack and read those two layouts without message
+# objects; tests/test_trace_off.py holds them equal to encode_sdo/decode_sdo.
+
+_UPLOAD_INITIATE = struct.Struct("<BHB4x")
+_UPLOAD_REPLY_HEAD = struct.Struct("<BHB")
+
+
+def pack_upload_initiate(index: int, subindex: int) -> bytes:
+    """The 8-byte SDO of an upload initiate: ``encode_sdo(SdoUploadInitiate(index, subindex))``."""
+    try:
+        return _UPLOAD_INITIATE.pack(UPLOAD_INITIATE_COMMAND, index, subindex)
+    except struct.error:
+        raise CoeError(f"SDO index {index!r} / subindex {subindex!r} out of range") from None
+
+
+def expedited_upload_value(payload: bytes, index: int, subindex: int) -> bytes | None:
+    """The value of ``payload`` if it is an expedited upload response for ``index:subindex`` -- what
+    ``decode_sdo(payload, from_server=True).data`` gives for it -- else None (the caller then takes the general
+    decoder, which also reads every other reply)."""
+    if len(payload) < SDO_SIZE:
+        return None
+    command, got_index, got_subindex = _UPLOAD_REPLY_HEAD.unpack_from(payload)
+    if command & 0xE2 != 0x42 or got_index != index or got_subindex != subindex:
+        return None
+    if command & 0x01:
+        return bytes(payload[4:8 - (command >> 2 & 0x03)])
+    return bytes(payload[4:8])

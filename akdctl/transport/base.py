@@ -20,6 +20,7 @@ from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
     from akdctl.links import CommandLink, MailboxLink, MessageLink, NativeSdoClient, RecordLink, RegisterLink
+    from akdctl.transport.ethercat_raw import ProcessDataCycle
     from akdctl.transport.target import Target
 
 
@@ -98,6 +99,15 @@ class Transport(ABC):
 
     def read_im0(self) -> dict[str, object] | None:
         """The device's I&M0 record in JSON form where the network defines one (PROFINET), else None."""
+        return None
+
+    #: Whether this host is the bus master of cyclic process data with the target's slave (``ecat://``):
+    #: :meth:`process_data` then gives the exchange. A class attribute, so it is known before the target opens.
+    cyclic_master: ClassVar[bool] = False
+
+    def process_data(self, rx_bytes: int, tx_bytes: int) -> "ProcessDataCycle | None":
+        """The cyclic exchange of ``rx_bytes`` outputs and ``tx_bytes`` inputs with the slave, not yet configured;
+        None where this host is no such master (:attr:`cyclic_master`)."""
         return None
 
     @abstractmethod

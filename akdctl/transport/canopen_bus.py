@@ -73,6 +73,8 @@ if TYPE_CHECKING:
 for _name in ("canopen", "can"):
     logging.getLogger(_name).addHandler(logging.NullHandler())
 
+#: How many distinct frames a session's network keeps built for sending again (SDO requests of a poll, NMT).
+FRAME_CACHE = 256
 #: Query parameters akdctl reads itself; the rest go to the python-can bus.
 OWN_QUERY = frozenset({"block", "context"})
 #: INTERFACE names that mean "python-can's configuration decides".
@@ -155,18 +157,40 @@ def frame_note(can_id: int) -> str:
 
 
 def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "canopen.Network":
-    """A canopen Network that reports every frame it sends or receives to the tracer."""
+    """A canopen Network that reports every frame it sends or receives to the tracer.
+
+    With tracing off (``tracer.active`` false) a frame costs one attribute test each way: no note, no meta dict,
+    no copy of the data (tests/test_trace_off.py counts them).
+    """
     import can
     import canopen
 
+    frames: dict[tuple[int, bytes, bool], can.Message] = {}
+
     class TracingNetwork(canopen.Network):
         def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
-            tracer.frame("tx", "can", bytes(data), note=frame_note(can_id), meta=frame_meta(can_id, can_id > 0x7FF, remote))
-            super().send_message(can_id, data, remote)
+            """canopen's ``Network.send_message`` with the frame built once per distinct request: a poll sends the
+            same few frames again and again, and python-can's buses read a message when they send it (its own
+            periodic tasks send one message object again and again too)."""
+            data = bytes(data)
+            if tracer.active:
+                tracer.frame("tx", "can", data, note=frame_note(can_id), meta=frame_meta(can_id, can_id > 0x7FF, remote))
+            if not self.bus:
+                raise RuntimeError("Not connected to CAN bus")
+            key = (can_id, data, remote)
+            message = frames.get(key)
+            if message is None:
+                message = can.Message(is_extended_id=can_id > 0x7FF, arbitration_id=can_id, data=data,
+                                      is_remote_frame=remote)
+                if len(frames) < FRAME_CACHE:
+                    frames[key] = message
+            with self.send_lock:
+                self.bus.send(message)
+            self.check()
 
     class TraceListener(can.Listener):
         def on_message_received(self, msg: "can.Message") -> None:
-            if msg.is_error_frame:
+            if not tracer.active or msg.is_error_frame:
                 return
             tracer.frame("rx", "can", bytes(msg.data), note=frame_note(msg.arbitration_id),
                          meta=frame_meta(msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame))

@@ -626,6 +626,14 @@ class EthercatRawTransport(Transport):
                                "power-cycle it and check its firmware with 'akdctl ecat scan'")
             time.sleep(0.2)
 
+    cyclic_master = True
+
+    def process_data(self, rx_bytes: int, tx_bytes: int) -> "ProcessDataCycle":
+        """Our master's cyclic exchange with the slave this target names (opened: its station is known)."""
+        if self.master is None or self.slave is None:
+            raise CommError(f"{self.target.display}: the bus is not open")
+        return ProcessDataCycle(self.master, self.slave.station, rx_bytes, tx_bytes)
+
     def al_state(self) -> str | None:
         """The slave's AL state read now from its AL status register (0x0130): 'PREOP', 'OP', 'SAFEOP+ERR' …
 
@@ -670,6 +678,7 @@ class ProcessDataCycle:
         self.master, self.station, self.rx_bytes, self.tx_bytes = master, station, rx_bytes, tx_bytes
         self.expected_wkc = (2 if rx_bytes else 0) + (1 if tx_bytes else 0)
         self.cycles = 0
+        self._frames: dict[bool, ec.FrameTemplate] = {}  # with/without the AL status read: encoded once
 
     def configure(self) -> None:
         """In PRE-OP: SM2/SM3 with the mapping's lengths, FMMU0 outputs, FMMU1 inputs."""
@@ -688,10 +697,28 @@ class ProcessDataCycle:
         """One cycle: (inputs, working counter of the LRW, AL status or None when not asked for). FrameLost when
         the frame is lost. The AL status rides in the same frame when ``with_status``."""
         image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
-        datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
-        if with_status:
-            datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
-        got = self.master.txrx(datagrams, retries=0)
+        frame = self._frames.get(with_status)
+        if frame is None:  # the same frame every cycle but for its index and outputs (as the mailbox polls)
+            datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
+            if with_status:
+                datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
+            frame = self._frames[with_status] = ec.FrameTemplate(datagrams, MASTER_MAC)
+        got = self.master.txrx_template(frame, image)
         self.cycles += 1
-        al = None if not with_status else (struct.unpack("<H", got[1].data)[0] if got[1].wkc == 1 else 0)
-        return bytes(got[0].data[self.rx_bytes:]), got[0].wkc, al
+        al = None if not with_status else (struct.unpack("<H", got[1][0])[0] if got[1][1] == 1 else 0)
+        return got[0][0][self.rx_bytes:], got[0][1], al
+
+    # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
+    # slave this cycle serves, so they take the cycle alone, never the transport behind it.
+    def al_status(self) -> tuple[int, int]:
+        """(AL status, AL status code) of the slave now."""
+        return self.master.al_status(self.station)
+
+    def request_state(self, state: int) -> tuple[int, int]:
+        """Take the slave to ``state`` (:meth:`EcatMaster.request_state`)."""
+        return self.master.request_state(self.station, state)
+
+    @property
+    def safeop_wkc(self) -> int:
+        """The LRW's working counter in SAFE-OP: the inputs only (the slave takes no outputs before OP)."""
+        return 1 if self.tx_bytes else 0
