@@ -78,7 +78,8 @@ def _run(line: list[str], target: str, folder: Path, runner: Callable[..., CliRe
     return proc.returncode
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])  # a busy CI box
 @given(lines=st.lists(st.tuples(command_lines(), targets), min_size=1, max_size=3))
 def test_without_consent_the_drive_never_leaves_standstill_nor_sees_an_enabling_word(
         lines: list[tuple[list[str], str]], tmp_path: Path) -> None:
