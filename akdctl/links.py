@@ -42,14 +42,18 @@ class Deadline:
     __slots__ = ("at", "total", "attempts", "probe")
 
     def __init__(self, total: float, attempts: int = 1, probe: bool = False) -> None:
-        self.total = max(0.0, float(total))
-        self.attempts = max(1, int(attempts))
+        # conditionals, not max(): this runs once per request on every hot path
+        total = total if total.__class__ is float else float(total)
+        self.total = total = total if total > 0.0 else 0.0
+        attempts = attempts if attempts.__class__ is int else int(attempts)
+        self.attempts = attempts if attempts > 1 else 1
         self.probe = probe  # the command has no time left: this request only checks whether the drive is back
-        self.at = time.monotonic() + self.total
+        self.at = time.monotonic() + total
 
     def remaining(self) -> float:
         """Seconds left (0 once passed)."""
-        return max(0.0, self.at - time.monotonic())
+        left = self.at - time.monotonic()
+        return left if left > 0.0 else 0.0
 
     def expired(self) -> bool:
         return time.monotonic() >= self.at

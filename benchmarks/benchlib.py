@@ -176,3 +176,110 @@ def fmt_us(value: float | None) -> str:
 
 def fmt_ratio(value: float | None) -> str:
     return "-" if value is None else f"{value:.3g}"
+
+
+# ---------------------------------------------------------------------- measured clients in worker processes
+
+class WorkerDied(RuntimeError):
+    """A measured worker process ended, hung past its timeout, or answered something that is not a block's
+    figures. ``last_words`` is the last line it wrote to stderr (its exception), for the row's value."""
+
+    def __init__(self, kind: str, last_words: str) -> None:
+        super().__init__(f"{kind} crashed: {last_words}")
+        self.kind = kind
+        self.last_words = last_words
+
+
+class BlockWorker:
+    """One measured client in its own process, driven block by block: it prints ``ready`` once set up, then reads
+    a block size per stdin line and answers one line of numbers per block.
+
+    Why not ``readline()`` on its pipe: a worker that dies answers an empty line (a row then died of a
+    ``ValueError`` unpacking it) and a worker that hangs blocks the whole run. Here every read waits at most its
+    timeout, and whatever goes wrong is a :class:`WorkerDied` carrying the worker's last words; its stderr goes to
+    a file, so a chatty worker cannot fill a pipe and stall.
+    """
+
+    def __init__(self, kind: str, argv: list[str], env: dict[str, str] | None = None, fields: int = 2,
+                 start_timeout: float = 60.0, block_timeout: float = 120.0, cwd: str | None = None) -> None:
+        import subprocess
+        import tempfile
+
+        self.kind, self.fields, self.block_timeout = kind, fields, block_timeout
+        self._err = tempfile.TemporaryFile(mode="w+b")  # noqa: SIM115 - closed when the worker is reported dead
+        self._pending = b""
+        self._silent = False  # the last read ran out of time (the worker hangs): it is killed, not waited for
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err,
+                                     bufsize=0, env=env, cwd=cwd)
+        line = self._line(start_timeout)
+        if line != "ready":
+            raise self._died(f"said {line!r} instead of ready" if line else
+                             f"not ready within {start_timeout:g} s" if self._silent else "ended before it was ready")
+
+    def _line(self, timeout: float) -> str | None:
+        """The worker's next stdout line, or None when it ended or stayed silent for ``timeout`` s."""
+        import selectors
+
+        assert self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        deadline = time.monotonic() + timeout
+        self._silent = False
+        with selectors.DefaultSelector() as sel:
+            sel.register(fd, selectors.EVENT_READ)
+            while b"\n" not in self._pending:
+                left = deadline - time.monotonic()
+                if left <= 0 or not sel.select(left):
+                    self._silent = True
+                    return None
+                chunk = os.read(fd, 4096)
+                if not chunk:
+                    return None
+                self._pending += chunk
+        line, self._pending = self._pending.split(b"\n", 1)
+        return line.decode(errors="replace").strip()
+
+    def _died(self, what: str) -> WorkerDied:
+        if self._silent:
+            self.proc.kill()
+        self.stop()
+        self._err.seek(0)
+        lines = [x.strip() for x in self._err.read().decode(errors="replace").splitlines() if x.strip()]
+        self._err.close()
+        if self._silent:
+            words = what + (f" (its last words: {lines[-1][-200:]})" if lines else "")
+        else:
+            words = lines[-1][-300:] if lines else f"{what}, exit status {self.proc.returncode}"
+        return WorkerDied(self.kind, words)
+
+    def block(self, n: int | str) -> list[float]:
+        """Tell the worker to do ``n`` operations (or send it the words of a block, e.g. ``"poll 100"``); its
+        answer's numbers (``fields`` of them)."""
+        assert self.proc.stdin is not None
+        try:
+            self.proc.stdin.write(f"{n}\n".encode())
+        except (BrokenPipeError, ValueError):
+            raise self._died("ended") from None
+        line = self._line(self.block_timeout)
+        try:
+            values = [float(x) for x in (line or "").split()]
+        except ValueError:
+            values = []
+        if len(values) != self.fields:
+            raise self._died(f"no answer within {self.block_timeout:g} s" if self._silent else
+                             f"answered {line!r}" if line else "ended") from None
+        return values
+
+    def stop(self) -> None:
+        """End the worker (closing its stdin ends its loop; killed if it does not end within 10 s)."""
+        import subprocess
+
+        if self.proc.stdin is not None and not self.proc.stdin.closed:
+            try:
+                self.proc.stdin.close()
+            except BrokenPipeError:
+                pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()

@@ -1,12 +1,12 @@
-"""Row: commissioning a line of N simulated drives with ``--inventory`` (goal: 32 drives in <= 0.25 x 32 single
-runs on 2 cores; CPU per drive reported).
+"""Row: commissioning a line of N simulated drives with ``--inventory`` (goal: CPU per drive <= 0.1 s at N = 32;
+the wall time against N single runs is reported beside it).
 
 The work: one recipe (set the operating mode by object with read-back, check it, check faults, a wait of 0.3 s --
 the drive-side time a real recipe spends enabling, homing or settling, during which a single run only waits) on
 N simulated drives, each its own ``sim://lineK``. The baseline is the same recipe run once on one drive by the
 plain ``commission`` command, measured in the same run, interleaved with the line runs: the ratio is the line's
-wall time over N x the single run's. CPU per drive is the children's CPU (``RUSAGE_CHILDREN``: every drive's
-process) plus the parent's, over N.
+wall time over N x the single run's. CPU per drive is the children's CPU (``RUSAGE_CHILDREN``: the line's
+process and every process it starts) over N: the median of the rounds at N = 32 is the row's figure.
 """
 
 from __future__ import annotations
@@ -18,6 +18,9 @@ import time
 from pathlib import Path
 
 from benchlib import Result, Settings, akdctl_env
+
+#: The issue's goal: CPU per drive when commissioning N = 32 drives.
+CPU_GOAL_S = 0.1
 
 RECIPE = """[recipe]
 name = "line ${name}"
@@ -94,6 +97,7 @@ def line(s: Settings) -> Result:
         notes.append(f"N={n:2}: {wall:.2f} s = {ratio:.3f} x N single runs; CPU per drive {cpu / n * 1000:.0f} ms")
         if n == 32:
             ratio32, cpu32 = ratio, cpu / n
-    ok = ratio32 is not None and ratio32 <= 0.25
-    value = f"{ratio32:.3f} x 32 single runs, CPU {cpu32 * 1000:.0f} ms per drive" if ratio32 else "-"
+    ok = cpu32 is not None and cpu32 <= CPU_GOAL_S
+    value = (f"CPU {cpu32 * 1000:.0f} ms per drive, {ratio32:.3f} x 32 single runs"
+             if cpu32 is not None and ratio32 is not None else "-")
     return Result(value, ok, notes, figures)

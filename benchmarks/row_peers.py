@@ -14,11 +14,21 @@ the worker's last words; the run goes on.
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from collections.abc import Sequence
 
-from benchlib import Result, Sample, Settings, akdctl_env, akdctl_root, fmt_ratio, fmt_us, interleave
+from benchlib import (
+    BlockWorker,
+    Result,
+    Sample,
+    Settings,
+    WorkerDied,
+    akdctl_env,
+    akdctl_root,
+    fmt_ratio,
+    fmt_us,
+    interleave,
+)
 
 GROUP = "239.74.163.9"
 NODE = 3
@@ -71,54 +81,27 @@ for line in sys.stdin:
 """
 
 
-class Worker:
-    """One client in its own process (inside ``netns`` if given), driven block by block over its stdin."""
+class Worker(BlockWorker):
+    """One client in its own process (inside ``netns`` if given), driven block by block over its stdin
+    (:class:`benchlib.BlockWorker`: every wait bounded, a dead worker a :class:`benchlib.WorkerDied`)."""
 
-    def __init__(self, kind: str, where: str, netns: str | None = None) -> None:
+    def __init__(self, kind: str, where: str, netns: str | None = None, script: str = WORKER) -> None:
         prefix: Sequence[str] = ("ip", "netns", "exec", netns) if netns else ()
-        self.kind = kind
-        self.proc = subprocess.Popen([*prefix, sys.executable, "-c", WORKER, kind, where], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=akdctl_env())
-        if self._line() != "ready":
-            raise RuntimeError(f"{kind} did not start: {self._last_words()}")
+        # cwd: ``python -c`` puts the working directory first on sys.path, so a worker started from another
+        # checkout would import that checkout's akdctl instead of the measured one
+        super().__init__(kind, [*prefix, sys.executable, "-c", script, kind, where], env=akdctl_env(),
+                         cwd=str(akdctl_root()))
 
-    def _line(self) -> str:
-        assert self.proc.stdout is not None
-        return self.proc.stdout.readline().strip()
-
-    def _last_words(self) -> str:
-        self.stop()
-        err = self.proc.stderr.read() if self.proc.stderr else ""
-        return (err.strip().splitlines() or [f"exit {self.proc.returncode}"])[-1][-300:]
-
-    def block(self, n: int) -> Sample:
-        assert self.proc.stdin is not None
-        try:
-            self.proc.stdin.write(f"{n}\n")
-            self.proc.stdin.flush()
-        except BrokenPipeError:
-            raise RuntimeError(f"{self.kind} died: {self._last_words()}") from None
-        parts = self._line().split()
-        if len(parts) != 2:
-            raise RuntimeError(f"{self.kind} died: {self._last_words()}")
-        return Sample(n, float(parts[0]), float(parts[1]))
-
-    def stop(self) -> None:
-        if self.proc.stdin is not None and not self.proc.stdin.closed:
-            try:
-                self.proc.stdin.close()
-            except BrokenPipeError:
-                pass
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+    def sample(self, n: int) -> Sample:
+        wall, cpu = self.block(n)
+        return Sample(n, wall, cpu)
 
 
 def _compare(ours: Worker, peer: Worker, s: Settings, n: int, speed_goal: float, peer_name: str) -> Result:
     try:
-        run = interleave(lambda: ours.block(n), lambda: peer.block(n), rounds=s.rounds)
+        run = interleave(lambda: ours.sample(n), lambda: peer.sample(n), rounds=s.rounds)
+    except WorkerDied as exc:  # a crashed client is the row's value, not a crash of the run
+        return Result(str(exc), False, [f"{exc.kind} ended mid-run; its last words: {exc.last_words}"])
     finally:
         peer.stop()
         ours.stop()
@@ -143,6 +126,7 @@ def canopen_vs_python_canopen(s: Settings) -> Result:
     if root not in sys.path:
         sys.path.insert(0, root)
     from servers import sim_server
+
     from tests.netns import LoopbackNetns
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "can")}

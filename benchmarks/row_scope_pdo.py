@@ -14,10 +14,21 @@ The blocks alternate: pdo, poll, pysoem, pdo, ...
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 
-from benchlib import Interleaved, Result, Sample, Settings, akdctl_env, akdctl_root, fmt_ratio, fmt_us, interleave
+from benchlib import (
+    BlockWorker,
+    Interleaved,
+    Result,
+    Sample,
+    Settings,
+    WorkerDied,
+    akdctl_env,
+    akdctl_root,
+    fmt_ratio,
+    fmt_us,
+    interleave,
+)
 
 # argv: kind (ours|pysoem) ifname. Reads "pdo N" / "poll N" / "soem N" per line, answers "wall cpu" per block.
 WORKER = r"""
@@ -82,34 +93,17 @@ else:
 """
 
 
-class Worker:
-    """One master in its own process inside a namespace, driven block by block over its stdin."""
+class Worker(BlockWorker):
+    """One master in its own process inside a namespace, driven block by block over its stdin
+    (:class:`benchlib.BlockWorker`: every wait bounded, a dead master a :class:`benchlib.WorkerDied`)."""
 
     def __init__(self, kind: str, netns: str, ifname: str) -> None:
-        self.proc = subprocess.Popen(["ip", "netns", "exec", netns, sys.executable, "-c", WORKER, kind, ifname],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env=akdctl_env())
-        assert self.proc.stdout is not None
-        if self.proc.stdout.readline().strip() != "ready":
-            err = self.proc.stderr.read() if self.proc.stderr else ""
-            self.stop()
-            raise RuntimeError(f"{kind} master did not start: {err.strip()[-300:]}")
+        super().__init__(kind, ["ip", "netns", "exec", netns, sys.executable, "-c", WORKER, kind, ifname],
+                         env=akdctl_env(), cwd=str(akdctl_root()))
 
-    def block(self, what: str, n: int) -> Sample:
-        assert self.proc.stdin is not None and self.proc.stdout is not None
-        self.proc.stdin.write(f"{what} {n}\n")
-        self.proc.stdin.flush()
-        wall, cpu = self.proc.stdout.readline().split()
-        return Sample(n, float(wall), float(cpu))
-
-    def stop(self) -> None:
-        if self.proc.stdin is not None:
-            self.proc.stdin.close()
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+    def sample(self, what: str, n: int) -> Sample:
+        wall, cpu = self.block(f"{what} {n}")
+        return Sample(n, wall, cpu)
 
 
 def scope_pdo_cpu(s: Settings) -> Result:
@@ -123,6 +117,7 @@ def scope_pdo_cpu(s: Settings) -> Result:
     if root not in sys.path:
         sys.path.insert(0, root)
     from servers import sim_server
+
     from tests.netns import VethPair
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "scope-pdo")}
@@ -134,8 +129,10 @@ def scope_pdo_cpu(s: Settings) -> Result:
         try:
             soem = Worker("pysoem", soem_wire.a, soem_wire.if_a)
             try:
-                run: Interleaved = interleave(lambda: ours.block("pdo", n), lambda: ours.block("poll", n),
-                                              lambda: soem.block("soem", n), rounds=s.rounds)
+                run: Interleaved = interleave(lambda: ours.sample("pdo", n), lambda: ours.sample("poll", n),
+                                              lambda: soem.sample("soem", n), rounds=s.rounds)
+            except WorkerDied as exc:  # a crashed master is the row's value, not a crash of the run
+                return Result(str(exc), False, [f"{exc.kind} ended mid-run; its last words: {exc.last_words}"])
             finally:
                 soem.stop()
         finally:

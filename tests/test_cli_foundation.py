@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from akdctl.transport.base import Transport
+
 from akdctl.errors import EXIT_CHECK, EXIT_COMM, EXIT_DRIVE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 
 
@@ -229,19 +231,12 @@ def test_two_processes_share_one_drive_safely(isolated_env: Path) -> None:
 
 
 # ---------------------------------------------------------------------------- exit codes 3, 5, 130 via fake links
-class _FakeTransport:
-    """A transport whose parameter channel runs a scripted link (registered in-process for one test)."""
+class _FakeTransport(Transport):
+    """A transport whose parameter channel runs a scripted link (registered in-process for one test); every other
+    capability keeps the base class's neutral declaration (transport/base.py), as a real transport's does."""
 
     scheme = "fake"
     reply: bytes | Exception = b""
-
-    def __init__(self, target, options) -> None:
-        self.target = target
-        self.options = options
-        self.parameters = None
-        self.objects = None
-        self.record_link = self.mailbox_link = self.sdo_client = self.message_link = None
-        self.command_link = self.register_link = None  # every link a Transport declares (transport/base.py)
 
     def open(self) -> None:
         from akdctl.links import RecordLink

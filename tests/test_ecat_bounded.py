@@ -70,6 +70,9 @@ def test_a_flood_of_foreign_frames_does_not_hold_the_master() -> None:
         def settimeout(self, value: float) -> None:
             pass
 
+        def setsockopt(self, *option: object) -> None:
+            pass
+
         def recv_into(self, buffer: bytearray) -> int:
             buffer[:len(foreign)] = foreign
             return len(foreign)

@@ -16,7 +16,7 @@ from akdctl.errors import NoAnswer, SdoAborted
 from akdctl.protocol import ethercat as ec
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector
-from akdctl.sim.face_ethercat_raw import EthercatRawFace
+from akdctl.sim.face_ethercat_raw import EthercatRawFace, quick_request
 from akdctl.transport.base import LinkOptions
 from akdctl.transport.ethercat_raw import EcatMaster, EthercatRawTransport
 from akdctl.transport.registry import parse_target
@@ -29,6 +29,7 @@ class Wire:
     def __init__(self, drive: SimDrive, inject: str = "", silent: bool = False) -> None:
         self.master_end, self.slave_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
         self.face = EthercatRawFace("pair0", drive, Injector.parse(inject))
+        self.face.esc.quick = quick_request  # uploads answered on the frame thread, as the served face does
         self.silent = silent
         self.stop = threading.Event()
         self.slave_end.settimeout(0.05)
@@ -45,6 +46,7 @@ class Wire:
             reply = None if self.silent else self.face.handle_frame(frame)
             if reply is not None:
                 self.slave_end.send(reply)
+            self.face.worker.answer_quick()
 
     def close(self) -> None:
         self.stop.set()

@@ -13,7 +13,7 @@ named). Where a bit's words depend on the operating mode and the mode is not kno
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from functools import cache
 
 from akdctl.protocol.record import Record
@@ -49,6 +49,33 @@ class Meaning(Record):
         if value == 0:
             return self.zero
         return ", ".join(self.name(n) or f"bit {n}" for n in range(self.width) if value >> n & 1)
+
+
+class _TextsTable(Mapping[int, str]):
+    """A table of ``catalog/texts.py`` (vendor names, error register bits), read on first use: the words of most
+    values need none of it, and the texts module is the largest of the catalogue (issue 29, cold start)."""
+
+    def __init__(self, name: str, keep: Callable[[str], bool] = lambda text: True) -> None:
+        self._name = name
+        self._keep = keep
+        self._table: dict[int, str] | None = None
+
+    def _rows(self) -> dict[int, str]:
+        if self._table is None:
+            from akdctl.catalog import texts
+
+            table: Mapping[int, str] = vars(texts)[self._name]
+            self._table = {key: text for key, text in table.items() if self._keep(text)}
+        return self._table
+
+    def __getitem__(self, key: int) -> str:
+        return self._rows()[key]
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._rows())
+
+    def __len__(self) -> int:
+        return len(self._rows())
 
 
 def _either(*tables: Mapping[int, str]) -> dict[int, str]:
@@ -119,10 +146,9 @@ _DRIVE_MODES = {0: "profile position", 1: "velocity", 2: "profile velocity", 3: 
 @cache
 def _pnus() -> dict[tuple[int, int | None], Meaning]:
     """(PNU, element or None for every element) → meaning."""
-    from akdctl.catalog.texts import PI_VENDORS
     from akdctl.profiles import statusword as sw
 
-    vendor = Meaning(PI_VENDORS)
+    vendor = Meaning(_TextsTable("PI_VENDORS"))
     return {
         (1, None): Meaning(_word_names(sw.stw1_bits, (1, 2)), bits=True),
         (2, None): Meaning(_word_names(sw.zsw1_bits, (1, 2)), bits=True),
@@ -140,14 +166,13 @@ def _pnus() -> dict[tuple[int, int | None], Meaning]:
 @cache
 def _objects() -> dict[tuple[int, int | None], Meaning]:
     """(index, subindex or None for every subindex ≥ 1) → meaning."""
-    from akdctl.catalog.texts import CANOPEN_VENDORS, ERROR_REGISTER_BITS
     from akdctl.profiles import statusword as sw
 
     modes = Meaning(sw.CIA402_MODES)
     return {
-        (0x1001, 0): Meaning({b: t for b, t in ERROR_REGISTER_BITS.items() if t != "reserved"}, bits=True, width=8,
-                                 zero="no error"),
-        (0x1018, 1): Meaning(CANOPEN_VENDORS),
+        (0x1001, 0): Meaning(_TextsTable("ERROR_REGISTER_BITS", lambda text: text != "reserved"), bits=True, width=8,
+                             zero="no error"),
+        (0x1018, 1): Meaning(_TextsTable("CANOPEN_VENDORS")),
         (0x1018, 2): Meaning(_product),
         (0x1003, None): Meaning(_emcy),
         (0x603F, 0): Meaning(_emcy),

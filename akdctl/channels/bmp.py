@@ -53,6 +53,8 @@ from akdctl.protocol.bmp import (
     ParameterRequest,
     ParameterResult,
     ParameterValue,
+    ReadTemplate,
+    address_key,
     check_address,
     decode_description,
     decode_response,
@@ -62,6 +64,11 @@ from akdctl.protocol.bmp import (
     next_reference,
 )
 from akdctl.links import RecordLink
+
+#: A read's plan: the batches (positions in the caller's list) and each batch's request template.
+_Plan = tuple[list[Batch], list[ReadTemplate]]
+#: Lists of addresses whose plan a channel keeps (a poll repeats a few; a session reading ever new ones starts over).
+_MAX_PLANS = 64
 
 #: Widest element any numeric format has: the retry size when a 4-byte estimate proved too small.
 _WIDEST_ELEMENT = 8
@@ -113,14 +120,30 @@ class BmpParameterChannel(ParameterChannel):
         self.element_size = element_size
         self.requests = 0
         self._reference = reference_start
+        #: The batches and request templates of each list of addresses read so far (``bmp.address_key``).
+        self._plans: dict[tuple[tuple[int, int, int, int], ...], _Plan] = {}
 
     # -- public API ----------------------------------------------------------------------------------------------
 
     def read(self, addresses: Sequence[ParameterAddress]) -> list[ParameterResult]:  # type: ignore[override]
         """One result (value or failure) per address, in order, in as few round trips as the limits allow."""
-        wanted = [self._checked_address(a) for a in addresses]
-        results = self._read(wanted, self.element_size)
-        if not any(type(r) is ParameterFailure for r in results):
+        key = address_key(addresses)
+        plan = self._plans.get(key) if key is not None else None
+        wanted: Sequence[ParameterAddress]
+        if plan is not None:  # this list of addresses was read before: its batches and requests are known
+            wanted = addresses
+            templates = plan[1]
+            if len(templates) == 1 and len(addresses) == 1:
+                results = self._read_request(templates[0])  # (one parameter: no request to halve)
+            else:
+                results = self._read_planned(plan, self.element_size)
+        else:
+            wanted = [self._checked_address(a) for a in addresses]
+            results = self._read(wanted, self.element_size, key)
+        for r in results:
+            if r.__class__ is ParameterFailure:
+                break
+        else:
             return results
         # A per-parameter "response too long" means the 4-byte estimate was short: retry those in smaller ranges.
         retry = [i for i, (a, r) in enumerate(zip(wanted, results))
@@ -176,10 +199,17 @@ class BmpParameterChannel(ParameterChannel):
 
     # -- reading -------------------------------------------------------------------------------------------------
 
-    def _read(self, addresses: list[ParameterAddress], element_size: ElementSize) -> list[ParameterResult]:
+    def _read(self, addresses: list[ParameterAddress], element_size: ElementSize,
+              key: tuple[tuple[int, int, int, int], ...] | None = None) -> list[ParameterResult]:
         sizes = [response_block_size(a, element_size) for a in addresses]  # once per parameter
         if all(HEADER_SIZE + size <= MAX_BLOCK for size in sizes):
-            return self._read_batches(addresses, element_size, sizes)  # the usual case: no parameter is cut
+            # the usual case, no parameter is cut: planned once per list of addresses (``key``)
+            plan = self._plan_reads(addresses, sizes)
+            if key is not None and element_size is self.element_size:
+                if len(self._plans) >= _MAX_PLANS:
+                    self._plans.clear()  # a long session reading ever new lists: start over
+                self._plans[key] = plan
+            return self._read_planned(plan, element_size)
         pieces: list[ParameterAddress] = []
         owners: list[int] = []
         for i, address in enumerate(addresses):
@@ -192,33 +222,58 @@ class BmpParameterChannel(ParameterChannel):
             grouped[owner].append(result)
         return [parts[0] if len(parts) == 1 else self._merge(parts, addresses[i]) for i, parts in enumerate(grouped)]
 
-    def _read_batches(self, addresses: list[ParameterAddress], element_size: ElementSize,
-                      sizes: list[int] | None = None) -> list[ParameterResult]:
+    def _read_batches(self, addresses: list[ParameterAddress], element_size: ElementSize) -> list[ParameterResult]:
         """One result per address, in order, from the requests :func:`plan_reads` groups them into."""
-        if sizes is None:
-            sizes = [response_block_size(a, element_size) for a in addresses]
+        return self._read_planned(self._plan_reads(addresses, [response_block_size(a, element_size)
+                                                               for a in addresses]), element_size)
+
+    def _plan_reads(self, addresses: list[ParameterAddress], sizes: list[int]) -> _Plan:
+        """The batches of a read and each batch's request template."""
         try:
             batches = plan_reads(sizes)
+            return batches, [ReadTemplate(self.axis, tuple([addresses[i] for i in batch])) for batch in batches]
         except BmpError as exc:
             raise UsageError(f"cannot build a parameter request: {exc}") from None
+
+    def _read_planned(self, plan: _Plan, element_size: ElementSize) -> list[ParameterResult]:
+        """One result per address of a planned read, in the caller's order."""
+        batches, templates = plan
         if len(batches) == 1:
-            got = self._exchange(REQ_READ, addresses)
-            if len(addresses) > 1 and all(_too_long(r) for r in got):
-                half = len(addresses) // 2
-                return (self._read_batches(addresses[:half], element_size)
-                        + self._read_batches(addresses[half:], element_size))
-            return got
-        results: list[ParameterResult] = [None] * len(addresses)
-        for batch in batches:
-            asked = [addresses[i] for i in batch]
-            got = self._exchange(REQ_READ, asked)
-            if len(asked) > 1 and all(_too_long(r) for r in got):
-                # The drive refused the whole request as too long: our size estimate was short. Halve it.
-                half = len(asked) // 2
-                got = self._read_batches(asked[:half], element_size) + self._read_batches(asked[half:], element_size)
-            for i, result in zip(batch, got):
+            return self._read_one(templates[0], element_size)
+        results: list[ParameterResult] = [None] * sum(len(batch) for batch in batches)
+        for batch, template in zip(batches, templates):
+            for i, result in zip(batch, self._read_one(template, element_size)):
                 results[i] = result
         return results
+
+    def _read_one(self, template: ReadTemplate, element_size: ElementSize) -> list[ParameterResult]:
+        """One read request; one the drive refused whole as too long (our size estimate was short) is read
+        again in halves."""
+        got = self._read_request(template)
+        asked = template.addresses
+        if len(asked) > 1 and all(_too_long(r) for r in got):
+            half = len(asked) // 2
+            return (self._read_batches(list(asked[:half]), element_size)
+                    + self._read_batches(list(asked[half:]), element_size))
+        return got
+
+    def _read_request(self, template: ReadTemplate) -> list[ParameterResult]:
+        """One round trip of a read request built from its template; the usual answer is read by the template,
+        anything else by :func:`decode_response` (which says what is wrong)."""
+        self._reference = next_reference(reference := self._reference)
+        raw = template.request(reference)
+        self.requests += 1
+        reply = self.link.exchange(raw)
+        if reply.__class__ is not bytes:
+            try:
+                reply = bytes(reply)
+            except TypeError:
+                raise MalformedReply(f"parameter {_what(template.request_object(reference))}: the link returned "
+                                     f"{type(reply).__name__}, not bytes") from None
+        results = template.results(reply, reference)
+        if results is not None:
+            return results
+        return self._decode(template.request_object(reference), raw, reply)
 
     @staticmethod
     def _chunk_read(address: ParameterAddress, element_size: ElementSize) -> list[ParameterAddress]:
@@ -284,6 +339,10 @@ class BmpParameterChannel(ParameterChannel):
         except TypeError:
             raise MalformedReply(f"parameter {_what(request)}: the link returned {type(reply).__name__}, "
                                  "not bytes") from None
+        return self._decode(request, raw, reply)
+
+    @staticmethod
+    def _decode(request: ParameterRequest, raw: bytes, reply: bytes) -> list[ParameterResult]:
         try:
             response = decode_response(reply, request)
         except BmpError as exc:

@@ -34,9 +34,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar, cast
+from typing import TYPE_CHECKING, TypeVar
 
-from akdctl.catalog.texts import mailbox_error_text
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.channels.reply_filter import ReplyFilter
 from akdctl.errors import CommError, MalformedReply, NoAnswer
@@ -179,8 +178,8 @@ class CoeObjectChannel(ObjectChannel):
                            details={"timeout": deadline.total, "attempts": deadline.attempts})
 
     def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int) -> bytes:
-        first = self._sdo(coe.upload_request(index, subindex), coe.SdoUploadResponse, index, subindex, "upload",
-                          deadline, left)
+        self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)  # (what _sdo does, one call less)
+        first = self._exchange(coe.upload_request(index, subindex), self._accept_sdo, left, deadline)
         if not isinstance(first, coe.SdoUploadResponse):
             raise MalformedReply(f"unexpected reply {first!r} to the SDO upload of {_where(index, subindex)}")
         if first.expedited or first.size is None:
@@ -270,8 +269,8 @@ class CoeObjectChannel(ObjectChannel):
              left: int, toggle: int | None = None) -> coe.SdoMessage:
         """Send one SDO request (its CoE data); return the matching server message (aborts raise)."""
         self._want = (wanted, index, subindex, verb, toggle)
-        # (the checker joins the union's members to their base class when it infers T: name the type)
-        return cast("coe.SdoMessage", self._exchange(request, self._accept_sdo, deadline.share(left), deadline))
+        # (the checker joins the union's members to their base class when it infers T: the accept function's type)
+        return self._exchange(request, self._accept_sdo, left, deadline)  # type: ignore[return-value]
 
     def _accept_sdo(self, service: int, payload: bytes, mine: bool) -> coe.SdoMessage | None:
         """The server message if this reply answers the SDO request in ``self._want``, else None."""
@@ -331,7 +330,7 @@ class CoeObjectChannel(ObjectChannel):
                 result.append(done)
                 return True
 
-            self._exchange(data, accept, deadline.share(left), deadline, until=lambda value: value is True)
+            self._exchange(data, accept, left, deadline, until=lambda value: value is True)
             try:
                 message = coe_info.unpack_info(result[0])
             except CodecError as exc:
@@ -377,6 +376,8 @@ class CoeObjectChannel(ObjectChannel):
                 reply = mbx.decode_error_reply(data)
             except CodecError as exc:
                 raise MalformedReply(f"the drive sent a mailbox error reply that does not decode: {exc}") from None
+            from akdctl.catalog.texts import mailbox_error_text  # here: the texts are read only for a refusal
+
             raise CommError(
                 f"the drive refused the mailbox request: {mailbox_error_text(reply.code)} (mailbox error {reply.code})", code=reply.code
             )
@@ -397,14 +398,14 @@ class CoeObjectChannel(ObjectChannel):
         self,
         coe_data: bytes,
         accept: Callable[[int, bytes, bool], T | None],
-        wait: float,
+        left: int,
         deadline: Deadline,
-        until: Callable[[T], bool] = lambda value: True,
+        until: Callable[[T], bool] | None = None,
     ) -> T:
         """Send once, then read until ``accept`` returns a value ``until`` approves.
 
-        Waits at most ``wait`` seconds for each reply (never past ``deadline``); raises _Silence
-        when none comes.
+        Waits for each reply at most this attempt's share of what is left of ``deadline`` (``left``: the
+        attempts left, this one included), never past it; raises _Silence when none comes.
         """
         if self._stale:
             self._drain()
@@ -417,10 +418,16 @@ class CoeObjectChannel(ObjectChannel):
             log.info("sending the request was not confirmed (%s); listening for an answer anyway", exc)
             counter = self._counter
         self.filter.sent(counter)
-        end = min(deadline.at, time.monotonic() + wait)
+        now = time.monotonic()
+        wait = max(0.0, deadline.at - now) / max(1, left)  # (Deadline.share, with the clock read once)
+        end = now + wait
+        remaining = wait
         while True:
-            raw = self.link.receive(max(0.0, end - time.monotonic()))
-            if raw is None or time.monotonic() > end:
+            raw = self.link.receive(remaining)
+            if raw is not None:
+                now = time.monotonic()
+                remaining = end - now
+            if raw is None or remaining < 0:
                 # Silence -- or only mailboxes that are not the answer until the wait ran out: a slave that keeps
                 # presenting a foreign reply (SM1 in buffered mode, issue 23 item 12) must not hold us forever.
                 self._stale = True
@@ -439,7 +446,8 @@ class CoeObjectChannel(ObjectChannel):
                 continue
             self.filter.accepted(raw, got)
             self._proven = mine
-            if until(value):
+            if until is None or until(value):
                 return value
-            end = min(deadline.at, time.monotonic() + wait)  # a fragment arrived: wait for the next one
+            end = min(deadline.at, now + wait)  # a fragment arrived: wait for the next one
+            remaining = max(0.0, end - now)
 

@@ -127,9 +127,15 @@ def adopt(command: click.Command, root: click.Command) -> click.Command:
     if getattr(command, "_akdctl_adopted", False) or command is root:
         return command
     command._akdctl_adopted = True  # type: ignore[attr-defined]
-    late = _late_copies(root, command)
+    late: list[list[click.Option]] = []  # made when click first asks: only the commands of this invocation pay
     own_params = command.get_params
-    command.get_params = lambda ctx: [*own_params(ctx), *late]  # type: ignore[method-assign]
+
+    def get_params(ctx: click.Context) -> list[click.Parameter]:
+        if not late:
+            late.append(_late_copies(root, command))
+        return [*own_params(ctx), *late[0]]
+
+    command.get_params = get_params  # type: ignore[method-assign]
     command.make_parser = _make_parser.__get__(command)  # type: ignore[method-assign]
     if isinstance(command, click.Group):
         if not hasattr(command, "lazy"):  # LazyGroup lists its own (cli/main.py), with the same rule

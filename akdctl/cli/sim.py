@@ -111,10 +111,8 @@ def _serve_callback(**kwargs: Any) -> None:
     from akdctl.cli.output import message
 
     duration = kwargs.pop("duration")
-    from akdctl.sim.drive import FACE_LOCK_TIMEOUT
-
     drive = _sim_drive(kwargs.pop("name"))  # the target's drive unless --name says otherwise (issue 23.9)
-    drive.lock_timeout = FACE_LOCK_TIMEOUT  # a face answers "busy" before its client's timeout (issue 23.15)
+    drive.serve_faces()  # busy answered before the client's timeout (issue 23.15); the lock kept between requests
     name = drive.name
     faces = []
     orphans: list[str] = []

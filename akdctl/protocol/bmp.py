@@ -28,8 +28,9 @@ Every malformed input raises :class:`BmpError` (a
 
 from __future__ import annotations
 
+import operator
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -939,3 +940,121 @@ def pack_read_response(request: bytes, blocks: "list[bytes]", negative: bool) ->
     """A read response to ``request`` from its value/error blocks, already packed: the request's reference,
     axis and number of parameters, the response ID (negative when any block is an error block)."""
     return bytes((request[0], RESP_READ_NAK if negative else RESP_READ_OK, request[2], len(blocks))) + b"".join(blocks)
+
+
+# ---------------------------------------------------------------------------- the client's read, once per shape
+# A poll reads the same parameters again and again. The client encodes a read request once per list of addresses
+# (with encode_request) and patches the reference per call; it reads the usual response - the reference, axis and one
+# block per parameter it asked for - with the one block decoder, and leaves anything else to decode_response, which
+# words what is wrong. tests/test_bmp_read_template.py holds both equal to the general codec.
+
+_REFERENCE_BYTE = [bytes((i,)) for i in range(256)]
+#: A read answer's layout (ReadTemplate._shape): the whole response as one Struct, what picks each block's format and
+#: count out of what it unpacks, their expected values, and each block's format and the span of its values.
+_Shape = tuple[struct.Struct, Callable[[tuple[object, ...]], tuple[int, ...]], tuple[int, ...],
+               list[tuple[int, int, int]]]
+
+
+def address_key(addresses: Sequence[object]) -> tuple[tuple[int, int, int, int], ...] | None:
+    """(PNU, subindex, count, attribute) of every address when each is a ParameterAddress of plain ints that
+    :func:`check_address` accepts, as one hashable key; None when one is not (check_address then says why)."""
+    key = []
+    for a in addresses:
+        if a.__class__ is not ParameterAddress:
+            return None
+        pnu, subindex, count, attribute = a.pnu, a.subindex, a.count, a.attribute  # type: ignore[attr-defined]
+        if not (type(pnu) is int and type(subindex) is int and type(count) is int and type(attribute) is int
+                and attribute in ATTRIBUTES and 1 <= pnu <= 0xFFFF and 0 <= subindex <= MAX_SUBINDEX
+                and 1 <= count <= MAX_ELEMENTS):
+            return None
+        key.append((pnu, subindex, count, attribute))
+    return tuple(key)
+
+
+class ReadTemplate:
+    """The read request of ``addresses`` on ``axis``, encoded once by :func:`encode_request`; :meth:`request` gives
+    it with a reference, :meth:`results` reads the usual answer."""
+
+    __slots__ = ("addresses", "axis", "_tail", "_shape")
+
+    def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]") -> None:
+        self.axis = axis
+        self.addresses = addresses
+        self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses))[1:]
+        #: The layout of the last answer when every block was numeric values (_Shape). A poll's answers keep their
+        #: shape; one that does not is read block by block.
+        self._shape: _Shape | None = None
+
+    def request(self, reference: int) -> bytes:
+        """The request's bytes with ``reference`` (1..255)."""
+        return _REFERENCE_BYTE[reference] + self._tail
+
+    def results(self, data: bytes, reference: int) -> "list[ParameterResult] | None":
+        """One result per address - what ``decode_response(data, request).results`` gives - when ``data`` is a read
+        response (positive or negative) with ``reference``, the axis, one block per address and, for values, the
+        number of values asked for; else None (decode_response decides and words what is wrong)."""
+        addresses = self.addresses
+        size = len(data)
+        if size > MAX_BLOCK or size < HEADER_SIZE or data[0] != reference or data[2] != self.axis \
+                or data[3] != len(addresses) or (data[1] != RESP_READ_OK and data[1] != RESP_READ_NAK):
+            return None
+        shape = self._shape
+        if shape is not None and shape[0].size == size:  # the answer looks like the last one: one unpack
+            layout, heads, expected, blocks = shape
+            fields = layout.unpack(data)
+            if heads(fields) == expected:
+                return [ParameterValue(fmt, fields[start:stop]) for fmt, start, stop in blocks]
+        offset = HEADER_SIZE
+        results: list[ParameterResult] = []
+        try:
+            for address in addresses:
+                result, offset = decode_value_block(data, offset)
+                if result is None or (result.__class__ is ParameterValue and address.attribute == ATTR_VALUE
+                                      and result.count != address.count):  # type: ignore[union-attr]
+                    return None
+                results.append(result)
+        except BmpError:
+            return None
+        if offset != size:
+            return None
+        self._shape = _numeric_shape(results, size)
+        return results
+
+    def request_object(self, reference: int) -> ParameterRequest:
+        """The request as a message (for :func:`decode_response` when :meth:`results` leaves the answer to it)."""
+        return ParameterRequest(reference, REQ_READ, self.axis, self.addresses)
+
+
+def _numeric_shape(results: list[ParameterResult], size: int) -> _Shape | None:
+    """The layout of a read response whose blocks are all numeric values, as :func:`decode_value_block` reads them
+    (format, count, the values by the format's struct code, a pad byte after an odd number of value bytes); None
+    when a block is anything else or the layout does not span ``size`` bytes."""
+    codes = [">4x"]
+    heads: list[int] = []
+    expected: list[int] = []
+    blocks: list[tuple[int, int, int]] = []
+    at = 0  # position in the unpacked fields
+    for result in results:
+        if result.__class__ is not ParameterValue:
+            return None
+        fmt = result.format  # type: ignore[union-attr]
+        code = _STRUCT.get(fmt)
+        count = len(result.values)  # type: ignore[union-attr]
+        if code is None or fmt == _ERROR or not 1 <= count <= MAX_ELEMENTS:
+            return None
+        odd = count * _SIZES[fmt] & 1
+        codes.append(f"BB{count}{code}{'x' if odd else ''}")
+        heads += (at, at + 1)
+        expected += (fmt, count)
+        blocks.append((fmt, at + 2, at + 2 + count))
+        at += 2 + count
+    layout = struct.Struct("".join(codes))
+    if layout.size != size or len(heads) < 2:
+        return None
+    return layout, operator.itemgetter(*heads), tuple(expected), blocks
+
+
+def first_read_address(data: bytes) -> tuple[int, int, int, int]:
+    """(attribute, number of elements, PNU, subindex) of the first address after the header: what
+    :func:`iter_read_addresses` yields first, without a generator (the server's one-parameter read, issue 29)."""
+    return _ADDRESS.unpack_from(data, HEADER_SIZE)  # type: ignore[return-value]

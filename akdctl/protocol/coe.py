@@ -420,3 +420,41 @@ def expedited_upload_value(payload: bytes, index: int, subindex: int) -> bytes |
     if command & 0x01:
         return bytes(payload[4:8 - (command >> 2 & 0x03)])
     return bytes(payload[4:8])
+
+
+# --- the whole upload mailbox in one step (the simulated drive's SDO server, issue 29) --------------------------
+# The poll's upload initiate reaches the server as one 16-byte mailbox: mailbox header (6), CoE header (2), SDO (8).
+# One unpack reads what the general path (mailbox.split, decode_coe, sdo_address) reads of it and one pack writes
+# the expedited answer mailbox (mailbox.pack of coe_header + pack_expedited_upload_response): the layouts are the
+# codecs' (this module's and mailbox.py's header), held equal to the general encoders by tests/test_fast_paths.py.
+
+_MAILBOX_TYPE_COE = 3  # mailbox.MailboxType.COE (coe does not import mailbox; the test holds them equal)
+_UPLOAD_MAILBOX_SIZE = 16
+_UPLOAD_MAILBOX = struct.Struct("<HHBBHBHB")  # length, address, channel|priority, type|counter, CoE, command, index, sub
+_EXPEDITED_MAILBOX = struct.Struct("<HHBBHBHB4s")
+
+
+def plain_upload_initiate(mailbox: bytes) -> tuple[int, int, int, int] | None:
+    """(address, counter, index, subindex) when ``mailbox`` is exactly an SDO upload initiate request of CoE on
+    channel 0 (16 bytes, length 10, no complete access); None for anything else, which the general path decodes."""
+    if len(mailbox) != _UPLOAD_MAILBOX_SIZE:
+        return None
+    length, address, channel, type_counter, header, command, index, subindex = _UPLOAD_MAILBOX.unpack_from(mailbox)
+    if (length != _UPLOAD_MAILBOX_SIZE - 6 or channel & 0x3F or type_counter & 0x0F != _MAILBOX_TYPE_COE
+            or header >> 12 != CoeService.SDO_REQUEST or command != UPLOAD_INITIATE_COMMAND):
+        return None
+    return address, (type_counter >> 4) & 0x07, index, subindex
+
+
+def pack_expedited_upload_mailbox(address: int, counter: int, index: int, subindex: int, value: bytes) -> bytes:
+    """The whole answer mailbox of an expedited upload (1..4 bytes, channel 0, CoE number 0): what
+    ``mailbox.pack(COE, coe_header(SDO_RESPONSE) + pack_expedited_upload_response(...), address, counter)`` writes."""
+    return _EXPEDITED_MAILBOX.pack(_UPLOAD_MAILBOX_SIZE - 6, address, 0, _MAILBOX_TYPE_COE | counter << 4,
+                                   CoeService.SDO_RESPONSE << 12, 0x43 | (4 - len(value)) << 2, index, subindex, value)
+
+
+def is_upload_request(coe_data: bytes) -> bool:
+    """Whether CoE data (header + SDO) is a client's SDO upload request, initiate or segment: a read the
+    simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""
+    return (len(coe_data) >= COE_HEADER_SIZE + 1 and coe_data[1] >> 4 == CoeService.SDO_REQUEST
+            and coe_data[COE_HEADER_SIZE] >> 5 in (2, 3))  # ccs 2 upload initiate, 3 upload segment (CiA 301)

@@ -20,9 +20,11 @@ Datagram::
 
 from __future__ import annotations
 
+import operator
 import struct
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Any
 
 from akdctl.protocol.errors import CodecError
 
@@ -251,7 +253,7 @@ def encode_ethernet(payload: bytes, src: bytes, dst: bytes = BROADCAST_MAC, ethe
     return frame + bytes(max(0, ETH_MIN_FRAME - len(frame)))
 
 
-def decode_ethernet(frame: bytes) -> tuple[bytes, bytes, int, bytes]:
+def decode_ethernet(frame: bytes | bytearray) -> tuple[bytes, bytes, int, bytes]:
     """(dst, src, ethertype, payload); a 802.1Q tag is skipped."""
     if len(frame) < ETH_HEADER:
         raise CodecError("Ethernet frame shorter than 14 bytes")
@@ -270,7 +272,7 @@ def encode_frame(datagrams: list[Datagram], src: bytes, dst: bytes = BROADCAST_M
     return encode_ethernet(encode_datagrams(datagrams), src, dst)
 
 
-def decode_frame(frame: bytes) -> tuple[bytes, bytes, list[Datagram]]:
+def decode_frame(frame: bytes | bytearray) -> tuple[bytes, bytes, list[Datagram]]:
     """(dst, src, datagrams) of an EtherCAT Ethernet frame."""
     dst, src, ethertype, payload = decode_ethernet(frame)
     if ethertype != ETHERTYPE_ECAT:
@@ -284,23 +286,32 @@ class FrameTemplate:
     Why: a master's mailbox polls send the same frame over and over; building datagram objects and
     encoding them per frame cost more than the frame's trip through the slave. Per use only the
     index (and, for :meth:`stamp` with ``data``, the first datagram's data) changes, and a reply is
-    read at fixed offsets (:meth:`read`), checked against the command, address and length sent.
+    read with one precompiled struct (:meth:`read`), checked against the command, register and length
+    sent (the ADP is not compared: position and broadcast commands count it on the way).
     """
 
-    __slots__ = ("frame", "size", "_index_at", "_slots", "_heads")
+    __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
+                 "_results")
 
     def __init__(self, datagrams: list[Datagram], src: bytes) -> None:
         self.frame = bytearray(encode_frame(datagrams, src))
+        self.count = len(datagrams)
+        self._head = bytes(self.frame[12:ETH_HEADER + 2])  # EtherType and EtherCAT header
         self._index_at: list[int] = []
-        self._slots: list[tuple[int, int]] = []  # (data start, data end = WKC offset)
-        self._heads: list[tuple[int, bytes]] = []  # (offset, cmd byte + ADO and length) to find in a reply
         pos = ETH_HEADER + 2
         for d in datagrams:
             self._index_at.append(pos + 1)
-            self._heads.append((pos, bytes(self.frame[pos + 4 : pos + 8])))
-            self._slots.append((pos + 10, pos + 10 + len(d.data)))
             pos += 12 + len(d.data)
         self.size = pos
+        self._data_at = (ETH_HEADER + 12, ETH_HEADER + 12 + len(datagrams[0].data))
+        # The datagrams as they come back: cmd, index, ADP, ADO, length, IRQ, data, WKC each (the layout above).
+        self._reply = struct.Struct("<" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
+        self._fields = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
+        self._results = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (6, 7)))
+        sent = self._reply.unpack_from(self.frame, ETH_HEADER + 2)
+        self._expect = [tuple(v for k in range(self.count) for v in (sent[8 * k], index, sent[8 * k + 3],
+                                                                    sent[8 * k + 4]))
+                        for index in range(256)]  # what _fields reads from the reply, per index
 
     def stamp(self, index: int, data: bytes | None = None) -> bytes:
         """The frame with ``index`` in every datagram (and ``data`` in the first, of the template's length)."""
@@ -308,24 +319,22 @@ class FrameTemplate:
         for at in self._index_at:
             frame[at] = index
         if data is not None:
-            start, end = self._slots[0]
+            start, end = self._data_at
             if len(data) != end - start:
                 raise CodecError(f"datagram data of {len(data)} bytes for a {end - start}-byte slot")
             frame[start:end] = data
         return bytes(frame)
 
-    def read(self, reply: bytes | bytearray, index: int) -> list[tuple[bytes, int]] | None:
-        """(data, working counter) per datagram if ``reply`` is this frame with ``index`` coming back,
-        else None (another frame, a VLAN tag: the caller decodes it the general way)."""
-        frame = self.frame
-        if len(reply) < self.size or reply[12:16] != frame[12:16]:
+    def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> tuple[Any, ...] | None:
+        """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if
+        ``reply`` (its first ``size`` bytes: a receive buffer may be longer) is this frame with ``index`` coming
+        back; else None (another frame, a VLAN tag: the caller decodes it the general way)."""
+        if (len(reply) if size is None else size) < self.size or not reply.startswith(self._head, 12):
             return None
-        out = []
-        for (pos, head), (start, end) in zip(self._heads, self._slots):
-            if reply[pos] != frame[pos] or reply[pos + 1] != index or reply[pos + 4 : pos + 8] != head:
-                return None
-            out.append((bytes(reply[start:end]), reply[end] | reply[end + 1] << 8))
-        return out
+        got = self._reply.unpack_from(reply, ETH_HEADER + 2)
+        if self._fields(got) != self._expect[index]:
+            return None
+        return self._results(got)  # type: ignore[no-any-return]
 
 
 # --- SyncManager and FMMU register blocks --------------------------------------------------------------
@@ -366,3 +375,4 @@ class SyncManager:
     def writes_to_slave(self) -> bool:
         """Direction bits 2-3: 01 = ECAT writes (master -> slave)."""
         return (self.control & 0x0C) == 0x04
+

@@ -24,7 +24,6 @@ at most the 4 header bytes it double-counts is clipped, not refused.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
 
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -53,19 +52,20 @@ class MailboxType:
     VOE = 15
 
 
-@dataclass(frozen=True)
-class Mailbox:
-    """One mailbox frame: header fields plus the protocol data after the header.
+class Mailbox(Record):
+    """One mailbox frame: header fields plus the protocol data after the header (a Record, as the other codec
+    messages on the cold path: ``replace`` gives a rewritten copy)."""
 
-    Still a dataclass (unlike the other records on the cold path): callers rewrite one with ``dataclasses.replace``.
-    """
+    __slots__ = ("type", "data", "address", "channel", "priority", "counter")
 
-    type: int
-    data: bytes
-    address: int = 0
-    channel: int = 0
-    priority: int = 0
-    counter: int = 0
+    def __init__(self, type: int, data: bytes, address: int = 0, channel: int = 0, priority: int = 0,
+                 counter: int = 0) -> None:
+        self.type = type
+        self.data = data
+        self.address = address
+        self.channel = channel
+        self.priority = priority
+        self.counter = counter
 
 
 def _check(name: str, value: int, low: int, high: int) -> int:

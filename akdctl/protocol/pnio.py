@@ -390,6 +390,15 @@ def _first_block(data: bytes, btype: int) -> tuple[bytes, int]:
 
 def write_response(data: bytes) -> tuple[int, int, "PnioStatus"]:
     """(sequence number, record index, PNIOStatus) of an IODWriteResHeader."""
+    if len(data) >= 48:  # the usual answer, one unpack: the header block first, as long as it should be
+        btype, length, seq, index, status = _WRITE_RES_FIELDS.unpack_from(data)
+        if btype == BT_WRITE_RES and 60 <= length <= len(data) - 4:
+            return seq, index, PnioStatus.decode_bytes(status)
+    return _write_response(data)
+
+
+def _write_response(data: bytes) -> tuple[int, int, "PnioStatus"]:
+    """:func:`write_response` by the general block rules (the header block searched when it is not first)."""
     content, _end = _first_block(data, BT_WRITE_RES)
     if len(content) < 58:
         raise PnioError(f"block 0x{BT_WRITE_RES:04X} has {len(content)} bytes, needs 58")
@@ -399,6 +408,15 @@ def write_response(data: bytes) -> tuple[int, int, "PnioStatus"]:
 
 def read_response(data: bytes) -> tuple[int, int, bytes]:
     """(sequence number, record index, record data) of an IODReadResHeader and the data after it."""
+    if len(data) >= 64:  # the usual answer, one unpack: the header block first, 60 bytes long, its data after it
+        btype, length, seq, index, record_length = _READ_RES_FIELDS.unpack_from(data)
+        if btype == BT_READ_RES and length == 60 and 64 + record_length <= len(data):
+            return seq, index, bytes(data[64:64 + record_length])
+    return _read_response(data)
+
+
+def _read_response(data: bytes) -> tuple[int, int, bytes]:
+    """:func:`read_response` by the general block rules."""
     content, end = _first_block(data, BT_READ_RES)
     if end < 0:  # found by the general split, which keeps the record data in the content
         block = _one_block(data, BT_READ_RES)
@@ -412,6 +430,13 @@ def read_response(data: bytes) -> tuple[int, int, bytes]:
     if len(record) != length:
         raise PnioError(f"read response announces {length} record bytes, {len(record)} present")
     return seq, index, bytes(record)
+
+
+# BlockHeader (type, length; version skipped) and the fields of the record header a client reads (_RW_HEAD after 6
+# bytes: sequence number, then AR UUID, API, slot, subslot, padding skipped, index; a write response's PNIOStatus
+# after the record length and AdditionalValue1/2, a read response's record length)
+_WRITE_RES_FIELDS = struct.Struct(">HH2xH26xH8x4s")
+_READ_RES_FIELDS = struct.Struct(">HH2xH26xHI")
 
 
 @dataclass(frozen=True)

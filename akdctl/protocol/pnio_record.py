@@ -130,3 +130,19 @@ def record_request_plain(blocks: bytes, block_type: int) -> RecordCall | None:
             if block_type == BT_WRITE_REQ and size == 64 + length:
                 return _new_record((seq, ar, api, slot, subslot, _PAD2, index, length, blocks[64:]))
     return None
+
+
+# --- the whole response to a plain record call in one step (the simulator's PROFINET face, issue 29) -------------
+# The reply header's fields the request gave (version; drep .. activity UUID; interface version .. activity hint;
+# serial low, data representation's tail) around the ones a response sets, then PNIOStatus and the NDR array header.
+_RESPONSE = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII")
+             for little, order in ((False, ">"), (True, "<"))}
+
+
+def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.PnioStatus, blocks: bytes) -> bytes:
+    """The response datagram to the plain record call ``data``: what ``reply_head(data, little, PT_RESPONSE, boot,
+    n) + pnio.encode_response_args(status, blocks, little=little)`` writes, in one pack."""
+    n = len(blocks)
+    return _RESPONSE[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
+                                  data[60:74], 20 + n, 0, data[78:80],
+                                  _OK_BYTES if status is OK else status.encode(), n, n, 0, n) + blocks

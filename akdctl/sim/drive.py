@@ -23,6 +23,21 @@ Why it is cheap (a network face answers thousands of requests a second):
   process that loads an older file advances it by the same wall time.
   Read-only requests on a drive at rest therefore never write the file, and a
   save costs what the state costs, once per change.
+* A drive that answers network faces (``sim serve``, :meth:`SimDrive.serve_faces`)
+  *keeps* the lock between its requests instead of taking and dropping it per
+  request: while it holds the lock nobody else can have saved, so a request costs
+  no lock or token system call at all. It hands the lock over on demand: a
+  process that finds the drive locked takes the *turn* file (one asker at a time)
+  and writes a byte into the *ask* FIFO; the holder's watcher thread wakes, drops
+  the lock once the request in progress has ended, and waits until the asker
+  holds the lock (it lets go of the turn then) before its faces may take it
+  again. The next face request takes the lock the ordinary way, reads the token
+  and reloads what the asker saved before it answers. While others want the
+  drive (it was asked, or had to wait for the lock) it takes the lock per
+  request for a while, as every other process does, so a crowd of writers is
+  not queued behind one hand-over each. The watcher also drops the lock after a
+  moment without requests (a locker that does not ask still gets it) and when
+  the lock file was removed.
 """
 
 from __future__ import annotations
@@ -30,20 +45,18 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import json
 import math
 import os
-import re
+import stat
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from akdctl.errors import CommError, UsageError
-from akdctl.io.atomic import atomic_open
 from akdctl.io.state_dir import state_dir  # re-exported: sim users name it here
+from akdctl.sim.errors import DamagedState
 from akdctl.sim.model import DriveModel
 
 T = TypeVar("T")
@@ -57,6 +70,16 @@ DEFAULT_TIME_SCALE = 1.0
 MAX_STATE_BYTES = 64 << 20  # far above any real state; a bigger file is not ours
 TOKEN_BYTES = 32
 MAX_TIME_SCALE = 1e7  # the most `akdctl sim speed` accepts
+#: How often the watcher of a drive that keeps its lock looks at it (idle, lock file removed); also how long a
+#: locker that does not ask waits at most beyond HOLD_IDLE_S.
+HOLD_TICK_S = 0.05
+#: A kept lock is dropped after this long without a request.
+HOLD_IDLE_S = 0.1
+#: Poll interval of a process that holds the turn (it asked the holder and waits for the lock).
+TURN_POLL_S = 0.001
+#: After handing the lock over, a served drive takes it per request (as every other process does) for this long
+#: before it keeps it again: while others want the drive, keeping it would make each of them wait for a hand-over.
+HOLD_BACKOFF_S = 0.25
 
 
 class SimStateError(UsageError):
@@ -70,14 +93,16 @@ def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
     return model.revision, meta.get("time_scale")
 
 
-@dataclass
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    model: DriveModel
-    meta: dict[str, Any]
-    token: bytes
-    mark: tuple[int, Any]  # the mark of what the state file holds
+    __slots__ = ("model", "meta", "token", "mark")
+
+    def __init__(self, model: DriveModel, meta: dict[str, Any], token: bytes, mark: tuple[int, Any]) -> None:
+        self.model = model
+        self.meta = meta
+        self.token = token
+        self.mark = mark  # the mark of what the state file holds
 
 
 class SimDrive:
@@ -88,6 +113,8 @@ class SimDrive:
         self.directory = Path(directory) if directory is not None else state_dir()
         self.path = self.directory / f"sim-{name}.json"
         self.lock_path = self.directory / f"sim-{name}.lock"
+        self.turn_path = self.directory / f"sim-{name}.turn"  # one asker at a time (see the module doc)
+        self.ask_path = self.directory / f"sim-{name}.ask"  # the FIFO an asker writes a byte into
         self.meta: dict[str, Any] = {}
         self._sdo_server: Any = None
         self._pnu_server: Any = None
@@ -96,20 +123,42 @@ class SimDrive:
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
         self._mutex = threading.Lock()
         self._held: _Held | None = None
-        self._tmp_name = re.compile(rf"\.sim-{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp")
+        self._keep = False  # serve_faces(): keep the lock between requests
+        self._holding = False  # the lock is kept now (flock held outside a transaction)
+        self._trusted = False  # the held model is current: the lock was kept since the last transaction
+        self._turn_fd = -1
+        self._watcher: threading.Thread | None = None
+        self._keep_from = 0.0  # monotonic time from which a lock taken is kept again (HOLD_BACKOFF_S)
+        self._tmp_prefix = f".sim-{name}."  # atomic_open's temporaries: PREFIX + 8 of [a-z0-9_] + ".tmp"
+
+    def serve_faces(self) -> None:
+        """This object answers network faces from now on (``sim serve``): a face waits FACE_LOCK_TIMEOUT for the
+        lock, and the lock is kept between requests and handed over to whoever asks (the module doc)."""
+        self.lock_timeout = FACE_LOCK_TIMEOUT
+        self._keep = True
+
+    @property
+    def keeps_lock(self) -> bool:
+        """Whether :meth:`serve_faces` made this drive keep its lock between requests."""
+        return self._keep
 
     def close(self) -> None:
         """Close the lock file and forget the model (the state file stays)."""
         with self._mutex:
             self._held = None
+            self._holding = self._trusted = False
             if self._lock_fd >= 0:
                 os.close(self._lock_fd)
                 self._lock_fd = -1
+            if self._turn_fd >= 0:
+                os.close(self._turn_fd)
+                self._turn_fd = -1
 
     def __del__(self) -> None:
         with contextlib.suppress(Exception):
-            if self._lock_fd >= 0:
-                os.close(self._lock_fd)
+            for fd in (self._lock_fd, self._turn_fd):
+                if fd >= 0:
+                    os.close(fd)
 
     # ------------------------------------------------------------------ locking
     def _locked_text(self) -> str:
@@ -123,12 +172,26 @@ class SimDrive:
             raise self._os_error("cannot open the simulator's lock file", self.lock_path, exc) from None
 
     def _acquire(self) -> int:
-        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file; returns
-        the lock file's descriptor. :meth:`_release` lets go of both."""
+        """Hold this drive exclusively: the thread mutex, then the ``flock`` on the kept-open lock file (kept
+        already when :attr:`_holding`); returns the lock file's descriptor. :meth:`_release` lets go of both
+        (of the flock only when it is not kept)."""
         if not self._mutex.acquire(timeout=self.lock_timeout):
             raise CommError(self._locked_text())
+        if self._holding:
+            return self._lock_fd
         try:
-            deadline = None
+            return self._take_lock()
+        except BaseException:
+            self._mutex.release()
+            raise
+
+    def _take_lock(self) -> int:
+        """Under the mutex: ``flock`` the lock file. Found locked, ask the holder for it (the turn, then a byte in
+        the ask FIFO) and poll until it is ours or ``lock_timeout`` passed."""
+        deadline = None
+        turn = False
+        self._trusted = False
+        try:
             while True:
                 if self._lock_fd < 0:
                     self._lock_fd = self._open_lock()
@@ -139,23 +202,126 @@ class SimDrive:
                     deadline = deadline or now + self.lock_timeout
                     if exc.errno not in (errno.EAGAIN, errno.EACCES) or now > deadline:
                         raise CommError(self._locked_text()) from None
-                    time.sleep(0.005)
+                    turn = turn or self._try_turn()
+                    if turn:
+                        self._ask_holder()
+                    time.sleep(TURN_POLL_S if turn else 0.005)
                     continue
                 if os.fstat(self._lock_fd).st_nlink:
+                    if self._keep and (deadline is None and time.monotonic() >= self._keep_from):
+                        self._start_holding()
                     return self._lock_fd
                 # The lock file was removed (a user cleaning the state directory): others lock the new one.
                 os.close(self._lock_fd)
                 self._lock_fd = -1
                 self._held = None
-        except BaseException:
-            self._mutex.release()
-            raise
+        finally:
+            if turn:
+                fcntl.flock(self._turn_fd, fcntl.LOCK_UN)
 
     def _release(self, lock_fd: int) -> None:
         try:
-            fcntl.flock(lock_fd, fcntl.LOCK_UN)
+            if not self._holding:
+                fcntl.flock(lock_fd, fcntl.LOCK_UN)
         finally:
             self._mutex.release()
+
+    # ------------------------------------------------------------------ hand-over of a kept lock
+    def _try_turn(self) -> bool:
+        """Take the turn file without waiting: one asker at a time, so a holder can tell when its asker got in."""
+        try:
+            if self._turn_fd < 0:
+                self._turn_fd = os.open(self.turn_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW, 0o644)
+            fcntl.flock(self._turn_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            return False  # taken by another asker (or unusable): poll the lock as before
+
+    def _ask_holder(self) -> None:
+        """One byte into the ask FIFO: wakes the watcher of a drive that keeps the lock (none listening: ENXIO)."""
+        try:
+            fd = os.open(self.ask_path, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOFOLLOW)
+        except OSError:
+            return
+        try:
+            if stat.S_ISFIFO(os.fstat(fd).st_mode):  # never write into a file someone put in its place
+                os.write(fd, b"?")
+        except OSError:
+            pass  # full: the holder has not read the earlier bytes yet, it will
+        finally:
+            os.close(fd)
+
+    def _open_ask(self) -> int:
+        """The ask FIFO opened for the watcher (read and write, so it never reads end-of-file); -1 if there
+        cannot be one (then the lock is not kept: each request takes it, as before)."""
+        with contextlib.suppress(FileExistsError, OSError):
+            os.mkfifo(self.ask_path, 0o644)
+        try:
+            fd = os.open(self.ask_path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOFOLLOW)
+        except OSError:
+            return -1
+        if not stat.S_ISFIFO(os.fstat(fd).st_mode):
+            os.close(fd)
+            return -1
+        return fd
+
+    def _start_holding(self) -> None:
+        """Under the mutex, the lock just taken: keep it from now on, the watcher running."""
+        if self._watcher is None:
+            ask_fd = self._open_ask()
+            if ask_fd < 0:
+                return
+            self._watcher = threading.Thread(target=self._watch, args=(ask_fd,), name=f"sim-{self.name}-lock",
+                                             daemon=True)
+            self._watcher.start()
+        self._holding = True
+
+    def _watch(self, ask_fd: int) -> None:
+        """The watcher: gives the kept lock up when asked, after HOLD_IDLE_S without a request, or when the lock
+        file was removed; then it ends (a drive nobody uses keeps no thread), the next kept lock starts another."""
+        import select  # only sim serve keeps a lock: the CLI's read paths never load it
+
+        try:
+            while True:
+                ready = select.select([ask_fd], [], [], HOLD_TICK_S)[0]
+                if ready:
+                    with contextlib.suppress(OSError):
+                        while os.read(ask_fd, 512):
+                            pass
+                if not self._mutex.acquire(timeout=HOLD_TICK_S):
+                    continue  # a long request; asked, it is asked again
+                try:
+                    if not self._holding:  # closed
+                        self._watcher = None
+                        return
+                    if ready or time.time() - self.meta.get("wall", 0.0) > HOLD_IDLE_S \
+                            or not os.fstat(self._lock_fd).st_nlink:
+                        self._give_up(wait_for_asker=bool(ready))
+                        self._watcher = None
+                        return
+                finally:
+                    self._mutex.release()
+        finally:
+            os.close(ask_fd)
+
+    def _give_up(self, wait_for_asker: bool) -> None:
+        """Under the mutex: drop the kept lock; asked, wait (up to lock_timeout) until the asker has it -- it lets
+        go of the turn once it holds the lock -- so this drive's next request cannot take it back first."""
+        self._holding = self._trusted = False
+        fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+        if wait_for_asker:
+            self._keep_from = time.monotonic() + HOLD_BACKOFF_S
+        if not os.fstat(self._lock_fd).st_nlink:
+            os.close(self._lock_fd)
+            self._lock_fd = -1
+            self._held = None
+            return
+        deadline = time.monotonic() + self.lock_timeout
+        while wait_for_asker and time.monotonic() < deadline:
+            if self._try_turn():
+                fcntl.flock(self._turn_fd, fcntl.LOCK_UN)
+                return
+            time.sleep(TURN_POLL_S)
 
     @contextlib.contextmanager
     def _locked(self) -> Iterator[int]:
@@ -202,9 +368,17 @@ class SimDrive:
         """Remove temporary state files a killed writer left (any one present while we hold the lock is stale)."""
         with contextlib.suppress(OSError), os.scandir(self.directory) as entries:
             for entry in entries:
-                if self._tmp_name.fullmatch(entry.name):
+                if self._is_temporary(entry.name):
                     with contextlib.suppress(OSError):
                         os.unlink(entry.path)
+
+    def _is_temporary(self, name: str) -> bool:
+        """A temporary state file of this drive (``.sim-NAME.`` + 8 of [a-z0-9_] + ``.tmp``), told without a
+        regular expression (compiling one costs every process start)."""
+        prefix = self._tmp_prefix
+        if len(name) != len(prefix) + 12 or not name.startswith(prefix) or not name.endswith(".tmp"):
+            return False
+        return all(c in _TMP_CHARS for c in name[len(prefix):-4])
 
     def _read_text(self) -> str | None:
         """The state file's text, None when there is none; anything but a small regular UTF-8 file is refused
@@ -236,8 +410,10 @@ class SimDrive:
         if text is None:
             model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
+        from akdctl.io.json_text import loads  # json.loads without importing json (issue 29)
+
         try:
-            state = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+            state = loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
             if not isinstance(state, dict):
                 raise ValueError("not a JSON object")
             meta = state.pop("sim", {})
@@ -256,6 +432,8 @@ class SimDrive:
             raise self._corrupt(str(exc) or type(exc).__name__) from None
 
     def _save(self, model: DriveModel, meta: dict[str, Any]) -> None:
+        import json
+
         state = model.to_state()
         state["sim"] = meta
         try:
@@ -276,8 +454,9 @@ class SimDrive:
 
     def _begin(self, lock_fd: int, advance: bool) -> _Held:
         """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
-        token = os.pread(lock_fd, TOKEN_BYTES, 0)
         held, self._held = self._held, None  # dropped unless _commit puts it back (a failed body reloads)
+        # A kept lock: nobody else can have saved since our last transaction, the token need not be read.
+        token = held.token if held is not None and self._trusted else os.pread(lock_fd, TOKEN_BYTES, 0)
         fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
         if fresh:
             held = self._load(token)
@@ -298,12 +477,15 @@ class SimDrive:
 
     def _commit(self, held: _Held, lock_fd: int) -> None:
         """Under the lock, after a body that did not raise: save if the mark moved, keep the model."""
+        if held.model.damage is not None:  # a lazy component's state was damaged (a server may have refused only)
+            raise self._corrupt(f"damaged simulator state: {held.model.damage}")
         mark = _mark(held.model, held.meta)
         if mark != held.mark:
             held.token = self._new_token(lock_fd)
             self._save(held.model, held.meta)
             held.mark = mark
         self._held = held
+        self._trusted = self._holding
 
     @contextlib.contextmanager
     def transaction(self, advance: bool = True) -> Iterator[DriveModel]:
@@ -315,7 +497,10 @@ class SimDrive:
         lock_fd = self._acquire()
         try:
             held = self._begin(lock_fd, advance)
-            yield held.model
+            try:
+                yield held.model
+            except DamagedState as exc:
+                raise self._corrupt(str(exc)) from None
             self._commit(held, lock_fd)
         finally:
             self._release(lock_fd)
@@ -375,16 +560,46 @@ class SimDrive:
         return server.handle(mailbox)  # type: ignore[union-attr]
 
     def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
-        """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs."""
-        lock_fd = self._acquire()
+        """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs.
+
+        With the lock kept since the last transaction (:attr:`_trusted`), the held model is current: the steps of
+        :meth:`_begin` and :meth:`_commit` that matter then -- the clock advanced, a save when the mark moved --
+        are done here without their token read and calls (the same rules; any other case takes them)."""
+        if not self._mutex.acquire(timeout=self.lock_timeout):  # _acquire's steps, inline
+            raise CommError(self._locked_text())
+        if self._holding:
+            lock_fd = self._lock_fd
+        else:
+            try:
+                lock_fd = self._take_lock()
+            except BaseException:
+                self._mutex.release()
+                raise
         try:
-            held = self._begin(lock_fd, True)
+            held = self._held
+            if held is None or not self._trusted:
+                held = self._begin(lock_fd, True)
+            else:
+                self._held = None  # dropped unless the request succeeds (a failed one reloads)
+                model, meta = held.model, held.meta
+                now = time.time()
+                model.time_scale = scale = meta["time_scale"]
+                if now > meta["wall"]:
+                    model.advance((now - meta["wall"]) * scale)
+                meta["wall"] = now
             server.access = held.model
             try:
                 result = answer(request)
+            except DamagedState as exc:
+                raise self._corrupt(str(exc)) from None
             finally:
                 server.access = _OUTSIDE
-            self._commit(held, lock_fd)
+            mark, model = held.mark, held.model
+            if model.revision != mark[0] or held.meta.get("time_scale") != mark[1] or not self._trusted \
+                    or model.damage is not None:
+                self._commit(held, lock_fd)
+            else:
+                self._held = held
             return result
         finally:
             self._release(lock_fd)
@@ -425,6 +640,16 @@ def factory_model(name: str) -> DriveModel:
     model = DriveModel()
     model.object_values[(0x1018, 4)] = serial_for(name).to_bytes(4, "little")
     return model
+
+
+_TMP_CHARS = frozenset("abcdefghijklmnopqrstuvwxyz0123456789_")
+
+
+def atomic_open(path: Path, mode: str = "w", *, prefix: str | None = None) -> Any:
+    """The one crash-safe writer (``akdctl/io/atomic.py``), imported by the first save: most commands never save."""
+    from akdctl.io.atomic import atomic_open as open_atomic
+
+    return open_atomic(path, mode, prefix=prefix)
 
 
 def _refuse_constant(name: str) -> float:

@@ -40,3 +40,8 @@ class RecordRefused(Exception):
     def __init__(self, code1: int, message: str = "") -> None:
         super().__init__(message or f"record write refused (Error_Code_1 0x{code1:02X})")
         self.code1 = code1
+
+
+class DamagedState(ValueError):
+    """A component's persisted state, read when the component is first used (sim/model.py builds the rarely used
+    ones lazily), is damaged; the store reports the state file corrupt (sim/drive.py)."""

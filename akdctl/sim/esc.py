@@ -15,7 +15,11 @@ The ESC is pure: :meth:`Esc.process` takes the datagrams of a frame and
 returns them as they leave the slave (data filled in, WKC incremented, ADP
 incremented for auto-increment and broadcast commands). Mailbox requests are
 handed to whoever calls :meth:`take_request` (the face's worker thread, so a
-slow SDO never delays a frame) and replies come back through :meth:`post_replies`.
+slow SDO never delays a frame) and replies come back through :meth:`post_replies`
+-- except the requests :attr:`Esc.quick` picks (reads answered from memory),
+which the caller of :meth:`process` takes with :meth:`take_quick` once the
+frame has gone back: no thread hand-off, no frame waiting for an application
+thread to be scheduled.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ WD_DIVIDER_DEFAULT = 2498
 WD_PD_TIME_DEFAULT = 1000
 SM_CONTROL_WATCHDOG = 0x40
 MBX_MIN = 40  # smallest mailbox the AKD accepts (ESI Sm MinSize)
+_SM_END = ec.REG_SM0 + ec.SM_STRIDE * NUM_SM
 
 # ECAT-read-only register bytes (writes by the master are ignored there)
 _READ_ONLY = [(0x0000, 0x000F), (0x0012, 0x0013), (0x0110, 0x0111), (0x0130, 0x0135), (0x0140, 0x0141),
@@ -86,6 +91,13 @@ class Esc:
         self.inputs_read = 0  # input process data frames served
         self.outputs_written = 0  # output process data frames taken (the application and the SM watchdog watch it)
         self.lost_frame = False  # set by process(): the face must not send this frame back
+        #: Requests (the whole SM0 buffer) the caller of process() answers itself through take_quick(), when no
+        #: earlier request is still with the application (replies keep the requests' order); None: none.
+        self.quick: Callable[[bytes], bool] | None = None
+        self._quick: deque[bytes] = deque()
+        self._owed = 0  # requests handed to the application whose replies it has not posted yet
+        self._sm_regs = bytearray()  # the SM registers the mailbox layout below was derived from
+        self._layout: tuple[tuple[int, int, int, bool], ...] = ()
         self.reset()
 
     # ------------------------------------------------------------------ power-on state
@@ -110,6 +122,8 @@ class Esc:
                              ec.EEP_READ_8_BYTES | (0 if crc_ok else ec.EEP_ERROR_CHECKSUM))
             self._requests.clear()
             self._replies.clear()
+            self._quick.clear()
+            self._owed = 0
             self._sm = [_MailboxSm() for _ in range(NUM_SM)]
 
     # ------------------------------------------------------------------ small accessors
@@ -145,8 +159,10 @@ class Esc:
     def _set_full(self, n: int, full: bool) -> None:
         self._sm[n].full = full
         addr = self._sm_status_addr(n)
-        self.mem[addr] = (self.mem[addr] | ec.SM_STATUS_MAILBOX_FULL) if full else (
+        status = self.mem[addr] = (self.mem[addr] | ec.SM_STATUS_MAILBOX_FULL) if full else (
             self.mem[addr] & ~ec.SM_STATUS_MAILBOX_FULL & 0xFF)
+        if len(self._sm_regs) == _SM_END - ec.REG_SM0:
+            self._sm_regs[addr - ec.REG_SM0] = status  # the layout does not depend on it: no decode for it
 
     def _mailboxes_active(self) -> bool:
         return (self.al_status & 0x0F) in (ec.AlState.PREOP, ec.AlState.SAFEOP, ec.AlState.OP, ec.AlState.BOOT)
@@ -273,23 +289,38 @@ class Esc:
                     self.mem[sm.start:sm.start + len(chunk)] = chunk
                     return
 
-    def _mailbox_sm_at(self, addr: int, n: int) -> int | None:
+    def _mailboxes(self) -> tuple[tuple[int, int, int, bool], ...]:
+        """(n, start, length, written by the master) of every enabled mailbox SM, as its registers say now.
+
+        Why not decode the SMs each time: every mailbox access asked for them, eight SyncManager objects a
+        time, a dozen times per SDO. One comparison of the SM register block tells whether anything changed
+        since (whoever wrote it: the master, or a test writing ``mem``; :meth:`_set_full` keeps the status
+        bytes it changes itself in step, so a mailbox turning full or empty costs no new decode)."""
+        regs = self.mem[ec.REG_SM0:_SM_END]
+        if regs != self._sm_regs:
+            self._sm_regs = regs
+            self._layout = tuple((i, sm.start, sm.length, sm.writes_to_slave)
+                                 for i, sm in ((i, self.sync_manager(i)) for i in range(NUM_SM))
+                                 if sm.enabled and sm.is_mailbox)
+        return self._layout
+
+    def _mailbox_sm_at(self, addr: int, n: int) -> tuple[int, int, int, bool] | None:
         """The enabled mailbox SM whose buffer overlaps [addr, addr+n)."""
-        for i in range(NUM_SM):
-            sm = self.sync_manager(i)
-            if sm.enabled and sm.is_mailbox and sm.length and addr < sm.start + sm.length and sm.start < addr + n:
-                return i
+        for sm in self._mailboxes():
+            _i, start, length, _writes = sm
+            if length and addr < start + length and start < addr + n:
+                return sm
         return None
 
     def _read(self, addr: int, n: int) -> bytes | None:
-        i = self._mailbox_sm_at(addr, n) if addr >= 0x1000 else None
-        if i is not None:
-            sm = self.sync_manager(i)
-            if sm.writes_to_slave or not self._sm[i].full:
+        found = self._mailbox_sm_at(addr, n) if addr >= 0x1000 else None
+        if found is not None:
+            i, start, length, writes = found
+            if writes or not self._sm[i].full:
                 return None  # reading an empty read-mailbox (or the write mailbox) is denied: WKC unchanged
             data = bytes(self.mem[addr : addr + n])
-            if addr + n >= sm.start + sm.length:  # the last byte was read: the buffer is the master's now
-                self._sm[i].last = bytes(self.mem[sm.start : sm.start + sm.length])
+            if addr + n >= start + length:  # the last byte was read: the buffer is the master's now
+                self._sm[i].last = bytes(self.mem[start : start + length])
                 self._set_full(i, False)
                 self.stats.mailbox_replies += 1
                 if self.drop_next_reply:
@@ -303,18 +334,22 @@ class Esc:
     def _write(self, addr: int, data: bytes) -> bool:
         n = len(data)
         if addr >= 0x1000:
-            i = self._mailbox_sm_at(addr, n)
-            if i is not None:
-                sm = self.sync_manager(i)
-                if not sm.writes_to_slave or self._sm[i].full or not self._mailboxes_active():
+            found = self._mailbox_sm_at(addr, n)
+            if found is not None:
+                i, start, length, writes = found
+                if not writes or self._sm[i].full or not self._mailboxes_active():
                     return False
                 self.mem[addr : addr + n] = data
-                if addr + n >= sm.start + sm.length:
+                if addr + n >= start + length:
                     self._set_full(i, True)
-                    raw = bytes(self.mem[sm.start : sm.start + sm.length])
-                    self._requests.append(raw)
+                    raw = bytes(self.mem[start : start + length])
                     self.stats.mailbox_requests += 1
-                    self._have_request.notify_all()
+                    if self.quick is not None and not self._owed and self.quick(raw):
+                        self._quick.append(raw)
+                    else:
+                        self._requests.append(raw)
+                        self._owed += 1
+                        self._have_request.notify_all()
                 return True
             self.mem[addr : addr + n] = data
             return True
@@ -483,6 +518,8 @@ class Esc:
     def _clear_mailboxes(self) -> None:
         self._requests.clear()
         self._replies.clear()
+        self._quick.clear()
+        self._owed = 0
         for i in range(NUM_SM):
             self._set_full(i, False)
             self._sm[i].last = b""
@@ -495,32 +532,49 @@ class Esc:
                 self._have_request.wait(timeout)
             if not self._requests:
                 return None
-            raw = self._requests.popleft()
-            for i in range(NUM_SM):
-                sm = self.sync_manager(i)
-                if sm.enabled and sm.is_mailbox and sm.writes_to_slave:
-                    self._set_full(i, False)
-            length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
-            return raw[: min(len(raw), 6 + length)]
+            return self._taken(self._requests.popleft())
+
+    def take_quick(self) -> bytes | None:
+        """The next request :attr:`quick` picked (None: none waiting); answer it with :meth:`post_quick_replies`."""
+        with self._lock:
+            return self._taken(self._quick.popleft()) if self._quick else None
+
+    def _taken(self, raw: bytes) -> bytes:
+        """The PDI has read SM0: it is empty again; the mailbox without the buffer's tail."""
+        for i, _start, _length, writes in self._mailboxes():
+            if writes:
+                self._set_full(i, False)
+        length = struct.unpack_from("<H", raw)[0] if len(raw) >= 2 else 0
+        return raw[: min(len(raw), 6 + length)]
 
     def post_replies(self, replies: list[bytes], drop: bool = False) -> None:
-        """Queue mailboxes for SM1; ``drop`` loses the frame that carries the first one to the master."""
+        """The application's replies to a request it took (none: it had none): queued for SM1; ``drop`` loses
+        the frame that carries the first one to the master."""
         with self._lock:
-            if not self._mailboxes_active():
-                return
-            if drop and replies:
-                self.drop_next_reply = True
-            self._replies.extend(replies)
-            self._load_reply()
+            if self._owed:
+                self._owed -= 1
+            self._post(replies, drop)
+
+    def post_quick_replies(self, replies: list[bytes], drop: bool = False) -> None:
+        """:meth:`post_replies` for a request taken with :meth:`take_quick`."""
+        with self._lock:
+            self._post(replies, drop)
+
+    def _post(self, replies: list[bytes], drop: bool) -> None:
+        if not self._mailboxes_active():
+            return
+        if drop and replies:
+            self.drop_next_reply = True
+        self._replies.extend(replies)
+        self._load_reply()
 
     def _load_reply(self) -> None:
-        for i in range(NUM_SM):
-            sm = self.sync_manager(i)
-            if sm.enabled and sm.is_mailbox and not sm.writes_to_slave and sm.length:
+        for i, start, length, writes in self._mailboxes():
+            if not writes and length:
                 if self._sm[i].full or not self._replies:
                     return
-                reply = self._replies.popleft()[: sm.length]
-                self.mem[sm.start : sm.start + sm.length] = reply.ljust(sm.length, b"\0")
+                reply = self._replies.popleft()[:length]
+                self.mem[start : start + length] = reply.ljust(length, b"\0")
                 self._set_full(i, True)
                 return
 

@@ -68,25 +68,28 @@ class GatewayHandler:
     """
 
     def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
+        from akdctl.protocol import mailbox
+        from akdctl.protocol.errors import CodecError
         from akdctl.sim.mailbox_repeat import MailboxRepeats
 
         self.stations = stations
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
+        # looked up once here, not imported per datagram
+        self._unwrap, self._wrap, self._header_size = mailbox.unwrap_gateway, mailbox.wrap_gateway, mailbox.HEADER_SIZE
+        self._codec_error = CodecError
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
-        from akdctl.protocol.errors import CodecError
-        from akdctl.protocol.mailbox import HEADER_SIZE, unwrap_gateway, wrap_gateway
-
+        CodecError, header_size = self._codec_error, self._header_size  # noqa: N806 - the class, looked up once
         try:
-            raw = unwrap_gateway(datagram)
+            raw = self._unwrap(datagram)
         except CodecError:
             return []  # a gateway drops what it cannot parse
-        station = raw[2:4]
-        drive = self.stations.get(station[0] | station[1] << 8)
+        address = raw[2] | raw[3] << 8
+        drive = self.stations.get(address)
         if drive is None:
             return []
         fault = self.injector.decide() if self.injector.every else None
@@ -98,7 +101,7 @@ class GatewayHandler:
             replies = [abort]
         else:
             try:
-                replies = self.repeats.answer((peer, station), raw, drive.handle_mailbox)
+                replies = self.repeats.answer((peer, address), raw, drive.handle_mailbox)
             except CodecError:
                 replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
@@ -106,10 +109,12 @@ class GatewayHandler:
                 replies = failure_reply(raw)
         out = []
         for reply in replies:
-            if len(reply) < HEADER_SIZE:
+            if len(reply) < header_size:
                 continue
+            if reply[2] | reply[3] << 8 != address:
+                reply = reply[:2] + raw[2:4] + reply[4:]
             try:
-                out.append(wrap_gateway(reply[:2] + station + reply[4:] if reply[2:4] != station else reply))
+                out.append(self._wrap(reply))
             except CodecError:
                 continue
         return out
@@ -133,28 +138,39 @@ class EthercatUdpFace(Face):
         except OSError as exc:
             sock.close()
             raise UsageError(f"--ethercat-udp: cannot listen on {self.host}:{self.port}: {exc.strerror}") from None
-        sock.settimeout(0.2)
         self.host, self.port = sock.getsockname()[:2]  # the ready line names what was bound (port 0 -> real)
         self._sock = sock
         self.spawn(self._serve, "ecat-udp-face")
 
     def _serve(self) -> None:
-        assert self._sock is not None
-        while not self._stop.is_set():
+        """One blocking receive and one send per request: a socket timeout would add a poll() before each of
+        them; :meth:`interrupt` wakes the receive instead (shutdown)."""
+        sock = self._sock
+        assert sock is not None
+        handle, stop = self.handler.handle, self._stop
+        while not stop.is_set():
             try:
-                data, peer = self._sock.recvfrom(2048)
-            except socket.timeout:
-                continue
+                data, peer = sock.recvfrom(2048)
             except OSError:
                 break
+            if peer is None:
+                continue  # woken by interrupt(): the loop condition decides
             try:
-                replies = self.handler.handle(data, peer)
+                replies = handle(data, peer)
             except Exception as exc:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
                 request_failed("ethercat-udp", exc)
                 replies = []
             for reply in replies:
-                with contextlib.suppress(OSError):
-                    self._sock.sendto(reply, peer)
+                try:
+                    sock.sendto(reply, peer)
+                except OSError:
+                    pass
+
+    def interrupt(self) -> None:
+        """Wake the blocking receive: a shut-down socket returns from it at once (Linux, also unconnected UDP)."""
+        if self._sock is not None:
+            with contextlib.suppress(OSError):
+                self._sock.shutdown(socket.SHUT_RDWR)
 
     def close(self) -> None:
         if self._sock is not None:
@@ -179,6 +195,9 @@ def from_options(drive: SimDrive, **kwargs: object) -> EthercatUdpFace | None:
 
 
 def _face_drive(new: "SimDrive", like: "SimDrive") -> "SimDrive":
-    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout)."""
+    """A further station's drive waits for its state lock as long as the served one (sim serve's face timeout) and
+    keeps it between requests as the served one does."""
     new.lock_timeout = like.lock_timeout
+    if like.keeps_lock:
+        new.serve_faces()
     return new

@@ -14,6 +14,7 @@ never applied twice.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import itertools
 import os
@@ -47,6 +48,16 @@ DEFAULT_ADDRESS = "127.0.0.1:34964"
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
+EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
+IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
+
+
+def _timeval(seconds: float) -> bytes:
+    """A ``struct timeval`` for SO_RCVTIMEO (the C library's layout: two longs)."""
+    import struct
+
+    whole = int(seconds)
+    return struct.pack("ll", whole, int((seconds - whole) * 1e6))
 
 
 class BmpHandler(Protocol):
@@ -207,6 +218,8 @@ class ProfinetFace(Face):
         self.host, self.port = host, port
         self.delay = max(0.0, delay)
         self.injection = injection or Injection()
+        inj = self.injection
+        self._plain_tx = not (inj.drop or inj.dup or inj.delay)  # nothing injected on sending: no count kept
         self.slot, self.subslot, self.api = slot, subslot, api
         self.fragment = fragment
         self.refuse_ar = refuse_ar
@@ -251,6 +264,9 @@ class ProfinetFace(Face):
     def interrupt(self) -> None:
         if self._wake_w >= 0:
             os.write(self._wake_w, b"x")
+        if self._sock is not None:
+            with contextlib.suppress(OSError):  # wakes the blocking receive (Linux, also unconnected UDP)
+                self._sock.shutdown(socket.SHUT_RDWR)
 
     def close(self) -> None:
         self.refusals.flush()
@@ -273,39 +289,48 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- loop
     def _run(self) -> None:
+        """One blocking receive per datagram: the kernel's receive timeout (SO_RCVTIMEO, IDLE_WAKE_S) wakes the
+        loop for the ARs' timeouts and the stop flag, :meth:`interrupt` shuts the socket down to wake it at once.
+        Only while delayed sends (fault injection) are due does it wait in poll() for the earliest of them."""
         sock = self._sock
         assert sock is not None
         poller = select.poll()  # registered once: a select() per datagram rebuilds its lists and fd sets
         sock_fd = sock.fileno()
         poller.register(sock_fd, select.POLLIN)
         poller.register(self._wake_r, select.POLLIN)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
         buffer = bytearray(65535)  # one receive buffer: recvfrom(65535) allocates 64 KiB per datagram
         view = memoryview(buffer)
+        receive, datagram, stop = sock.recvfrom_into, self._datagram, self._stop
         next_expiry = 0.0
-        while not self._stop.is_set():
-            wait = 0.2
+        while not stop.is_set():
             if self._scheduled:
-                wait = max(0.0, min(wait, self._scheduled[0][0] - time.monotonic()))
-            ready = poller.poll(wait * 1000.0)
-            if self._stop.is_set():
-                break
-            if self._scheduled:
+                wait = max(0.0, min(EXPIRY_TICK_S, self._scheduled[0][0] - time.monotonic()))
+                ready = poller.poll(wait * 1000.0)
                 self._send_due()
-            now = time.monotonic()
-            if now >= next_expiry:  # an AR is dropped within 50 ms of its timeout
-                self._expire_ars()
-                next_expiry = now + 0.05
-            for fd, _event in ready:
-                if fd != sock_fd:
+                if not any(fd == sock_fd for fd, _event in ready):
+                    next_expiry = self._maybe_expire(next_expiry)
                     continue
-                try:
-                    size, peer = sock.recvfrom_into(buffer)
-                except OSError:
-                    continue
-                try:
-                    self._datagram(bytes(view[:size]), peer[:2])
-                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
-                    request_failed("profinet", exc)
+            try:
+                size, peer = receive(buffer)
+            except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
+                next_expiry = self._maybe_expire(next_expiry)
+                continue
+            next_expiry = self._maybe_expire(next_expiry)
+            if peer is None:
+                continue  # woken by interrupt(): the loop condition decides
+            try:
+                datagram(bytes(view[:size]), peer[:2])
+            except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                request_failed("profinet", exc)
+
+    def _maybe_expire(self, next_expiry: float) -> float:
+        """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
+        now = time.monotonic()
+        if now < next_expiry:
+            return next_expiry
+        self._expire_ars()
+        return now + EXPIRY_TICK_S
 
     def _send_due(self) -> None:
         now = time.monotonic()
@@ -358,7 +383,8 @@ class ProfinetFace(Face):
             return
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
-            self._record_call(data, peer, *plain)
+            little, sequence, opnum, req = plain
+            self._record_call(data, peer, little, sequence, opnum, req)
             return
         try:
             view = dcerpc.view_packet(data)  # the header's fields, its UUIDs left as wire bytes
@@ -413,9 +439,11 @@ class ProfinetFace(Face):
     def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
                      req: pnio_record.RecordCall) -> None:
         """A plain Write or Read record request (:func:`pnio_record.plain_record_call`): what the general path does for
-        it, without building a header view or calling the argument decoders."""
+        it, without building a header view or calling the argument decoders; the response packed in one step
+        (:func:`pnio_record.pack_record_response`)."""
         key = (data[40:56], sequence)
-        cached = self._cache.get(key)
+        cache = self._cache
+        cached = cache.get(key)
         if cached is not None:
             self.stats.replayed += 1
             for frame in cached:
@@ -428,12 +456,14 @@ class ProfinetFace(Face):
         except Exception as exc:  # noqa: BLE001 - answered with an error status, the face goes on
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
-        body = pnio.encode_response_args(status, blocks, little=little)
-        frame = pnio_record.reply_head(data, little, dcerpc.PT_RESPONSE, self.boot_time, len(body)) + body
-        self._cache[key] = [frame]
-        if len(self._cache) > REPLY_CACHE:
-            self._cache.popitem(last=False)
-        self._send(frame, peer)
+        frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
+        cache[key] = [frame]
+        if len(cache) > REPLY_CACHE:
+            cache.popitem(last=False)
+        if self._plain_tx:
+            self._raw_send(frame, peer)
+        else:
+            self._send(frame, peer)
 
     def _reply_header(self, head: dcerpc.RpcHeader, ptype: int) -> dcerpc.RpcHeader:
         """The reply's header as an object (the fragmenting path); ``pnio_record.reply_head`` writes the same
@@ -515,15 +545,15 @@ class ProfinetFace(Face):
         return ar
 
     def _write(self, req: pnio_record.RecordCall) -> tuple[pnio.PnioStatus, bytes]:
-        ar = self._ar_for(req.ar)
+        ar = self._ars.get(req.ar)
         if ar is None:
             return pnio_record.write_res(req, pnio.rw_error(True, 0xB6))                  # no such AR: access denied
-        error = self._address_error(req, True)
-        if error is not None:
-            return pnio_record.write_res(req, error)
+        ar.last_activity = now = time.monotonic()
+        if req.api != self.api or req.slot != self.slot or req.subslot != self.subslot or \
+                (req.index != INDEX_PROFIDRIVE and req.index != INDEX_PROFIDRIVE_ALT):
+            return pnio_record.write_res(req, self._address_error(req, True) or OK)
         if not 0 < len(req.data) <= MAX_RECORD:
             return pnio_record.write_res(req, pnio.rw_error(True, 0xB1))
-        now = ar.last_activity  # _ar_for stamped it just now
         if ar.pending is not None and ar.pending[0] > now:
             self.stats.busy_answers += 1
             return pnio_record.write_res(req, pnio.rw_error(True, 0xB5))  # still working on the last request
@@ -548,18 +578,19 @@ class ProfinetFace(Face):
         if implicit:
             # the parameter channel lives in the AR: Read Implicit cannot reach it
             return pnio.rw_error(False, 0xB6), b""
-        ar = self._ar_for(req.ar)
+        ar = self._ars.get(req.ar)
         if ar is None:
             return pnio.rw_error(False, 0xB6), b""
+        ar.last_activity = now = time.monotonic()
         if req.index == pnio.INDEX_KEEPALIVE:
             return pnio_record.read_res(req, b"")
-        error = self._address_error(req, write=False)
-        if error is not None:
-            return error, b""
+        if req.api != self.api or req.slot != self.slot or req.subslot != self.subslot or \
+                (req.index != INDEX_PROFIDRIVE and req.index != INDEX_PROFIDRIVE_ALT):
+            return self._address_error(req, write=False) or OK, b""
         if ar.pending is None:
             return pnio.rw_error(False, 0xA0), b""          # nothing was asked: read error
         ready_at, response = ar.pending
-        if ready_at > time.monotonic():
+        if ready_at > now:
             self.stats.busy_answers += 1
             return pnio.rw_error(False, 0xB5), b""          # busy: come back later
         ar.pending = None

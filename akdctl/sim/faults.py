@@ -43,12 +43,12 @@ from __future__ import annotations
 import struct
 from typing import TYPE_CHECKING, Any
 
-from akdctl.catalog import faults as catalog
-from akdctl.protocol.emcy import Emergency
 from akdctl.sim.component import ABORT_VALUE_RANGE, Component
 from akdctl.sim.errors import SdoAccessError
 
 if TYPE_CHECKING:
+    from akdctl.catalog import faults as catalog
+    from akdctl.protocol.emcy import Emergency
     from akdctl.sim.model import DriveModel
 
 SITUATIONS = 8  # PNU 947 holds 8 situations (manual 5.14)
@@ -173,9 +173,9 @@ class FaultComponent(Component):
             return False
         self.situations = [[]] + self.situations[: SITUATIONS - 1]
         register = self._register()
-        self._queue(Emergency(0x0000, register))
+        self._queue(_emcy_class()(0x0000, register))
         for code in list(self.persistent):
-            fault = catalog.by_code(code)
+            fault = _fault_table().by_code(code)
             if fault is not None and not fault.is_warning:
                 self.raise_fault(code)
         return True
@@ -203,7 +203,7 @@ class FaultComponent(Component):
         if self.warnings:
             self.warnings = []
             if not self.fault_present:
-                self._queue(Emergency(0x0000, self._register()))
+                self._queue(_emcy_class()(0x0000, self._register()))
         return removed
 
     def clear_warning(self, code: str) -> None:
@@ -213,7 +213,7 @@ class FaultComponent(Component):
             self.warnings.remove(fault.number)
             self.changed()
             if not self.warnings and not self.fault_present:
-                self._queue(Emergency(0x0000, self._register()))
+                self._queue(_emcy_class()(0x0000, self._register()))
         if fault.code in self.persistent:
             self.persistent.remove(fault.code)
             self.changed()
@@ -231,7 +231,7 @@ class FaultComponent(Component):
     def _register(self) -> int:
         reg = 0
         for number in self.situations[0]:
-            fault = catalog.by_number(number)
+            fault = _fault_table().by_number(number)
             reg |= error_register_bits(fault.emcy) if fault is not None else 0x01
         return reg
 
@@ -242,7 +242,7 @@ class FaultComponent(Component):
         del self.error_field[ERROR_FIELD_LENGTH:]
         self.changed()
         register = self._register()  # warnings set no 0x1001 bits: only faults are errors
-        self._queue(Emergency(fault.emcy, register, struct.pack("<H", fault.number & 0xFFFF) + bytes(3)))
+        self._queue(_emcy_class()(fault.emcy, register, struct.pack("<H", fault.number & 0xFFFF) + bytes(3)))
 
     def _queue(self, emcy: Emergency) -> None:
         self.emergencies.append(emcy)
@@ -350,20 +350,35 @@ class FaultComponent(Component):
         self.persistent = [str(c) for c in state.get("persistent", [])]
         self.history = [(int(n), int(t)) for n, t in state.get("history", [])][:HISTORY_LENGTH]
         self.error_field = [int(v) for v in state.get("error_field", [])][:ERROR_FIELD_LENGTH]
-        self.emergencies = [Emergency(int(c), int(r), bytes.fromhex(d)) for c, r, d in state.get("emergencies", [])]
+        self.emergencies = [_emcy_class()(int(c), int(r), bytes.fromhex(d)) for c, r, d in state.get("emergencies", [])]
         self.armed = [{"code": str(a["code"]), "reads": int(a["reads"]), "persist": bool(a.get("persist"))}
                       for a in state.get("armed", [])]
 
 
 def _lookup(code: str) -> catalog.Fault:
-    fault = catalog.by_code(code) if isinstance(code, str) else None
+    fault = _fault_table().by_code(code) if isinstance(code, str) else None
     if fault is None or fault.number is None or not fault.code:
         raise ValueError(f"unknown AKD fault or warning {code!r} (see 'akdctl fault list')")
     return fault
 
 
 def _code(number: int, *, warning: bool) -> str:
-    fault = catalog.by_number(number, warning=warning)
+    fault = _fault_table().by_number(number, warning=warning)
     if fault is not None and fault.is_warning == warning:
         return fault.code
     return f"{'n' if warning else 'F'}{number}"
+
+
+def _fault_table() -> Any:
+    """The fault catalogue (``catalog/faults.py``), imported when a fault is raised, looked up or described: a drive
+    without faults is read without it (issue 29, cold start)."""
+    from akdctl.catalog import faults
+
+    return faults
+
+
+def _emcy_class() -> "type[Emergency]":
+    """The EMCY record class, imported when an emergency is queued or loaded."""
+    from akdctl.protocol.emcy import Emergency
+
+    return Emergency

@@ -36,18 +36,18 @@ class MailboxRepeats:
     def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
         """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it."""
         counter = (request[5] >> 4) & 0x07 if len(request) >= 6 else 0
-        if counter:
-            last = self._last.get(link)
-            if last is not None and last[0] == request and time.monotonic() - last[2] <= REPEAT_WINDOW_S:
-                self.repeats += 1
-                self._last.move_to_end(link)
-                return list(last[1])
-        replies = handle(request)
-        if counter:
-            self._last[link] = (bytes(request), list(replies), time.monotonic())
-            self._last.move_to_end(link)
-            while len(self._last) > self.max_links:
-                self._last.popitem(last=False)
-        else:
+        if not counter:
             self._last.pop(link, None)  # a mailbox without a counter ends the sequence
+            return handle(request)
+        last = self._last.get(link)
+        now = time.monotonic()
+        if last is not None and last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
+            self.repeats += 1
+            self._last.move_to_end(link)
+            return list(last[1])
+        replies = handle(request)
+        self._last[link] = (bytes(request), list(replies), now)
+        self._last.move_to_end(link)
+        if len(self._last) > self.max_links:
+            self._last.popitem(last=False)
         return replies

@@ -11,14 +11,23 @@ call :meth:`pnu_read`/:meth:`pnu_write` and :meth:`object_read`/:meth:`object_wr
 State round-trips through :meth:`to_state`/:meth:`from_state` as JSON-able
 data so :class:`akdctl.sim.drive.SimDrive` can persist it between CLI
 invocations.
+
+Why components are built on first use: every CLI command against the default
+target starts a process that loads this model, and most touch one component
+(``pnu get 930`` the axis, nothing of the PDO mapping or the FoE files). The
+components that move with time (``motion``) are built at once; the others
+(:data:`LAZY`: faults, pdo, foe; the recorder) when first named -- a property
+(``model.pdo``), :meth:`component`, or an access to a PNU or object they own,
+found in :data:`LAZY_PNUS`/:data:`LAZY_OBJECTS` (``tests/test_sim_lazy.py``
+fails when that index no longer matches what the components bind). A component
+never built keeps its persisted state as loaded and writes it back unchanged.
 """
 
 from __future__ import annotations
 
 import struct
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import pnus as pnu_catalog
 from akdctl.sim.component import (
@@ -37,11 +46,13 @@ from akdctl.sim.component import (
     PE_WRONG_TYPE,
     Component,
 )
-from akdctl.sim.errors import PnuAccessError, SdoAccessError
-from akdctl.sim.faults import FaultComponent
-from akdctl.sim.foe import FoeFiles
+from akdctl.sim.errors import DamagedState, PnuAccessError, SdoAccessError
 from akdctl.sim.motion import MotionComponent
-from akdctl.sim.pdo import PdoComponent
+
+if TYPE_CHECKING:
+    from akdctl.sim.faults import FaultComponent
+    from akdctl.sim.foe import FoeFiles
+    from akdctl.sim.pdo import PdoComponent
 
 STATE_VERSION = 1
 
@@ -54,16 +65,41 @@ ObjectReader = Callable[[int], bytes]
 ObjectWriter = Callable[[int, bytes], None]
 
 
-@dataclass
 class _PnuBinding:
-    read: PnuReader | None
-    write: PnuWriter | None
+    """A component's reader and/or writer of one PNU (a plain slotted class: no code generated at import)."""
+
+    __slots__ = ("read", "write")
+
+    def __init__(self, read: PnuReader | None, write: PnuWriter | None) -> None:
+        self.read = read
+        self.write = write
 
 
-@dataclass
 class _ObjectBinding:
-    read: ObjectReader | None
-    write: ObjectWriter | None
+    """A component's reader and/or writer of one object index."""
+
+    __slots__ = ("read", "write")
+
+    def __init__(self, read: ObjectReader | None, write: ObjectWriter | None) -> None:
+        self.read = read
+        self.write = write
+
+
+#: The components built on first use, in the order they are saved (after ``motion``): name -> (module, class).
+LAZY: dict[str, tuple[str, str]] = {
+    "faults": ("akdctl.sim.faults", "FaultComponent"),
+    "pdo": ("akdctl.sim.pdo", "PdoComponent"),
+    "foe": ("akdctl.sim.foe", "FoeFiles"),
+}
+#: Which lazy component binds a PNU / an object index: an access to one builds its owner first. A copy of what the
+#: components' ``__init__`` bind, kept here so finding the owner imports nothing (tests/test_sim_lazy.py checks it).
+LAZY_PNUS: dict[int, str] = {915: "pdo", 916: "pdo", 922: "pdo", 923: "pdo", 944: "faults", 947: "faults"}
+LAZY_OBJECTS: dict[int, str] = {
+    0x1001: "faults", 0x1003: "faults", 0x2000: "faults", 0x2001: "faults", 0x2012: "faults", 0x2013: "faults",
+    0x1C12: "pdo", 0x1C13: "pdo", 0x60C2: "pdo",
+    **{pdo: "pdo" for pdo in (*range(0x1600, 0x1604), *range(0x1A00, 0x1A04), 0x1701, 0x1702, *range(0x1720, 0x1726),
+                              0x1B01, *range(0x1B20, 0x1B27))},
+}
 
 
 class DriveModel:
@@ -85,17 +121,64 @@ class DriveModel:
         # pnu_read_raw's lookups, once per PNU: entry, wire format, value mask, reader, is an array
         self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}
         self._object_bindings: dict[int, _ObjectBinding] = {}
-        # The components, imported and named here (a missing one fails at import, not silently), as typed
-        # handles for each other and for the faces; ``components`` is their tick order (motion integrates
-        # before faults and PDOs look at it).
+        # The components, named here as typed handles for each other and for the faces. ``motion`` (the one that
+        # moves with time) is built now; the LAZY ones on first use (module doc), each from its persisted state
+        # if the loaded state had one (``_pending``).
         self.motion = MotionComponent(self)
-        self.faults = FaultComponent(self)
-        self.pdo = PdoComponent(self)
-        self.foe = FoeFiles(self)
-        self.components: list[Component] = [self.motion, self.faults, self.pdo, self.foe]
+        self._built: dict[str, Component] = {"motion": self.motion}
+        self._pending: dict[str, dict[str, Any]] = {}
+        # Why a lazy component could not be built from its loaded state: the store reports the file corrupt after
+        # the request even where a server turned the exception into a refusal (sim/drive.py)
+        self.damage: str | None = None
         self._recorder: Any = None  # REC.* (sim/recorder.py), made on first use: most commands never record
-        # the components that move with time (the others keep Component.tick, which does nothing), in tick order
-        self._tickers = [c.tick for c in self.components if type(c).tick is not Component.tick]
+        # the components that move with time (the lazy ones keep Component.tick, which does nothing), in tick order
+        self._tickers = [self.motion.tick]
+
+    # ------------------------------------------------------------------ components
+    def _build(self, name: str) -> Any:
+        """The lazy component ``name``, built (and given its loaded state) on first use. Building is not a change
+        of persisted state: the revision is kept, so a read that builds a component never rewrites the file."""
+        comp = self._built.get(name)
+        if comp is not None:
+            return comp
+        import importlib
+
+        module, cls = LAZY[name]
+        revision = self.revision
+        comp = vars(importlib.import_module(module))[cls](self)
+        self._built[name] = comp
+        pending = self._pending.pop(name, None)
+        if pending is not None:
+            try:
+                comp.load_state(pending)
+                comp.to_state()  # renders every derived value once, as the store does at load (sim/drive.py)
+            except Exception as exc:  # noqa: BLE001 - hostile content may fail anywhere; all of it means damaged
+                del self._built[name]
+                self._pending[name] = pending
+                self.damage = f"{name}: {exc or type(exc).__name__}"
+                raise DamagedState(f"damaged simulator state: {self.damage}") from None
+        self.revision = revision
+        return comp
+
+    @property
+    def faults(self) -> "FaultComponent":
+        return self._build("faults")  # type: ignore[no-any-return]
+
+    @property
+    def pdo(self) -> "PdoComponent":
+        return self._build("pdo")  # type: ignore[no-any-return]
+
+    @property
+    def foe(self) -> "FoeFiles":
+        return self._build("foe")  # type: ignore[no-any-return]
+
+    @property
+    def components(self) -> list[Component]:
+        """Every component, built, in tick and save order (motion, faults, pdo, foe, then the recorder if any)."""
+        comps: list[Component] = [self.motion, *(self._build(name) for name in LAZY)]
+        if self._recorder is not None:
+            comps.append(self._recorder)
+        return comps
 
     # ------------------------------------------------------------------ bindings
     def bind_pnu(self, pnu: int, read: PnuReader | None = None, write: PnuWriter | None = None) -> None:
@@ -109,10 +192,25 @@ class DriveModel:
         self._object_bindings[index] = _ObjectBinding(read, write)
 
     def component(self, name: str) -> Component | None:
-        for comp in self.components:
-            if comp.name == name:
-                return comp
-        return None
+        if name in LAZY:
+            return self._build(name)  # type: ignore[no-any-return]
+        if name == "recorder":
+            return self._recorder  # type: ignore[no-any-return]
+        return self._built.get(name)
+
+    def _pnu_binding(self, pnu: int) -> _PnuBinding | None:
+        binding = self._pnu_bindings.get(pnu)
+        if binding is None and pnu in LAZY_PNUS and LAZY_PNUS[pnu] not in self._built:
+            self._build(LAZY_PNUS[pnu])
+            binding = self._pnu_bindings.get(pnu)
+        return binding
+
+    def _object_binding(self, index: int) -> _ObjectBinding | None:
+        binding = self._object_bindings.get(index)
+        if binding is None and index in LAZY_OBJECTS and LAZY_OBJECTS[index] not in self._built:
+            self._build(LAZY_OBJECTS[index])
+            binding = self._object_bindings.get(index)
+        return binding
 
     # ------------------------------------------------------------------ time
     def advance(self, dt: float) -> None:
@@ -131,7 +229,6 @@ class DriveModel:
             from akdctl.sim.recorder import Recorder
 
             self._recorder = Recorder(self)
-            self.components.append(self._recorder)
             self.revision += 1  # to_state() now carries it (the revision rule, sim/component.Tracked)
         return self._recorder
 
@@ -225,7 +322,7 @@ class DriveModel:
     def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:
         """What every read of a PNU needs, looked up once: its entry, wire format, value mask and reader."""
         info = self.pnu_info(pnu)
-        binding = self._pnu_bindings.get(pnu)
+        binding = self._pnu_binding(pnu)
         shape = (info, info.wire_format, (1 << info.bits) - 1, binding.read if binding else None, info.is_array)
         self._pnu_shapes[pnu] = shape
         return shape
@@ -245,7 +342,7 @@ class DriveModel:
             if not lo <= value <= hi:
                 raise PnuAccessError(PE_LIMIT, subindex + offset)
             values.append(value)
-        binding = self._pnu_bindings.get(pnu)
+        binding = self._pnu_binding(pnu)
         if binding and binding.write:
             binding.write(subindex, values)
         else:
@@ -284,13 +381,14 @@ class DriveModel:
         self.revision += 1
 
     def object_read(self, index: int, subindex: int) -> bytes:
-        binding = self._object_bindings.get(index)
-        entry = self.object_entry(index, subindex) if not (binding and binding.read) else None
+        binding = self._object_binding(index)
         if binding and binding.read:
             return binding.read(subindex)
+        entry = self.object_entry(index, subindex)
         if entry.access == "wo":
             raise SdoAccessError(ABORT_WRITE_ONLY)
-        return self.stored_object(index, subindex)
+        data = self.object_values.get((index, subindex))  # stored_object's rule, the entry looked up once
+        return _default_bytes(entry) if data is None else data
 
     def object_write(self, index: int, subindex: int, data: bytes) -> None:
         entry = self.object_entry(index, subindex)
@@ -299,7 +397,7 @@ class DriveModel:
         size = _entry_size(entry)
         if size is not None and len(data) != size:
             raise SdoAccessError(ABORT_TOO_LONG if len(data) > size else ABORT_TOO_SHORT)
-        binding = self._object_bindings.get(index)
+        binding = self._object_binding(index)
         if binding and binding.write:
             binding.write(subindex, bytes(data))
         else:
@@ -346,6 +444,16 @@ class DriveModel:
 
     # ------------------------------------------------------------------ persistence
     def to_state(self) -> dict[str, Any]:
+        """The persisted state; a component never built gives back the state it was loaded with, unread."""
+        components: dict[str, Any] = {"motion": self.motion.to_state()}
+        for name in LAZY:
+            comp = self._built.get(name)
+            if comp is None and name in self._pending:
+                components[name] = self._pending[name]
+            else:
+                components[name] = (comp or self._build(name)).to_state()
+        if self._recorder is not None:
+            components["recorder"] = self._recorder.to_state()
         return {
             "version": STATE_VERSION,
             "clock": self.clock,
@@ -353,7 +461,7 @@ class DriveModel:
             "pnus": {str(k): v for k, v in sorted(self.pnu_values.items())},
             "objects": {f"{i:04X}:{s:02X}": d.hex() for (i, s), d in sorted(self.object_values.items())},
             "named": dict(sorted(self.named_values.items())),
-            "components": {c.name: c.to_state() for c in self.components},
+            "components": components,
         }
 
     @classmethod
@@ -377,8 +485,9 @@ class DriveModel:
                     raise ValueError(f"parameter {name}: the value must be an integer")
                 model.named_values[str(name)] = value
             comp_states = dict(state.get("components", {}))
-            for comp in model.components:
-                comp.load_state(dict(comp_states.get(comp.name, {})))
+            model.motion.load_state(dict(comp_states.get("motion", {})))
+            for name in LAZY:  # each is built (and its state read) on first use
+                model._pending[name] = dict(comp_states.get(name, {}))
             if "recorder" in comp_states:
                 model.recorder.load_state(dict(comp_states["recorder"]))
         except (TypeError, AttributeError, KeyError) as exc:

@@ -101,6 +101,7 @@ from akdctl.protocol.bmp import (
     description_element,
     encode_response,
     encode_value_block,
+    first_read_address,
     format_size,
     iter_read_addresses,
     pack_failure_block,
@@ -185,6 +186,9 @@ def header_refusal(request: bytes) -> int | None:
     return None
 
 
+_ONE_READ_SIZE = HEADER_SIZE + ADDRESS_SIZE  # a read request of one parameter
+
+
 class PnuServer:
     """Answers base-mode parameter requests over a :class:`ParameterAccess`."""
 
@@ -201,6 +205,15 @@ class PnuServer:
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = bytes(request)
+        if len(data) == _ONE_READ_SIZE and data[1] == REQ_READ and data[3] == 1 and data[0] and data[2] in self.axes:
+            # one parameter read, the poll's request: the checks header_refusal and _handle make of it, passed
+            try:
+                return self._read_single(data)
+            except _WholeRequest as refusal:
+                return self._refuse(data, refusal.error)
+            except Exception as exc:  # noqa: BLE001 - as below
+                self.last_exception = exc
+                return self._refuse(data, ERR_OPERATING_STATE)
         code1 = header_refusal(data)
         if code1 is not None:
             what = "length" if code1 == EC1_WRITE_LENGTH else "header"
@@ -267,6 +280,18 @@ class PnuServer:
             negative = negative or block[0] == Format.ERROR
             blocks.append(block)
         out = pack_read_response(data, blocks, negative)
+        if len(out) > MAX_BLOCK:
+            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
+        return out
+
+    def _read_single(self, data: bytes) -> bytes:
+        """:meth:`_read_all` of a one-parameter read, its raw path without the loop."""
+        attribute, count, pnu, subindex = first_read_address(data)
+        if not (self.raw_reads and attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu
+                and subindex <= MAX_SUBINDEX):
+            return self._read_all(data, 1)
+        block = self._read_raw(self.access.pnu_read_raw, pnu, subindex, count)  # type: ignore[attr-defined]
+        out = pack_read_response(data, [block], block[0] == Format.ERROR)
         if len(out) > MAX_BLOCK:
             raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
         return out

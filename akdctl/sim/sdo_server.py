@@ -28,14 +28,14 @@ an abort code, and undecodable bytes become mailbox error replies.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
-from akdctl.protocol.coe import CoeError, CoeService
+from akdctl.protocol.coe import CoeError, CoeService, pack_expedited_upload_mailbox, plain_upload_initiate
 from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.record import Record
 from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
 
 if TYPE_CHECKING:
@@ -58,26 +58,32 @@ class ObjectAccess(Protocol):
         ...
 
 
-@dataclass(frozen=True)
-class EntryInfo:
-    """Description of one subindex for the SDO information service."""
+class EntryInfo(Record):
+    """Description of one subindex for the SDO information service (a Record: no code generated at import)."""
 
-    name: str
-    data_type: int  # CANopen data type code (0x0007 UNSIGNED32 ...)
-    bit_length: int
-    access: int  # ETG.1000.6 object access bits (0x07 read, 0x38 write, 0x40 RxPDO, 0x80 TxPDO)
+    __slots__ = ("name", "data_type", "bit_length", "access")
+
+    def __init__(self, name: str, data_type: int, bit_length: int, access: int) -> None:
+        self.name = name
+        self.data_type = data_type  # CANopen data type code (0x0007 UNSIGNED32 ...)
+        self.bit_length = bit_length
+        self.access = access  # ETG.1000.6 object access bits (0x07 read, 0x38 write, 0x40 RxPDO, 0x80 TxPDO)
 
 
-@dataclass(frozen=True)
-class ObjectInfo:
+class ObjectInfo(Record):
     """Description of one object (object code 7 VAR, 8 ARRAY, 9 RECORD)."""
 
-    index: int
-    name: str
-    object_code: int
-    data_type: int
-    max_subindex: int
-    entries: dict[int, EntryInfo] = field(default_factory=dict)
+    __slots__ = ("index", "name", "object_code", "data_type", "max_subindex", "entries")
+    __hash__ = None  # type: ignore[assignment]  # holds a dict
+
+    def __init__(self, index: int, name: str, object_code: int, data_type: int, max_subindex: int,
+                 entries: dict[int, EntryInfo] | None = None) -> None:
+        self.index = index
+        self.name = name
+        self.object_code = object_code
+        self.data_type = data_type
+        self.max_subindex = max_subindex
+        self.entries: dict[int, EntryInfo] = {} if entries is None else entries
 
 
 @runtime_checkable
@@ -106,21 +112,29 @@ _UPLOAD_INITIATE = coe.UPLOAD_INITIATE_COMMAND
 _LIST_FILTER = {2: 0x0040, 3: 0x0080, 4: 0x0100, 5: 0x0200}
 
 
-@dataclass
 class _Download:
-    index: int
-    subindex: int
-    size: int
-    buffer: bytearray
-    toggle: int = 0
+    """A segmented download in progress."""
+
+    __slots__ = ("index", "subindex", "size", "buffer", "toggle")
+
+    def __init__(self, index: int, subindex: int, size: int, buffer: bytearray, toggle: int = 0) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.size = size
+        self.buffer = buffer
+        self.toggle = toggle
 
 
-@dataclass
 class _Upload:
-    index: int
-    subindex: int
-    remaining: bytes
-    toggle: int = 0
+    """A segmented upload in progress."""
+
+    __slots__ = ("index", "subindex", "remaining", "toggle")
+
+    def __init__(self, index: int, subindex: int, remaining: bytes, toggle: int = 0) -> None:
+        self.index = index
+        self.subindex = subindex
+        self.remaining = remaining
+        self.toggle = toggle
 
 
 class SdoServer:
@@ -157,9 +171,24 @@ class SdoServer:
         return out
 
     def handle(self, mailbox: bytes) -> list[bytes]:
-        """Answer one request mailbox; returns the mailboxes the slave puts in SM1, in order."""
+        """Answer one request mailbox; returns the mailboxes the slave puts in SM1, in order.
+
+        The poll's request, an upload initiate, is read and, answered expedited, written by one codec call each
+        (``coe.plain_upload_initiate``/``pack_expedited_upload_mailbox``); the same rules as :meth:`_upload_fast`,
+        which answers it when the value is not expedited."""
         try:
-            replies = self._handle(bytes(mailbox))
+            upload = plain_upload_initiate(mailbox)
+            if upload is not None:
+                address, counter, index, subindex = upload
+                self._download = None
+                self._upload = None
+                value = self._read(index, subindex)
+                if isinstance(value, bytes) and 1 <= len(value) <= 4:
+                    replies = [pack_expedited_upload_mailbox(address, counter, index, subindex, value)]
+                else:
+                    replies = [self._upload_answer(_Request(address, counter), index, subindex, value)]
+            else:
+                replies = self._handle(bytes(mailbox))
         except Exception:  # the simulator must never die on a request; log and refuse
             log.exception("SDO server failed on a mailbox request")
             replies = [self._error_reply(None, mbx.ERR_SYNTAX)]
@@ -230,7 +259,10 @@ class SdoServer:
         index, subindex = coe.sdo_address(payload)
         self._download = None
         self._upload = None
-        value = self._read(index, subindex)
+        return self._upload_answer(request, index, subindex, self._read(index, subindex))
+
+    def _upload_answer(self, request: _Request, index: int, subindex: int, value: bytes | coe.SdoAbort) -> bytes:
+        """The answer mailbox to an upload initiate whose value (or abort) was read."""
         if isinstance(value, bytes) and 1 <= len(value) <= 4:
             return self._reply(request, CoeService.SDO_RESPONSE,
                                coe.pack_expedited_upload_response(index, subindex, value))

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from akdctl.catalog import telegrams as tc
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
 from akdctl.sim.component import PE_OPERATING_STATE, FieldState
@@ -205,6 +204,8 @@ class Stw1Machine(FieldState):
         axis, model = self.drive.axis, self.drive.model
         if not axis.homed or axis.activity == "jog":
             return None  # manual 5.10.1/5.10.2: the axis must be homed
+        from akdctl.catalog import telegrams as tc  # here: only a traversing task reads the telegram table
+
         satzanw = self._pnu(32)
         setpoint, _ = model.pdo.telegram_signals()
         if tc.missing_for_submode("mdi" if satzanw & 0x8000 else "program", setpoint):

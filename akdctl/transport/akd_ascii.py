@@ -9,8 +9,10 @@ command line (dropped when the reply's first line repeats it), a banner or promp
 client at a time (a drive that closes a new connection at once is reported as busy).
 
 Every wait is bounded: the connect by the command's timeout, each command (its send and every receive until the
-prompt) by one deadline of the command's Budget, and a reply is at most :data:`MAX_REPLY` bytes, so an endless
-reply without a prompt ends in one error. After a command that got no prompt the connection is out of step (a late
+prompt) by one deadline of the command's Budget (the socket waits through :mod:`akdctl.transport.tcp_stream`), and
+a reply is at most :data:`MAX_REPLY` bytes, so an endless reply without a prompt ends in one error. A command costs
+one send and, for a short reply, one receive: a reply without Telnet bytes skips the option parser, a one-line reply
+skips the line splitting, and nothing is traced unless the tracer is active. After a command that got no prompt the connection is out of step (a late
 reply would answer the next command), so the link refuses further commands.
 """
 
@@ -22,8 +24,10 @@ from typing import TYPE_CHECKING
 from akdctl.errors import CommandRefused, CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.links import CommandLink
 from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import TcpStream
 
 if TYPE_CHECKING:
+    from akdctl.links import Deadline
     from akdctl.transport.target import Target
 
 PORT = 23
@@ -45,6 +49,8 @@ class Telnet:
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(text bytes, bytes to send back)."""
+        if not self.pending and not self.in_sb and IAC not in data:
+            return data, b""   # the usual reply: no Telnet command in it
         data = self.pending + data
         self.pending = b""
         text = bytearray()
@@ -94,27 +100,29 @@ class Telnet:
 class AsciiLink(CommandLink):
     """One TCP connection to the service channel. Not thread-safe (one invocation, one caller)."""
 
-    def __init__(self, sock: socket.socket, options: LinkOptions, label: str) -> None:
-        self.sock = sock
+    def __init__(self, stream: TcpStream, options: LinkOptions, label: str) -> None:
+        self.stream = stream
         self.options = options
+        self.tracer = options.tracer
         self.label = label
         self.telnet = Telnet()
         self.buffer = b""
         self.broken = ""
+        self.budget = options.budget
+        self._lines: dict[str, tuple[bytes, str]] = {}   # command line -> (its wire bytes, the line), checked once
 
     # ---------------------------------------------------------------- bytes
     def _receive(self, wait: float, what: str) -> bool:
         """Receive what arrives within ``wait`` s into the buffer; False on nothing. CommError on close."""
-        self.sock.settimeout(max(wait, 0.001))
         try:
-            data = self.sock.recv(65536)
-        except socket.timeout:
-            return False
+            data = self.stream.recv(wait if wait > 0.001 else 0.001)
         except OSError as exc:
             raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+        if data is None:
+            return False
         if not data:
             raise CommError(f"{self.label}: the drive closed the connection during {what}")
-        if self.options.tracer.active:
+        if self.tracer.active:
             self._trace("rx", data, what)
         text, answer = self.telnet.feed(data)
         if answer:
@@ -127,20 +135,26 @@ class AsciiLink(CommandLink):
 
     def _trace(self, direction: str, data: bytes, note: str) -> None:
         """The wire bytes as TCP segments (``--trace``, ``--pcap``; layer ``akd``)."""
-        local, remote = self.sock.getsockname()[:2], self.sock.getpeername()[:2]
-        src, dst = (local, remote) if direction == "tx" else (remote, local)
-        self.options.tracer.frame(direction, "akd", data, note=note,  # type: ignore[arg-type]
-                                  meta={"proto": "tcp", "src": src, "dst": dst})
+        ends = self.stream.local_and_remote()
+        meta: dict[str, object] = {}
+        if ends is not None:
+            local, remote = ends
+            src, dst = (local, remote) if direction == "tx" else (remote, local)
+            meta = {"proto": "tcp", "src": src, "dst": dst}
+        self.tracer.frame(direction, "akd", data, note=note, meta=meta)  # type: ignore[arg-type]
 
     def _send(self, data: bytes, what: str) -> None:
-        if self.options.tracer.active:
+        if self.tracer.active:
             self._trace("tx", data, what)
         try:
-            self.sock.sendall(data)
-        except socket.timeout:
-            raise NoAnswer(f"{self.label}: could not send {what} in time") from None
+            self.stream.send(data)
         except OSError as exc:
-            raise CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})") from None
+            raise self._send_failed(exc, what) from None
+
+    def _send_failed(self, exc: OSError, what: str) -> CommError:
+        if isinstance(exc, socket.timeout):
+            return NoAnswer(f"{self.label}: could not send {what} in time")
+        return CommError(f"{self.label}: cannot send {what} ({exc.strerror or exc})")
 
     def settle(self, budget: float) -> None:
         """Drain a banner, a first prompt and option offers right after connecting; a drive that hangs up at
@@ -160,49 +174,95 @@ class AsciiLink(CommandLink):
         self.buffer = b""
 
     # ---------------------------------------------------------------- the contract
+    def _wire(self, line: str) -> tuple[bytes, str]:
+        """The bytes of a command line and the line as sent (checked and encoded once per distinct line)."""
+        known = self._lines.get(line)
+        if known is None:
+            text = line.strip()
+            if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
+                raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
+            known = (text.encode("ascii") + b"\r\n", text)
+            if len(self._lines) < 256:
+                self._lines[line] = known
+        return known
+
     def command(self, line: str) -> str:
-        line = line.strip()
-        if not line or len(line) > MAX_LINE or any(not 32 <= ord(c) < 127 for c in line):
-            raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
+        wire, sent = self._lines.get(line) or self._wire(line)
         if self.broken:
             raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
-        what = repr(line)
-        with self.options.budget.request(attempts=1) as deadline:
-            self.buffer = b""
-            self._send(line.encode("ascii") + b"\r\n", what)
-            while True:
-                cut = self.buffer.find(PROMPT)
-                if cut >= 0:
-                    break
-                left = deadline.remaining()
-                if left <= 0 or not self._receive(left, what):
-                    if deadline.remaining() > 0:
-                        continue
-                    self.broken = "a command without a prompt"
-                    got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
-                    raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
+        with self.budget.request(attempts=1) as deadline:
+            if self.buffer or self.tracer.active:
+                return self._general(wire, deadline)
+            try:   # the usual exchange: the line out, its reply back whole in one segment; the deadline was
+                # set microseconds ago, so its total is what is left (within tcp_stream's slack)
+                data = self.stream.request(wire, deadline.total or 0.001)
+            except OSError as exc:
+                what = repr(wire[:-2].decode())
+                if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
+                    raise self._send_failed(exc, what) from None
+                raise CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})") from None
+            if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
+                    and not self.telnet.pending and not self.telnet.in_sb:
+                return self._text(sent, data[:-3])
+            if data:
+                self.buffer = self._fed(data, wire)
+            return self._rest(wire, deadline)
+
+    def _general(self, wire: bytes, deadline: "Deadline") -> str:
+        """Bytes left from before or tracing on: the send and every receive through the general path."""
+        self._send(wire, repr(wire[:-2].decode()))
+        return self._rest(wire, deadline)
+
+    def _fed(self, data: bytes, wire: bytes) -> bytes:
+        """A first segment that is not a whole plain reply: Telnet bytes stripped, options answered."""
+        text, answer = self.telnet.feed(data)
+        if answer:
+            self._send(answer, repr(wire[:-2].decode()))
+        return text
+
+    def _rest(self, wire: bytes, deadline: "Deadline") -> str:
+        """Receive until the prompt, within the request's deadline (several segments, Telnet bytes, tracing)."""
+        what = repr(wire[:-2].decode())
+        while True:
+            cut = self.buffer.find(PROMPT)
+            if cut >= 0:
+                break
+            left = deadline.remaining()
+            if left <= 0 or not self._receive(left, what):
+                if deadline.remaining() > 0:
+                    continue
+                self.broken = "a command without a prompt"
+                got = f" (got {len(self.buffer)} bytes, no '-->')" if self.buffer else ""
+                raise NoAnswer(f"{self.label}: no prompt after {what} within {deadline.describe()}{got}")
         reply = self.buffer[:cut]
         self.buffer = self.buffer[cut + len(PROMPT):]
-        return self._text(line, reply)
+        return self._text(wire[:-2].decode("ascii"), reply)
 
     def _text(self, line: str, reply: bytes) -> str:
-        text = reply.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
+        text = reply.decode("latin-1").strip()
+        if "\n" not in text and "\r" not in text:   # one line (the usual read): no splitting
+            if text.upper() == line.upper():   # only an echo of our line [I: echo unknown]
+                text = ""
+        else:
+            text = self._lines_of(line, text)
+        if text[:6].lower() == "error:":
+            raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
+                                 details={"reply": text[:2000]})
+        return text
+
+    @staticmethod
+    def _lines_of(line: str, text: str) -> str:
+        """A reply of several lines: CR, LF or CRLF between them, an echo of our line dropped."""
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
         lines = text.split("\n")
         while lines and not lines[0].strip():
             lines.pop(0)
         if lines and lines[0].strip().upper() == line.upper():   # an echo of our line [I: echo unknown]
             lines.pop(0)
-        text = "\n".join(lines).strip()
-        if text.startswith("Error:") or text.lower().startswith("error:"):
-            raise CommandRefused(f"the drive refused {line!r}: {text.splitlines()[0].strip()[:200]}",
-                                 details={"reply": text[:2000]})
-        return text
+        return "\n".join(lines).strip()
 
     def close(self) -> None:
-        try:
-            self.sock.close()
-        except OSError:
-            pass
+        self.stream.close()
 
 
 class AkdAsciiTransport(Transport):
@@ -219,7 +279,7 @@ class AkdAsciiTransport(Transport):
         label = f"akd://{host}:{port}"
         timeout = self.options.budget.left()
         try:
-            sock = socket.create_connection((host, port), timeout=timeout)
+            stream = TcpStream.connect(host, port, timeout)
         except socket.timeout:
             raise NoAnswer(f"{label}: no answer within {timeout:g} s (TCP connect)") from None
         except (socket.gaierror, UnicodeError) as exc:
@@ -228,8 +288,7 @@ class AkdAsciiTransport(Transport):
             raise CommError(f"{label}: connection refused (is this the drive's service port? default 23)") from None
         except OSError as exc:
             raise CommError(f"{label}: cannot connect ({exc.strerror or exc})") from None
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        link = AsciiLink(sock, self.options, label)
+        link = AsciiLink(stream, self.options, label)
         self._link = link
         link.settle(min(SETTLE, timeout / 4))
         self.command_link = link

@@ -21,7 +21,9 @@ import contextlib
 import socket
 import struct
 import time
+from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 from akdctl.errors import CommError, DriveError, NoAnswer, UsageError
 from akdctl.io import raw_socket
@@ -39,6 +41,7 @@ STATION_BASE = 0x1001
 #: Seconds a slave leaving BOOT may take to answer again: the AKD ESI's back-to-INIT timeout.
 BOOT_EXIT_TIMEOUT = 50.0
 SII_MAX_BYTES = 0x4000
+_TIMEVAL = struct.Struct("@ll")  # struct timeval (seconds, microseconds) for SO_RCVTIMEO
 
 
 class FrameLost(NoAnswer):
@@ -79,6 +82,11 @@ class EcatMaster:
         self.retries = retries
         self.frame_timeout = min(timeout, 0.2)
         self.sock: socket.socket | None = sock if sock is not None else open_raw_socket(ifname)
+        # A blocking socket whose receive timeout the kernel keeps (SO_RCVTIMEO): one system call per send and
+        # per receive. A Python socket timeout instead polls before every send and every receive, and each
+        # settimeout() is another call.
+        self.sock.settimeout(None)
+        self._waits: float | None = None  # the receive timeout set now
         self._index = 0
         self._buffer = bytearray(2048)  # one receive buffer for every frame
         self.frames = 0
@@ -90,6 +98,17 @@ class EcatMaster:
             self.sock = None
 
     # ------------------------------------------------------------------ frames
+    def _wait_at_most(self, sock: socket.socket, seconds: float) -> None:
+        """The receive timeout, set only when it changes (at least 1 µs: 0 would mean no timeout)."""
+        if seconds != self._waits:
+            us = max(1, int(seconds * 1e6))
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _TIMEVAL.pack(us // 1_000_000, us % 1_000_000))
+            self._waits = seconds
+
+    def _lost(self) -> FrameLost:
+        return FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
+                         "no slave connected, or the link is down")
+
     def _trace(self, direction: str, frame: bytes, note: str) -> None:
         # data is the whole Ethernet frame, so the pcap sink takes it as it is (no EtherType in meta)
         self.tracer.frame(direction, "ecat", frame, note=note, meta={"proto": "ethernet"})  # type: ignore[arg-type]
@@ -119,9 +138,9 @@ class EcatMaster:
         raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s "
                         f"({attempts} attempt{'s' if attempts > 1 else ''}): no slave connected, or the link is down")
 
-    def txrx_template(self, template: ec.FrameTemplate, data: bytes | None = None) -> list[tuple[bytes, int]]:
-        """:meth:`txrx` for a frame encoded once (mailbox polls): one try, (data, WKC) per datagram.
-        FrameLost when it does not come back."""
+    def txrx_template(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
+        """:meth:`txrx` for a frame encoded once (mailbox polls): one try; data and WKC of each datagram in
+        turn, flat (:meth:`FrameTemplate.read`). FrameLost when it does not come back."""
         sock = self.sock
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
@@ -134,63 +153,112 @@ class EcatMaster:
         except OSError as exc:
             raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
         self.frames += 1
-        deadline = time.monotonic() + self.frame_timeout
+        sent = time.monotonic()
         buffer = self._buffer
+        if self._waits != self.frame_timeout:
+            self._wait_at_most(sock, self.frame_timeout)
         while True:
-            left = deadline - time.monotonic()
-            if left <= 0:  # a peer flooding frames that are not the answer does not hold us past the deadline
-                raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
-                                "no slave connected, or the link is down")
-            sock.settimeout(left)
             try:
-                reply = buffer[:sock.recv_into(buffer)]
-            except (socket.timeout, BlockingIOError):
-                raise FrameLost(f"no EtherCAT frame came back on {self.ifname} within {self.frame_timeout:g} s: "
-                                "no slave connected, or the link is down") from None
+                size = sock.recv_into(buffer)
+            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+                raise self._lost() from None
             except OSError as exc:
                 raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
-            if reply[6:12] == MASTER_MAC:
-                continue  # our own frame, seen on the way out
-            got = template.read(reply, index)
-            if got is None:  # not at the template's offsets: decode it the general way
+            own = buffer.startswith(MASTER_MAC, 6)  # our own frame, seen on the way out, is not the answer
+            got = None if own else template.read(buffer, index, size)
+            if got is None and not own:  # not at the template's offsets: decode it the general way
                 try:
-                    _dst, _src, datagrams = ec.decode_frame(reply)
+                    _dst, _src, datagrams = ec.decode_frame(buffer[:size])
                 except CodecError:
+                    datagrams = []
+                if len(datagrams) == template.count and datagrams[0].index == index:
+                    got = tuple(x for d in datagrams for x in (d.data, d.wkc))
+            if got is not None:
+                self._traced_rx(buffer, size, got)
+                return got
+            # Not the answer: wait for the rest of the frame's time only, so a peer flooding frames that are not
+            # the answer does not hold us past it.
+            left = sent + self.frame_timeout - time.monotonic()
+            if left <= 0:
+                raise self._lost()
+            self._wait_at_most(sock, left)
+
+    def txrx_pair(self, first: ec.FrameTemplate, data: bytes, second: ec.FrameTemplate
+                  ) -> tuple[tuple[Any, ...] | None, tuple[Any, ...] | None]:
+        """Two template frames sent back to back -- the second without waiting for the first's answer (a
+        mailbox write and the poll for its reply) -- and each one's answer as :meth:`txrx_template` gives it,
+        None for one that did not come back. Every receive waits at most the frame timeout and the pair at
+        most twice that."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        one = self._index = (self._index + 1) & 0xFF
+        two = self._index = (self._index + 1) & 0xFF
+        frames = (first.stamp(one, data), second.stamp(two))
+        try:
+            for frame in frames:
+                if self.tracer.active:
+                    self._trace("tx", frame, "mailbox write" if frame is frames[0] else "mailbox poll/fetch")
+                sock.send(frame)
+                self.frames += 1
+        except OSError as exc:
+            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+        sent = time.monotonic()
+        buffer = self._buffer
+        if self._waits != self.frame_timeout:
+            self._wait_at_most(sock, self.frame_timeout)
+        got_one = got_two = None
+        while got_one is None or got_two is None:
+            try:
+                size = sock.recv_into(buffer)
+            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+                break
+            except OSError as exc:
+                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if not buffer.startswith(MASTER_MAC, 6):  # (our own frames, seen on the way out, are not answers)
+                if got_one is None and (got_one := first.read(buffer, one, size)) is not None:
+                    self._traced_rx(buffer, size, got_one)
                     continue
-                if len(datagrams) != len(template._slots) or datagrams[0].index != index:
+                if got_two is None and (got_two := second.read(buffer, two, size)) is not None:
+                    self._traced_rx(buffer, size, got_two)
                     continue
-                got = [(d.data, d.wkc) for d in datagrams]
-            if self.tracer.active:
-                self._trace("rx", bytes(reply), f"wkc {','.join(str(w) for _d, w in got)}")
-            return got
+            left = sent + self.frame_timeout - time.monotonic()  # not an answer: only the rest of the time
+            if left <= 0:
+                break
+            self._wait_at_most(sock, left)
+        return got_one, got_two
+
+    def _traced_rx(self, buffer: bytearray, size: int, got: tuple[Any, ...]) -> None:
+        if self.tracer.active:
+            self._trace("rx", bytes(buffer[:size]), f"wkc {','.join(str(w) for w in got[1::2])}")
 
     def _wait(self, index: int, count: int) -> list[ec.Datagram] | None:
         sock = self.sock
         assert sock is not None
         deadline = time.monotonic() + self.frame_timeout
         buffer = self._buffer
+        self._wait_at_most(sock, self.frame_timeout)
         while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return None
-            sock.settimeout(remaining)
             try:
-                frame = buffer[:sock.recv_into(buffer)]
-            except (socket.timeout, BlockingIOError):
+                size = sock.recv_into(buffer)
+            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
                 return None
             except OSError as exc:
                 raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
-            if frame[6:12] == MASTER_MAC:
-                continue  # our own frame, seen on the way out
-            try:
-                _dst, _src, got = ec.decode_frame(frame)
-            except CodecError:
-                continue
-            if not got or got[0].index != index or len(got) != count:
-                continue  # a late answer to an earlier attempt
-            if self.tracer.active:
-                self._trace("rx", bytes(frame), f"wkc {','.join(str(d.wkc) for d in got)}")
-            return got
+            frame = buffer[:size]
+            if frame[6:12] != MASTER_MAC:  # (our own frame, seen on the way out, is not the answer)
+                try:
+                    _dst, _src, got = ec.decode_frame(frame)
+                except CodecError:
+                    got = []
+                if got and got[0].index == index and len(got) == count:  # (else a late answer to an earlier try)
+                    if self.tracer.active:
+                        self._trace("rx", bytes(frame), f"wkc {','.join(str(d.wkc) for d in got)}")
+                    return got
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            self._wait_at_most(sock, remaining)
 
     # ------------------------------------------------------------------ register helpers
     def read(self, cmd: int, adp: int, ado: int, length: int, retries: int | None = None) -> tuple[bytes, int]:
@@ -349,11 +417,18 @@ class RawMailboxLink(MailboxLink):
     """The mailbox of one slave: write SM0, poll SM1, read about the reply's length.
 
     Per request: one frame writes SM0 (the whole buffer, as SOEM and IgH do: the ESC takes the
-    mailbox when its last byte is written). Each poll is one frame of three datagrams: SM1's status
-    byte, the first ``K`` bytes of SM1 and SM1's last byte. While SM1 is empty the ESC refuses the two
-    reads (WKC 0, nothing happens); once it is full the frame brings the reply and hands the buffer
-    back to the slave (reading the last byte does), so a reply costs one frame, not a status poll
-    plus a read. ``K`` is the length of the last reply (at least :data:`FIRST_READ`); a reply longer
+    mailbox when its last byte is written), and the first poll follows it at once, before the write's
+    answer is back: it reaches the slave right behind the request, so a slave that answers within a
+    frame's round trip (the simulator; a fast application) has the reply in SM1 when the poll passes,
+    and the master's turnaround between the two frames is off the request's critical path; a slower
+    slave costs that one poll, as polling right after the write's answer did. Each poll is one frame
+    of two datagrams: the first ``K``
+    bytes of SM1 and SM1's last byte. While SM1 is empty the ESC refuses both reads (WKC 0, nothing
+    happens); once it is full the frame brings the reply and hands the buffer back to the slave
+    (reading the last byte does), so a reply costs one frame, not a status poll plus a read -- and the
+    working counter already says what SM1's "mailbox full" status bit would (so no datagram reads it:
+    the slave has one less to process per poll). ``K`` is the length of the last reply (at least
+    :data:`FIRST_READ`; SM1's whole length in one datagram when K reaches it); a reply longer
     than ``K`` is asked for again with the sync manager's repeat request and read whole -- the same
     mechanism that recovers a reply lost on the wire. Polls follow each other at once, then with
     growing pauses (20 µs doubling to 1 ms): no fixed sleep on the happy path. Replies left from an
@@ -372,7 +447,9 @@ class RawMailboxLink(MailboxLink):
         self._status_reg = self._sm_reg(1, 5)
         self._write = ec.FrameTemplate([ec.Datagram(ec.Cmd.FPWR, station, sm0.start, bytes(sm0.length))], MASTER_MAC)
         self._polls: dict[int, ec.FrameTemplate] = {}
-        self._read = min(self.FIRST_READ, sm1.length)
+        self._read = self._first_read = min(self.FIRST_READ, sm1.length)
+        #: Polls sent with a request (:meth:`send`) not yet looked at: (their answer or None if lost, bytes read).
+        self._early: deque[tuple[tuple[Any, ...] | None, int]] = deque()
 
     def _sm_reg(self, n: int, offset: int) -> int:
         return ec.REG_SM0 + ec.SM_STRIDE * n + offset
@@ -381,8 +458,7 @@ class RawMailboxLink(MailboxLink):
         template = self._polls.get(size)
         if template is None:
             fprd, station, sm1 = ec.Cmd.FPRD, self.station, self.sm1
-            datagrams = [ec.Datagram(fprd, station, self._status_reg, b"\0"),
-                         ec.Datagram(fprd, station, sm1.start, bytes(size))]
+            datagrams = [ec.Datagram(fprd, station, sm1.start, bytes(size))]
             if size < sm1.length:
                 datagrams.append(ec.Datagram(fprd, station, sm1.start + sm1.length - 1, b"\0"))
             template = self._polls[size] = ec.FrameTemplate(datagrams, MASTER_MAC)
@@ -392,6 +468,14 @@ class RawMailboxLink(MailboxLink):
         if len(mailbox) > self.sm0.length:
             raise CommError(f"mailbox of {len(mailbox)} bytes exceeds the slave's {self.sm0.length}-byte SM0")
         data = bytes(mailbox).ljust(self.sm0.length, b"\0")
+        size = self._read
+        self.polls += 1
+        wrote, poll = self.master.txrx_pair(self._write, data, self._polls.get(size) or self._poll_frame(size))
+        self._early.append((poll, size))
+        if wrote is None:
+            raise self.master._lost()  # the channel listens for the reply anyway (see below)
+        if wrote[1] == 1:
+            return
         deadline = time.monotonic() + self.master.timeout
         pause = _Pause()
         while True:
@@ -399,31 +483,40 @@ class RawMailboxLink(MailboxLink):
             # application, emptied SM0 again), so a repeat could apply it twice. FrameLost goes up: the
             # channel listens for the reply anyway and judges the outcome. WKC 0 means refused (SM0 still
             # full with an earlier request): nothing was written, so writing again is safe.
-            ((_data, wkc),) = self.master.txrx_template(self._write, data)
-            if wkc == 1:
-                return
             if time.monotonic() > deadline:
                 raise NoAnswer(f"slave 0x{self.station:04X} does not empty its receive mailbox (SM0 stays full)")
             pause.wait(deadline)
+            _data, wkc = self.master.txrx_template(self._write, data)
+            if wkc == 1:
+                return
 
     def receive(self, timeout: float) -> bytes | None:
         deadline = time.monotonic() + max(0.0, timeout)
-        pause = _Pause()
+        pause: _Pause | None = None
         master = self.master
+        early = self._early
         while True:
-            size = self._read
-            self.polls += 1
-            try:
-                got = master.txrx_template(self._poll_frame(size))
-            except FrameLost:
+            got: tuple[Any, ...] | None
+            if early:  # the poll that went out with the request: its answer first
+                got, size = early.popleft()
+                if got is not None and got[1] != 1:
+                    continue  # it found SM1 empty: poll now (even a receive(0) polls once, as it always did)
+            else:
+                size = self._read
+                self.polls += 1
+                try:
+                    got = master.txrx_template(self._polls.get(size) or self._poll_frame(size))
+                except FrameLost:
+                    got = None
+            if got is None:  # the poll frame was lost, and perhaps the reply it read with it
                 self._recover(deadline)
                 continue
-            (status, _w), (data, data_wkc) = got[0], got[1]
-            if status[0] & ec.SM_STATUS_MAILBOX_FULL and data_wkc == 1 and all(w == 1 for _d, w in got[2:]):
+            data, data_wkc = got[0], got[1]
+            if data_wkc == 1 and (len(got) == 2 or got[3] == 1):  # SM1 was full: read, and the slave's again
                 length = min(MAILBOX_HEADER + (data[0] | data[1] << 8), self.sm1.length)
                 if length <= size:
-                    self._read = max(min(self.FIRST_READ, self.sm1.length), length)
-                    return _trim(data)
+                    self._read = max(self._first_read, length)
+                    return data[:length]
                 # Longer than this poll read, and the buffer is the slave's again: have it put back, read it whole.
                 self.rereads += 1
                 self._read = length
@@ -431,6 +524,8 @@ class RawMailboxLink(MailboxLink):
                 continue
             if time.monotonic() >= deadline:
                 return None
+            if pause is None:
+                pause = _Pause()
             pause.wait(deadline)
 
     def _recover(self, deadline: float) -> None:
@@ -481,11 +576,6 @@ class _Pause:
             return
         time.sleep(max(0.0, min(self.seconds, deadline - time.monotonic())))
         self.seconds = min(self.LONGEST, self.seconds * 2)
-
-
-def _trim(buffer: bytes) -> bytes:
-    (length,) = struct.unpack_from("<H", buffer)
-    return buffer[: min(len(buffer), 6 + length)]
 
 
 def interface_name(target: Target) -> str:
@@ -705,8 +795,8 @@ class ProcessDataCycle:
             frame = self._frames[with_status] = ec.FrameTemplate(datagrams, MASTER_MAC)
         got = self.master.txrx_template(frame, image)
         self.cycles += 1
-        al = None if not with_status else (struct.unpack("<H", got[1][0])[0] if got[1][1] == 1 else 0)
-        return got[0][0][self.rx_bytes:], got[0][1], al
+        al = None if not with_status else (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
+        return got[0][self.rx_bytes:], got[1], al
 
     # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
     # slave this cycle serves, so they take the cycle alone, never the transport behind it.

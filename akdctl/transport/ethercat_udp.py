@@ -22,6 +22,7 @@ import time
 
 from akdctl.errors import CommError, UsageError
 from akdctl.links import MailboxLink
+from akdctl.protocol.mailbox import MailboxError, unwrap_gateway, wrap_gateway
 from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
 from akdctl.transport.trace import Tracer
@@ -59,6 +60,7 @@ class GatewayMailboxLink(MailboxLink):
             sock.close()
             raise CommError(f"cannot reach EtherCAT gateway {host}:{port}: {exc.strerror}") from None
         self.sock: socket.socket | None = sock
+        self._timeout = -1.0  # the socket's timeout as last set (set again only when a wait needs another)
         self._local = sock.getsockname()[:2]
         self._remote = addr[:2]
 
@@ -67,9 +69,9 @@ class GatewayMailboxLink(MailboxLink):
         return {"proto": "udp", "src": src, "dst": dst}
 
     def send(self, mailbox: bytes) -> None:
-        from akdctl.protocol.mailbox import MailboxError, wrap_gateway
-
-        sock = self._socket()
+        sock = self.sock
+        if sock is None:
+            raise self._closed()
         if mailbox[2:4] != self._address:  # the mailbox names the gateway's station (the channel writes it)
             mailbox = mailbox[:2] + self._address + mailbox[4:]
         try:
@@ -88,20 +90,27 @@ class GatewayMailboxLink(MailboxLink):
         self.sent += 1
 
     def receive(self, timeout: float) -> bytes | None:
-        from akdctl.protocol.mailbox import MailboxError, unwrap_gateway
-
-        sock = self._socket()
-        deadline = time.monotonic() + max(0.0, timeout)
+        sock = self.sock
+        if sock is None:
+            raise self._closed()
+        now = time.monotonic()
+        deadline = now + max(0.0, timeout)
         tracer = self.tracer
         while True:
             # at least one try, even with no time left (timeout 0: take what is already there)
-            sock.settimeout(max(0.0, deadline - time.monotonic()))  # recv waits in poll(2): no select() lists
+            wait = deadline - now
+            current = self._timeout
+            if current > wait or current < wait * 0.5:  # set only when it changes (settimeout is a syscall)
+                # (a little short of the wait, so the next request's slightly shorter wait keeps it)
+                self._timeout = current = wait * 0.98 if wait > 0.002 else max(0.0, wait)
+                sock.settimeout(current)  # recv waits in poll(2): no select() lists
             try:
                 data = sock.recv(4096)
-            except socket.timeout:
-                return None
-            except BlockingIOError:
-                return None  # timeout 0: nothing there
+            except (socket.timeout, BlockingIOError):
+                now = time.monotonic()
+                if now < deadline and current:
+                    continue  # the socket's timeout ended a little before the wait did
+                return None  # (timeout 0: nothing there)
             except ConnectionRefusedError:
                 raise self._refused() from None
             except OSError as exc:
@@ -111,12 +120,14 @@ class GatewayMailboxLink(MailboxLink):
             except MailboxError as exc:
                 if tracer.active:
                     tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
+                now = time.monotonic()
                 continue
             address = mailbox[2:4]
             if address != self._address and address != b"\x00\x00":
                 if tracer.active:
                     tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {int.from_bytes(address, 'little')}",
                                  meta=self._meta("rx"))
+                now = time.monotonic()
                 continue
             if tracer.active:
                 tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {int.from_bytes(address, 'little')}",
@@ -130,10 +141,9 @@ class GatewayMailboxLink(MailboxLink):
         return CommError(f"no answer from an EtherCAT gateway: nothing listens on UDP port {self.port} of {self.host} "
                          "(ICMP port unreachable); is the master's mailbox gateway enabled on that port?")
 
-    def _socket(self) -> socket.socket:
-        if self.sock is None:
-            raise CommError("the EtherCAT gateway link is closed")
-        return self.sock
+    @staticmethod
+    def _closed() -> CommError:
+        return CommError("the EtherCAT gateway link is closed")
 
     def close(self) -> None:
         if self.sock is not None:

@@ -28,6 +28,7 @@ import socket
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from akdctl.catalog.texts import pnio_status_text
@@ -42,6 +43,7 @@ from akdctl.errors import (
 from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
+from akdctl.protocol.pnio_call import RecordCalls, plain_response
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
@@ -52,6 +54,7 @@ DEFAULT_DEVICE_ID = 0x0001
 MAX_RECORD = 240
 BUSY_BACKOFF = (0.01, 0.1)       # first and longest pause between polls of a busy device
 MAX_BODY = 1 << 17               # the most a reassembled response may hold (a record is at most 64 KiB)
+RecordReply = tuple["pnio.PnioStatus", bytes]  # a record call's PNIOStatus and record data
 NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C010002: "operation out of range",
              0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
 
@@ -65,6 +68,8 @@ class RpcClient:
         self.label = label
         self.activity = uuid.uuid4()
         self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
+        self._activity_be, self._activity_le = self.activity.bytes, self.activity.bytes_le
+        self._timeout = 0.0     # the socket's timeout as last set (set again only when a wait needs another)
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
         self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
@@ -97,49 +102,74 @@ class RpcClient:
         if deadline is None:
             with self.options.budget.request() as own:
                 return self.call(opnum, blocks, own)
-        self.sequence = (self.sequence + 1) & 0xFFFFFFFF
-        datagram = self.template.packet(self.sequence, opnum, pnio.encode_request_args(blocks))
-        name = pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
+        sequence = self.next_sequence()
+        return self.exchange(self.template.packet(sequence, opnum, pnio.encode_request_args(blocks)), opnum, deadline)
+
+    def next_sequence(self) -> int:
+        """The sequence number of the next call (the datagram passed to :meth:`exchange` must carry it)."""
+        self.sequence = sequence = (self.sequence + 1) & 0xFFFFFFFF
+        return sequence
+
+    def exchange(self, datagram: bytes, opnum: int, deadline: Deadline) -> tuple[pnio.PnioStatus, bytes]:
+        """Send the datagram of call :attr:`sequence` and wait for its answer within ``deadline`` (see :meth:`call`).
+
+        The same datagram goes out again after each attempt's share of the deadline: the device recognises the
+        repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
+        The usual reply (our activity, this sequence, one unfragmented response) is read by
+        :func:`pnio_call.plain_response`; every other datagram, and every datagram while tracing, by :meth:`_accept`.
+        """
+        sequence = self.sequence
         tracing = self.options.tracer.active
-        # The same datagram again after each attempt's share of the deadline: the device recognises the
-        # repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
-        reassembler: list[dcerpc.Reassembler] = []  # made for the first fragment (responses rarely are)
+        reassembler: list[dcerpc.Reassembler] | None = None  # made when the general path first takes a datagram
         attempts = deadline.attempts
+        sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
         for sent in range(attempts):
             if sent and deadline.expired():
                 break
-            resend_at = time.monotonic() + deadline.share(attempts - sent)
             if tracing:
-                self._trace("tx", datagram, f"{name} seq {self.sequence}" + (" (retransmission)" if sent else ""))
-            self._send(datagram, name)
+                self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}" + (" (retransmission)" if sent else ""))
+            try:
+                sock.send(datagram)
+            except OSError as exc:
+                self._send_failed(exc, opnum)
             if sent:
                 self.retransmissions += 1
-            while True:
-                wait = resend_at - time.monotonic()
-                if wait <= 0:
-                    break
-                self.sock.settimeout(wait)
+            now = time.monotonic()
+            resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of what is left
+            wait = resend_at - now
+            while wait > 0:
+                timeout = self._timeout
+                if timeout > wait or timeout < wait * 0.5:  # set only when it changes (settimeout is a syscall)
+                    self._timeout = timeout = wait * 0.98 if wait > 0.002 else wait
+                    sock.settimeout(timeout)
                 try:
-                    data = self._buffer[:self.sock.recv_into(self._buffer)]
+                    data = buffer[:sock.recv_into(buffer)]
                 except socket.timeout:
-                    break
+                    wait = resend_at - time.monotonic()  # the socket's timeout may end a little before resend_at
+                    continue
                 except ConnectionRefusedError:
-                    raise self._refused(name) from None
+                    raise self._refused(_opname(opnum)) from None
                 except OSError as exc:
                     raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
-                result = self._accept(data, name, reassembler)
+                if not tracing:
+                    result = plain_response(data, sequence, activity_be, activity_le)
+                    if result is not None:
+                        return result
+                if reassembler is None:
+                    reassembler = []  # (a reassembler goes in for the first fragment: responses rarely are)
+                result = self._accept(data, _opname(opnum), reassembler)
                 if result is not None:
                     return result
-        raise NoAnswer(f"{self.label}: no answer to PNIO {name} within {deadline.describe()}")
+                wait = resend_at - time.monotonic()
+        raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
 
-    def _send(self, datagram: bytes, name: str) -> None:
-        try:
-            self.sock.send(datagram)
-        except ConnectionRefusedError:
-            raise self._refused(name) from None
-        except OSError as exc:
-            if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
-                raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
+    def _send_failed(self, exc: OSError, opnum: int) -> None:
+        """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
+        follows as if the datagram were lost), or the socket failed."""
+        if isinstance(exc, ConnectionRefusedError):
+            raise self._refused(_opname(opnum)) from None
+        if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
+            raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
 
     def _refused(self, name: str) -> CommError:
         """ICMP port unreachable came back (ECONNREFUSED on the connected socket): nothing listens there,
@@ -209,35 +239,41 @@ class PnioRecordLink(RecordLink):
                              f"of {MAX_RECORD} bytes")
         with t.lock, t.options.budget.request() as deadline:
             try:
-                self._until_not_busy(deadline, lambda: t.write_record(request, deadline), "write")
-                return self._until_not_busy(deadline, lambda: t.read_record(deadline), "read")
+                status = t.write_record(request, deadline)[0]
+                if status.busy:
+                    self._until_not_busy(deadline, status, t.write_record, request, "write")
+                status, data = t.read_record(deadline)
+                if status.busy:
+                    data = self._until_not_busy(deadline, status, t.read_record, None, "read")
+                return data
             except NoAnswer as exc:
                 from akdctl.protocol import bmp
 
                 if len(request) > 1 and request[1] == bmp.REQ_CHANGE:
                     raise _unknown_outcome(exc, request) from None
                 raise
+            finally:
+                t._last_activity = time.monotonic()
 
-    def _until_not_busy(self, deadline: Deadline, action, what: str) -> bytes:  # type: ignore[no-untyped-def]
+    def _until_not_busy(self, deadline: Deadline, busy: pnio.PnioStatus, action: Callable[..., RecordReply],
+                        request: bytes | None, what: str) -> bytes:
+        """Ask again, with a growing pause, while the device answers busy (``busy``: its first answer)."""
         pause = BUSY_BACKOFF[0]
-        busy: pnio.PnioStatus | None = None
         while True:
+            if pause > deadline.remaining():
+                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
+                               f"({what} record: {pnio_status_text(*busy.encode())})", code=busy.value)
+            time.sleep(pause)
+            pause = min(BUSY_BACKOFF[1], pause * 2)
             try:
-                status, data = action()
+                status, data = action(deadline) if request is None else action(request, deadline)
             except NoAnswer:
-                if busy is None:
-                    raise
                 # The drive did answer: busy, until the time ran out. Say that, not "no answer" (issue 23.15).
                 raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
                                f"({what} record: {pnio_status_text(*busy.encode())})", code=busy.value) from None
             if not status.busy:
                 return data
             busy = status
-            if pause > deadline.remaining():
-                raise NoAnswer(f"{self.t.label}: the drive stayed busy for {deadline.total:g} s "
-                               f"({what} record: {pnio_status_text(*status.encode())})", code=status.value)
-            time.sleep(pause)
-            pause = min(BUSY_BACKOFF[1], pause * 2)
 
 
 class ProfinetTransport(Transport):
@@ -269,6 +305,7 @@ class ProfinetTransport(Transport):
         self.session_key = 1
         self._rw_seq = 0
         self._last_activity = 0.0
+        self._calls: RecordCalls | None = None  # the parameter record's datagrams, for the current AR
         self._keepalive: threading.Thread | None = None
         self._stop = threading.Event()
 
@@ -331,6 +368,7 @@ class ProfinetTransport(Transport):
             if res.ar_uuid != ar_uuid:
                 raise MalformedReply(f"{self.label}: Connect response names AR {res.ar_uuid}, we asked for {ar_uuid}")
             self.ar_uuid = ar_uuid
+            self._calls = None
             self._last_activity = time.monotonic()
         self._stop.clear()
         self._keepalive = threading.Thread(target=self._keepalive_loop, name="pn-keepalive", daemon=True)
@@ -363,6 +401,7 @@ class ProfinetTransport(Transport):
         self._keepalive = None
         rpc, ar = self.rpc, self.ar_uuid
         self.ar_uuid = None
+        self._calls = None
         if rpc is not None and ar is not None:
             try:
                 budget = self.options.budget
@@ -385,12 +424,22 @@ class ProfinetTransport(Transport):
             raise CommError(f"{self.label}: not connected (no application relation)")
         return self.ar_uuid
 
-    def write_record(self, data: bytes, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
+    def write_record(self, data: bytes, deadline: Deadline | None = None) -> RecordReply:
         """Write ``data`` to the parameter record; returns (status, b'') and raises on refusals other than busy."""
-        ar = self._need_ar()
-        request = pnio.write_request(self._next_rw_seq(), ar.bytes, self.address, data)
-        status, blocks = self._need_rpc().call(pnio.OP_WRITE, request, deadline)
-        self._last_activity = time.monotonic()
+        if deadline is None:
+            with self.options.budget.request() as own:
+                return self.write_record(data, own)
+        calls = self._calls or self._record_calls()  # (made for an AR: raises "not connected" without one)
+        rpc = self._need_rpc()
+        self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
+        status, blocks = rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE, deadline)
+        if status is pnio.OK and blocks:  # (the usual answer: its IODWriteResHeader holds the write's own status)
+            try:
+                status = pnio.write_response(blocks)[2]
+            except CodecError as exc:
+                raise MalformedReply(f"{self.label}: malformed Write response: {exc}") from None
+            if status is pnio.OK:
+                return status, b""
         if status.ok and blocks:
             try:
                 status = pnio.write_response(blocks)[2]
@@ -401,8 +450,29 @@ class ProfinetTransport(Transport):
                               code=status.value)
         return status, b""
 
-    def read_record(self, deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
-        return self._read(self.address, MAX_RECORD, deadline=deadline)
+    def read_record(self, deadline: Deadline | None = None) -> RecordReply:
+        """Read the parameter record (up to MAX_RECORD bytes): (status, data); b'' while the device is busy."""
+        if deadline is None:
+            with self.options.budget.request() as own:
+                return self.read_record(own)
+        calls = self._calls or self._record_calls()
+        rpc = self._need_rpc()
+        self._rw_seq = seq = (self._rw_seq + 1) & 0xFFFF
+        status, blocks = rpc.exchange(calls.read(rpc.next_sequence(), seq), pnio.OP_READ, deadline)
+        if status is pnio.OK:  # the usual answer: the record's data after its header, for our index and sequence
+            try:
+                got_seq, got_index, data = pnio.read_response(blocks)
+            except CodecError:
+                got_seq = -1
+            if got_seq == seq and got_index == self.address.index:
+                return status, data
+        return self._read_reply(self.address, seq, status, blocks)
+
+    def _record_calls(self) -> RecordCalls:
+        """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
+        ar = self._need_ar()
+        self._calls = RecordCalls(self._need_rpc().template, ar.bytes, self.address, MAX_RECORD)
+        return self._calls
 
     def _need_rpc(self) -> RpcClient:
         if self.rpc is None:
@@ -410,13 +480,16 @@ class ProfinetTransport(Transport):
         return self.rpc
 
     def _read(self, address: pnio.RecordAddress, length: int, implicit: bool = False,
-              deadline: Deadline | None = None) -> tuple[pnio.PnioStatus, bytes]:
+              deadline: Deadline | None = None) -> RecordReply:
         ar = pnio.NIL_UUID if implicit else self._need_ar()
         seq = self._next_rw_seq()
         status, blocks = self._client().call(pnio.OP_READ_IMPLICIT if implicit else pnio.OP_READ,
                                              pnio.read_request(seq, ar.bytes, address, length), deadline)
         if not implicit:
             self._last_activity = time.monotonic()
+        return self._read_reply(address, seq, status, blocks)
+
+    def _read_reply(self, address: pnio.RecordAddress, seq: int, status: pnio.PnioStatus, blocks: bytes) -> RecordReply:
         if not status.ok:
             if status.busy:
                 return status, b""
@@ -444,6 +517,11 @@ class ProfinetTransport(Transport):
         except CodecError as exc:
             raise MalformedReply(f"{self.label}: malformed I&M0 record: {exc}") from None
 
+
+
+def _opname(opnum: int) -> str:
+    """"Write", "Read": an operation named in a message or trace note (built only when one is needed)."""
+    return pnio.OPNUM_NAMES.get(opnum, f"opnum {opnum}")
 
 
 def _local_mac() -> bytes:

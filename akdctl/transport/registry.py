@@ -129,9 +129,8 @@ BUILTIN: dict[str, TransportSpec] = {
                       "The AKD's ASCII command channel (service port, \"Telnet\"): parameters by name, DRV.* commands",
                       "akd://HOST[:23]", frozenset({Channel.COMMANDS}), check=_need_host),
         TransportSpec("mb", "akdctl.transport.modbus", "ModbusTransport",
-                      "Modbus TCP (pymodbus): AKD parameters at holding register 2(n-1) (optional extra akdctl[modbus])",
-                      "mb://HOST[:502][?unit=N]", frozenset({Channel.REGISTERS}), requires=("pymodbus",),
-                      check=_need_host, extra="modbus", query=("unit",)),
+                      "Modbus TCP: AKD parameters at holding register 2(n-1)",
+                      "mb://HOST[:502][?unit=N]", frozenset({Channel.REGISTERS}), check=_need_host, query=("unit",)),
     )
 }
 

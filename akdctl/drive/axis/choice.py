@@ -7,8 +7,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from akdctl.drive.axis.base import Axis
-from akdctl.drive.axis.cia402 import Cia402Axis
-from akdctl.drive.axis.profidrive import ProfidriveAxis
 from akdctl.profiles.vocabulary import DriveProfile
 
 if TYPE_CHECKING:
@@ -33,7 +31,13 @@ def axis_class(conn: "Connection") -> type[Axis]:
         from akdctl.drive.axis.akd_ascii import AkdAsciiAxis
 
         return AkdAsciiAxis
-    return ProfidriveAxis if chosen is DriveProfile.PROFIDRIVE else Cia402Axis
+    if chosen is DriveProfile.PROFIDRIVE:  # each profile's module is imported only when chosen (cold start)
+        from akdctl.drive.axis.profidrive import ProfidriveAxis
+
+        return ProfidriveAxis
+    from akdctl.drive.axis.cia402 import Cia402Axis
+
+    return Cia402Axis
 
 
 def open_axis(conn: "Connection") -> Axis:
@@ -51,9 +55,13 @@ def open_axis(conn: "Connection") -> Axis:
 
         axis = AkdAsciiAxis(conn.commands(), timeout=timeout, target=target)
     elif chosen is DriveProfile.PROFIDRIVE:
+        from akdctl.drive.axis.profidrive import ProfidriveAxis
+
         axis = ProfidriveAxis(conn.parameters(), conn.objects() if conn.has_objects else None,
                               timeout=timeout, target=target)
     else:
+        from akdctl.drive.axis.cia402 import Cia402Axis
+
         axis = Cia402Axis(conn.objects(), conn.al_state, timeout=timeout, target=target)
     axis.time_scale_source = lambda: conn.time_scale
     return axis

@@ -1,0 +1,97 @@
+"""The client's side of a record access - a Write of the parameter record, then a Read of it - encoded once and
+patched per call, and its usual reply read with one unpack.
+
+Why a codec of its own: a PNU read is two RPCs, and building each datagram from the general encoders
+(:class:`~akdctl.protocol.dcerpc.RequestTemplate`, :func:`~akdctl.protocol.pnio.encode_request_args`,
+:func:`~akdctl.protocol.pnio.write_request` / :func:`~akdctl.protocol.pnio.read_request`) and reading each reply into
+an :class:`~akdctl.protocol.dcerpc.RpcView` cost more than the drive's answer (issue 29). :class:`RecordCalls` encodes
+the datagrams *with those encoders* once per shape (AR, record address, record length) and then writes only what
+changes per call - the DCE/RPC sequence number and the record header's sequence number - at the offsets those encoders
+put them; tests/test_pnio_call.py holds every datagram byte-equal to the encoders' (hypothesis).
+:func:`plain_response` recognises only the reply the general path (``dcerpc.view_packet``, the activity and sequence
+check, ``pnio.decode_response_args``) would accept as the call's answer, and returns what that path returns; anything
+else (another packet type, a fragment, a stale or foreign reply, a malformed one) is None and takes the general path.
+"""
+
+from __future__ import annotations
+
+import struct
+
+from akdctl.protocol import dcerpc, pnio
+
+# Offsets the general encoders write to (dcerpc.RequestTemplate: sequence and opnum at 64, body length at 74;
+# encode_request_args: the 20-byte NDR header at 80; write_request/read_request: the block header's 6 bytes, then
+# the record header whose sequence number comes first and whose record length comes last).
+_SEQUENCE_AT = 64
+_BODY_AT = dcerpc.HEADER_SIZE
+_NDR_SIZE = 20
+_RW_SEQ_AT = _BODY_AT + _NDR_SIZE + pnio.BLOCK_HEADER.size
+_U32 = struct.Struct(">I")
+_U16 = struct.Struct(">H")
+_WRITE_PREFIX = _RW_SEQ_AT + 58  # DCE/RPC header + NDR header + IODWriteReqHeader: what precedes the record data
+
+
+class RecordCalls:
+    """The Write and Read datagrams of one activity to one record of one AR.
+
+    ``template`` is the activity's request header, ``ar`` the AR UUID's 16 bytes, ``read_length`` the most a Read
+    takes. Every datagram equals ``template.packet(sequence, opnum, pnio.encode_request_args(write_request(...) or
+    read_request(...)))``.
+    """
+
+    __slots__ = ("_read", "_write", "_write_length", "_write_shape")
+
+    def __init__(self, template: dcerpc.RequestTemplate, ar: bytes, address: pnio.RecordAddress,
+                 read_length: int) -> None:
+        read = template.packet(0, pnio.OP_READ, pnio.encode_request_args(pnio.read_request(0, ar, address,
+                                                                                             read_length)))
+        self._read = (read[:_SEQUENCE_AT], read[_SEQUENCE_AT + 4:_RW_SEQ_AT], read[_RW_SEQ_AT + 2:])
+        self._write = (b"", b"", b"")  # made for the first record length written, again when it changes
+        self._write_length = -1
+        self._write_shape: tuple[dcerpc.RequestTemplate, bytes, pnio.RecordAddress] = (template, ar, address)
+
+    def read(self, sequence: int, rw_seq: int) -> bytes:
+        """The Read datagram of call ``sequence`` with record sequence number ``rw_seq``."""
+        head, middle, tail = self._read
+        return b"".join((head, _U32.pack(sequence), middle, _U16.pack(rw_seq), tail))
+
+    def write(self, sequence: int, rw_seq: int, data: bytes) -> bytes:
+        """The Write datagram of call ``sequence`` carrying ``data`` with record sequence number ``rw_seq``."""
+        if len(data) != self._write_length:
+            template, ar, address = self._write_shape
+            write = template.packet(0, pnio.OP_WRITE, pnio.encode_request_args(pnio.write_request(0, ar, address,
+                                                                                                  data)))
+            self._write = (write[:_SEQUENCE_AT], write[_SEQUENCE_AT + 4:_RW_SEQ_AT],
+                           write[_RW_SEQ_AT + 2:_WRITE_PREFIX])
+            self._write_length = len(data)
+        head, middle, tail = self._write
+        return b"".join((head, _U32.pack(sequence), middle, _U16.pack(rw_seq), tail, data))
+
+
+# DCE/RPC CL header of a reply (version, type, flags1, drep byte 0; activity; sequence, body length) and the NDR
+# response header after it (PNIOStatus, ArgsLength, MaximumCount, Offset, ActualCount), per data representation.
+_REPLY = {little: struct.Struct(order + "BBB1xB35x16s8xI6xH4x4sIIII")
+          for little, order in ((False, ">"), (True, "<"))}
+_REPLY_SIZE = _REPLY[False].size  # 100: the header and the NDR response header
+_OK = pnio.OK.encode()
+
+
+def plain_response(data: bytes, sequence: int, activity_be: bytes, activity_le: bytes
+                   ) -> tuple[pnio.PnioStatus, bytes] | None:
+    """(PNIOStatus, blocks) of an unfragmented DCE/RPC response of our activity to call ``sequence`` whose NDR
+    header is consistent - exactly what the general path (``view_packet``, the activity and sequence check,
+    ``decode_response_args``) returns for it - else None (the general path decides what the datagram is)."""
+    if len(data) < _REPLY_SIZE or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_RESPONSE \
+            or data[2] & dcerpc.FLAG_FRAG:
+        return None
+    order = data[4] >> 4
+    if order > 1:
+        return None
+    (_v, _t, _f, _d, activity, seq, body_length, status, length, maximum, offset,
+     actual) = _REPLY[order == 1].unpack_from(data)
+    if seq != sequence or activity != (activity_le if order else activity_be) \
+            or _BODY_AT + body_length > len(data) or body_length < _NDR_SIZE:
+        return None
+    if offset != 0 or actual > maximum or length > body_length - _NDR_SIZE:
+        return None
+    return (pnio.OK if status == _OK else pnio.PnioStatus(*status)), data[_REPLY_SIZE:_REPLY_SIZE + length]
