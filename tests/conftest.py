@@ -13,11 +13,18 @@ Two markers are policed here rather than trusted:
 
 The same hook fails an in-process test whose socket connects, sends or resolves a name beyond loopback, or binds to
 every interface: no test sends a packet off the machine.
+
+The suite runs on two pytest-xdist workers (README's test command), so nothing here is shared between tests: state
+and config live in ``tmp_path``, servers bind port 0, namespaces have random names.  What a test leaves behind is
+checked once per process at the end of the session (``nothing_left_behind``): a live child process or a namespace
+still in ``/run/netns`` fails the run, after being removed.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -46,6 +53,26 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "root" in item.keywords:
             item.add_marker(pytest.mark.skip(reason="needs root (CAP_NET_RAW, network namespaces); runs in CI"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def nothing_left_behind():
+    """At the session's end (after every module fixture is torn down): no process this one started still runs and
+    no namespace a test made still exists.  Leftovers are removed, then reported as an error of the last test."""
+    yield
+    from tests.harness import live_descendants
+    from tests.netns import delete_namespace, leftover_namespaces
+
+    processes, spaces = live_descendants(), leftover_namespaces()
+    for pid in processes:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    for name in spaces:
+        delete_namespace(name)
+    if processes or spaces:
+        pytest.fail("left behind by the tests: " + "; ".join(
+            [f"process {pid} ({cmd})" for pid, cmd in sorted(processes.items())]
+            + [f"network namespace {name}" for name in spaces]), pytrace=False)
 
 
 @pytest.fixture(autouse=True)

@@ -434,3 +434,60 @@ def run_akdctl_tty(*args: str, env: dict[str, str] | None = None, timeout: float
             proc.wait()
     text = b"".join(chunks).decode("utf-8", "replace").replace("\r\n", "\n")
     return CliResult(code, text, "")
+
+
+def live_descendants(pid: int | None = None) -> dict[int, str]:
+    """Processes still running below *pid* (default: this one), as ``{pid: command line}``; zombies are left out
+    (they have ended, their parent merely has not read the exit status yet).
+
+    Why: a test that started a server or a CLI run must stop it; the session checks this once at its end
+    (conftest ``nothing_left_behind``), so a leaked process fails the run instead of lingering on the machine."""
+    parents: dict[int, list[int]] = {}
+    states: dict[int, str] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue  # ended while we looked
+        fields = stat[stat.rfind(")") + 2:].split()
+        child = int(entry.name)
+        states[child] = fields[0]
+        parents.setdefault(int(fields[1]), []).append(child)
+    found: dict[int, str] = {}
+    todo = list(parents.get(os.getpid() if pid is None else pid, []))
+    while todo:
+        child = todo.pop()
+        todo.extend(parents.get(child, []))
+        if states.get(child) == "Z":
+            continue
+        try:
+            cmdline = (Path("/proc") / str(child) / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        found[child] = cmdline.strip()
+    return found
+
+
+def run_akdctl_inproc(*args: str, input: str = "") -> CliResult:
+    """The CLI's entry point (``akdctl.cli.main.main``) run in this process, with stdin *input* (not a terminal) and
+    stdout/stderr captured, like :func:`run_akdctl` but without starting an interpreter.
+
+    Why: a test's *preparation* (``sim reset``, ``sim speed``, ``enable``, ``home``) is not what it tests, and one
+    subprocess costs a cold start (~0.3 s CPU); run it here and keep the subprocess for the runs under test.  Same
+    environment (the test's ``AKDCTL_STATE_DIR``), so a later subprocess sees what this run left on the drive."""
+    from click.testing import CliRunner
+
+    from akdctl.cli.main import main
+
+    with CliRunner().isolation(input=input) as (out, err, _):
+        try:
+            main(list(args))
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        out_text, err_text = out.getvalue().decode(errors="replace"), err.getvalue().decode(errors="replace")
+    return CliResult(code, out_text, err_text)

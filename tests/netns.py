@@ -25,8 +25,9 @@ class LoopbackNetns:
     """A network namespace with only ``lo`` (up, with a multicast route), so multicast never reaches a real NIC.
 
     Needs root (tests using it carry ``@pytest.mark.root``).  Removed on exit even when the test failed; a name is
-    unique per instance so parallel runs do not collide.  ``created`` lists every namespace made in this process,
-    so a test can check that a fixture really made one.
+    unique per instance so parallel runs do not collide.  ``created`` lists every namespace made in this process
+    (a :class:`VethPair`'s two as well), so a test can check that a fixture really made one and the session can
+    check that none outlived its test (:func:`leftover_namespaces`).
     """
 
     created: list[str] = []
@@ -76,6 +77,7 @@ class VethPair:
     def __init__(self, address_a: str | None = None, address_b: str | None = None) -> None:
         tag = uuid.uuid4().hex[:6]
         self.a, self.b = f"akdA{tag}", f"akdB{tag}"
+        LoopbackNetns.created.extend((self.a, self.b))  # registered before `ip netns add`: a half-made pair counts
         self.if_a, self.if_b = f"ea{tag}", f"eb{tag}"
         self.addresses = {self.a: address_a, self.b: address_b}
 
@@ -108,3 +110,19 @@ class VethPair:
         """Whether both ends report operstate UP (a frame sent earlier may be lost)."""
         return all("state UP" in _ip("-n", ns, "-o", "link", "show", "dev", ifname).stdout
                    for ns, ifname in ((self.a, self.if_a), (self.b, self.if_b)))
+
+
+def leftover_namespaces() -> list[str]:
+    """Namespaces this process made (``LoopbackNetns.created``) that still exist - a test that did not clean up.
+
+    Read from ``/run/netns`` (where ``ip netns add`` mounts them), so it costs nothing when no test made one."""
+    if not LoopbackNetns.created:
+        return []
+    run = Path("/run/netns")
+    present = {entry.name for entry in run.iterdir()} if run.is_dir() else set()
+    return sorted(present & set(LoopbackNetns.created))
+
+
+def delete_namespace(name: str) -> None:
+    """Remove namespace *name* (best effort: used to clear up after a test that leaked one)."""
+    subprocess.run(["ip", "netns", "delete", name], capture_output=True, timeout=30, check=False)

@@ -18,6 +18,9 @@ from akdctl.drive import gate
 from akdctl.protocol import cip
 from akdctl.sim.drive import SimDrive
 from tests.harness import run_akdctl as run
+from tests.harness import (
+    run_akdctl_inproc as prepare,  # set-up runs in-process: no cold start
+)
 
 
 def test_every_address_of_one_akd_name_has_one_class() -> None:
@@ -96,8 +99,8 @@ def _recipe(tmp_path: Path, target: str) -> str:
     (["sdo", "write", "0x6060:0", "3"], "operating mode of an enabled drive"),
 ])
 def test_mode_and_set_point_writes_on_an_enabled_drive_need_consent(argv: list[str], words: str) -> None:
-    assert run("sim", "speed", "100000")[0] == 0
-    assert run("--yes", "enable")[0] == 0
+    assert prepare("sim", "speed", "100000")[0] == 0
+    assert prepare("--yes", "enable")[0] == 0
     before = _writes()
     code, _, err = run(*argv)
     assert code == 4 and words in err and "nothing was written" in err, err
@@ -108,8 +111,8 @@ def test_mode_and_set_point_writes_on_an_enabled_drive_need_consent(argv: list[s
 @pytest.mark.parametrize("step", ['object = "0x35B4:0"\nvalue = 1', 'pnu = "930"\nvalue = 1',
                                   'objects = { "0x2071:0" = 100 }'])
 def test_recipe_set_steps_are_gated_like_the_commands(tmp_path: Path, step: str) -> None:
-    assert run("sim", "speed", "100000")[0] == 0
-    assert run("--yes", "enable")[0] == 0
+    assert prepare("sim", "speed", "100000")[0] == 0
+    assert prepare("--yes", "enable")[0] == 0
     before = _writes()
     code, _, err = run("commission", _recipe(tmp_path, step))
     assert code == 4, err

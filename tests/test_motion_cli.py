@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from akdctl.sim.drive import SimDrive
-from tests.harness import finish, wait_until
+from tests.harness import finish, run_akdctl_inproc, wait_until
 from tests.harness import run_akdctl as run
 from tests.harness import start_akdctl as popen
 
@@ -42,12 +42,12 @@ def motion_state() -> dict:
 
 @pytest.fixture
 def fast() -> None:
-    assert run("sim", "speed", "100000")[0] == 0
+    assert run_akdctl_inproc("sim", "speed", "100000")[0] == 0  # set-up, in-process: the flows are the CLI runs
 
 
 @pytest.fixture
 def realtime() -> None:
-    assert run("sim", "speed", "--realtime")[0] == 0
+    assert run_akdctl_inproc("sim", "speed", "--realtime")[0] == 0
 
 
 # ---------------------------------------------------------------- flows, both profiles

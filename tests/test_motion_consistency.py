@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from akdctl.sim.drive import SimDrive
-from tests.harness import finish, wait_until
+from tests.harness import finish, run_akdctl_inproc, wait_until
 from tests.harness import run_akdctl as run
 from tests.harness import start_akdctl as popen
 
@@ -27,19 +27,19 @@ def _moving() -> bool:
                                   ["-y", "home", "--mode", "0", "--timeout", "1m"],
                                   ["-y", "jog", "10", "--for", "200ms"]])
 def test_durations_are_spelled_one_way(argv: list[str]) -> None:
-    assert run("sim", "speed", "100000").code == 0
+    assert run_akdctl_inproc("sim", "speed", "100000").code == 0  # set-up, in-process
     result = run(*argv)
     assert result.code == 0, result.err
 
 
 def test_homed_is_rendered_once_as_yes() -> None:
-    assert run("sim", "speed", "100000").code == 0
+    assert run_akdctl_inproc("sim", "speed", "100000").code == 0  # set-up, in-process
     out = run("-y", "home", "--mode", "0").out
     assert [line.split() for line in out.splitlines() if line.split()[:1] == ["homed"]] == [["homed", "yes"]], out
 
 
 def test_an_interrupted_cia402_move_holds_nothing_and_both_views_say_standstill() -> None:
-    assert run("sim", "speed", "--realtime").code == 0
+    assert run_akdctl_inproc("sim", "speed", "--realtime").code == 0
     assert run("-T", "sim?drive=cia402", "-y", "home", "--mode", "35").code == 0
     proc = popen("-T", "sim?drive=cia402", "-y", "move", "10", "--velocity", "60")
     wait_until(_moving, "the move to start")
@@ -62,7 +62,7 @@ def test_an_interrupted_commission_says_axis_stopped_once(tmp_path: Path) -> Non
     recipe = tmp_path / "r.toml"
     recipe.write_text('[recipe]\nname = "x"\n\n[[step]]\naction = "home"\nmode = 0\n\n'
                       '[[step]]\naction = "move"\ntarget = 100\nvelocity = 60\n')
-    assert run("sim", "speed", "--realtime").code == 0
+    assert run_akdctl_inproc("sim", "speed", "--realtime").code == 0
     proc = popen("-y", "commission", str(recipe))
     wait_until(_moving, "the recipe's move to start", timeout=30)
     time.sleep(0.3)

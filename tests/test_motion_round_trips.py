@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from tests.harness import run_akdctl as run
+from tests.harness import run_akdctl_inproc
 
 pytestmark = pytest.mark.slow
 
@@ -23,7 +24,7 @@ def _sdo_requests(trace: str) -> list[tuple[str, int, int]]:
 
 def test_cia402_move_from_disabled_reads_less_before_its_set_point() -> None:
     target = "sim?drive=cia402"
-    assert run("sim", "speed", "100000").code == 0
+    assert run_akdctl_inproc("sim", "speed", "100000").code == 0  # set-up, in-process
     assert run("-T", target, "-y", "home", "--mode", "35").code == 0
     assert run("-T", target, "-y", "move", "0.1", "--relative").code == 0     # profile position mode
     assert run("-T", target, "-y", "disable").code == 0
@@ -38,7 +39,7 @@ def test_cia402_move_from_disabled_reads_less_before_its_set_point() -> None:
 
 
 def test_profidrive_move_from_disabled_reads_its_status_at_most_five_times() -> None:
-    assert run("sim", "speed", "100000").code == 0
+    assert run_akdctl_inproc("sim", "speed", "100000").code == 0  # set-up, in-process
     assert run("-y", "home", "--mode", "0").code == 0
     assert run("-y", "disable").code == 0
     result = run("--trace", "-y", "move", "0.5", "--relative")

@@ -62,7 +62,8 @@ def drive(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Drive]:
     link = tmp_path_factory.mktemp("tty") / "slcan-tty"
     with SimServer("--akd", "127.0.0.1:0", "--modbus", "127.0.0.1:0", "--ethernetip", "127.0.0.1:0",
                    "--eip-io-port", "0", "--ethercat-udp", "127.0.0.1:0", "--ecat-stations", "1001=default",
-                   "--can", f"slcan-pty:{link}:2", faces=5, env={"AKDCTL_STATE_DIR": str(state)}) as server:
+                   "--can", f"slcan-pty:{link}:2", faces=5, env={"AKDCTL_STATE_DIR": str(state)},
+                   duration=900) as server:  # serves the whole module (stopped on exit): 120 s ran out under load
         served = Drive(server, link, state)
         code, _, err = served.run("akd", "-y", "param", "set", *SETUP)
         assert code == 0, err

@@ -32,6 +32,17 @@ def test_ci_runs_readme_test_command() -> None:
     assert test_command in ci
 
 
+def test_parallel_test_command_has_its_plugin_in_the_test_extra() -> None:
+    """README's test command runs the suite on pytest-xdist workers (``-n``): a fresh ``pip install -e '.[test]'``
+    must bring the plugin, or the command fails with "unrecognized arguments: -n"."""
+    import tomllib
+
+    test_command = _readme_commands()[1]
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["test"]
+    assert " -n " in f"{test_command} "
+    assert any(re.match(r"pytest-xdist\b", requirement) for requirement in extra), extra
+
+
 def test_readme_exit_code_table_matches_the_code() -> None:
     text = (ROOT / "README.md").read_text()
     table = text.split("## Exit codes", 1)[1].split("\n## ", 1)[0]

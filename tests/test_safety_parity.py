@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import run_akdctl
+from tests.harness import run_akdctl, run_akdctl_inproc
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
 
@@ -67,10 +67,12 @@ CASES = [
 
 
 def _prepare(target: str, home: bool, profile: str) -> None:
-    assert run("sim", "reset")[0] == 0
-    assert run("sim", "speed", "100000")[0] == 0
+    """The starting state, set in this process: only the two runs compared are the CLI under test (subprocesses)."""
+    assert run_akdctl_inproc("sim", "reset")[0] == 0
+    assert run_akdctl_inproc("sim", "speed", "100000")[0] == 0
     if home:
-        assert run("-T", target, "--yes", "home", "--mode", "0" if profile == "profidrive" else "35")[0] == 0
+        home_run = run_akdctl_inproc("-T", target, "--yes", "home", "--mode", "0" if profile == "profidrive" else "35")
+        assert home_run.code == 0, home_run.err
 
 
 @pytest.mark.parametrize("name, cli, step, profile, limits, home", CASES, ids=[c[0] for c in CASES])

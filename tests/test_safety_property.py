@@ -4,11 +4,15 @@ Random command lines over every command that can power or move the axis (motion 
 ``pnu set`` / ``sdo write`` of any gated or ungated address, recipes with motion or set steps), with
 random and hostile numbers (NaN, inf, huge, negative). After each one the simulated drive must be at
 standstill, disabled, and must never have received a control word with "enable operation"
-(the simulator's ``enabling_words`` counter, both profiles). Runs the real CLI in subprocesses.
+(the simulator's ``enabling_words`` counter, both profiles). The property runs twice: through the CLI's entry
+point in this process (many examples: the refusal is the code's, and stdin there is no terminal either), and through
+the real CLI in subprocesses (fewer examples: each costs a cold start, ~0.3 s CPU, and this half is only the check that
+the process as shipped refuses the same way).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -16,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from akdctl.sim.drive import SimDrive
-from tests.harness import run_akdctl
+from tests.harness import CliResult, run_akdctl, run_akdctl_inproc
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
 
@@ -64,22 +68,34 @@ def command_lines(draw: st.DrawFn) -> list[str]:
     return ["commission", "\n".join(steps)]
 
 
-def _run(line: list[str], target: str, folder: Path) -> int:
+def _run(line: list[str], target: str, folder: Path, runner: Callable[..., CliResult]) -> int:
     if line[0] == "commission":
         recipe = folder / "prop.toml"
         recipe.write_text(line[1])
         line = ["commission", str(recipe)]
-    proc = run_akdctl("-T", target, *line, timeout=60)
+    proc = runner("-T", target, *line)
     assert "internal error" not in proc.stderr and "Traceback" not in proc.stderr, (line, proc.stderr)
     return proc.returncode
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])  # a busy CI box
 @given(lines=st.lists(st.tuples(command_lines(), targets), min_size=1, max_size=3))
 def test_without_consent_the_drive_never_leaves_standstill_nor_sees_an_enabling_word(
         lines: list[tuple[list[str], str]], tmp_path: Path) -> None:
+    _check(lines, tmp_path, run_akdctl_inproc)
+
+
+# Fewer examples than the in-process half above: every command line here is a subprocess (a cold start each).
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(lines=st.lists(st.tuples(command_lines(), targets), min_size=1, max_size=3))
+def test_the_shipped_process_refuses_the_same_way(lines: list[tuple[list[str], str]], tmp_path: Path) -> None:
+    _check(lines, tmp_path, run_akdctl)
+
+
+def _check(lines: list[tuple[list[str], str]], folder: Path, runner: Callable[..., CliResult]) -> None:
     for line, target in lines:
-        _run(line, target, tmp_path)
+        _run(line, target, folder, runner)
         with SimDrive("default").transaction() as model:
             motion = model.component("motion")
             assert motion.enabling_words == 0, line

@@ -163,7 +163,8 @@ def _one_line(err: str) -> str:
 
 
 @pytest.mark.parametrize("content, words", [
-    (os.urandom(64) + b"\xff\xfe", "not UTF-8"),
+    # A named id: the bytes differ per process, and pytest-xdist workers must collect the same test ids.
+    pytest.param(os.urandom(64) + b"\xff\xfe", "not UTF-8", id="random-bytes-not-UTF-8"),
     (b'{"version": 1, "clock": NaN}', "NaN"),
     (b'{"version": 1, "clock": 1e999}', "finite"),
     (b'{"version": 1, "sim": {"wall": "yesterday"}}', "sim"),

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from tests.harness import run_akdctl
+from tests.harness import run_akdctl, run_akdctl_inproc
 
 pytestmark = pytest.mark.slow  # runs the real CLI in subprocesses
 
@@ -29,9 +29,10 @@ def _toml(value: object) -> str:
 
 
 def _prepare(target: str, steps: tuple[tuple[str, ...], ...]) -> None:
-    assert run_akdctl("sim", "reset").code == 0
+    """The starting state, set in this process: only the runs compared are the CLI under test (subprocesses)."""
+    assert run_akdctl_inproc("sim", "reset").code == 0
     for step in steps:
-        result = run_akdctl("-T", target, "--yes", *step)
+        result = run_akdctl_inproc("-T", target, "--yes", *step)
         assert result.code == 0, (step, result.err)
 
 
