@@ -231,7 +231,8 @@ class BmpParameterChannel(ParameterChannel):
         """The batches of a read and each batch's request template."""
         try:
             batches = plan_reads(sizes)
-            return batches, [ReadTemplate(self.axis, tuple([addresses[i] for i in batch])) for batch in batches]
+            return batches, [ReadTemplate(self.axis, tuple([addresses[i] for i in batch]), addresses_checked=True)
+                             for batch in batches]
         except BmpError as exc:
             raise UsageError(f"cannot build a parameter request: {exc}") from None
 

@@ -977,10 +977,11 @@ class ReadTemplate:
 
     __slots__ = ("addresses", "axis", "_tail", "_shape")
 
-    def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]") -> None:
+    def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]", *, addresses_checked: bool = False) -> None:
         self.axis = axis
         self.addresses = addresses
-        self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses))[1:]
+        self._tail = encode_request(ParameterRequest(1, REQ_READ, axis, addresses),
+                                    addresses_checked=addresses_checked)[1:]
         #: The layout of the last answer when every block was numeric values (_Shape). A poll's answers keep their
         #: shape; one that does not is read block by block.
         self._shape: _Shape | None = None
