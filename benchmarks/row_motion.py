@@ -42,7 +42,8 @@ def observe(cls):
         return result
     cls.read_status, cls.home_finished = read_status, home_finished
 
-import akdctl.drive.axis.cip  # noqa: F401 - every axis class, so every leaf is observed
+# every axis class, so every leaf is observed (axis.choice imports only the profile it picks)
+import akdctl.drive.axis.akd_ascii, akdctl.drive.axis.cia402, akdctl.drive.axis.cip, akdctl.drive.axis.profidrive  # noqa: E401,F401
 for cls in leaves(axis_module.Axis):
     observe(cls)
 from akdctl.cli.main import main

@@ -14,7 +14,9 @@ from servers import EchoClient, canned, canned_stats, sim_server, udp_echo
 ECAT_UPLOAD_BYTES = 18   # ETG.8200 header 2 + mailbox header 6 + CoE/SDO 10
 PNIO_RECORD_BYTES = 170  # DCE/RPC header 80 + NDR 20 + record block 64 + a short PROFIdrive request
 BIG_STATE_BYTES = 256 * 1024
-SERVER_GOAL_US = 40.0
+#: Issue 29's goals for the served simulator's CPU per request: an SDO upload, a PNU read (two RPCs).
+SDO_GOAL_US = 30.0
+PNU_GOAL_US = 40.0
 
 
 def _faces(name: str) -> tuple[str, ...]:
@@ -48,7 +50,8 @@ def sim_cpu(s: Settings) -> Result:
     key = lambda x: x.server_us  # noqa: E731
     sdo_small, sdo_big, pnu_small, pnu_big = (run.median(k, key) for k in range(4))
     figures = {"sdo_small_us": sdo_small, "sdo_big_us": sdo_big, "pnu_small_us": pnu_small, "pnu_big_us": pnu_big}
-    ok = all(v is not None and v <= SERVER_GOAL_US for v in figures.values())
+    ok = all(v is not None and v <= SDO_GOAL_US for v in (sdo_small, sdo_big)) and \
+        all(v is not None and v <= PNU_GOAL_US for v in (pnu_small, pnu_big))
     return Result(
         f"SDO {fmt_us(sdo_small)} / {fmt_us(sdo_big)}, PNU {fmt_us(pnu_small)} / {fmt_us(pnu_big)}", ok,
         [f"server CPU per request, factory state / with a {BIG_STATE_BYTES // 1024} KB string stored "
@@ -67,7 +70,7 @@ def ecat_udp(s: Settings) -> Result:
                          rounds=s.rounds)
         bare.close()
     ratio = run.ratio(0, 1)
-    return Result(fmt_ratio(ratio), ratio >= 0.25, [
+    return Result(fmt_ratio(ratio), ratio >= 0.30, [
         f"per upload {fmt_us(run.median(1))} wall, client CPU {fmt_us(run.median(1, lambda x: x.cpu_us))}, "
         f"server CPU {fmt_us(run.median(1, lambda x: x.server_us))}; bare round trip {fmt_us(run.median(0))} "
         f"(client {fmt_us(run.median(0, lambda x: x.cpu_us))}, echo {fmt_us(run.median(0, lambda x: x.server_us))})"],
