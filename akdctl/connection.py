@@ -182,6 +182,9 @@ class Connection:
     def own_axis(self, command: str) -> None:
         """Own this target's axis until :meth:`close` (the kernel frees it if the process dies).
 
+        Two locks: one named by the normalised address (:func:`~akdctl.drive.gate.owner_key`) and, where the drive
+        reports a serial number (one read, :func:`~akdctl.drive.identity.serial_number`), one named by it, so two
+        spellings of one host (a name and its address) still meet (issue 23.15).
         Raises :class:`~akdctl.io.owner_lock.OwnerBusy` naming the owner when another command holds it,
         OSError when the lock's directory is unusable; a second call is a no-op."""
         if self.axis_owner is not None:
