@@ -38,6 +38,29 @@ def akdctl_root() -> Path:
     return Path(akdctl.__file__).resolve().parent.parent
 
 
+def measured_tree_importable() -> None:
+    """The measured tree first on ``sys.path``, so its ``tests`` helpers (netns, harness) are the ones a row uses."""
+    root = str(akdctl_root())
+    if root not in sys.path:
+        sys.path.insert(0, root)
+
+
+def cannot_run(*modules: str, root_for: str | None = None, install: str = "pip install 'akdctl[test]'") -> "Result | None":
+    """Why a row cannot run here (a "skipped" Result), or None: then it can, with the measured tree importable.
+    ``root_for`` says what root is needed for (None: root is not needed); ``modules`` must import."""
+    if root_for is not None and os.geteuid() != 0:
+        return Result("skipped", None, [f"needs root ({root_for}); run as root"])
+    import importlib
+
+    for name in modules:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            return Result("skipped", None, [f"{name} is not installed ({install})"])
+    measured_tree_importable()
+    return None
+
+
 def akdctl_env(**extra: str) -> dict[str, str]:
     """This environment with the measured tree first on PYTHONPATH (and bytecode writing allowed: an installed
     package has its .pyc files, so a cold start must not include compiling)."""

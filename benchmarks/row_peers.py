@@ -13,7 +13,6 @@ the worker's last words; the run goes on.
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Sequence
 
@@ -25,6 +24,7 @@ from benchlib import (
     WorkerDied,
     akdctl_env,
     akdctl_root,
+    cannot_run,
     fmt_ratio,
     fmt_us,
     interleave,
@@ -115,16 +115,9 @@ def _compare(ours: Worker, peer: Worker, s: Settings, n: int, speed_goal: float,
 
 
 def canopen_vs_python_canopen(s: Settings) -> Result:
-    if os.geteuid() != 0:
-        return Result("skipped", None, ["needs root (a network namespace keeps the multicast bus on this host)"])
-    try:
-        import canopen  # noqa: F401
-        import msgpack  # noqa: F401
-    except ImportError as exc:
-        return Result("skipped", None, [f"{exc.name} is not installed (pip install 'akdctl[test]')"])
-    root = str(akdctl_root())
-    if root not in sys.path:
-        sys.path.insert(0, root)
+    skipped = cannot_run("canopen", "msgpack", root_for="a network namespace keeps the multicast bus on this host")
+    if skipped is not None:
+        return skipped
     from servers import sim_server
 
     from tests.netns import LoopbackNetns

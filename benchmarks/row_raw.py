@@ -20,7 +20,6 @@ A worker that dies (pysoem gives up an SDO on a slow reply with ``WkcError``; a 
 
 from __future__ import annotations
 
-import os
 import statistics
 import sys
 from collections.abc import Callable
@@ -34,6 +33,7 @@ from benchlib import (
     WorkerDied,
     akdctl_env,
     akdctl_root,
+    cannot_run,
     fmt_ratio,
     fmt_us,
     interleave,
@@ -145,15 +145,10 @@ def _verdict(done: list[Interleaved]) -> Result:
 
 
 def raw_vs_pysoem(s: Settings) -> Result:
-    if os.geteuid() != 0:
-        return Result("skipped", None, ["needs root (network namespaces and raw sockets); run as root"])
-    try:
-        import pysoem  # noqa: F401
-    except ImportError:
-        return Result("skipped", None, ["pysoem is not installed (the optional extra akdctl[soem])"])
-    root = str(akdctl_root())
-    if root not in sys.path:
-        sys.path.insert(0, root)
+    skipped = cannot_run("pysoem", root_for="network namespaces and raw sockets",
+                         install="the optional extra akdctl[soem]")
+    if skipped is not None:
+        return skipped
     from servers import sim_server
 
     from tests.netns import VethPair

@@ -13,7 +13,6 @@ The blocks alternate: pdo, poll, pysoem, pdo, ...
 
 from __future__ import annotations
 
-import os
 import sys
 
 from benchlib import (
@@ -25,6 +24,7 @@ from benchlib import (
     WorkerDied,
     akdctl_env,
     akdctl_root,
+    cannot_run,
     fmt_ratio,
     fmt_us,
     interleave,
@@ -107,15 +107,10 @@ class Worker(BlockWorker):
 
 
 def scope_pdo_cpu(s: Settings) -> Result:
-    if os.geteuid() != 0:
-        return Result("skipped", None, ["needs root (network namespaces and raw sockets); run as root"])
-    try:
-        import pysoem  # noqa: F401
-    except ImportError:
-        return Result("skipped", None, ["pysoem is not installed (the optional extra akdctl[soem])"])
-    root = str(akdctl_root())
-    if root not in sys.path:
-        sys.path.insert(0, root)
+    skipped = cannot_run("pysoem", root_for="network namespaces and raw sockets",
+                         install="the optional extra akdctl[soem]")
+    if skipped is not None:
+        return skipped
     from servers import sim_server
 
     from tests.netns import VethPair

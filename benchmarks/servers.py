@@ -21,7 +21,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 
-from benchlib import ProcessCpu, akdctl_env, akdctl_root
+from benchlib import ProcessCpu, akdctl_env, measured_tree_importable
 
 UDP_ECHO = r"""
 import socket
@@ -171,9 +171,7 @@ class EchoClient:
 
 
 def _harness():  # noqa: ANN202 - the measured tree's tests.harness module
-    root = str(akdctl_root())
-    if root not in sys.path:
-        sys.path.insert(0, root)
+    measured_tree_importable()
     from tests import harness
 
     return harness
