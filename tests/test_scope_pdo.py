@@ -287,34 +287,9 @@ def test_bus_is_left_in_preop_on_ctrl_c() -> None:
 
 
 # ---------------------------------------------------------------------- the real master, in-process
-@pytest.fixture
-def drive(tmp_path: Path) -> SimDrive:
-    return SimDrive("default", tmp_path)
-
-
-@pytest.fixture
-def wire(drive: SimDrive) -> Iterator[Any]:
-    from tests.test_ecat_raw_inprocess import Wire
-
-    w = Wire(drive)
-    assert w.face.pd is not None
-    w.face.pd.start()
-    try:
-        yield w
-    finally:
-        w.face.pd.stop()
-        w.close()
-
-
-@pytest.fixture
-def conn(wire: Any) -> Iterator[Connection]:
-    from tests.test_ecat_raw_inprocess import transport
-
-    c = Connection.over(transport(wire))
-    try:
-        yield c
-    finally:
-        c.close()
+# The simulated slave with its process data running, its wire and a Connection over it: the fixtures the
+# ``ecat pdo watch`` tests use.
+from tests.test_ecat_process_data import conn, drive, wire  # noqa: E402,F401
 
 
 def test_plan_refuses_a_target_that_is_not_a_cyclic_master(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
