@@ -6,7 +6,6 @@ real raw master against the simulated slave over a socketpair (tests/test_ecat_r
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
