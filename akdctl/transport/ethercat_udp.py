@@ -23,7 +23,7 @@ import time
 from akdctl.errors import CommError, UsageError
 from akdctl.links import MailboxLink
 from akdctl.protocol.mailbox import MailboxError, unwrap_gateway, wrap_gateway
-from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.base import LinkOptions, Transport, keep_socket_timeout
 from akdctl.transport.target import Target
 from akdctl.transport.trace import Tracer
 
@@ -99,11 +99,7 @@ class GatewayMailboxLink(MailboxLink):
         while True:
             # at least one try, even with no time left (timeout 0: take what is already there)
             wait = deadline - now
-            current = self._timeout
-            if current > wait or current < wait * 0.5:  # set only when it changes (settimeout is a syscall)
-                # (a little short of the wait, so the next request's slightly shorter wait keeps it)
-                self._timeout = current = wait * 0.98 if wait > 0.002 else max(0.0, wait)
-                sock.settimeout(current)  # recv waits in poll(2): no select() lists
+            self._timeout = current = keep_socket_timeout(sock, self._timeout, wait)  # recv waits in poll(2)
             try:
                 data = sock.recv(4096)
             except (socket.timeout, BlockingIOError):

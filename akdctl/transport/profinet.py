@@ -44,7 +44,7 @@ from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.pnio_call import RecordCalls, plain_response
-from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.base import LinkOptions, Transport, keep_socket_timeout
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
@@ -138,10 +138,7 @@ class RpcClient:
             resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of what is left
             wait = resend_at - now
             while wait > 0:
-                timeout = self._timeout
-                if timeout > wait or timeout < wait * 0.5:  # set only when it changes (settimeout is a syscall)
-                    self._timeout = timeout = wait * 0.98 if wait > 0.002 else wait
-                    sock.settimeout(timeout)
+                self._timeout = keep_socket_timeout(sock, self._timeout, wait)
                 try:
                     data = buffer[:sock.recv_into(buffer)]
                 except socket.timeout:
