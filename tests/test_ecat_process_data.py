@@ -54,7 +54,12 @@ def wire(drive: SimDrive) -> Iterator[Wire]:
 
 @pytest.fixture
 def conn(wire: Wire) -> Iterator[Connection]:
-    c = Connection.over(transport(wire))
+    t = transport(wire)
+    # The slave answers from a thread of this process: a loaded machine can hold it past a real master's 0.2 s
+    # frame wait (a lost frame ends a cyclic exchange at once). Nothing here is about lost frames, so the wait is
+    # the generous one every other condition gets.
+    t.master.frame_timeout = DEADLINE
+    c = Connection.over(t)
     try:
         yield c
     finally:
