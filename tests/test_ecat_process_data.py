@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import struct
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -78,7 +78,8 @@ def _statusword(plan: watch.WritePlan, inputs: bytes) -> int:
     return int({v["address"]: v["value"] for v in plan.data["tx"].decode(inputs)}["0x6041:00"])
 
 
-def _cycle_until(cycle: ProcessDataCycle, outputs: bytes, done, what: str, with_status: bool = True) -> bytes:  # noqa: ANN001
+def _cycle_until(cycle: ProcessDataCycle, outputs: bytes, done: Callable[[bytes], object], what: str,
+                 with_status: bool = True) -> bytes:
     """Exchange *outputs* every 5 ms until ``done(inputs)`` holds (the inputs of that exchange); every exchange in
     OP must count the mapping's working counter 3. Fails naming *what* after :data:`DEADLINE` s."""
     deadline = time.monotonic() + DEADLINE
