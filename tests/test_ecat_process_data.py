@@ -141,16 +141,23 @@ def test_wkc_is_1_in_safeop_and_3_in_op_and_the_controlword_drives_the_model(con
 
 
 def test_sm_watchdog_takes_the_slave_to_safeop_error(conn: Connection, wire: Wire) -> None:
+    """The watchdog is armed once the slave is in OP with outputs taken: armed before, it could expire while a
+    loaded machine is still polling for OP (then OP looks refused with the same code)."""
     cycle, plan = _op(conn)
     t = conn.transport()
-    t.master.request_state(t.slave.station, ec.AlState.OP)  # type: ignore[attr-defined]
-    cycle.exchange(plan.data["rx"].encode({}))
+    station = t.slave.station  # type: ignore[attr-defined]
+    armed = t.master.fprd(station, 0x0420, 2)  # type: ignore[attr-defined]
+    assert armed == struct.pack("<H", 1000)  # power-on value: 1000 units of 100 us
+    t.master.fpwr(station, 0x0420, b"\x00\x00")  # type: ignore[attr-defined]
+    t.master.request_state(station, ec.AlState.OP)  # type: ignore[attr-defined]
+    assert cycle.exchange(plan.data["rx"].encode({}))[1:] == (3, ec.AlState.OP)
     assert wire.face.pd is not None and wire.face.pd.expired == 0
+    t.master.fpwr(station, 0x0420, armed)  # type: ignore[attr-defined]
     # no outputs any more: once 100 ms passed without one the watchdog expires (a loaded machine may take longer
     # to notice, never less)
-    wait_until(lambda: t.master.al_status(t.slave.station)[0] & ec.AL_ERROR_FLAG, "the SM watchdog",  # type: ignore[attr-defined]
+    wait_until(lambda: t.master.al_status(station)[0] & ec.AL_ERROR_FLAG, "the SM watchdog",  # type: ignore[attr-defined]
                timeout=DEADLINE)
-    status, code = t.master.al_status(t.slave.station)  # type: ignore[attr-defined]
+    status, code = t.master.al_status(station)  # type: ignore[attr-defined]
     assert status == ec.AlState.SAFEOP | ec.AL_ERROR_FLAG and code == 0x001B
     assert wire.face.pd.expired == 1
 
@@ -193,6 +200,7 @@ def test_watch_ends_with_exit_3_on_a_wkc_drop(conn: Connection, wire: Wire) -> N
 def test_watch_ends_with_exit_1_when_the_slave_leaves_op(conn: Connection, wire: Wire) -> None:
     """The slave leaves OP while the watch cycles: taken out at the watch's second display refresh (in OP by
     then), not after a fixed time that a loaded machine may reach before OP."""
+    _no_supervision(conn)  # the slave leaves OP when this test says, not when a stall trips the watchdog first
     samples = {"n": 0}
 
     def on_sample(*_a: object) -> None:
@@ -216,7 +224,8 @@ def test_lrd_and_lwr_count_1_and_2(conn: Connection, wire: Wire) -> None:
     """Separate LRD/LWR datagrams (masters that do not use LRW): WKC +1 for the read, +2 for the write in OP."""
     from akdctl.transport.ethercat_raw import LOGICAL_BASE
 
-    cycle, plan = _op(conn)
+    _no_supervision(conn)  # no frame cycles here: a stall before the first one must not trip the watchdog
+    _cycle, plan = _op(conn)
     t = conn.transport()
     t.master.request_state(t.slave.station, ec.AlState.OP)  # type: ignore[attr-defined]
     rx_bytes, tx_bytes = plan.data["rx"].bytes, plan.data["tx"].bytes
