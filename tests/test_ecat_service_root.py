@@ -56,7 +56,8 @@ def _pysoem(pair: VethPair, body: str, timeout: float = 90) -> dict:  # type: ig
              "print(json.dumps(out))\n" % (pair.if_a, textwrap.indent(textwrap.dedent(body), "    "))
     result = subprocess.run(["ip", "netns", "exec", pair.a, sys.executable, "-c", script], capture_output=True,
                             text=True, timeout=timeout)
-    assert result.returncode == 0, result.stderr
+    # a negative code is a signal: -11 was pysoem writing through a NULL output pointer (see the cyclic test)
+    assert result.returncode == 0, f"pysoem script ended with {result.returncode}: {result.stderr}"
     return json.loads(result.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
