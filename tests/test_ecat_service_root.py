@@ -129,8 +129,8 @@ def test_pysoem_cyclic_process_data_in_op(pair: VethPair, slave: SimServer) -> N
         assert out["sizes"] == [6, 6], out  # never write outputs pysoem did not map (a NULL pointer: SIGSEGV)
         out["expected"] = m.expected_wkc
         def again(call, *args):
-            """SOEM's fixed waits (4 ms for a register frame, 700 ms for an SDO) are shorter than a Python slave
-            can promise on a loaded machine; these calls are idempotent, so a master repeats them."""
+            # SOEM's fixed waits (4 ms for a register frame, 700 ms for an SDO) are shorter than a Python slave
+            # can promise on a loaded machine; these calls are idempotent, so a master repeats them.
             for attempt in range(20):
                 try:
                     return call(*args)
