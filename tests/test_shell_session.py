@@ -148,7 +148,7 @@ def test_ctrl_c_during_a_jog_stops_the_axis_and_returns_the_prompt(cia402_shell:
 
 def test_ctrl_c_at_the_prompt_clears_the_line(cia402_shell: PtyShell) -> None:
     cia402_shell.type("pnu get 93")
-    cia402_shell.read_until(lambda t: "pnu get 93" in t)  # the line editor has the text (echoed), not a sleep
+    time.sleep(0.3)
     os.killpg(cia402_shell.proc.pid, signal.SIGINT)
     cia402_shell.prompt()
     out = cia402_shell.run("info")
