@@ -131,7 +131,7 @@ def test_wkc_is_1_in_safeop_and_3_in_op_and_the_controlword_drives_the_model(con
     assert wire.face.pd is not None
     after = wire.face.pd.cycles
     _cycle_until(cycle, rx.encode({(0x6040, 0): 0x0F}), lambda _i: wire.face.pd.cycles >= after + 2,  # type: ignore[union-attr]
-                          "two application cycles after the SDO write")
+                 "two application cycles after the SDO write")
     inputs, _wkc, _al = cycle.exchange(rx.encode({(0x6040, 0): 0x0F}))
     assert _statusword(plan, inputs) & 0x6F == 0x27
     _cycle_until(cycle, rx.encode({}), lambda i: _statusword(plan, i) & 0x4F == 0x40,  # controlword 0: disable voltage
