@@ -310,7 +310,9 @@ def test_soem_transport_firmware_update_and_foe_read(pair: VethPair, slave: SimS
     _need_pysoem()
     fw = tmp_path / "soem.i00"
     fw.write_bytes(IMAGE)
-    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "1"]
+    # --timeout 5, not 1: SOEM's waits for the FoE mailbox and the slave discovery come from it, and a simulated
+    # drive on a loaded machine missed a 1 s wait now and then (FoE write "SOEM result -1", "found none")
+    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "5"]
     result = run_akdctl(*target, "-y", "--json", "firmware", "update", str(fw), netns=pair.a)
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
