@@ -30,18 +30,18 @@ def clock(monkeypatch: pytest.MonkeyPatch) -> list[float]:
 
 def test_a_late_slave_is_found_on_a_later_attempt(clock: list[float]) -> None:
     master = FakeMaster([0, 0, 1])
-    assert ethercat_soem._config_init(master, 1.0) == 1  # noqa: SLF001
+    assert ethercat_soem._config_init(master, 1.0) == 1
     assert master.calls == 3 and clock[0] == pytest.approx(100.1)
 
 
 def test_a_silent_bus_ends_after_the_timeout(clock: list[float]) -> None:
     master = FakeMaster([])
-    assert ethercat_soem._config_init(master, 1.0) == 0  # noqa: SLF001
+    assert ethercat_soem._config_init(master, 1.0) == 0
     assert 101.0 <= clock[0] <= 101.05 + 1e-6  # gave up at the first look past the timeout, not before
     assert master.calls == round((clock[0] - 100.0) / 0.05) + 1  # one attempt per 50 ms pause, and the last
 
 
 def test_found_at_once_is_one_call(clock: list[float]) -> None:
     master = FakeMaster([2])
-    assert ethercat_soem._config_init(master, 1.0) == 2  # noqa: SLF001
+    assert ethercat_soem._config_init(master, 1.0) == 2
     assert master.calls == 1 and clock[0] == 100.0
