@@ -77,13 +77,15 @@ def sii(slave, word):
 
 
 def init():
-    # SOEM counts and configures the slaves with waits of a few ms: on a loaded machine it can find none
-    end = time.monotonic() + 20
+    # SOEM counts and configures the slaves with waits of a few ms: on a loaded machine it can find none. The
+    # pause grows, so a slave still answering the frames of the failed attempt is not flooded with more.
+    end, pause = time.monotonic() + 20, 0.2
     while True:
         found = m.config_init()
         if found or time.monotonic() > end:
             return found
-        time.sleep(0.1)
+        time.sleep(pause)
+        pause = min(2.0, 2 * pause)
 """
 
 
