@@ -77,11 +77,13 @@ def sii(slave, word):
 
 
 def init():
+    # (the count is kept in out["found"] for the assertion's message)
     # SOEM counts and configures the slaves with waits of a few ms: on a loaded machine it can find none. The
     # pause grows, so a slave still answering the frames of the failed attempt is not flooded with more.
     end, pause = time.monotonic() + 20, 0.2
     while True:
         found = m.config_init()
+        out.setdefault("found", []).append(found)
         if found or time.monotonic() > end:
             return found
         time.sleep(pause)
@@ -103,7 +105,7 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
     """pysoem's own examples/firmware_update.py steps; then the drive answers again and returns the file."""
     _need_pysoem()
     out = _pysoem(pair, f"""
-        assert init() == 1
+        assert init() == 1, out
         s = m.slaves[0]
         s.state = pysoem.INIT_STATE; s.write_state()
         out["init"] = s.state_check(pysoem.INIT_STATE, 2_000_000)
@@ -157,7 +159,7 @@ def test_pysoem_cyclic_process_data_in_op(pair: VethPair, slave: SimServer) -> N
     out = _pysoem(pair, """
         out["map_attempts"] = []
         for _ in range(3):
-            assert init() == 1
+            assert init() == 1, out
             m.config_map()
             s = m.slaves[0]
             out["sizes"] = [len(s.output), len(s.input)]
@@ -213,7 +215,7 @@ def test_alias_through_the_cli_and_pysoem_reads_words_4_and_7(pair: VethPair, sl
     doc = json.loads(result.stdout)
     assert doc["after"]["fbus_param03"] == 1001 and doc["power_cycle_needed"] is True
     out = _pysoem(pair, """
-        assert init() == 1
+        assert init() == 1, out
         s = m.slaves[0]
         out["w4"] = int.from_bytes(sii(s, 4), "little") & 0xFFFF
         out["w7"] = int.from_bytes(sii(s, 7), "little") & 0xFFFF
@@ -331,7 +333,7 @@ def test_busy_slave_pysoem_and_tshark(pair: VethPair, tmp_path: Path) -> None:
     _need_pysoem()
     with slave_server(pair, "--ecat-foe-busy", "1"):
         out = _pysoem(pair, f"""
-            assert init() == 1
+            assert init() == 1, out
             s = m.slaves[0]
             s.state = pysoem.INIT_STATE; s.write_state(); s.state_check(pysoem.INIT_STATE, 2_000_000)
             again(s.amend_mbx, "out", 0x1800, 512); again(s.amend_mbx, "in", 0x1C00, 512)
@@ -373,7 +375,7 @@ def test_pysoem_writes_the_alias_as_eepromtool_does(pair: VethPair, slave: SimSe
     """SOEM's eepromtool -walias: word 4, then word 7 = CRC; the simulated AKD takes it as FBUS.PARAM03."""
     _need_pysoem()
     out = _pysoem(pair, """
-        assert init() == 1
+        assert init() == 1, out
         s = m.slaves[0]
         words = [int.from_bytes(s.eeprom_read(w), "little") & 0xFFFF for w in range(7)]
         words[4] = 7
