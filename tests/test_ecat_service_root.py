@@ -54,7 +54,7 @@ def _answers_again(pair: VethPair, within: float = 20.0) -> None:
 #: Defined for every pysoem script: SOEM's fixed waits (4 ms for a register frame, 700 ms for an SDO) are shorter
 #: than a Python slave can promise on a loaded machine (WkcError, seen in amend_mbx and sdo_write); the calls
 #: wrapped in it are idempotent (register and object writes of the same value, reads), so a master repeats them;
-#: ``init()`` repeats a ``config_init()`` that found no slave, ``sii()`` an EEPROM read that gave 0 (a timeout).
+#: ``init()`` repeats a ``config_init()`` that found no slave (0) or lost its frame (-1), ``sii()`` an EEPROM read that gave 0 (a timeout).
 AGAIN = """
 def again(call, *args):
     for attempt in range(20):
@@ -84,7 +84,7 @@ def init():
     while True:
         found = m.config_init()
         out.setdefault("found", []).append(found)
-        if found or time.monotonic() > end:
+        if found > 0 or time.monotonic() > end:  # 0: none answered; -1: SOEM's frame did not come back in time
             return found
         time.sleep(pause)
         pause = min(2.0, 2 * pause)
