@@ -35,19 +35,21 @@ class MailboxRepeats:
 
     def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
         """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it."""
-        counter = (request[5] >> 4) & 0x07 if len(request) >= 6 else 0
+        last_of = self._last
+        counter = request[5] & 0x70 if len(request) >= 6 else 0  # the counter's bits 4-6, unshifted
         if not counter:
-            self._last.pop(link, None)  # a mailbox without a counter ends the sequence
+            last_of.pop(link, None)  # a mailbox without a counter ends the sequence
             return handle(request)
-        last = self._last.get(link)
         now = time.monotonic()
-        if last is not None and last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
-            self.repeats += 1
-            self._last.move_to_end(link)
-            return list(last[1])
+        last = last_of.get(link)
+        if last is not None:
+            if last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
+                self.repeats += 1
+                last_of.move_to_end(link)
+                return list(last[1])
+            last_of.move_to_end(link)  # the link's entry is replaced below; kept while ``handle`` runs
         replies = handle(request)
-        self._last[link] = (bytes(request), list(replies), now)
-        self._last.move_to_end(link)
-        if len(self._last) > self.max_links:
-            self._last.popitem(last=False)
+        last_of[link] = (request if request.__class__ is bytes else bytes(request), list(replies), now)
+        if last is None and len(last_of) > self.max_links:
+            last_of.popitem(last=False)
         return replies

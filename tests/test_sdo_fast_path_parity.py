@@ -1,0 +1,187 @@
+"""The served simulator's SDO fast paths (issue 29) answer what the general paths answer, byte for byte.
+
+* ``DriveModel.object_read`` takes what the catalogue says of an address from a plan made once per
+  (index, subindex) (``model._READ_PLANS``): for every catalogued address it must equal the rule spelled out
+  (``object_entry``, the write-only check, the stored value or ``_default_bytes``), and a plan must never serve a
+  value the model no longer holds;
+* ``SdoServer.handle`` answers a plain upload initiate without message objects: for every kind of answer
+  (expedited, normal, segmented and its segments, every abort) it must equal the general decoder/encoder path
+  (``_sdo`` -> ``encode_sdo``);
+* the gateway face answers a datagram with what the drive answers, wrapped (``mailbox.wrap_gateway``).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from akdctl.catalog import objects as object_catalog
+from akdctl.protocol import coe
+from akdctl.protocol import mailbox as mbx
+from akdctl.protocol.coe import CoeService
+from akdctl.sim import model as model_module
+from akdctl.sim.drive import factory_model
+from akdctl.sim.errors import SdoAccessError
+from akdctl.sim.sdo_server import SdoServer, _Request
+
+def _general_read(model: model_module.DriveModel, index: int, subindex: int) -> bytes | int:
+    """object_read's rule for an address no component binds, spelled out with the general helpers."""
+    try:
+        entry = model.object_entry(index, subindex)
+    except SdoAccessError as exc:
+        return exc.code
+    if entry.access == "wo":
+        return model_module.ABORT_WRITE_ONLY
+    data = model.object_values.get((index, subindex))
+    return model_module._default_bytes(entry) if data is None else data
+
+
+def _read(model: model_module.DriveModel, index: int, subindex: int) -> bytes | int:
+    try:
+        return model.object_read(index, subindex)
+    except SdoAccessError as exc:
+        return exc.code
+
+
+def _unbound(model: model_module.DriveModel, index: int) -> bool:
+    return index not in model._object_bindings and index not in model_module.LAZY_OBJECTS \
+        and index not in model._object_builders
+
+
+def test_every_catalogued_read_plan_equals_the_general_rule() -> None:
+    model_module._READ_PLANS.clear()
+    model = factory_model("parity")
+    keys = [k for k in object_catalog.entries() if _unbound(model, k[0])]
+    assert len(keys) > 500
+    for _round in range(2):  # the first round makes the plans, the second reads them
+        for index, subindex in keys:
+            assert _read(model, index, subindex) == _general_read(model, index, subindex), (hex(index), subindex)
+    assert model_module._READ_PLANS  # the plans were made and used
+
+
+@pytest.mark.parametrize(("index", "subindex"), [(0x1018, 9), (0x7FFF, 0), (0x1018, 0xFF), (0x0000, 0)])
+def test_addresses_outside_the_catalogue_abort_as_before_and_leave_no_plan(index: int, subindex: int) -> None:
+    model = factory_model("parity")
+    for _ in range(2):
+        assert _read(model, index, subindex) == _general_read(model, index, subindex)
+    assert (index, subindex) not in model_module._READ_PLANS
+
+
+def test_a_plan_never_serves_a_stale_value() -> None:
+    model = factory_model("parity")
+    default = model.object_read(0x6081, 0)  # profile velocity: stored, rw
+    model.object_write(0x6081, 0, (1234).to_bytes(4, "little"))
+    assert model.object_read(0x6081, 0) == (1234).to_bytes(4, "little") != default
+    other = factory_model("other")  # another model: its own values, the same plan
+    assert other.object_read(0x6081, 0) == default
+    assert model.object_read(0x1018, 4) != other.object_read(0x1018, 4)  # each drive's own serial, stored
+
+
+def test_a_binding_made_after_the_plan_wins() -> None:
+    model = factory_model("parity")
+    assert model.object_read(0x6081, 0) == _general_read(model, 0x6081, 0)
+    model.bind_object(0x6081, read=lambda sub: b"\x01\x02\x03\x04")
+    assert model.object_read(0x6081, 0) == b"\x01\x02\x03\x04"
+
+
+def test_a_lazily_bound_object_is_read_through_its_component() -> None:
+    model = factory_model("parity")
+    assert "faults" not in model._built
+    model.object_read(0x1001, 0)  # the error register: the fault component binds it
+    assert "faults" in model._built and 0x1001 in model._object_bindings
+
+
+# --- the SDO server: fast path against the general path ---------------------------------------------------------
+
+
+def _upload_mailbox(index: int, subindex: int, counter: int = 3, address: int = 1001) -> bytes:
+    return mbx.pack(mbx.MailboxType.COE, coe.upload_request(index, subindex), address, counter)
+
+
+def _general_answer(server: SdoServer, mailbox: bytes) -> list[bytes]:
+    """What the message path answers: decode_sdo -> _sdo -> encode_sdo, behind the request's header."""
+    _mtype, counter, address, data = mbx.split(mailbox)
+    answer = server._sdo(data[coe.COE_HEADER_SIZE:])
+    assert answer is not None
+    service = CoeService.SDO_REQUEST if isinstance(answer, coe.SdoAbort) else CoeService.SDO_RESPONSE
+    return [server._reply(_Request(address, counter), service, coe.encode_sdo(answer))]
+
+
+def _model() -> model_module.DriveModel:
+    model = factory_model("parity")
+    model.object_write(0x2032, 0, b"x" * 1500)  # DRV.CUSTOMIDENTIFIER: longer than one mailbox (segmented)
+    model.set_stored_object(0x2033, 0, b"AKD-x")  # DRV.MODEL (read-only): a string of 5 bytes (normal upload)
+    return model
+
+
+def _pair() -> tuple[SdoServer, SdoServer]:
+    """Two servers over two drives in the same state: one answers by its fast path, one by the general path."""
+    return SdoServer(_model()), SdoServer(_model())
+
+
+ADDRESSES = [
+    (0x1018, 1), (0x1018, 4), (0x1018, 0), (0x1000, 0), (0x6041, 0), (0x6081, 0), (0x2033, 0), (0x1008, 0),
+    (0x2032, 0), (0x1001, 0), (0x1018, 9), (0x7FFF, 0), (0x0002, 0), (0x1026, 1),
+]
+
+
+@pytest.mark.parametrize(("index", "subindex"), ADDRESSES)
+def test_the_upload_fast_path_equals_the_general_path(index: int, subindex: int) -> None:
+    fast, general = _pair()
+    for counter in (1, 5, 7):
+        request = _upload_mailbox(index, subindex, counter)
+        assert fast.handle(request) == _general_answer(general, request), (hex(index), subindex)
+
+
+def test_a_segmented_upload_continues_alike_after_either_path() -> None:
+    fast, general = _pair()
+    request = _upload_mailbox(0x2032, 0)
+    assert fast.handle(request) == _general_answer(general, request)
+    toggle = segments = 0
+    while fast._upload is not None:
+        segments += 1
+        segment = mbx.pack(mbx.MailboxType.COE, coe.encode_coe(CoeService.SDO_REQUEST,
+                                                              coe.encode_sdo(coe.SdoUploadSegment(toggle))), 1001, 4)
+        assert fast.handle(segment) == _general_answer(general, segment)
+        toggle ^= 1
+    assert general._upload is None and segments == 2  # the transfer ended on both after the same segments
+
+
+def test_an_upload_initiate_ends_a_transfer_in_progress_on_both_paths() -> None:
+    fast, general = _pair()
+    first = _upload_mailbox(0x2032, 0)
+    fast.handle(first)
+    _general_answer(general, first)
+    again = _upload_mailbox(0x1018, 1)
+    assert fast.handle(again) == _general_answer(general, again)
+    assert fast._upload is None and general._upload is None
+
+
+def test_a_model_failure_becomes_the_same_abort_on_both_paths() -> None:
+    class Broken:
+        def object_read(self, index: int, subindex: int) -> bytes:
+            raise RuntimeError("model bug")
+
+        def object_write(self, index: int, subindex: int, data: bytes) -> None:
+            raise RuntimeError("model bug")
+
+    fast, general = SdoServer(Broken()), SdoServer(Broken())
+    request = _upload_mailbox(0x1018, 1)
+    assert fast.handle(request) == _general_answer(general, request)
+    assert coe.decode_sdo(fast.handle(request)[0][8:], from_server=True) == coe.SdoAbort(0x1018, 1, coe.ABORT_GENERAL)
+
+
+def test_a_bytearray_from_a_reader_is_answered_as_bytes() -> None:
+    class Reader:
+        def __init__(self, value: bytes) -> None:
+            self.value = value
+
+        def object_read(self, index: int, subindex: int) -> bytearray:
+            return bytearray(self.value)
+
+        def object_write(self, index: int, subindex: int, data: bytes) -> None:
+            pass
+
+    for value in (b"\x01", b"\x01\x02\x03\x04", b"12345678", b""):
+        fast, general = SdoServer(Reader(value)), SdoServer(Reader(value))  # type: ignore[arg-type]
+        request = _upload_mailbox(0x1018, 1)
+        assert fast.handle(request) == _general_answer(general, request)
