@@ -12,9 +12,17 @@
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Callable
+
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from akdctl.catalog import objects as object_catalog
+from akdctl.channels.coe_sdo import CoeObjectChannel
+from akdctl.errors import AkdError
+from akdctl.links import MailboxLink
 from akdctl.protocol import coe
 from akdctl.protocol import mailbox as mbx
 from akdctl.protocol.coe import CoeService
@@ -22,6 +30,7 @@ from akdctl.sim import model as model_module
 from akdctl.sim.drive import factory_model
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.sdo_server import SdoServer, _Request
+
 
 def _general_read(model: model_module.DriveModel, index: int, subindex: int) -> bytes | int:
     """object_read's rule for an address no component binds, spelled out with the general helpers."""
@@ -185,3 +194,103 @@ def test_a_bytearray_from_a_reader_is_answered_as_bytes() -> None:
         fast, general = SdoServer(Reader(value)), SdoServer(Reader(value))  # type: ignore[arg-type]
         request = _upload_mailbox(0x1018, 1)
         assert fast.handle(request) == _general_answer(general, request)
+
+
+# --- the client: CoeObjectChannel.upload's one pass against its general path ------------------------------------
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(min_size=0, max_size=24), st.integers(0, 0xFFFF), st.integers(0, 0xFF))
+def test_the_clients_reply_reader_equals_the_general_decoders(tail: bytes, index: int, subindex: int) -> None:
+    """coe.expedited_upload_reply reads what mailbox.split + the CoE header + decode_sdo read, or declines."""
+    for mailbox in (tail, _answer(index, subindex, tail[:4] or b"\x01", 5) + tail[4:], _mutated(tail, index, subindex)):
+        fast = coe.expedited_upload_reply(mailbox, index, subindex)
+        if fast is None:
+            continue
+        _mtype, counter, _address, data = mbx.split(mailbox)
+        assert _mtype == mbx.MailboxType.COE and data[1] >> 4 == CoeService.SDO_RESPONSE
+        msg = coe.decode_sdo(data[2:], from_server=True)
+        assert isinstance(msg, coe.SdoUploadResponse) and (msg.index, msg.subindex) == (index, subindex)
+        assert msg.expedited and fast == (counter, msg.data)
+
+
+def _answer(index: int, subindex: int, value: bytes, counter: int) -> bytes:
+    return coe.pack_expedited_upload_mailbox(1001, counter, index, subindex, value)
+
+
+def _mutated(tail: bytes, index: int, subindex: int) -> bytes:
+    """An expedited answer with some of its bytes replaced by ``tail``'s (command, type, length, service ...)."""
+    answer = bytearray(_answer(index, subindex, b"\x01\x02", 3))
+    for position, byte in zip(tail[0::2], tail[1::2]):
+        answer[position % len(answer)] = byte
+    return bytes(answer)
+
+
+class ScriptedLink(MailboxLink):
+    """Answers each request with the replies a script makes of it (counter echoed or not, extra mailboxes)."""
+
+    mailbox_size = 512
+    mailbox_address = 1001
+
+    def __init__(self, script: Callable[[bytes, int], list[bytes]]) -> None:
+        self.script = script
+        self.inbox: deque[bytes] = deque()
+        self.sent: list[bytes] = []
+
+    def send(self, mailbox: bytes) -> None:
+        self.sent.append(mailbox)
+        self.inbox.extend(self.script(mailbox, len(self.sent)))
+
+    def receive(self, timeout: float) -> bytes | None:
+        return self.inbox.popleft() if self.inbox else None
+
+
+def _server_script(server: SdoServer, extra: Callable[[list[bytes], bytes, int], list[bytes]]
+                   ) -> Callable[[bytes, int], list[bytes]]:
+    def script(mailbox: bytes, n: int) -> list[bytes]:
+        return extra(server.handle(mailbox), mailbox, n)
+    return script
+
+
+SCRIPTS = {
+    "as served": lambda replies, request, n: replies,
+    "counter rewritten": lambda replies, request, n: [r[:5] + bytes([(r[5] & 0x8F) | ((n % 7 + 1) << 4)]) + r[6:]
+                                                       for r in replies],
+    "counter zero": lambda replies, request, n: [r[:5] + bytes([r[5] & 0x0F]) + r[6:] for r in replies],
+    "emergency first": lambda replies, request, n: [coe.pack_expedited_upload_mailbox(0, 0, 0, 0, b"\x00")[:6]
+                                                    + b"\x00\x10" + bytes(8), *replies],
+    "duplicated": lambda replies, request, n: replies * 2,
+    "service 2": lambda replies, request, n: [r[:7] + bytes([(r[7] & 0x0F) | 0x20]) + r[8:] for r in replies],
+    "lost every second": lambda replies, request, n: replies if n % 2 else [],
+    "silent": lambda replies, request, n: [],
+}
+
+
+def _outcome(channel: CoeObjectChannel, index: int, subindex: int, general: bool) -> object:
+    try:
+        if general:  # the same request inside an enclosing one: Budget.lone declines, the general path runs
+            with channel.budget.request():
+                return channel.upload(index, subindex)
+        return channel.upload(index, subindex)
+    except AkdError as exc:
+        return type(exc), str(exc)
+
+
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
+def test_the_clients_one_pass_upload_equals_its_general_path(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Values, errors, the requests sent and the counter rules' state after each upload: the same on both paths."""
+    read = coe.expedited_upload_reply
+    taken: list[bool] = []
+    monkeypatch.setattr(coe, "expedited_upload_reply", lambda *a: taken.append(read(*a) is not None) or read(*a))
+    runs = []
+    for general in (False, True):
+        server = SdoServer(_model())
+        link = ScriptedLink(_server_script(server, SCRIPTS[name]))
+        channel = CoeObjectChannel(link, timeout=0.05, retries=1)
+        outcomes = []
+        for index, subindex in [*ADDRESSES, *ADDRESSES[:5]]:
+            outcomes.append((_outcome(channel, index, subindex, general), channel._proven, channel.filter.echoes,
+                             channel._stale))
+        runs.append((outcomes, link.sent, [e.error_code for e in channel.take_emergencies()]))
+        if not general and name in ("as served", "counter zero", "counter rewritten"):
+            assert taken.count(True) >= 4  # the one pass answered these uploads
+    assert runs[0] == runs[1]
