@@ -207,7 +207,8 @@ def unwrap_gateway(buf: bytes) -> bytes:
     length = header & _MAX_GATEWAY_LENGTH
     if header >> 12 != GATEWAY_FRAME_TYPE or length != HEADER_SIZE + inner or length + GATEWAY_HEADER_SIZE > size:
         _gateway_refused(header, inner, size)
-    return bytes(buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length])
+    mailbox = buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length]
+    return mailbox if mailbox.__class__ is bytes else bytes(mailbox)
 
 
 def _gateway_refused(header: int, inner: int, size: int) -> None:

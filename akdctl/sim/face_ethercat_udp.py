@@ -109,13 +109,13 @@ class GatewayHandler:
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
                 request_failed("ethercat-udp", exc)
                 replies = failure_reply(raw)
-        wrap, header_size, ours = self._wrap, self._header_size, raw[2:4]
+        wrap, header_size = self._wrap, self._header_size
         out = []
         for reply in replies:
             if len(reply) < header_size:
                 continue
-            if reply[2:4] != ours:
-                reply = reply[:2] + ours + reply[4:]
+            if reply[2] | reply[3] << 8 != address:
+                reply = reply[:2] + raw[2:4] + reply[4:]
             try:
                 out.append(wrap(reply))
             except CodecError:
