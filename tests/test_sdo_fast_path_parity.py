@@ -294,3 +294,30 @@ def test_the_clients_one_pass_upload_equals_its_general_path(name: str, monkeypa
         if not general and name in ("as served", "counter zero", "counter rewritten"):
             assert taken.count(True) >= 4  # the one pass answered these uploads
     assert runs[0] == runs[1]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 7), st.integers(0, 7), st.sampled_from([b"a", b"b", b"c"]), st.booleans()),
+                max_size=30), st.booleans())
+def test_the_reply_filters_take_equals_admit_mine_accepted(steps: list[tuple[int, int, bytes, bool]],
+                                                          strict: bool) -> None:
+    """ReplyFilter.take (the one-pass upload's one call) leaves the filter as admit/mine/accepted leave it and
+    answers what they answer, through any sequence of requests, replies and silences."""
+    from akdctl.channels.reply_filter import ReplyFilter
+
+    one, three = ReplyFilter(strict), ReplyFilter(strict)
+    for sent, got, content, silence in steps:
+        raw = content + bytes([got])
+        one.sent(sent)
+        three.sent(sent)
+        if silence:
+            one.unanswered()
+            three.unanswered()
+            continue
+        taken = one.take(raw, got)
+        expected = three.mine(got) if three.admit(raw, got) else None
+        if expected is not None:
+            three.accepted(raw, got)
+        assert taken == expected
+        assert (list(one._recent), one._sent, one._streak, one._foreign) == \
+            (list(three._recent), three._sent, three._streak, three._foreign)

@@ -128,11 +128,11 @@ class CoeObjectChannel(ObjectChannel):
         if raw is not None:
             now = time.monotonic()
             reply = coe.expedited_upload_reply(raw, index, subindex) if now <= end else None
-            if reply is not None and self.filter.admit(raw, reply[0]):
-                got, value = reply
-                self._proven = self.filter.mine(got)
-                self.filter.accepted(raw, got)
-                return value
+            if reply is not None:
+                mine = self.filter.take(raw, reply[0])
+                if mine is not None:
+                    self._proven = mine
+                    return reply[1]
         return self._upload_request(index, subindex, at, (counter, wait, end, now, raw or b""))
 
     def _upload_request(self, index: int, subindex: int, at: float | None = None,
