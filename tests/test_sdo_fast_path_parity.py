@@ -321,3 +321,20 @@ def test_the_reply_filters_take_equals_admit_mine_accepted(steps: list[tuple[int
         assert taken == expected
         assert (list(one._recent), one._sent, one._streak, one._foreign) == \
             (list(three._recent), three._sent, three._streak, three._foreign)
+
+
+class _FailingLink(ScriptedLink):
+    def receive(self, timeout: float) -> bytes | None:
+        from akdctl.errors import NoAnswer
+
+        raise NoAnswer("the link gave up")
+
+
+def test_a_link_failure_in_the_one_pass_is_counted_as_in_the_general_path() -> None:
+    """The Budget's count of unanswered time is the same whichever path met the link's failure."""
+    silent = []
+    for general in (False, True):
+        channel = CoeObjectChannel(_FailingLink(lambda mailbox, n: []), timeout=0.05, retries=1)
+        outcome = _outcome(channel, 0x1018, 1, general)
+        silent.append((outcome, channel.budget.silent > 0))
+    assert silent[0] == silent[1] and silent[0][1]

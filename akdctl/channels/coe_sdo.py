@@ -120,11 +120,15 @@ class CoeObjectChannel(ObjectChannel):
             return self._upload_request(index, subindex)
         request = coe.upload_request(index, subindex)
         self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)
-        counter = self._send_request(request)
-        now = time.monotonic()
-        wait = max(0.0, at - now) / self.budget.attempts  # (Deadline.share of the request's first attempt)
-        end = now + wait
-        raw = self.link.receive(wait)
+        try:
+            counter = self._send_request(request)
+            now = time.monotonic()
+            wait = max(0.0, at - now) / self.budget.attempts  # (Deadline.share of the request's first attempt)
+            end = now + wait
+            raw = self.link.receive(wait)
+        except CommError:
+            with self.budget.request(at=at):  # the link failed: counted by the Budget as any request's failure
+                raise
         if raw is not None:
             now = time.monotonic()
             reply = coe.expedited_upload_reply(raw, index, subindex) if now <= end else None
