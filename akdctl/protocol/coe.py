@@ -480,5 +480,5 @@ def expedited_upload_reply(mailbox: bytes, index: int, subindex: int) -> tuple[i
             or header >> 12 != CoeService.SDO_RESPONSE or command & 0xE2 != 0x42
             or got_index != index or got_subindex != subindex):
         return None
-    end = _UPLOAD_MAILBOX_SIZE - (command >> 2 & 0x03) if command & 0x01 else _UPLOAD_MAILBOX_SIZE
-    return (type_counter >> 4) & 0x07, bytes(mailbox[12:end])
+    value = mailbox[12:_UPLOAD_MAILBOX_SIZE - (command >> 2 & 0x03) if command & 0x01 else _UPLOAD_MAILBOX_SIZE]
+    return (type_counter >> 4) & 0x07, value if value.__class__ is bytes else bytes(value)
