@@ -173,6 +173,17 @@ def _line_only(ctx: click.Context, param: click.Parameter, value: Any) -> None:
         raise click.UsageError(f"{param.opts[0]} works only with --inventory FILE (before any '--')", ctx)
 
 
+def _show_version(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    """``--version``: the line click's ``version_option`` prints (``akdctl, version 0.1.0``), then exit 0."""
+    if value and not ctx.resilient_parsing:
+        click.echo(f"akdctl, version {__version__}", color=ctx.color)
+        ctx.exit()
+
+
+#: The one type of the root's file options (``--config``, ``--pcap``): a click type is stateless, and each one built
+#: looks its name up in gettext's catalogues (a dozen stat calls of every start, issue 29), so both share this one.
+_FILE = click.Path(dir_okay=False)
+
 EPILOG = (
     "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
@@ -184,7 +195,7 @@ EPILOG = (
 @click.group(cls=LazyGroup, lazy={name: (module, attr, SHORT_HELP.get(name, name))
                                  for name, (module, attr) in COMMANDS.items()}, epilog=EPILOG, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-T", "--target", "target", metavar="TARGET", help="Drive to talk to (default: $AKDCTL_TARGET, config profile, sim).")
-@click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
+@click.option("--config", "config_path", metavar="FILE", type=_FILE, help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
 @click.option("--timeout", type=Duration(0.001, 3600), metavar="DURATION",
@@ -197,7 +208,7 @@ EPILOG = (
 @click.option("-y", "--yes", is_flag=True, help="Consent to motion without a prompt (scripts, CI).")
 @click.option("-v", "--verbose", count=True, help="More detail on stderr (repeatable).")
 @click.option("--trace", is_flag=True, help="Hex dump of every request and response frame on stderr.")
-@click.option("--pcap", metavar="FILE", type=click.Path(dir_okay=False), help="Capture every frame to a pcap file (Wireshark/tshark).")
+@click.option("--pcap", metavar="FILE", type=_FILE, help="Capture every frame to a pcap file (Wireshark/tshark).")
 @click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
 @click.option("--inventory", metavar="FILE", expose_value=False, callback=_line_only,
               help="Run the command on every drive of this inventory (see 'akdctl discover'), one process per drive.")
@@ -209,7 +220,10 @@ EPILOG = (
               help="With --inventory: start no further drive after one failed.")
 @click.option("--reference", metavar="NAME", expose_value=False, callback=_line_only,
               help="With --inventory and param diff: compare with this drive instead of the majority.")
-@click.version_option(__version__, "--version", prog_name="akdctl")
+# --version as click's version_option builds it (eager, no value), with its help and message written out: the
+# decorator looks both up in gettext's catalogues at import, two dozen stat calls of every start (issue 29).
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_show_version,
+              help="Show the version and exit.")
 @click.pass_context
 def cli(ctx: click.Context, target: str | None, config_path: str | None, profile_name: str | None,
         json_output: bool, timeout: float | None, retries: int | None, yes: bool, verbose: int, trace: bool, pcap: str | None,
