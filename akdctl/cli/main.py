@@ -317,10 +317,12 @@ def _own_process_gc() -> None:
 
 
 def _before_exit() -> None:
-    """Collect the young cyclic garbage (its finalizers run, as at any exit), then freeze what is left: the
-    interpreter's shutdown collection would otherwise walk every module, class and function the command imported
-    (about 20 M instructions) to find no garbage, whose memory the operating system takes back anyway."""
-    gc.collect(1)
+    """Freeze what the command built: the interpreter's shutdown collection would otherwise walk every module, class
+    and function the command imported (about 20 M instructions of a 260 M start) for cycles whose memory the operating
+    system takes back anyway. Objects still referenced are released at shutdown as before (their files flushed and
+    closed); only garbage cycles are left to the OS, whose finalizers Python does not promise to run at exit either
+    (the data model's ``__del__`` note). Collecting the young generation first cost 3 M instructions more, for
+    cycles nothing here leaves behind (every file and socket is closed by its owner)."""
     gc.freeze()
 
 
