@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 from akdctl.profiles.vocabulary import PROFILE_WORDS
 
 
@@ -40,11 +41,11 @@ def default_config_path() -> Path:
     return Path(base) / "akdctl" / "config.toml"
 
 
-class Profile:
+class Profile(Record):
     """One named profile of the config file (all keys optional; the tables are the file's, read-only by use).
 
-    A plain class with ``__slots__``, not a named tuple or a dataclass: every command loads this module, and
-    building a named tuple class costs about 1 M instructions of each start (issue 29)."""
+    A :class:`~akdctl.protocol.record.Record`, not a named tuple: every command loads this module, and building a
+    named tuple class costs about 1 M instructions of each start (issue 29)."""
 
     __slots__ = ("name", "target", "timeout", "drive", "limits", "units", "raw")
 
@@ -59,20 +60,11 @@ class Profile:
         self.units: dict[str, Any] = {} if units is None else units
         self.raw: dict[str, Any] = {} if raw is None else raw
 
-    def _fields(self) -> tuple[Any, ...]:
-        return tuple(getattr(self, name) for name in self.__slots__)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, Profile) and self._fields() == other._fields()
-
-    __hash__ = None  # type: ignore[assignment]  # its tables are dicts, as the named tuple's were unhashable
-
-    def __repr__(self) -> str:
-        return "Profile(" + ", ".join(f"{name}={getattr(self, name)!r}" for name in self.__slots__) + ")"
+    __hash__ = None  # type: ignore[assignment]  # its tables are dicts, as the named tuple's made it unhashable
 
 
-class Config:
-    """The parsed file (a plain class for the reason :class:`Profile` is one)."""
+class Config(Record):
+    """The parsed file (a Record for the reason :class:`Profile` is one)."""
 
     __slots__ = ("path", "default_profile", "profiles")
 
@@ -81,8 +73,7 @@ class Config:
         self.default_profile = default_profile
         self.profiles = profiles
 
-    def __repr__(self) -> str:
-        return f"Config(path={self.path!r}, default_profile={self.default_profile!r}, profiles={self.profiles!r})"
+    __hash__ = None  # type: ignore[assignment]  # its profiles are a dict
 
 
 TOP_KEYS = ("default_profile", "profiles")
