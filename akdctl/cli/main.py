@@ -304,7 +304,7 @@ def _line_run(args: list[str]) -> bool:
 
 #: The young-generation threshold of this process's garbage collector (CPython's default is 700). A command spends
 #: most of its start importing modules and building the click tree: tens of thousands of long-lived objects, none of
-#: them garbage, so at 700 CPython walks them dozens of times for nothing (about 10 M instructions of a 260 M start).
+#: them garbage, so at 700 CPython walks them again and again for nothing (about 4 M instructions of a 260 M start).
 #: At 10 000 a one-shot command collects a few times at most, and a long-running one (``sim serve``, ``scope``, the
 #: shell) still collects its cyclic garbage, holding at most this many uncollected young objects (a few MB).
 GC_YOUNG_THRESHOLD = 10_000
@@ -318,7 +318,7 @@ def _own_process_gc() -> None:
 
 def _before_exit() -> None:
     """Freeze what the command built: the interpreter's shutdown collection would otherwise walk every module, class
-    and function the command imported (about 20 M instructions of a 260 M start) for cycles whose memory the operating
+    and function the command imported (about 21 M instructions of a 260 M start) for cycles whose memory the operating
     system takes back anyway. Objects still referenced are released at shutdown as before (their files flushed and
     closed); only garbage cycles are left to the OS, whose finalizers Python does not promise to run at exit either
     (the data model's ``__del__`` note). Collecting the young generation first cost 3 M instructions more, for
