@@ -181,7 +181,7 @@ def _show_version(ctx: click.Context, param: click.Parameter, value: bool) -> No
 
 
 #: The one type of the root's file options (``--config``, ``--pcap``): a click type is stateless, and each one built
-#: looks its name up in gettext's catalogues (a dozen stat calls of every start, issue 29), so both share this one.
+#: looks its name up in gettext's catalogues (a few stat calls at every start, issue 29), so both share this one.
 _FILE = click.Path(dir_okay=False)
 
 EPILOG = (
@@ -221,7 +221,8 @@ EPILOG = (
 @click.option("--reference", metavar="NAME", expose_value=False, callback=_line_only,
               help="With --inventory and param diff: compare with this drive instead of the majority.")
 # --version as click's version_option builds it (eager, no value), with its help and message written out: the
-# decorator looks both up in gettext's catalogues at import, two dozen stat calls of every start (issue 29).
+# decorator looks both up in gettext's catalogues at import, a few stat calls each at every start (issue 29); click
+# ships no catalogue for them, so the words are the same.
 @click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_show_version,
               help="Show the version and exit.")
 @click.pass_context
@@ -321,8 +322,7 @@ def _before_exit() -> None:
     and function the command imported (about 21 M instructions of a 260 M start) for cycles whose memory the operating
     system takes back anyway. Objects still referenced are released at shutdown as before (their files flushed and
     closed); only garbage cycles are left to the OS, whose finalizers Python does not promise to run at exit either
-    (the data model's ``__del__`` note). Collecting the young generation first cost 3 M instructions more, for
-    cycles nothing here leaves behind (every file and socket is closed by its owner)."""
+    (the data model's ``__del__`` note). Collecting the young generation first cost 3 M instructions more."""
     gc.freeze()
 
 
