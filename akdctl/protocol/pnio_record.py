@@ -146,3 +146,64 @@ def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.Pnio
     return _RESPONSE[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
                                   data[60:74], 20 + n, 0, data[78:80],
                                   _OK_BYTES if status is OK else status.encode(), n, n, 0, n) + blocks
+
+
+# --- one pass per plain record call (the simulator's PROFINET face, issue 29: a PNU read is two of them) ----------
+# Why besides plain_record_call/pack_record_response: those build a RecordCall and take a PnioStatus per call; the
+# calls that succeed -- nearly all of a poll -- need neither. The face reads the fields below, answers the OK cases
+# with write_ok/read_ok and hands every other case to plain_record_call and the general answer (tests/test_sim_faces.py
+# and tests/test_pnio_record_fast.py hold the two ways byte-equal).
+_BE32 = struct.Struct(">I").pack
+#: A Write record response with PNIOStatus OK: the reply header (as _RESPONSE), the NDR arguments of its one 64-byte
+#: IODWriteResHeader block, the request's record header (padding 0) with the data's length, then 4 + 16 bytes 0.
+_WRITE_OK = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII6s26s2x6s4x4s16x")
+             for little, order in ((False, ">"), (True, "<"))}
+#: A Read record response with PNIOStatus OK, up to the data: as above with an IODReadResHeader carrying the data's
+#: length (big endian, as every PNIO block field) and 24 bytes 0.
+_READ_OK = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII6s26s2x2s4s24x")
+            for little, order in ((False, ">"), (True, "<"))}
+_WRITE_OK_BLOCKS = 64  # IODWriteResHeader: block header + 60
+
+
+def record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, int, int, int, int, int] | None:
+    """(little endian, activity UUID bytes, sequence, opnum, AR UUID bytes, API, slot, subslot, index, length) of a
+    datagram :func:`plain_record_call` accepts (the same checks, in one pass, no RecordCall), else None. ``length``:
+    a write's record data length (the data is ``data[164:164 + length]``), a read's most the client takes."""
+    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
+            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
+        return None
+    little = data[4] >> 4 == 1
+    (_v, _t, _f, _drep, interface, activity, sequence, opnum, length, _args_max, args_length, maximum, offset,
+     actual) = _CALL["<" if little else ">"].unpack_from(data)
+    if interface != DEVICE_INTERFACE_WIRE[little] or (opnum != OP_WRITE and opnum != OP_READ):
+        return None
+    if dcerpc.HEADER_SIZE + length > len(data) or offset or actual > maximum or args_length > length - 20 \
+            or actual > length - 20 or args_length < 64:
+        return None
+    btype, blen, _vhi, _vlo, _seq, ar, api, slot, subslot, _pad, index, rlength = _RECORD_HEAD.unpack_from(data, 100)
+    if blen != _RECORD_HEAD_LENGTH:
+        return None
+    if opnum == OP_WRITE:
+        if btype != BT_WRITE_REQ or args_length != 64 + rlength:
+            return None
+    elif btype != BT_READ_REQ or args_length != 64:
+        return None
+    return little, activity, sequence, opnum, ar, api, slot, subslot, index, rlength
+
+
+def write_ok(data: bytes, little: bool, boot: int) -> bytes:
+    """The response to the plain Write record call ``data`` that succeeded: ``pack_record_response(data, little,
+    boot, *write_res(req, OK))`` in one pack."""
+    n = _WRITE_OK_BLOCKS
+    return _WRITE_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
+                                  data[60:74], 20 + n, 0, data[78:80], _OK_BYTES, n, n, 0, n,
+                                  _WRITE_RES, data[106:132], data[134:140], _OK_BYTES)
+
+
+def read_ok(data: bytes, little: bool, boot: int, record: bytes) -> bytes:
+    """The response to the plain Read record call ``data`` answered with ``record``: ``pack_record_response(data,
+    little, boot, *read_res(req, record))`` in one pack."""
+    n = 64 + len(record)
+    return _READ_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
+                                 data[60:74], 20 + n, 0, data[78:80], _OK_BYTES, n, n, 0, n,
+                                 _READ_RES, data[106:132], data[134:136], _BE32(len(record))) + record

@@ -22,7 +22,6 @@ import select
 import socket
 import time
 import uuid
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
@@ -233,7 +232,9 @@ class ProfinetFace(Face):
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self.boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
-        self._cache: OrderedDict[tuple[bytes, int], list[bytes]] = OrderedDict()  # (activity bytes, sequence)
+        # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
+        self._cache: dict[tuple[bytes, int], list[bytes]] = {}
+        self._short_way = not fragment  # plain record calls answered in one pass (_record_ok); fragments: never
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._tie = itertools.count()
         self._tx_count = 0
@@ -381,6 +382,10 @@ class ProfinetFace(Face):
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
+        if self._short_way:
+            fields = pnio_record.record_call_fields(data)
+            if fields is not None and self._record_ok(data, peer, fields):
+                return
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
             little, sequence, opnum, req = plain
@@ -432,9 +437,69 @@ class ProfinetFace(Face):
                 frames = [head + body]
         self._cache[key] = frames
         if len(self._cache) > REPLY_CACHE:
-            self._cache.popitem(last=False)
+            del self._cache[next(iter(self._cache))]
         for frame in frames:
             self._send(frame, peer)
+
+    def _record_ok(self, data: bytes, peer: tuple[str, int],
+                   fields: tuple[bool, bytes, int, int, bytes, int, int, int, int, int]) -> bool:
+        """A plain record call in one pass (:func:`pnio_record.record_call_fields`): a retransmission replayed, a
+        Write that reaches the parameter manager, a Read that collects its response -- what :meth:`_record_call`
+        does for them, without a RecordCall or a PnioStatus. False (nothing done, nothing counted) for every other
+        case: :meth:`_record_call` answers it with the same checks as before."""
+        little, activity, sequence, opnum, ar_id, api, slot, subslot, index, length = fields
+        key = (activity, sequence)
+        cache = self._cache
+        cached = cache.get(key)
+        if cached is not None:
+            self.stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return True
+        ar = self._ars.get(ar_id)
+        if ar is None or api != self.api or slot != self.slot or subslot != self.subslot or \
+                (index != INDEX_PROFIDRIVE and index != INDEX_PROFIDRIVE_ALT):
+            return False
+        now = time.monotonic()
+        pending = ar.pending
+        if opnum == OP_WRITE:
+            if not 0 < length <= MAX_RECORD or (pending is not None and pending[0] > now):
+                return False
+            ar.last_activity = now
+            self.stats.bmp_requests += 1
+            try:
+                response = self.drive.handle_bmp(data[164:164 + length])
+            except Exception as exc:  # noqa: BLE001 - answered as _write answers it
+                frame = self._write_failed(data, little, exc)
+            else:
+                ar.pending = (now + self.delay, response)
+                frame = pnio_record.write_ok(data, little, self.boot_time)
+        else:
+            if pending is None or pending[0] > now:
+                return False
+            ar.last_activity = now
+            ar.pending = None
+            frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
+        cache[key] = [frame]
+        if len(cache) > REPLY_CACHE:
+            del cache[next(iter(cache))]  # the oldest: a dict keeps insertion order
+        if self._plain_tx:
+            self._raw_send(frame, peer)
+        else:
+            self._send(frame, peer)
+        return True
+
+    def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
+        """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
+        plain = pnio_record.plain_record_call(data)
+        assert plain is not None  # record_call_fields accepted it: so does plain_record_call (the same checks)
+        req = plain[3]
+        if isinstance(exc, RecordRefused):  # a request no base-mode response can answer (docs/fidelity.md F1)
+            status = pnio.rw_error(True, exc.code1)
+        else:  # the parameter manager failed: a record error, not silence
+            request_failed("profinet", exc)
+            status = _failure_status(OP_WRITE, exc)
+        return pnio_record.pack_record_response(data, little, self.boot_time, *pnio_record.write_res(req, status))
 
     def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
                      req: pnio_record.RecordCall) -> None:
@@ -459,7 +524,7 @@ class ProfinetFace(Face):
         frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
         cache[key] = [frame]
         if len(cache) > REPLY_CACHE:
-            cache.popitem(last=False)
+            del cache[next(iter(cache))]
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:
