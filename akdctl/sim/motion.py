@@ -345,6 +345,18 @@ class MotionComponent(Component):
             self.since_access += dt
         axis.integrate(dt)
 
+    def still(self) -> bool:
+        """A tick would change nothing, whatever its length: no fault waiting for its reaction, the watchdog not
+        counting, the axis at rest with nothing to integrate (built or not) -- :meth:`tick`'s early returns."""
+        if self.since_access:
+            return False
+        if self.state not in (FAULT, FAULT_REACTION) and self.model.faults.fault_present:
+            return False
+        if self._resting_unbuilt_axis():
+            return True
+        axis = self.axis
+        return axis.at_rest() and not (axis.vel or axis.acc_now)
+
     def _watchdog_trip(self) -> None:
         """No request for ``watchdog_s`` wall seconds while moving: ramp to standstill on our own, and say why
         with the simulator's own warning (ZSW1/statusword bit 7, 0x2000, an EMCY; docs/fidelity.md F4)."""
