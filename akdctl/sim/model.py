@@ -352,6 +352,8 @@ class DriveModel:
             values = read(subindex, count)
         else:
             values = self.stored_pnu(pnu)[subindex : subindex + count]
+        if len(values) == 1:  # the usual read: no comprehension (a function call of its own before Python 3.12)
+            return wire_format, [values[0] & mask]
         return wire_format, [v & mask for v in values]
 
     def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:

@@ -184,7 +184,10 @@ class MotionComponent(Component):
     @property
     def opmode(self) -> int:
         """PNU 930 (DRV.OPMODE) derived from the CiA 402 mode."""
-        return {4: 0, 3: 1}.get(self.mode, 2)
+        return self._opmode()
+
+    def _opmode(self) -> int:
+        return _OPMODE.get(self.mode, 2)
 
     @property
     def fault_present(self) -> bool:
@@ -386,7 +389,7 @@ class MotionComponent(Component):
         m.bind_pnu(28, read=pnu_reader(lambda: _clamp32(self.position_counts)))  # XIST_A, 2^PNU1002 per rev
         m.bind_pnu(33, read=pnu_reader(lambda: self.pd.aktsatz))
         m.bind_pnu(52, read=pnu_reader(lambda: round(self._current_fraction() * (1 << 14))))
-        m.bind_pnu(930, read=pnu_reader(lambda: self.opmode),
+        m.bind_pnu(930, read=pnu_reader(self._opmode),
                    write=lambda sub, values: self.pd.write_opmode(sub, values))
 
         def obj_reader(fmt: str, func: Any) -> Any:
@@ -474,6 +477,9 @@ class MotionComponent(Component):
             self.last_writer = state["last_writer"]
         if self.state not in CIA_WORD:
             raise ValueError(f"motion state {self.state!r} is not a drive state")
+
+
+_OPMODE = {4: 0, 3: 1}  # CiA 402 mode -> DRV.OPMODE (torque 0, velocity 1, any position mode 2)
 
 
 def _clamp32(value: int) -> int:
