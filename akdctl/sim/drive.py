@@ -565,7 +565,7 @@ class SimDrive:
         With the lock kept since the last transaction (:attr:`_trusted`), the held model is current: the steps of
         :meth:`_begin` and :meth:`_commit` that matter then -- the clock advanced, a save when the mark moved --
         are done here without their token read and calls (the same rules; any other case takes them)."""
-        if not self._mutex.acquire(timeout=self.lock_timeout):  # _acquire's steps, inline
+        if not self._mutex.acquire(True, self.lock_timeout):  # _acquire's steps, inline (positional: no keyword parsing)
             raise CommError(self._locked_text())
         if self._holding:
             lock_fd = self._lock_fd

@@ -234,6 +234,8 @@ class ProfinetFace(Face):
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
         # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
         self._cache: dict[tuple[bytes, int], list[bytes]] = {}
+        self._cached: list[tuple[bytes, int] | None] = [None] * REPLY_CACHE  # the cache's keys, oldest at _cached_at
+        self._cached_at = 0
         self._short_way = not fragment  # plain record calls answered in one pass (_record_ok); fragments: never
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._tie = itertools.count()
@@ -302,7 +304,7 @@ class ProfinetFace(Face):
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
         buffer = bytearray(65535)  # one receive buffer: recvfrom(65535) allocates 64 KiB per datagram
         view = memoryview(buffer)
-        receive, datagram, stop = sock.recvfrom_into, self._datagram, self._stop
+        receive, datagram, stop, monotonic = sock.recvfrom_into, self._datagram, self._stop, time.monotonic
         next_expiry = 0.0
         while not stop.is_set():
             if self._scheduled:
@@ -317,7 +319,8 @@ class ProfinetFace(Face):
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
-            next_expiry = self._maybe_expire(next_expiry)
+            if monotonic() >= next_expiry:  # _maybe_expire's test, inline: it is false for most datagrams
+                next_expiry = self._maybe_expire(next_expiry)
             if peer is None:
                 continue  # woken by interrupt(): the loop condition decides
             try:
@@ -386,6 +389,12 @@ class ProfinetFace(Face):
             fields = pnio_record.record_call_fields(data)
             if fields is not None and self._record_ok(data, peer, fields):
                 return
+        self._general(data, peer)
+
+    def _general(self, data: bytes, peer: tuple[str, int]) -> None:
+        """Every datagram :meth:`_record_ok` does not answer: the plain record calls' second short way
+        (:meth:`_record_call`), else the general decoders."""
+        stats = self.stats
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
             little, sequence, opnum, req = plain
@@ -435,9 +444,7 @@ class ProfinetFace(Face):
             else:
                 head = pnio_record.reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body))
                 frames = [head + body]
-        self._cache[key] = frames
-        if len(self._cache) > REPLY_CACHE:
-            del self._cache[next(iter(self._cache))]
+        self._remember(key, frames)
         for frame in frames:
             self._send(frame, peer)
 
@@ -449,8 +456,7 @@ class ProfinetFace(Face):
         case: :meth:`_record_call` answers it with the same checks as before."""
         little, activity, sequence, opnum, ar_id, api, slot, subslot, index, length = fields
         key = (activity, sequence)
-        cache = self._cache
-        cached = cache.get(key)
+        cached = self._cache.get(key)
         if cached is not None:
             self.stats.replayed += 1
             for frame in cached:
@@ -480,14 +486,23 @@ class ProfinetFace(Face):
             ar.last_activity = now
             ar.pending = None
             frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
-        cache[key] = [frame]
-        if len(cache) > REPLY_CACHE:
-            del cache[next(iter(cache))]  # the oldest: a dict keeps insertion order
+        self._remember(key, [frame])
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:
             self._send(frame, peer)
         return True
+
+    def _remember(self, key: tuple[bytes, int], frames: list[bytes]) -> None:
+        """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a ring of their
+        keys: trimming a dict by its first key scans the slots deleted before it)."""
+        self._cache[key] = frames
+        at = self._cached_at
+        old = self._cached[at]
+        self._cached[at] = key
+        self._cached_at = (at + 1) % REPLY_CACHE
+        if old is not None:
+            self._cache.pop(old, None)
 
     def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
         """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
@@ -522,9 +537,7 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
-        cache[key] = [frame]
-        if len(cache) > REPLY_CACHE:
-            del cache[next(iter(cache))]
+        self._remember(key, [frame])
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:
