@@ -55,8 +55,8 @@ def test_record_call_fields_recognise_what_plain_record_call_does() -> None:
             continue
         recognised += 1
         little, sequence, opnum, req = plain
-        assert fields == (little, data[40:56], sequence, opnum, req.ar, req.api, req.slot, req.subslot, req.index,
-                          req.length)
+        assert fields == (little, data[40:56], sequence, opnum, req.ar,
+                          pnio_record.record_address(req.api, req.slot, req.subslot), req.index, req.length)
         if opnum == pnio.OP_WRITE:
             assert data[164:164 + fields[-1]] == req.data
     assert recognised > 1000

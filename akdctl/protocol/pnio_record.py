@@ -165,22 +165,39 @@ _READ_OK = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII6s26s2x2s4s24x"
 _WRITE_OK_BLOCKS = 64  # IODWriteResHeader: block header + 60
 
 
-def record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, int, int, int, int, int] | None:
-    """(little endian, activity UUID bytes, sequence, opnum, AR UUID bytes, API, slot, subslot, index, length) of a
-    datagram :func:`plain_record_call` accepts (the same checks, in one pass, no RecordCall), else None. ``length``:
-    a write's record data length (the data is ``data[164:164 + length]``), a read's most the client takes."""
+#: From byte 0, by the request's data representation (0 big, 1 little endian): interface and activity UUID, sequence,
+#: opnum, body length, then the NDR arguments' length, maximum count, offset and actual count.
+_FIELDS = (struct.Struct(">24x16s16s8xIH4xH8xIIII"), struct.Struct("<24x16s16s8xIH4xH8xIIII"))
+#: From byte 100 (big endian, as every PNIO block): block type and length, the AR UUID, API + slot + subslot as the
+#: 8 bytes :func:`record_address` makes, index and record data length (version, sequence and padding skipped).
+_FIELDS_RECORD = struct.Struct(">HH4x16s8s2xHI")
+_ADDRESS = struct.Struct(">IHH")
+_INTERFACES = (DEVICE_INTERFACE_WIRE[False], DEVICE_INTERFACE_WIRE[True])
+
+
+def record_address(api: int, slot: int, subslot: int) -> bytes:
+    """API, slot and subslot as a record header carries them (the ``address`` of :func:`record_call_fields`)."""
+    return _ADDRESS.pack(api, slot, subslot)
+
+
+def record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, bytes, int, int] | None:
+    """(little endian, activity UUID bytes, sequence, opnum, AR UUID bytes, address, index, length) of a datagram
+    :func:`plain_record_call` accepts (the same checks, in one pass, no RecordCall), else None. ``address``: API,
+    slot and subslot as :func:`record_address` packs them; ``length``: a write's record data length (the data is
+    ``data[164:164 + length]``), a read's most the client takes."""
     if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
-            or data[2] & dcerpc.FLAG_FRAG or data[4] >> 4 > 1:
+            or data[2] & dcerpc.FLAG_FRAG:
         return None
-    little = data[4] >> 4 == 1
-    (_v, _t, _f, _drep, interface, activity, sequence, opnum, length, _args_max, args_length, maximum, offset,
-     actual) = _CALL["<" if little else ">"].unpack_from(data)
-    if interface != DEVICE_INTERFACE_WIRE[little] or (opnum != OP_WRITE and opnum != OP_READ):
+    drep = data[4] >> 4
+    if drep > 1:
         return None
-    if dcerpc.HEADER_SIZE + length > len(data) or offset or actual > maximum or args_length > length - 20 \
-            or actual > length - 20 or args_length < 64:
+    interface, activity, sequence, opnum, length, args_length, maximum, offset, actual = \
+        _FIELDS[drep].unpack_from(data)
+    if interface != _INTERFACES[drep] or (opnum != OP_WRITE and opnum != OP_READ) or offset \
+            or dcerpc.HEADER_SIZE + length > len(data) or actual > maximum or args_length > length - 20 \
+            or actual > length - 20:
         return None
-    btype, blen, _vhi, _vlo, _seq, ar, api, slot, subslot, _pad, index, rlength = _RECORD_HEAD.unpack_from(data, 100)
+    btype, blen, ar, address, index, rlength = _FIELDS_RECORD.unpack_from(data, 100)
     if blen != _RECORD_HEAD_LENGTH:
         return None
     if opnum == OP_WRITE:
@@ -188,7 +205,7 @@ def record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, int, 
             return None
     elif btype != BT_READ_REQ or args_length != 64:
         return None
-    return little, activity, sequence, opnum, ar, api, slot, subslot, index, rlength
+    return drep == 1, activity, sequence, opnum, ar, address, index, rlength
 
 
 def write_ok(data: bytes, little: bool, boot: int) -> bytes:

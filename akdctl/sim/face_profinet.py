@@ -236,7 +236,9 @@ class ProfinetFace(Face):
         self._cache: dict[tuple[bytes, int], list[bytes]] = {}
         self._cached: list[tuple[bytes, int] | None] = [None] * REPLY_CACHE  # the cache's keys, oldest at _cached_at
         self._cached_at = 0
-        self._short_way = not fragment  # plain record calls answered in one pass (_record_ok); fragments: never
+        self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
+        self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
+        self._rxdrop = self.injection.rxdrop
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._tie = itertools.count()
         self._tx_count = 0
@@ -379,20 +381,61 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- requests
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
+        """One datagram. A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass
+        when it is a retransmission, a Write that reaches the parameter manager or a Read that collects its
+        response -- what :meth:`_record_call` does for them, without a RecordCall or a PnioStatus; every other
+        datagram, and every other case of one (nothing done, nothing counted yet), goes to :meth:`_general`, which
+        answers it with the same checks as before (tests/test_sim_faces.py holds both ways equal)."""
         stats = self.stats
         stats.received += 1
-        rxdrop = self.injection.rxdrop
+        rxdrop = self._rxdrop
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
-        if self._short_way:
-            fields = pnio_record.record_call_fields(data)
-            if fields is not None and self._record_ok(data, peer, fields):
-                return
-        self._general(data, peer)
+        fields = pnio_record.record_call_fields(data) if self._short_way else None
+        if fields is None:
+            self._general(data, peer)
+            return
+        little, activity, sequence, opnum, ar_id, address, index, length = fields
+        key = (activity, sequence)
+        cached = self._cache.get(key)
+        if cached is not None:
+            stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return
+        ar = self._ars.get(ar_id)
+        frame = None
+        if ar is not None and address == self._address and \
+                (index == INDEX_PROFIDRIVE or index == INDEX_PROFIDRIVE_ALT):
+            now = time.monotonic()
+            pending = ar.pending
+            if opnum == OP_WRITE:
+                if 0 < length <= MAX_RECORD and (pending is None or pending[0] <= now):
+                    ar.last_activity = now
+                    stats.bmp_requests += 1
+                    try:
+                        response = self.drive.handle_bmp(data[164:164 + length])
+                    except Exception as exc:  # noqa: BLE001 - answered as _write answers it
+                        frame = self._write_failed(data, little, exc)
+                    else:
+                        ar.pending = (now + self.delay, response)
+                        frame = pnio_record.write_ok(data, little, self.boot_time)
+            elif pending is not None and pending[0] <= now:
+                ar.last_activity = now
+                ar.pending = None
+                frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
+        if frame is None:
+            self._general(data, peer)
+            return
+        self._remember(key, [frame])
+        if self._plain_tx:
+            self._raw_send(frame, peer)
+        else:
+            self._send(frame, peer)
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:
-        """Every datagram :meth:`_record_ok` does not answer: the plain record calls' second short way
+        """Every datagram the one pass of :meth:`_datagram` does not answer: the plain record calls' second short way
         (:meth:`_record_call`), else the general decoders."""
         stats = self.stats
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
@@ -447,51 +490,6 @@ class ProfinetFace(Face):
         self._remember(key, frames)
         for frame in frames:
             self._send(frame, peer)
-
-    def _record_ok(self, data: bytes, peer: tuple[str, int],
-                   fields: tuple[bool, bytes, int, int, bytes, int, int, int, int, int]) -> bool:
-        """A plain record call in one pass (:func:`pnio_record.record_call_fields`): a retransmission replayed, a
-        Write that reaches the parameter manager, a Read that collects its response -- what :meth:`_record_call`
-        does for them, without a RecordCall or a PnioStatus. False (nothing done, nothing counted) for every other
-        case: :meth:`_record_call` answers it with the same checks as before."""
-        little, activity, sequence, opnum, ar_id, api, slot, subslot, index, length = fields
-        key = (activity, sequence)
-        cached = self._cache.get(key)
-        if cached is not None:
-            self.stats.replayed += 1
-            for frame in cached:
-                self._send(frame, peer)
-            return True
-        ar = self._ars.get(ar_id)
-        if ar is None or api != self.api or slot != self.slot or subslot != self.subslot or \
-                (index != INDEX_PROFIDRIVE and index != INDEX_PROFIDRIVE_ALT):
-            return False
-        now = time.monotonic()
-        pending = ar.pending
-        if opnum == OP_WRITE:
-            if not 0 < length <= MAX_RECORD or (pending is not None and pending[0] > now):
-                return False
-            ar.last_activity = now
-            self.stats.bmp_requests += 1
-            try:
-                response = self.drive.handle_bmp(data[164:164 + length])
-            except Exception as exc:  # noqa: BLE001 - answered as _write answers it
-                frame = self._write_failed(data, little, exc)
-            else:
-                ar.pending = (now + self.delay, response)
-                frame = pnio_record.write_ok(data, little, self.boot_time)
-        else:
-            if pending is None or pending[0] > now:
-                return False
-            ar.last_activity = now
-            ar.pending = None
-            frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
-        self._remember(key, [frame])
-        if self._plain_tx:
-            self._raw_send(frame, peer)
-        else:
-            self._send(frame, peer)
-        return True
 
     def _remember(self, key: tuple[bytes, int], frames: list[bytes]) -> None:
         """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a ring of their
