@@ -156,13 +156,15 @@ def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.Pnio
 _BE32 = struct.Struct(">I").pack
 #: A Write record response with PNIOStatus OK: the reply header (as _RESPONSE), the NDR arguments of its one 64-byte
 #: IODWriteResHeader block, the request's record header (padding 0) with the data's length, then 4 + 16 bytes 0.
-_WRITE_OK = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII6s26s2x6s4x4s16x")
+_WRITE_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x6s24x")
              for little, order in ((False, ">"), (True, "<"))}
 #: A Read record response with PNIOStatus OK, up to the data: as above with an IODReadResHeader carrying the data's
 #: length (big endian, as every PNIO block field) and 24 bytes 0.
-_READ_OK = {little: struct.Struct(order + "1sBBB52sI14sHH2s4sIIII6s26s2x2s4s24x")
+_READ_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x2s4s24x")
             for little, order in ((False, ">"), (True, "<"))}
 _WRITE_OK_BLOCKS = 64  # IODWriteResHeader: block header + 60
+# The zeros of both (x): flags2, fragment number, PNIOStatus OK, the NDR offset, padding and reserved bytes.
+assert _OK_BYTES == bytes(4)
 
 
 #: From byte 0, by the request's data representation (0 big, 1 little endian): interface and activity UUID, sequence,
@@ -212,15 +214,14 @@ def write_ok(data: bytes, little: bool, boot: int) -> bytes:
     """The response to the plain Write record call ``data`` that succeeded: ``pack_record_response(data, little,
     boot, *write_res(req, OK))`` in one pack."""
     n = _WRITE_OK_BLOCKS
-    return _WRITE_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
-                                  data[60:74], 20 + n, 0, data[78:80], _OK_BYTES, n, n, 0, n,
-                                  _WRITE_RES, data[106:132], data[134:140], _OK_BYTES)
+    return _WRITE_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
+                                  20 + n, data[78:80], n, n, n, _WRITE_RES, data[106:132], data[134:140])
 
 
 def read_ok(data: bytes, little: bool, boot: int, record: bytes) -> bytes:
     """The response to the plain Read record call ``data`` answered with ``record``: ``pack_record_response(data,
     little, boot, *read_res(req, record))`` in one pack."""
     n = 64 + len(record)
-    return _READ_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
-                                 data[60:74], 20 + n, 0, data[78:80], _OK_BYTES, n, n, 0, n,
-                                 _READ_RES, data[106:132], data[134:136], _BE32(len(record))) + record
+    return _READ_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
+                                 20 + n, data[78:80], n, n, n, _READ_RES, data[106:132], data[134:136],
+                                 _BE32(len(record))) + record

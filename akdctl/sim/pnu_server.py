@@ -212,8 +212,19 @@ class PnuServer:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = bytes(request)
         plan = self._plans.get(data[1:])
-        if plan is not None and data[0]:
-            return self._read_planned(data, *plan)
+        if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
+            pnu, subindex, count = plan
+            try:
+                fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
+            except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                return self._read_planned(data, pnu, subindex, count, exc)
+            layout = raw_read_response_layout(fmt, count)
+            if layout is not None and len(values) == count:
+                try:
+                    return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
+                except struct.error:
+                    pass  # _raw_block says so
+            return self._read_planned(data, pnu, subindex, count, (fmt, values))
         if len(data) == _ONE_READ_SIZE and data[1] == REQ_READ and data[3] == 1 and data[0] and data[2] in self.axes:
             # one parameter read, the poll's request: the checks header_refusal and _handle make of it, passed
             try:
@@ -317,21 +328,11 @@ class PnuServer:
                 plans.clear()  # a client walking every address: start over rather than grow
             plans[data[1:]] = (pnu, subindex, count)
 
-    def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int) -> bytes:
-        """:meth:`_read_single` of a planned read: the value read from the model now, the response packed whole
-        when it is the usual one (else as :meth:`_read_raw` packs it, refusals included)."""
-        try:
-            fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
-        except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
-            block = self._raw_failure(exc)
-        else:
-            layout = raw_read_response_layout(fmt, count)
-            if layout is not None and len(values) == count:
-                try:
-                    return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
-                except struct.error:
-                    pass  # _raw_block says so
-            block = self._raw_block(pnu, count, fmt, values)
+    def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
+                      read: tuple[int, list[int]] | Exception) -> bytes:
+        """The response to a planned read (:meth:`handle` packs the usual one itself) from what the model's raw
+        access returned or raised: as :meth:`_read_single` answers it, refusals included."""
+        block = self._raw_failure(read) if isinstance(read, Exception) else self._raw_block(pnu, count, *read)
         return pack_read_response(data, [block], block[0] == Format.ERROR)
 
     def _raw_failure(self, exc: Exception) -> bytes:
