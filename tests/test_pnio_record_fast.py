@@ -82,3 +82,27 @@ def test_ok_replies_are_the_general_replies() -> None:
         assert reply.header.ptype == dcerpc.PT_RESPONSE
         checked += 1
     assert checked > 500
+
+
+def test_a_shape_seen_before_gives_what_every_check_gives() -> None:
+    """record_call_fields keeps the shapes it checked (pnio_record._SHAPES); requests of a kept shape -- their
+    sequence numbers changed, cut short, lengthened, a byte anywhere changed -- get what every check gives."""
+    rng = random.Random(11)
+    hits = 0
+    pnio_record._SHAPES.clear()
+    for data in _requests(41, 1500):
+        for variant in range(6):
+            if variant == 1:    # another sequence number and record sequence number: the same shape
+                data = data[:64] + rng.getrandbits(32).to_bytes(4, "big") + data[68:106] + \
+                    rng.getrandbits(16).to_bytes(2, "big") + data[108:]
+            elif variant == 2:  # cut short
+                data = data[:rng.randrange(len(data) + 1)]
+            elif variant == 3:  # bytes after the body
+                data += bytes(rng.randint(1, 3))
+            elif variant == 4 and data:  # a byte anywhere
+                where = rng.randrange(len(data))
+                data = data[:where] + bytes([rng.randrange(256)]) + data[where + 1:]
+            key = data[:64] + data[68:106] + data[108:140]
+            hits += key in pnio_record._SHAPES
+            assert pnio_record.record_call_fields(data) == pnio_record._record_call_fields(data), data.hex()
+    assert hits > 1000
