@@ -308,6 +308,9 @@ class ProfinetFace(Face):
         view = memoryview(buffer)
         receive, datagram, stop, monotonic = sock.recvfrom_into, self._datagram, self._stop, time.monotonic
         next_expiry = 0.0
+        # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
+        # down, so the next receive returns at once) and at each expiry tick (at most every EXPIRY_TICK_S under
+        # traffic), not per datagram: Event.is_set is a Python call.
         while not stop.is_set():
             if self._scheduled:
                 wait = max(0.0, min(EXPIRY_TICK_S, self._scheduled[0][0] - time.monotonic()))
@@ -321,14 +324,23 @@ class ProfinetFace(Face):
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
-            if monotonic() >= next_expiry:  # _maybe_expire's test, inline: it is false for most datagrams
-                next_expiry = self._maybe_expire(next_expiry)
-            if peer is None:
-                continue  # woken by interrupt(): the loop condition decides
-            try:
-                datagram(bytes(view[:size]), peer[:2])
-            except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
-                request_failed("profinet", exc)
+            while peer is not None:  # a datagram; and the ones that follow at once, while no send is scheduled
+                if monotonic() >= next_expiry:  # _maybe_expire's test, inline: it is false for most datagrams
+                    if stop.is_set():
+                        return
+                    next_expiry = self._maybe_expire(next_expiry)
+                try:
+                    datagram(bytes(view[:size]), peer[:2])
+                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                    request_failed("profinet", exc)
+                if self._scheduled:
+                    break
+                try:
+                    size, peer = receive(buffer)
+                except OSError:
+                    next_expiry = self._maybe_expire(next_expiry)
+                    break
+            # else woken by interrupt(): the loop condition decides
 
     def _maybe_expire(self, next_expiry: float) -> float:
         """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
