@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Collection
-from typing import Protocol
+from typing import Any, Protocol
 
 from akdctl.sim.errors import PnuAccessError, RecordRefused  # noqa: F401  (re-exported: servers raise and catch them)
 from akdctl.protocol.bmp import (
@@ -202,9 +202,10 @@ class PnuServer:
         self.raw_reads = raw_reads
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
-        # The one-parameter value reads seen, by the request's bytes after the reference: (PNU, subindex, count),
-        # the checks of the request and its address passed once (_plan). The value is read from the model each time.
-        self._plans: dict[bytes, tuple[int, int, int]] = {}
+        # The one-parameter value reads seen, by the request's bytes after the reference: [PNU, subindex, count,
+        # format, response layout], the checks of the request and its address passed once (_plan); the layout is
+        # bmp.raw_read_response_layout's for the format the model last answered. The value is read each time.
+        self._plans: dict[bytes, list[Any]] = {}
 
     # -- entry point -----------------------------------------------------------------------------------------
 
@@ -213,12 +214,14 @@ class PnuServer:
         data = bytes(request)
         plan = self._plans.get(data[1:])
         if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
-            pnu, subindex, count = plan
+            pnu, subindex, count, planned_format, layout = plan
             try:
                 fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
             except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
                 return self._read_planned(data, pnu, subindex, count, exc)
-            layout = raw_read_response_layout(fmt, count)
+            if fmt != planned_format:  # the first read of the plan (or a model answering another format)
+                layout = raw_read_response_layout(fmt, count)
+                plan[3], plan[4] = fmt, layout
             if layout is not None and len(values) == count:
                 try:
                     return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
@@ -326,7 +329,7 @@ class PnuServer:
             plans = self._plans
             if len(plans) >= _PLANS:
                 plans.clear()  # a client walking every address: start over rather than grow
-            plans[data[1:]] = (pnu, subindex, count)
+            plans[data[1:]] = [pnu, subindex, count, -1, None]  # the format and layout: at the first planned read
 
     def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
                       read: tuple[int, list[int]] | Exception) -> bytes:
