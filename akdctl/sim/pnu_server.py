@@ -216,18 +216,22 @@ class PnuServer:
         if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
             pnu, subindex, count, planned_format, layout = plan
             try:
-                fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
-            except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
-                return self._read_planned(data, pnu, subindex, count, exc)
-            if fmt != planned_format:  # the first read of the plan (or a model answering another format)
-                layout = raw_read_response_layout(fmt, count)
-                plan[3], plan[4] = fmt, layout
-            if layout is not None and len(values) == count:
                 try:
-                    return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
-                except struct.error:
-                    pass  # _raw_block says so
-            return self._read_planned(data, pnu, subindex, count, (fmt, values))
+                    fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
+                except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                    return self._read_planned(data, pnu, subindex, count, exc)
+                if fmt != planned_format:  # the first read of the plan (or a model answering another format)
+                    layout = raw_read_response_layout(fmt, count)
+                    plan[3], plan[4] = fmt, layout
+                if layout is not None and len(values) == count:
+                    try:
+                        return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
+                    except struct.error:
+                        pass  # _raw_block says so
+                return self._read_planned(data, pnu, subindex, count, (fmt, values))
+            except Exception as exc:  # noqa: BLE001 - as the unplanned read below: a bug still gets an answer
+                self.last_exception = exc
+                return self._refuse(data, ERR_OPERATING_STATE)
         if len(data) == _ONE_READ_SIZE and data[1] == REQ_READ and data[3] == 1 and data[0] and data[2] in self.axes:
             # one parameter read, the poll's request: the checks header_refusal and _handle make of it, passed
             try:
