@@ -190,24 +190,26 @@ _SHAPES: dict[bytes, tuple[bool, bytes, int, bytes, bytes, int, int, int]] = {}
 _SHAPES_KEPT = 64
 
 
-def record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, bytes, int, int] | None:
-    """(little endian, activity UUID bytes, sequence, opnum, AR UUID bytes, address, index, length) of a datagram
-    :func:`plain_record_call` accepts (the same checks, no RecordCall; a shape seen before is not checked twice),
-    else None. ``address``: API, slot and subslot as :func:`record_address` packs them; ``length``: a write's record
-    data length (the data is ``data[164:164 + length]``), a read's most the client takes."""
+def record_call_fields(data: bytes) -> tuple[tuple[bool, bytes, int, bytes, bytes, int, int, int], int] | None:
+    """(shape, sequence) of a datagram :func:`plain_record_call` accepts (the same checks, no RecordCall; a shape
+    seen before is not checked twice), else None. The shape: (little endian, activity UUID bytes, opnum, AR UUID
+    bytes, address, index, length, the least datagram length it holds for); ``address``: API, slot and subslot as
+    :func:`record_address` packs them; ``length``: a write's record data length (the data is ``data[164:164 +
+    length]``), a read's most the client takes."""
     key = data[:64] + data[68:106] + data[108:140]
     shape = _SHAPES.get(key)
     if shape is not None and len(data) >= shape[7]:
-        little, activity, opnum, ar, address, index, rlength, _least = shape
-        return little, activity, _SEQUENCE[little](data, 64)[0], opnum, ar, address, index, rlength
+        return shape, _SEQUENCE[shape[0]](data, 64)[0]
     fields = _record_call_fields(data)
-    if fields is not None:
-        if len(_SHAPES) >= _SHAPES_KEPT:
-            _SHAPES.clear()  # many clients or shapes: start over rather than grow
-        little, activity, _sequence, opnum, ar, address, index, rlength = fields
-        body = _FIELDS[little].unpack_from(data)[4]
-        _SHAPES[key] = (little, activity, opnum, ar, address, index, rlength, max(164, dcerpc.HEADER_SIZE + body))
-    return fields
+    if fields is None:
+        return None
+    if len(_SHAPES) >= _SHAPES_KEPT:
+        _SHAPES.clear()  # many clients or shapes: start over rather than grow
+    little, activity, sequence, opnum, ar, address, index, rlength = fields
+    body = _FIELDS[little].unpack_from(data)[4]
+    shape = _SHAPES[key] = (little, activity, opnum, ar, address, index, rlength,
+                            max(164, dcerpc.HEADER_SIZE + body))
+    return shape, sequence
 
 
 def _record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, bytes, int, int] | None:

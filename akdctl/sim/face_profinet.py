@@ -44,6 +44,7 @@ from akdctl.sim.inject_spec import extra_number, parse_every_nth
 from akdctl.sim.refusals import RefusalReport
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
+_PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the parameter channel's records
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
@@ -408,7 +409,8 @@ class ProfinetFace(Face):
         if fields is None:
             self._general(data, peer)
             return
-        little, activity, sequence, opnum, ar_id, address, index, length = fields
+        shape, sequence = fields
+        little, activity, opnum, ar_id, address, index, length, _least = shape
         key = (activity, sequence)
         cached = self._cache.get(key)
         if cached is not None:
@@ -418,8 +420,7 @@ class ProfinetFace(Face):
             return
         ar = self._ars.get(ar_id)
         frame = None
-        if ar is not None and address == self._address and \
-                (index == INDEX_PROFIDRIVE or index == INDEX_PROFIDRIVE_ALT):
+        if ar is not None and address == self._address and index in _PARAMETER_INDICES:
             now = time.monotonic()
             pending = ar.pending
             if opnum == OP_WRITE:
