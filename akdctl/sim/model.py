@@ -138,6 +138,12 @@ class DriveModel:
         self._recorder: Any = None  # REC.* (sim/recorder.py), made on first use: most commands never record
         # the components that move with time (the lazy ones keep Component.tick, which does nothing), in tick order
         self._tickers = [self.motion.tick]
+        # ... and each one's declaration that a tick now would change nothing but the clock (Component.still)
+        self._stills = [self.motion.still]
+        # The revision at which every ticking component declared itself still after a step (-1: not proven). While
+        # the revision stays there, nothing persisted changed, so a step would still change nothing: advance() moves
+        # the clock only (the one place this is decided; tests/test_sim_still.py).
+        self._still_at = -1
 
     # ------------------------------------------------------------------ components
     def _build(self, name: str) -> Any:
@@ -229,13 +235,27 @@ class DriveModel:
 
     # ------------------------------------------------------------------ time
     def advance(self, dt: float) -> None:
-        """Advance virtual time; components integrate motion, timers, watchdogs."""
+        """Advance virtual time; components integrate motion, timers, watchdogs.
+
+        Why O(1) at rest: a served drive advances the clock before every request, and a drive at rest (the usual
+        poll) has nothing to integrate. After a step, each ticking component declares whether a tick would now
+        change anything (:meth:`Component.still`); if none would and no recording runs, the model remembers the
+        revision. Every change of persisted state bumps the revision (the revision rule, sim/component.Tracked), so
+        while it is unchanged the next step would find the same: only the clock moves."""
         if dt <= 0:
             return
-        if self._recorder is not None and self._recorder.running:
-            self._recorder.advance(dt, self._step)  # samples the motion at its own instants
-        else:
-            self._step(dt)
+        recorder = self._recorder
+        if self._still_at == self.revision and (recorder is None or not recorder.running):
+            self.clock += dt
+            return
+        if recorder is not None and recorder.running:
+            recorder.advance(dt, self._step)  # samples the motion at its own instants
+            return
+        self._step(dt)
+        for still in self._stills:
+            if not still():
+                return
+        self._still_at = self.revision
 
     @property
     def recorder(self) -> Any:
@@ -332,6 +352,8 @@ class DriveModel:
             values = read(subindex, count)
         else:
             values = self.stored_pnu(pnu)[subindex : subindex + count]
+        if len(values) == 1:  # the usual read: no comprehension (a function call of its own before Python 3.12)
+            return wire_format, [values[0] & mask]
         return wire_format, [v & mask for v in values]
 
     def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:
@@ -379,9 +401,7 @@ class DriveModel:
 
         entry = object_catalog.lookup(index, subindex)
         if entry is None:
-            if not object_catalog.subentries(index):
-                raise SdoAccessError(ABORT_NO_OBJECT)
-            raise SdoAccessError(ABORT_NO_SUBINDEX)
+            raise SdoAccessError(ABORT_NO_SUBINDEX if object_catalog.subentries(index) else ABORT_NO_OBJECT)
         return entry
 
     def stored_object(self, index: int, subindex: int) -> bytes:
@@ -396,14 +416,24 @@ class DriveModel:
         self.revision += 1
 
     def object_read(self, index: int, subindex: int) -> bytes:
-        binding = self._object_binding(index)
-        if binding and binding.read:
+        """A component's reader if one binds the index, else the stored value or the catalogue's default.
+
+        What the catalogue says of an address (no such object or sub-index, write-only, the default bytes) is
+        static data, so it is looked up once per (index, subindex) into :data:`_READ_PLANS`; the binding and the
+        stored value are read from this model on every call (a component built later, a value written since)."""
+        binding = self._object_bindings.get(index)
+        if binding is None and (index in LAZY_OBJECTS or index in self._object_builders):
+            binding = self._object_binding(index)  # builds the component or part that binds it
+        if binding is not None and binding.read is not None:
             return binding.read(subindex)
-        entry = self.object_entry(index, subindex)
-        if entry.access == "wo":
-            raise SdoAccessError(ABORT_WRITE_ONLY)
-        data = self.object_values.get((index, subindex))  # stored_object's rule, the entry looked up once
-        return _default_bytes(entry) if data is None else data
+        key = (index, subindex)
+        plan = _READ_PLANS.get(key)
+        if plan is None:
+            plan = _read_plan(index, subindex)
+        if plan.__class__ is int:
+            raise SdoAccessError(plan)
+        data = self.object_values.get(key)
+        return plan if data is None else data  # type: ignore[return-value]
 
     def object_write(self, index: int, subindex: int, data: bytes) -> None:
         entry = self.object_entry(index, subindex)
@@ -549,6 +579,24 @@ def _entry_size(entry: Any) -> int | None:
 
 def _entry_signed(entry: Any) -> bool:
     return entry.short_type.startswith("i")
+
+
+#: What the catalogue makes of a read of a catalogued (index, subindex) without a binding: the abort code (an int)
+#: of a write-only entry, else the default bytes. Catalogue data only (static: the catalogue and the simulator's
+#: presets never change in a process), so no model's state can make a plan stale; tests/test_fast_paths.py holds
+#: the plans equal to object_entry + _default_bytes for every catalogued address.
+_READ_PLANS: dict[tuple[int, int], bytes | int] = {}
+
+
+def _read_plan(index: int, subindex: int) -> bytes | int:
+    from akdctl.catalog import objects as object_catalog
+
+    entry = object_catalog.lookup(index, subindex)
+    if entry is None:  # not kept: the plans hold the catalogue's entries only, whatever addresses a client sends
+        return ABORT_NO_SUBINDEX if object_catalog.subentries(index) else ABORT_NO_OBJECT
+    plan = ABORT_WRITE_ONLY if entry.access == "wo" else _default_bytes(entry)
+    _READ_PLANS[(index, subindex)] = plan
+    return plan
 
 
 def _default_bytes(entry: Any) -> bytes:
