@@ -118,7 +118,9 @@ def _ecat_uploads(server: SimServer, counts: Counter[str], tracing: bool) -> Non
 def test_pn_reads_trace_nothing_when_tracing_is_off(server: SimServer, counts: Counter[str]) -> None:
     _pn_reads(server, counts, tracing=False)
     assert not {key for key in counts if "trace" in key or key.startswith("frame")}, counts
-    assert counts["deadline"] == READS  # one per request: both RPCs and every repeat share it
+    # At most one per request: both RPCs and every repeat share it; a request whose two calls are answered at once
+    # (ProfinetTransport.quick_exchange) needs none, only its end time.
+    assert counts["deadline"] <= READS
     assert counts["settimeout"] == 0  # the timeout set by the first read stays
 
 

@@ -59,6 +59,32 @@ NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C
              0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
 
 
+class Begun:
+    """A call whose first attempt :meth:`RpcClient.first_answer` sent at ``sent_at`` (``time.monotonic()``) without
+    getting the usual answer: ``taken`` is the datagram it received instead (None: none came within the attempt's
+    wait, or the send found the host unreachable). :meth:`RpcClient.exchange` goes on from there."""
+
+    __slots__ = ("sent_at", "taken")
+
+    def __init__(self, sent_at: float, taken: bytes | None) -> None:
+        self.sent_at = sent_at
+        self.taken = taken
+
+
+class Step:
+    """Where :meth:`ProfinetTransport.quick_exchange` left a request: in the Write call (``read_seq`` -1) or the Read
+    call (``read_seq``: its record sequence number); ``datagram`` is that call's, and either ``begun`` (the call
+    goes on) or ``reply`` (its answer, not the usual one) is set."""
+
+    __slots__ = ("read_seq", "datagram", "begun", "reply")
+
+    def __init__(self, read_seq: int, datagram: bytes, begun: Begun | None, reply: RecordReply | None) -> None:
+        self.read_seq = read_seq
+        self.datagram = datagram
+        self.begun = begun
+        self.reply = reply
+
+
 class RpcClient:
     """DCE/RPC CL calls to one PNIO device: one activity, sequence numbers, retransmission."""
 
@@ -110,13 +136,16 @@ class RpcClient:
         self.sequence = sequence = (self.sequence + 1) & 0xFFFFFFFF
         return sequence
 
-    def exchange(self, datagram: bytes, opnum: int, deadline: Deadline) -> tuple[pnio.PnioStatus, bytes]:
+    def exchange(self, datagram: bytes, opnum: int, deadline: Deadline,
+                 begun: "Begun | None" = None) -> tuple[pnio.PnioStatus, bytes]:
         """Send the datagram of call :attr:`sequence` and wait for its answer within ``deadline`` (see :meth:`call`).
 
         The same datagram goes out again after each attempt's share of the deadline: the device recognises the
         repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
         The usual reply (our activity, this sequence, one unfragmented response) is read by
         :func:`pnio_call.plain_response`; every other datagram, and every datagram while tracing, by :meth:`_accept`.
+        ``begun``: the call's first attempt went out on :meth:`first_answer` and did not end it; this goes on from
+        there exactly as if it had sent that attempt itself.
         """
         sequence = self.sequence
         tracing = self.options.tracer.active
@@ -124,19 +153,31 @@ class RpcClient:
         attempts = deadline.attempts
         sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
         for sent in range(attempts):
-            if sent and deadline.expired():
-                break
-            if tracing:
-                self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}" + (" (retransmission)" if sent else ""))
-            try:
-                sock.send(datagram)
-            except OSError as exc:
-                self._send_failed(exc, opnum)
-            if sent:
-                self.retransmissions += 1
-            now = time.monotonic()
-            resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of what is left
-            wait = resend_at - now
+            if begun is not None:  # the first attempt is out (first_answer): its share counts from when it went
+                now = begun.sent_at
+                resend_at = now + max(0.0, deadline.at - now) / attempts
+                taken, begun = begun.taken, None
+                if taken is not None:  # a datagram plain_response did not take: the general path reads it
+                    reassembler = []
+                    result = self._accept(taken, _opname(opnum), reassembler)
+                    if result is not None:
+                        return result
+                wait = resend_at - time.monotonic()
+            else:
+                if sent and deadline.expired():
+                    break
+                if tracing:
+                    self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}"
+                                + (" (retransmission)" if sent else ""))
+                try:
+                    sock.send(datagram)
+                except OSError as exc:
+                    self._send_failed(exc, opnum)
+                if sent:
+                    self.retransmissions += 1
+                now = time.monotonic()
+                resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of the rest
+                wait = resend_at - now
             while wait > 0:
                 self._timeout = keep_socket_timeout(sock, self._timeout, wait)
                 try:
@@ -159,6 +200,39 @@ class RpcClient:
                     return result
                 wait = resend_at - time.monotonic()
         raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
+
+    def first_answer(self, datagram: bytes, opnum: int, at: float, attempts: int
+                     ) -> "tuple[pnio.PnioStatus, bytes] | Begun":
+        """The first attempt of call :attr:`sequence` (:meth:`exchange`'s, for a request that ends at ``at`` with
+        ``attempts`` attempts) when its first datagram is the usual answer: that answer, as :meth:`exchange` returns
+        it; else where the attempt stands (:class:`Begun`), for :meth:`exchange` to go on from. Raises what
+        :meth:`exchange` raises for a send or receive that fails. Not while tracing (every datagram is traced).
+
+        Why: a PNU read is two calls, and nearly every call is one datagram out and its answer back; that much
+        needs no Deadline object, no loop and no reassembler (issue 29, row pn).
+        """
+        sock = self.sock
+        try:
+            sock.send(datagram)
+        except OSError as exc:
+            self._send_failed(exc, opnum)  # raises, unless the host is unreachable now: the attempt waits as if lost
+            return Begun(time.monotonic(), None)
+        now = time.monotonic()
+        wait = (at - now) / attempts if at > now else 0.0
+        if wait <= 0:
+            return Begun(now, None)
+        self._timeout = keep_socket_timeout(sock, self._timeout, wait)
+        buffer = self._buffer
+        try:
+            data = buffer[:sock.recv_into(buffer)]
+        except socket.timeout:
+            return Begun(now, None)
+        except ConnectionRefusedError:
+            raise self._refused(_opname(opnum)) from None
+        except OSError as exc:
+            raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
+        result = plain_response(data, self.sequence, self._activity_be, self._activity_le)
+        return Begun(now, data) if result is None else result
 
     def _send_failed(self, exc: OSError, opnum: int) -> None:
         """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
@@ -234,12 +308,44 @@ class PnioRecordLink(RecordLink):
         if len(request) > MAX_RECORD:
             raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
                              f"of {MAX_RECORD} bytes")
-        with t.lock, t.options.budget.request() as deadline:
+        with t.lock:
+            options = t.options
+            # The usual request (tracing off, an AR, nothing unanswered before it): ProfinetTransport.quick_exchange
+            at = None if options.tracer.active or t._calls is None else options.budget.lone()
+            if at is None:
+                return self._exchange(request, None, None)
             try:
-                status = t.write_record(request, deadline)[0]
-                if status.busy:
-                    self._until_not_busy(deadline, status, t.write_record, request, "write")
-                status, data = t.read_record(deadline)
+                step = t.quick_exchange(request, at)
+            except BaseException:
+                t._last_activity = time.monotonic()
+                raise
+            if step.__class__ is bytes:
+                t._last_activity = time.monotonic()
+                return step  # type: ignore[return-value]
+            return self._exchange(request, at, step)  # type: ignore[arg-type]
+
+    def _exchange(self, request: bytes, at: float | None, step: "Step | None") -> bytes:
+        """Write record, then read record, by the general path; ``step``: where :meth:`ProfinetTransport.quick_exchange`
+        left the same request (begun at the end time ``at``), to go on from there."""
+        t = self.t
+        with t.options.budget.request(at=at) as deadline:
+            try:
+                if step is None or step.read_seq < 0:  # the write is still to do, or to finish
+                    if step is None:
+                        status = t.write_record(request, deadline)[0]
+                    elif step.reply is None:
+                        status = t._write_outcome(t._need_rpc().exchange(step.datagram, pnio.OP_WRITE, deadline,
+                                                                         step.begun))[0]
+                    else:
+                        status = t._write_outcome(step.reply)[0]
+                    if status.busy:
+                        self._until_not_busy(deadline, status, t.write_record, request, "write")
+                    status, data = t.read_record(deadline)
+                else:
+                    reply = step.reply
+                    if reply is None:
+                        reply = t._need_rpc().exchange(step.datagram, pnio.OP_READ, deadline, step.begun)
+                    status, data = t._read_reply(t.address, step.read_seq, *reply)
                 if status.busy:
                     data = self._until_not_busy(deadline, status, t.read_record, None, "read")
                 return data
@@ -365,7 +471,7 @@ class ProfinetTransport(Transport):
             if res.ar_uuid != ar_uuid:
                 raise MalformedReply(f"{self.label}: Connect response names AR {res.ar_uuid}, we asked for {ar_uuid}")
             self.ar_uuid = ar_uuid
-            self._calls = None
+            self._record_calls()  # the parameter record's datagrams for this AR: the first request is a usual one
             self._last_activity = time.monotonic()
         self._stop.clear()
         self._keepalive = threading.Thread(target=self._keepalive_loop, name="pn-keepalive", daemon=True)
@@ -429,7 +535,12 @@ class ProfinetTransport(Transport):
         calls = self._calls or self._record_calls()  # (made for an AR: raises "not connected" without one)
         rpc = self._need_rpc()
         self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
-        status, blocks = rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE, deadline)
+        return self._write_outcome(rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE,
+                                                deadline))
+
+    def _write_outcome(self, reply: RecordReply) -> RecordReply:
+        """What a Write call's answer (PNIOStatus, blocks) means: (status, b''), busy included; raises on a refusal."""
+        status, blocks = reply
         if status is pnio.OK and blocks:  # (the usual answer: its IODWriteResHeader holds the write's own status)
             try:
                 status = pnio.write_response(blocks)[2]
@@ -464,6 +575,47 @@ class ProfinetTransport(Transport):
             if got_seq == seq and got_index == self.address.index:
                 return status, data
         return self._read_reply(self.address, seq, status, blocks)
+
+    def quick_exchange(self, request: bytes, at: float) -> "bytes | Step":
+        """Write record ``request``, then read record, for a request that ends at ``at``: the record's data when both
+        calls got the usual answer at once (an OK write; an OK read of our record and sequence); else the
+        :class:`Step` where the request stands, for the general path (:meth:`PnioRecordLink._exchange`) to go on
+        from - with the same datagrams, sequence numbers and time, so every outcome is the general path's.
+
+        Why: this is a PNU read, and its usual course is two datagrams out and two back (issue 29, row pn). Only
+        without tracing and with an AR (the link checks both); raises what the calls raise for a failed send or
+        receive.
+        """
+        rpc, calls = self.rpc, self._calls
+        assert rpc is not None and calls is not None
+        attempts = self.options.budget.attempts
+        self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
+        datagram = calls.write(rpc.next_sequence(), rw_seq, request)
+        reply = rpc.first_answer(datagram, pnio.OP_WRITE, at, attempts)
+        if reply.__class__ is Begun:
+            return Step(-1, datagram, reply, None)  # type: ignore[arg-type]
+        status, blocks = reply  # type: ignore[misc]
+        if status is not pnio.OK or not blocks:
+            return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
+        try:
+            if pnio.write_response(blocks)[2] is not pnio.OK:
+                return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
+        except CodecError:
+            return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
+        self._rw_seq = rw_seq = (rw_seq + 1) & 0xFFFF
+        datagram = calls.read(rpc.next_sequence(), rw_seq)
+        reply = rpc.first_answer(datagram, pnio.OP_READ, at, attempts)
+        if reply.__class__ is Begun:
+            return Step(rw_seq, datagram, reply, None)  # type: ignore[arg-type]
+        status, blocks = reply  # type: ignore[misc]
+        if status is pnio.OK:
+            try:
+                got_seq, got_index, data = pnio.read_response(blocks)
+            except CodecError:
+                got_seq = -1
+            if got_seq == rw_seq and got_index == self.address.index:
+                return data
+        return Step(rw_seq, datagram, None, reply)  # type: ignore[arg-type]
 
     def _record_calls(self) -> RecordCalls:
         """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
