@@ -16,8 +16,10 @@ else (another packet type, a fragment, a stale or foreign reply, a malformed one
 from __future__ import annotations
 
 import struct
+import uuid
 
 from akdctl.protocol import dcerpc, pnio
+from akdctl.protocol.errors import CodecError
 
 # Offsets the general encoders write to (dcerpc.RequestTemplate: sequence and opnum at 64, body length at 74;
 # encode_request_args: the 20-byte NDR header at 80; write_request/read_request: the block header's 6 bytes, then
@@ -35,14 +37,18 @@ class RecordCalls:
     """The Write and Read datagrams of one activity to one record of one AR.
 
     ``template`` is the activity's request header, ``ar`` the AR UUID's 16 bytes, ``read_length`` the most a Read
-    takes. Every datagram equals ``template.packet(sequence, opnum, pnio.encode_request_args(write_request(...) or
+    takes, ``activity`` the activity's UUID (whose replies :meth:`written` and :meth:`read_data` read). Every datagram
+    equals ``template.packet(sequence, opnum, pnio.encode_request_args(write_request(...) or
     read_request(...)))``.
     """
 
-    __slots__ = ("_read", "_write", "_write_length", "_write_shape")
+    __slots__ = ("_read", "_write", "_write_length", "_write_shape", "_activity", "_index")
 
     def __init__(self, template: dcerpc.RequestTemplate, ar: bytes, address: pnio.RecordAddress,
-                 read_length: int) -> None:
+                 read_length: int, activity: uuid.UUID | None = None) -> None:
+        #: The activity's UUID as a reply carries it, big- and little-endian (for :meth:`written`/:meth:`read_data`).
+        self._activity = (activity.bytes, activity.bytes_le) if activity is not None else (b"", b"")
+        self._index = address.index
         read = template.packet(0, pnio.OP_READ, pnio.encode_request_args(pnio.read_request(0, ar, address,
                                                                                              read_length)))
         self._read = (read[:_SEQUENCE_AT], read[_SEQUENCE_AT + 4:_RW_SEQ_AT], read[_RW_SEQ_AT + 2:])
@@ -67,6 +73,31 @@ class RecordCalls:
         head, middle, tail = self._write
         return b"".join((head, _U32.pack(sequence), middle, _U16.pack(rw_seq), tail, data))
 
+    def written(self, data: bytes, sequence: int) -> bool:
+        """Whether ``data`` is the usual answer to the Write of call ``sequence``: the reply :func:`plain_response`
+        takes, with PNIOStatus OK and an IODWriteResHeader whose status is OK - what the general path takes as a done
+        write. False: the general path decides what the datagram is (another call's, a refusal, busy, malformed)."""
+        head = _answer(data, sequence, *self._activity)
+        if head is None or head[0] != _OK or not head[1]:
+            return False
+        try:
+            return pnio.write_response(data[_REPLY_SIZE:_REPLY_SIZE + head[1]])[2] is pnio.OK
+        except CodecError:
+            return False
+
+    def read_data(self, data: bytes, sequence: int, rw_seq: int) -> bytes | None:
+        """The record data of ``data`` when it is the usual answer to the Read of call ``sequence`` with record
+        sequence number ``rw_seq``: the reply :func:`plain_response` takes, with PNIOStatus OK and an IODReadResHeader
+        of this record and ``rw_seq`` - what the general path returns for it. None: the general path decides."""
+        head = _answer(data, sequence, *self._activity)
+        if head is None or head[0] != _OK:
+            return None
+        try:
+            got_seq, got_index, record = pnio.read_response(data[_REPLY_SIZE:_REPLY_SIZE + head[1]])
+        except CodecError:
+            return None
+        return record if got_seq == rw_seq and got_index == self._index else None
+
 
 # DCE/RPC CL header of a reply (version, type, flags1, drep byte 0; activity; sequence, body length) and the NDR
 # response header after it (PNIOStatus, ArgsLength, MaximumCount, Offset, ActualCount), per data representation.
@@ -81,6 +112,15 @@ def plain_response(data: bytes, sequence: int, activity_be: bytes, activity_le: 
     """(PNIOStatus, blocks) of an unfragmented DCE/RPC response of our activity to call ``sequence`` whose NDR
     header is consistent - exactly what the general path (``view_packet``, the activity and sequence check,
     ``decode_response_args``) returns for it - else None (the general path decides what the datagram is)."""
+    head = _answer(data, sequence, activity_be, activity_le)
+    if head is None:
+        return None
+    status, length = head
+    return (pnio.OK if status == _OK else pnio.PnioStatus(*status)), data[_REPLY_SIZE:_REPLY_SIZE + length]
+
+
+def _answer(data: bytes, sequence: int, activity_be: bytes, activity_le: bytes) -> tuple[bytes, int] | None:
+    """(PNIOStatus bytes, length of the blocks) of a reply :func:`plain_response` takes, else None: the one check."""
     if len(data) < _REPLY_SIZE or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_RESPONSE \
             or data[2] & dcerpc.FLAG_FRAG:
         return None
@@ -94,4 +134,5 @@ def plain_response(data: bytes, sequence: int, activity_be: bytes, activity_le: 
         return None
     if offset != 0 or actual > maximum or length > body_length - _NDR_SIZE:
         return None
-    return (pnio.OK if status == _OK else pnio.PnioStatus(*status)), data[_REPLY_SIZE:_REPLY_SIZE + length]
+    return status, length
+

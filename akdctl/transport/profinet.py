@@ -73,16 +73,14 @@ class Begun:
 
 class Step:
     """Where :meth:`ProfinetTransport.quick_exchange` left a request: in the Write call (``read_seq`` -1) or the Read
-    call (``read_seq``: its record sequence number); ``datagram`` is that call's, and either ``begun`` (the call
-    goes on) or ``reply`` (its answer, not the usual one) is set."""
+    call (``read_seq``: its record sequence number); ``datagram`` is that call's, ``begun`` where it stands."""
 
-    __slots__ = ("read_seq", "datagram", "begun", "reply")
+    __slots__ = ("read_seq", "datagram", "begun")
 
-    def __init__(self, read_seq: int, datagram: bytes, begun: Begun | None, reply: RecordReply | None) -> None:
+    def __init__(self, read_seq: int, datagram: bytes, begun: Begun) -> None:
         self.read_seq = read_seq
         self.datagram = datagram
         self.begun = begun
-        self.reply = reply
 
 
 class RpcClient:
@@ -96,6 +94,7 @@ class RpcClient:
         self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
         self._activity_be, self._activity_le = self.activity.bytes, self.activity.bytes_le
         self._timeout = 0.0     # the socket's timeout as last set (set again only when a wait needs another)
+        self.sent_at = 0.0      # when first_answer last sent a call's first attempt
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
         self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
@@ -157,7 +156,7 @@ class RpcClient:
                 now = begun.sent_at
                 resend_at = now + max(0.0, deadline.at - now) / attempts
                 taken, begun = begun.taken, None
-                if taken is not None:  # a datagram plain_response did not take: the general path reads it
+                if taken is not None:  # a datagram the quick path did not take: the general path reads it
                     reassembler = []
                     result = self._accept(taken, _opname(opnum), reassembler)
                     if result is not None:
@@ -201,12 +200,12 @@ class RpcClient:
                 wait = resend_at - time.monotonic()
         raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
 
-    def first_answer(self, datagram: bytes, opnum: int, at: float, attempts: int
-                     ) -> "tuple[pnio.PnioStatus, bytes] | Begun":
+    def first_answer(self, datagram: bytes, opnum: int, at: float, attempts: int) -> "bytes | Begun":
         """The first attempt of call :attr:`sequence` (:meth:`exchange`'s, for a request that ends at ``at`` with
-        ``attempts`` attempts) when its first datagram is the usual answer: that answer, as :meth:`exchange` returns
-        it; else where the attempt stands (:class:`Begun`), for :meth:`exchange` to go on from. Raises what
-        :meth:`exchange` raises for a send or receive that fails. Not while tracing (every datagram is traced).
+        ``attempts`` attempts): the first datagram that came back within the attempt's wait, for the caller to read
+        (sent at :attr:`sent_at`); else where the attempt stands (:class:`Begun`), for :meth:`exchange` to go on
+        from. A datagram the caller does not take as the answer goes to :meth:`exchange` as ``Begun(sent_at, it)``.
+        Raises what :meth:`exchange` raises for a send or receive that fails. Not while tracing.
 
         Why: a PNU read is two calls, and nearly every call is one datagram out and its answer back; that much
         needs no Deadline object, no loop and no reassembler (issue 29, row pn).
@@ -217,22 +216,20 @@ class RpcClient:
         except OSError as exc:
             self._send_failed(exc, opnum)  # raises, unless the host is unreachable now: the attempt waits as if lost
             return Begun(time.monotonic(), None)
-        now = time.monotonic()
+        self.sent_at = now = time.monotonic()
         wait = (at - now) / attempts if at > now else 0.0
         if wait <= 0:
             return Begun(now, None)
         self._timeout = keep_socket_timeout(sock, self._timeout, wait)
         buffer = self._buffer
         try:
-            data = buffer[:sock.recv_into(buffer)]
+            return buffer[:sock.recv_into(buffer)]
         except socket.timeout:
             return Begun(now, None)
         except ConnectionRefusedError:
             raise self._refused(_opname(opnum)) from None
         except OSError as exc:
             raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
-        result = plain_response(data, self.sequence, self._activity_be, self._activity_le)
-        return Begun(now, data) if result is None else result
 
     def _send_failed(self, exc: OSError, opnum: int) -> None:
         """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
@@ -333,18 +330,14 @@ class PnioRecordLink(RecordLink):
                 if step is None or step.read_seq < 0:  # the write is still to do, or to finish
                     if step is None:
                         status = t.write_record(request, deadline)[0]
-                    elif step.reply is None:
+                    else:
                         status = t._write_outcome(t._need_rpc().exchange(step.datagram, pnio.OP_WRITE, deadline,
                                                                          step.begun))[0]
-                    else:
-                        status = t._write_outcome(step.reply)[0]
                     if status.busy:
                         self._until_not_busy(deadline, status, t.write_record, request, "write")
                     status, data = t.read_record(deadline)
                 else:
-                    reply = step.reply
-                    if reply is None:
-                        reply = t._need_rpc().exchange(step.datagram, pnio.OP_READ, deadline, step.begun)
+                    reply = t._need_rpc().exchange(step.datagram, pnio.OP_READ, deadline, step.begun)
                     status, data = t._read_reply(t.address, step.read_seq, *reply)
                 if status.busy:
                     data = self._until_not_busy(deadline, status, t.read_record, None, "read")
@@ -591,36 +584,26 @@ class ProfinetTransport(Transport):
         attempts = self.options.budget.attempts
         self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
         datagram = calls.write(rpc.next_sequence(), rw_seq, request)
-        reply = rpc.first_answer(datagram, pnio.OP_WRITE, at, attempts)
-        if reply.__class__ is Begun:
-            return Step(-1, datagram, reply, None)  # type: ignore[arg-type]
-        status, blocks = reply  # type: ignore[misc]
-        if status is not pnio.OK or not blocks:
-            return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
-        try:
-            if pnio.write_response(blocks)[2] is not pnio.OK:
-                return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
-        except CodecError:
-            return Step(-1, datagram, None, reply)  # type: ignore[arg-type]
+        data = rpc.first_answer(datagram, pnio.OP_WRITE, at, attempts)
+        if data.__class__ is Begun:
+            return Step(-1, datagram, data)  # type: ignore[arg-type]
+        if not calls.written(data, rpc.sequence):  # type: ignore[arg-type]
+            return Step(-1, datagram, Begun(rpc.sent_at, data))  # type: ignore[arg-type]
         self._rw_seq = rw_seq = (rw_seq + 1) & 0xFFFF
         datagram = calls.read(rpc.next_sequence(), rw_seq)
-        reply = rpc.first_answer(datagram, pnio.OP_READ, at, attempts)
-        if reply.__class__ is Begun:
-            return Step(rw_seq, datagram, reply, None)  # type: ignore[arg-type]
-        status, blocks = reply  # type: ignore[misc]
-        if status is pnio.OK:
-            try:
-                got_seq, got_index, data = pnio.read_response(blocks)
-            except CodecError:
-                got_seq = -1
-            if got_seq == rw_seq and got_index == self.address.index:
-                return data
-        return Step(rw_seq, datagram, None, reply)  # type: ignore[arg-type]
+        data = rpc.first_answer(datagram, pnio.OP_READ, at, attempts)
+        if data.__class__ is Begun:
+            return Step(rw_seq, datagram, data)  # type: ignore[arg-type]
+        record = calls.read_data(data, rpc.sequence, rw_seq)  # type: ignore[arg-type]
+        if record is None:
+            return Step(rw_seq, datagram, Begun(rpc.sent_at, data))  # type: ignore[arg-type]
+        return record
 
     def _record_calls(self) -> RecordCalls:
         """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
         ar = self._need_ar()
-        self._calls = RecordCalls(self._need_rpc().template, ar.bytes, self.address, MAX_RECORD)
+        rpc = self._need_rpc()
+        self._calls = RecordCalls(rpc.template, ar.bytes, self.address, MAX_RECORD, rpc.activity)
         return self._calls
 
     def _need_rpc(self) -> RpcClient:
