@@ -19,7 +19,6 @@ import struct
 import uuid
 
 from akdctl.protocol import dcerpc, pnio
-from akdctl.protocol.errors import CodecError
 
 # Offsets the general encoders write to (dcerpc.RequestTemplate: sequence and opnum at 64, body length at 74;
 # encode_request_args: the 20-byte NDR header at 80; write_request/read_request: the block header's 6 bytes, then
@@ -75,28 +74,28 @@ class RecordCalls:
 
     def written(self, data: bytes, sequence: int) -> bool:
         """Whether ``data`` is the usual answer to the Write of call ``sequence``: the reply :func:`plain_response`
-        takes, with PNIOStatus OK and an IODWriteResHeader whose status is OK - what the general path takes as a done
-        write. False: the general path decides what the datagram is (another call's, a refusal, busy, malformed)."""
+        takes, with PNIOStatus OK and blocks that :func:`pnio.write_response` reads with one unpack (its header block
+        first) as an OK write - what the general path takes as a done write. False: the general path decides what
+        the datagram is (another call's, a refusal, busy, malformed, an unusual block layout)."""
         head = _answer(data, sequence, *self._activity)
-        if head is None or head[0] != _OK or not head[1]:
+        if head is None or head[0] != _OK or head[1] < _WRITE_RES_SIZE:
             return False
-        try:
-            return pnio.write_response(data[_REPLY_SIZE:_REPLY_SIZE + head[1]])[2] is pnio.OK
-        except CodecError:
-            return False
+        btype, length, _seq, _index, status = _WRITE_RES.unpack_from(data, _REPLY_SIZE)
+        return btype == pnio.BT_WRITE_RES and 60 <= length <= head[1] - 4 and status == _OK
 
     def read_data(self, data: bytes, sequence: int, rw_seq: int) -> bytes | None:
         """The record data of ``data`` when it is the usual answer to the Read of call ``sequence`` with record
-        sequence number ``rw_seq``: the reply :func:`plain_response` takes, with PNIOStatus OK and an IODReadResHeader
-        of this record and ``rw_seq`` - what the general path returns for it. None: the general path decides."""
+        sequence number ``rw_seq``: the reply :func:`plain_response` takes, with PNIOStatus OK and blocks that
+        :func:`pnio.read_response` reads with one unpack as this record's, ``rw_seq``'s - what the general path
+        returns for it. None: the general path decides."""
         head = _answer(data, sequence, *self._activity)
-        if head is None or head[0] != _OK:
+        if head is None or head[0] != _OK or head[1] < 64:
             return None
-        try:
-            got_seq, got_index, record = pnio.read_response(data[_REPLY_SIZE:_REPLY_SIZE + head[1]])
-        except CodecError:
+        btype, length, seq, index, record_length = _READ_RES.unpack_from(data, _REPLY_SIZE)
+        if btype != pnio.BT_READ_RES or length != 60 or 64 + record_length > head[1] or seq != rw_seq \
+                or index != self._index:
             return None
-        return record if got_seq == rw_seq and got_index == self._index else None
+        return bytes(data[_REPLY_SIZE + 64:_REPLY_SIZE + 64 + record_length])
 
 
 # DCE/RPC CL header of a reply (version, type, flags1, drep byte 0; activity; sequence, body length) and the NDR
@@ -105,6 +104,10 @@ _REPLY = {little: struct.Struct(order + "BBB1xB35x16s8xI6xH4x4sIIII")
           for little, order in ((False, ">"), (True, "<"))}
 _REPLY_SIZE = _REPLY[False].size  # 100: the header and the NDR response header
 _OK = pnio.OK.encode()
+# The record header block of a Write/Read response (pnio's own one-unpack layouts), read where it follows the reply's
+# NDR header
+_WRITE_RES, _READ_RES = pnio.WRITE_RES_FIELDS, pnio.READ_RES_FIELDS
+_WRITE_RES_SIZE = max(48, _WRITE_RES.size)
 
 
 def plain_response(data: bytes, sequence: int, activity_be: bytes, activity_le: bytes

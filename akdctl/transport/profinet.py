@@ -60,9 +60,9 @@ NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C
 
 
 class Begun:
-    """A call whose first attempt :meth:`RpcClient.first_answer` sent at ``sent_at`` (``time.monotonic()``) without
-    getting the usual answer: ``taken`` is the datagram it received instead (None: none came within the attempt's
-    wait, or the send found the host unreachable). :meth:`RpcClient.exchange` goes on from there."""
+    """A call whose first attempt :meth:`ProfinetTransport.quick_exchange` sent at ``sent_at`` (``time.monotonic()``)
+    without getting the usual answer: ``taken`` is the datagram it received instead (None: none came within the
+    attempt's wait, or the send found the host unreachable). :meth:`RpcClient.exchange` goes on from there."""
 
     __slots__ = ("sent_at", "taken")
 
@@ -94,7 +94,6 @@ class RpcClient:
         self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
         self._activity_be, self._activity_le = self.activity.bytes, self.activity.bytes_le
         self._timeout = 0.0     # the socket's timeout as last set (set again only when a wait needs another)
-        self.sent_at = 0.0      # when first_answer last sent a call's first attempt
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
         self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
@@ -143,8 +142,8 @@ class RpcClient:
         repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
         The usual reply (our activity, this sequence, one unfragmented response) is read by
         :func:`pnio_call.plain_response`; every other datagram, and every datagram while tracing, by :meth:`_accept`.
-        ``begun``: the call's first attempt went out on :meth:`first_answer` and did not end it; this goes on from
-        there exactly as if it had sent that attempt itself.
+        ``begun``: the call's first attempt went out on :meth:`ProfinetTransport.quick_exchange` and did not end it;
+        this goes on from there exactly as if it had sent that attempt itself.
         """
         sequence = self.sequence
         tracing = self.options.tracer.active
@@ -152,7 +151,7 @@ class RpcClient:
         attempts = deadline.attempts
         sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
         for sent in range(attempts):
-            if begun is not None:  # the first attempt is out (first_answer): its share counts from when it went
+            if begun is not None:  # the first attempt is out (the quick path's): its share counts from when it went
                 now = begun.sent_at
                 resend_at = now + max(0.0, deadline.at - now) / attempts
                 taken, begun = begun.taken, None
@@ -184,10 +183,8 @@ class RpcClient:
                 except socket.timeout:
                     wait = resend_at - time.monotonic()  # the socket's timeout may end a little before resend_at
                     continue
-                except ConnectionRefusedError:
-                    raise self._refused(_opname(opnum)) from None
                 except OSError as exc:
-                    raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
+                    raise self._receive_failed(exc, opnum) from None
                 if not tracing:
                     result = plain_response(data, sequence, activity_be, activity_le)
                     if result is not None:
@@ -200,36 +197,11 @@ class RpcClient:
                 wait = resend_at - time.monotonic()
         raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
 
-    def first_answer(self, datagram: bytes, opnum: int, at: float, attempts: int) -> "bytes | Begun":
-        """The first attempt of call :attr:`sequence` (:meth:`exchange`'s, for a request that ends at ``at`` with
-        ``attempts`` attempts): the first datagram that came back within the attempt's wait, for the caller to read
-        (sent at :attr:`sent_at`); else where the attempt stands (:class:`Begun`), for :meth:`exchange` to go on
-        from. A datagram the caller does not take as the answer goes to :meth:`exchange` as ``Begun(sent_at, it)``.
-        Raises what :meth:`exchange` raises for a send or receive that fails. Not while tracing.
-
-        Why: a PNU read is two calls, and nearly every call is one datagram out and its answer back; that much
-        needs no Deadline object, no loop and no reassembler (issue 29, row pn).
-        """
-        sock = self.sock
-        try:
-            sock.send(datagram)
-        except OSError as exc:
-            self._send_failed(exc, opnum)  # raises, unless the host is unreachable now: the attempt waits as if lost
-            return Begun(time.monotonic(), None)
-        self.sent_at = now = time.monotonic()
-        wait = (at - now) / attempts if at > now else 0.0
-        if wait <= 0:
-            return Begun(now, None)
-        self._timeout = keep_socket_timeout(sock, self._timeout, wait)
-        buffer = self._buffer
-        try:
-            return buffer[:sock.recv_into(buffer)]
-        except socket.timeout:
-            return Begun(now, None)
-        except ConnectionRefusedError:
-            raise self._refused(_opname(opnum)) from None
-        except OSError as exc:
-            raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
+    def _receive_failed(self, exc: OSError, opnum: int) -> CommError:
+        """The error of a receive that failed (other than by its timeout)."""
+        if isinstance(exc, ConnectionRefusedError):
+            return self._refused(_opname(opnum))
+        return CommError(f"{self.label}: receive failed ({exc.strerror})")
 
     def _send_failed(self, exc: OSError, opnum: int) -> None:
         """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
@@ -317,7 +289,6 @@ class PnioRecordLink(RecordLink):
                 t._last_activity = time.monotonic()
                 raise
             if step.__class__ is bytes:
-                t._last_activity = time.monotonic()
                 return step  # type: ignore[return-value]
             return self._exchange(request, at, step)  # type: ignore[arg-type]
 
@@ -582,22 +553,40 @@ class ProfinetTransport(Transport):
         rpc, calls = self.rpc, self._calls
         assert rpc is not None and calls is not None
         attempts = self.options.budget.attempts
+        sock, buffer, monotonic = rpc.sock, rpc._buffer, time.monotonic
         self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
-        datagram = calls.write(rpc.next_sequence(), rw_seq, request)
-        data = rpc.first_answer(datagram, pnio.OP_WRITE, at, attempts)
-        if data.__class__ is Begun:
-            return Step(-1, datagram, data)  # type: ignore[arg-type]
-        if not calls.written(data, rpc.sequence):  # type: ignore[arg-type]
-            return Step(-1, datagram, Begun(rpc.sent_at, data))  # type: ignore[arg-type]
-        self._rw_seq = rw_seq = (rw_seq + 1) & 0xFFFF
-        datagram = calls.read(rpc.next_sequence(), rw_seq)
-        data = rpc.first_answer(datagram, pnio.OP_READ, at, attempts)
-        if data.__class__ is Begun:
-            return Step(rw_seq, datagram, data)  # type: ignore[arg-type]
-        record = calls.read_data(data, rpc.sequence, rw_seq)  # type: ignore[arg-type]
-        if record is None:
-            return Step(rw_seq, datagram, Begun(rpc.sent_at, data))  # type: ignore[arg-type]
-        return record
+        rpc.sequence = sequence = (rpc.sequence + 1) & 0xFFFFFFFF
+        datagram = calls.write(sequence, rw_seq, request)
+        read_seq = -1  # the Write call first, then the Read call with its own record sequence number
+        while True:  # each call's first attempt as RpcClient.exchange makes it: send, then wait for its share
+            try:
+                sock.send(datagram)
+            except OSError as exc:
+                rpc._send_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE)  # raises unless unreachable
+                return Step(read_seq, datagram, Begun(monotonic(), None))
+            now = monotonic()
+            wait = (at - now) / attempts if at > now else 0.0
+            if wait <= 0:
+                return Step(read_seq, datagram, Begun(now, None))
+            rpc._timeout = keep_socket_timeout(sock, rpc._timeout, wait)
+            try:
+                data = buffer[:sock.recv_into(buffer)]
+            except socket.timeout:
+                return Step(read_seq, datagram, Begun(now, None))
+            except OSError as exc:
+                raise rpc._receive_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE) from None
+            if read_seq < 0:
+                if not calls.written(data, sequence):
+                    return Step(-1, datagram, Begun(now, data))
+                self._rw_seq = read_seq = (rw_seq + 1) & 0xFFFF
+                rpc.sequence = sequence = (sequence + 1) & 0xFFFFFFFF
+                datagram = calls.read(sequence, read_seq)
+                continue
+            record = calls.read_data(data, sequence, read_seq)
+            if record is None:
+                return Step(read_seq, datagram, Begun(now, data))
+            self._last_activity = now
+            return record
 
     def _record_calls(self) -> RecordCalls:
         """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
