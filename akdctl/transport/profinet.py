@@ -44,7 +44,8 @@ from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.pnio_call import RecordCalls, plain_response
-from akdctl.transport.base import LinkOptions, Transport, keep_socket_timeout
+from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import BoundedSocket
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
@@ -93,7 +94,6 @@ class RpcClient:
         self.activity = uuid.uuid4()
         self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
         self._activity_be, self._activity_le = self.activity.bytes, self.activity.bytes_le
-        self._timeout = 0.0     # the socket's timeout as last set (set again only when a wait needs another)
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
         self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
@@ -106,6 +106,8 @@ class RpcClient:
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
             self.sock.connect(address)
+            # every receive ends by its attempt's end, in one recv(2) where the kernel can bound it (tcp_stream)
+            self.stream = BoundedSocket(self.sock, options.timeout)
         except OSError as exc:
             self.sock.close()
             raise CommError(f"{label}: cannot reach {host}:{port} ({exc.strerror})") from None
@@ -149,7 +151,8 @@ class RpcClient:
         tracing = self.options.tracer.active
         reassembler: list[dcerpc.Reassembler] | None = None  # made when the general path first takes a datagram
         attempts = deadline.attempts
-        sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
+        sock, stream, buffer = self.sock, self.stream, self._buffer
+        activity_be, activity_le = self._activity_be, self._activity_le
         for sent in range(attempts):
             if begun is not None:  # the first attempt is out (the quick path's): its share counts from when it went
                 now = begun.sent_at
@@ -177,14 +180,13 @@ class RpcClient:
                 resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of the rest
                 wait = resend_at - now
             while wait > 0:
-                self._timeout = keep_socket_timeout(sock, self._timeout, wait)
                 try:
-                    data = buffer[:sock.recv_into(buffer)]
-                except socket.timeout:
-                    wait = resend_at - time.monotonic()  # the socket's timeout may end a little before resend_at
-                    continue
+                    size = stream.recv_into(resend_at, buffer)
                 except OSError as exc:
                     raise self._receive_failed(exc, opnum) from None
+                if size is None:
+                    break  # nothing before resend_at: the next attempt
+                data = buffer[:size]
                 if not tracing:
                     result = plain_response(data, sequence, activity_be, activity_le)
                     if result is not None:
@@ -208,6 +210,8 @@ class RpcClient:
         follows as if the datagram were lost), or the socket failed."""
         if isinstance(exc, ConnectionRefusedError):
             raise self._refused(_opname(opnum)) from None
+        if isinstance(exc, BlockingIOError):  # SO_SNDTIMEO (tcp_stream): the send buffer stayed full
+            raise CommError(f"{self.label}: cannot send (timed out)") from None
         if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
             raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
 
@@ -553,7 +557,7 @@ class ProfinetTransport(Transport):
         rpc, calls = self.rpc, self._calls
         assert rpc is not None and calls is not None
         attempts = self.options.budget.attempts
-        sock, buffer, monotonic = rpc.sock, rpc._buffer, time.monotonic
+        sock, stream, buffer, monotonic = rpc.sock, rpc.stream, rpc._buffer, time.monotonic
         self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
         rpc.sequence = sequence = (rpc.sequence + 1) & 0xFFFFFFFF
         datagram = calls.write(sequence, rw_seq, request)
@@ -568,13 +572,13 @@ class ProfinetTransport(Transport):
             wait = (at - now) / attempts if at > now else 0.0
             if wait <= 0:
                 return Step(read_seq, datagram, Begun(now, None))
-            rpc._timeout = keep_socket_timeout(sock, rpc._timeout, wait)
             try:
-                data = buffer[:sock.recv_into(buffer)]
-            except socket.timeout:
-                return Step(read_seq, datagram, Begun(now, None))
+                size = stream.recv_into(now + wait, buffer)
             except OSError as exc:
                 raise rpc._receive_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE) from None
+            if size is None:
+                return Step(read_seq, datagram, Begun(now, None))
+            data = buffer[:size]
             if read_seq < 0:
                 if not calls.written(data, sequence):
                     return Step(-1, datagram, Begun(now, data))
