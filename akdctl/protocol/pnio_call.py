@@ -27,8 +27,14 @@ _SEQUENCE_AT = 64
 _BODY_AT = dcerpc.HEADER_SIZE
 _NDR_SIZE = 20
 _RW_SEQ_AT = _BODY_AT + _NDR_SIZE + pnio.BLOCK_HEADER.size
-_U32 = struct.Struct(">I")
-_U16 = struct.Struct(">H")
+_Patched = tuple[struct.Struct, bytes, bytes, bytes]
+
+
+def _patched(head: bytes, middle: bytes, tail: bytes) -> _Patched:
+    """A datagram's fixed bytes around its two sequence numbers (DCE/RPC's 32-bit one after ``head``, the record
+    header's 16-bit one after ``middle``, both big-endian as akdctl sends) as one Struct: one pack per call."""
+    return struct.Struct(f">{len(head)}sI{len(middle)}sH{len(tail)}s"), head, middle, tail
+
 _WRITE_PREFIX = _RW_SEQ_AT + 58  # DCE/RPC header + NDR header + IODWriteReqHeader: what precedes the record data
 
 
@@ -50,15 +56,15 @@ class RecordCalls:
         self._index = address.index
         read = template.packet(0, pnio.OP_READ, pnio.encode_request_args(pnio.read_request(0, ar, address,
                                                                                              read_length)))
-        self._read = (read[:_SEQUENCE_AT], read[_SEQUENCE_AT + 4:_RW_SEQ_AT], read[_RW_SEQ_AT + 2:])
-        self._write = (b"", b"", b"")  # made for the first record length written, again when it changes
+        self._read = _patched(read[:_SEQUENCE_AT], read[_SEQUENCE_AT + 4:_RW_SEQ_AT], read[_RW_SEQ_AT + 2:])
+        self._write = _patched(b"", b"", b"")  # made for the first record length written, again when it changes
         self._write_length = -1
         self._write_shape: tuple[dcerpc.RequestTemplate, bytes, pnio.RecordAddress] = (template, ar, address)
 
     def read(self, sequence: int, rw_seq: int) -> bytes:
         """The Read datagram of call ``sequence`` with record sequence number ``rw_seq``."""
-        head, middle, tail = self._read
-        return b"".join((head, _U32.pack(sequence), middle, _U16.pack(rw_seq), tail))
+        layout, head, middle, tail = self._read
+        return layout.pack(head, sequence, middle, rw_seq, tail)
 
     def write(self, sequence: int, rw_seq: int, data: bytes) -> bytes:
         """The Write datagram of call ``sequence`` carrying ``data`` with record sequence number ``rw_seq``."""
@@ -66,11 +72,11 @@ class RecordCalls:
             template, ar, address = self._write_shape
             write = template.packet(0, pnio.OP_WRITE, pnio.encode_request_args(pnio.write_request(0, ar, address,
                                                                                                   data)))
-            self._write = (write[:_SEQUENCE_AT], write[_SEQUENCE_AT + 4:_RW_SEQ_AT],
-                           write[_RW_SEQ_AT + 2:_WRITE_PREFIX])
+            self._write = _patched(write[:_SEQUENCE_AT], write[_SEQUENCE_AT + 4:_RW_SEQ_AT],
+                                   write[_RW_SEQ_AT + 2:_WRITE_PREFIX])
             self._write_length = len(data)
-        head, middle, tail = self._write
-        return b"".join((head, _U32.pack(sequence), middle, _U16.pack(rw_seq), tail, data))
+        layout, head, middle, tail = self._write
+        return layout.pack(head, sequence, middle, rw_seq, tail) + data
 
     def written(self, data: bytes, sequence: int) -> bool:
         """Whether ``data`` is the usual answer to the Write of call ``sequence``: the reply :func:`plain_response`
