@@ -178,12 +178,17 @@ def test_written_and_read_data_take_only_what_the_general_path_takes(
     if index != address.index:
         calls = RecordCalls(template, ar.bytes, pnio.RecordAddress(address.api, address.slot, address.subslot, index),
                             240, activity)
-    assert calls.written(bytes(write), sequence) is _general_write(bytes(write), sequence, activity)
-    assert calls.read_data(bytes(read), sequence, rw_seq) == _general_read(bytes(read), sequence, activity, rw_seq,
-                                                                           index)
+    assert calls.written(bytes(write), len(write), sequence) is _general_write(bytes(write), sequence, activity)
+    assert calls.read_data(bytes(read), len(read), sequence, rw_seq) == _general_read(bytes(read), sequence, activity,
+                                                                                      rw_seq, index)
+    # in a receive buffer longer than the datagram, the bytes after ``size`` are never read
+    junk = b"\xff" * 200
+    assert calls.written(bytes(write) + junk, len(write), sequence) is calls.written(bytes(write), len(write), sequence)
+    assert calls.read_data(bytearray(read) + junk, len(read), sequence, rw_seq) == calls.read_data(
+        bytes(read), len(read), sequence, rw_seq)
     if not mutations and not cut:  # the usual answers are taken, and only for their own call
-        assert calls.written(bytes(write), sequence) is (status == pnio.OK and record_status == pnio.OK)
+        assert calls.written(bytes(write), len(write), sequence) is (status == pnio.OK and record_status == pnio.OK)
         usual = status == pnio.OK and asked == "same"
-        assert calls.read_data(bytes(read), sequence, rw_seq) == (data if usual else None)
-        assert not calls.written(bytes(write), (sequence + 1) & 0xFFFFFFFF)
-        assert calls.read_data(bytes(read), (sequence + 1) & 0xFFFFFFFF, rw_seq) is None
+        assert calls.read_data(bytes(read), len(read), sequence, rw_seq) == (data if usual else None)
+        assert not calls.written(bytes(write), len(write), (sequence + 1) & 0xFFFFFFFF)
+        assert calls.read_data(bytes(read), len(read), (sequence + 1) & 0xFFFFFFFF, rw_seq) is None

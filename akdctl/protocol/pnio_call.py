@@ -78,23 +78,23 @@ class RecordCalls:
         layout, head, middle, tail = self._write
         return layout.pack(head, sequence, middle, rw_seq, tail) + data
 
-    def written(self, data: bytes, sequence: int) -> bool:
-        """Whether ``data`` is the usual answer to the Write of call ``sequence``: the reply :func:`plain_response`
+    def written(self, data: bytes | bytearray, size: int, sequence: int) -> bool:
+        """Whether ``data[:size]`` (a receive buffer needs no copy) is the usual answer to the Write of call ``sequence``: the reply :func:`plain_response`
         takes, with PNIOStatus OK and blocks that :func:`pnio.write_response` reads with one unpack (its header block
         first) as an OK write - what the general path takes as a done write. False: the general path decides what
         the datagram is (another call's, a refusal, busy, malformed, an unusual block layout)."""
-        head = _answer(data, sequence, *self._activity)
+        head = _answer(data, size, sequence, *self._activity)
         if head is None or head[0] != _OK or head[1] < _WRITE_RES_SIZE:
             return False
         btype, length, _seq, _index, status = _WRITE_RES.unpack_from(data, _REPLY_SIZE)
         return btype == pnio.BT_WRITE_RES and 60 <= length <= head[1] - 4 and status == _OK
 
-    def read_data(self, data: bytes, sequence: int, rw_seq: int) -> bytes | None:
-        """The record data of ``data`` when it is the usual answer to the Read of call ``sequence`` with record
+    def read_data(self, data: bytes | bytearray, size: int, sequence: int, rw_seq: int) -> bytes | None:
+        """The record data of ``data[:size]`` when it is the usual answer to the Read of call ``sequence`` with record
         sequence number ``rw_seq``: the reply :func:`plain_response` takes, with PNIOStatus OK and blocks that
         :func:`pnio.read_response` reads with one unpack as this record's, ``rw_seq``'s - what the general path
         returns for it. None: the general path decides."""
-        head = _answer(data, sequence, *self._activity)
+        head = _answer(data, size, sequence, *self._activity)
         if head is None or head[0] != _OK or head[1] < 64:
             return None
         btype, length, seq, index, record_length = _READ_RES.unpack_from(data, _REPLY_SIZE)
@@ -121,16 +121,18 @@ def plain_response(data: bytes, sequence: int, activity_be: bytes, activity_le: 
     """(PNIOStatus, blocks) of an unfragmented DCE/RPC response of our activity to call ``sequence`` whose NDR
     header is consistent - exactly what the general path (``view_packet``, the activity and sequence check,
     ``decode_response_args``) returns for it - else None (the general path decides what the datagram is)."""
-    head = _answer(data, sequence, activity_be, activity_le)
+    head = _answer(data, len(data), sequence, activity_be, activity_le)
     if head is None:
         return None
     status, length = head
     return (pnio.OK if status == _OK else pnio.PnioStatus(*status)), data[_REPLY_SIZE:_REPLY_SIZE + length]
 
 
-def _answer(data: bytes, sequence: int, activity_be: bytes, activity_le: bytes) -> tuple[bytes, int] | None:
-    """(PNIOStatus bytes, length of the blocks) of a reply :func:`plain_response` takes, else None: the one check."""
-    if len(data) < _REPLY_SIZE or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_RESPONSE \
+def _answer(data: bytes | bytearray, size: int, sequence: int, activity_be: bytes, activity_le: bytes
+            ) -> tuple[bytes, int] | None:
+    """(PNIOStatus bytes, length of the blocks) of a reply ``data[:size]`` that :func:`plain_response` takes, else
+    None: the one check."""
+    if size < _REPLY_SIZE or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_RESPONSE \
             or data[2] & dcerpc.FLAG_FRAG:
         return None
     order = data[4] >> 4
@@ -139,7 +141,7 @@ def _answer(data: bytes, sequence: int, activity_be: bytes, activity_le: bytes) 
     (_v, _t, _f, _d, activity, seq, body_length, status, length, maximum, offset,
      actual) = _REPLY[order == 1].unpack_from(data)
     if seq != sequence or activity != (activity_le if order else activity_be) \
-            or _BODY_AT + body_length > len(data) or body_length < _NDR_SIZE:
+            or _BODY_AT + body_length > size or body_length < _NDR_SIZE:
         return None
     if offset != 0 or actual > maximum or length > body_length - _NDR_SIZE:
         return None

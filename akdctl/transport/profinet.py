@@ -578,17 +578,16 @@ class ProfinetTransport(Transport):
                 raise rpc._receive_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE) from None
             if size is None:
                 return Step(read_seq, datagram, Begun(now, None))
-            data = buffer[:size]
-            if read_seq < 0:
-                if not calls.written(data, sequence):
-                    return Step(-1, datagram, Begun(now, data))
+            if read_seq < 0:  # (each answer is read in the receive buffer: copied only for the general path)
+                if not calls.written(buffer, size, sequence):
+                    return Step(-1, datagram, Begun(now, buffer[:size]))
                 self._rw_seq = read_seq = (rw_seq + 1) & 0xFFFF
                 rpc.sequence = sequence = (sequence + 1) & 0xFFFFFFFF
                 datagram = calls.read(sequence, read_seq)
                 continue
-            record = calls.read_data(data, sequence, read_seq)
+            record = calls.read_data(buffer, size, sequence, read_seq)
             if record is None:
-                return Step(read_seq, datagram, Begun(now, data))
+                return Step(read_seq, datagram, Begun(now, buffer[:size]))
             self._last_activity = now
             return record
 

@@ -138,11 +138,15 @@ class BoundedSocket:
     def recv_into(self, at: float, buffer: bytearray) -> int | None:
         """Receive one datagram into ``buffer`` if one arrives before the monotonic time ``at``: its length, or
         ``None`` when none did by then. Unlike :meth:`recv` it does not look when no time is left (the caller's
-        wait is over). Other failures raise ``OSError``."""
+        wait is over). Other failures raise ``OSError``.
+
+        The timeout set is kept while it is anywhere from half to all of what the wait wants (not only within
+        :data:`SLACK`): a datagram client's waits are shares of a request's time that differ by the moments the
+        thread was not running, and a timeout that ends early only costs the rest's wait when no datagram comes."""
         left = at - _monotonic()
         if left <= 0.0:
             return None
-        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:  # _bound's window, inline
+        if self._polled or not (left * 0.875 - 0.01) * 0.5 <= self._wait <= left * 0.875 - 0.01:
             self._bound(left, False)
         try:
             return self.sock.recv_into(buffer)
