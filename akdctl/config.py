@@ -29,9 +29,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 from akdctl.errors import UsageError
+from akdctl.protocol.record import Record
 from akdctl.profiles.vocabulary import PROFILE_WORDS
 
 
@@ -40,25 +41,39 @@ def default_config_path() -> Path:
     return Path(base) / "akdctl" / "config.toml"
 
 
-class Profile(NamedTuple):
-    """One named profile of the config file (all keys optional; the tables are the file's, read-only by use)."""
+class Profile(Record):
+    """One named profile of the config file (all keys optional; the tables are the file's, read-only by use).
 
-    name: str
-    target: str | None = None
-    timeout: float | None = None
-    drive: str | None = None
-    limits: dict[str, Any] = {}
-    units: dict[str, Any] = {}
-    raw: dict[str, Any] = {}
+    A :class:`~akdctl.protocol.record.Record`, not a named tuple: every command loads this module, and building a
+    named tuple class costs about 1 M instructions of each start (issue 29)."""
+
+    __slots__ = ("name", "target", "timeout", "drive", "limits", "units", "raw")
+
+    def __init__(self, name: str, target: str | None = None, timeout: float | None = None, drive: str | None = None,
+                 limits: dict[str, Any] | None = None, units: dict[str, Any] | None = None,
+                 raw: dict[str, Any] | None = None) -> None:
+        self.name = name
+        self.target = target
+        self.timeout = timeout
+        self.drive = drive
+        self.limits: dict[str, Any] = {} if limits is None else limits
+        self.units: dict[str, Any] = {} if units is None else units
+        self.raw: dict[str, Any] = {} if raw is None else raw
+
+    __hash__ = None  # type: ignore[assignment]  # its tables are dicts, as the named tuple's made it unhashable
 
 
-class Config(NamedTuple):
-    """The parsed file. Named tuples, not dataclasses: every command loads this module, and a dataclass costs
-    about 0.3 ms to create at each start."""
+class Config(Record):
+    """The parsed file (a Record for the reason :class:`Profile` is one)."""
 
-    path: Path | None
-    default_profile: str | None
-    profiles: dict[str, Profile]
+    __slots__ = ("path", "default_profile", "profiles")
+
+    def __init__(self, path: Path | None, default_profile: str | None, profiles: dict[str, Profile]) -> None:
+        self.path = path
+        self.default_profile = default_profile
+        self.profiles = profiles
+
+    __hash__ = None  # type: ignore[assignment]  # its profiles are a dict
 
 
 TOP_KEYS = ("default_profile", "profiles")

@@ -366,3 +366,69 @@ def test_reads_through_the_raw_access_answer_what_the_general_path_answers(seed:
     raw, general = PnuServer(raw_model, raw_reads=True), PnuServer(_ObjectsOnly(general_model))
     for request in _read_requests(seed, 400):
         assert raw.handle(request) == general.handle(request), request.hex(" ")
+
+
+def _outcome(server: PnuServer, request: bytes) -> bytes | tuple[str, int]:
+    try:
+        return server.handle(request)
+    except RecordRefused as refused:
+        return ("refused", refused.code1)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_planned_reads_answer_what_the_general_path_answers(seed: int) -> None:
+    """A one-parameter read is planned the first time (``PnuServer._plan``) and answered from the plan after it:
+    repeated with other references (0 included: refused), its answers stay those of the general path, while the
+    drive model changes between them."""
+    import random
+
+    from akdctl.sim.model import DriveModel
+
+    rng = random.Random(seed)
+    raw_model, general_model = DriveModel(), DriveModel()
+    raw, general = PnuServer(raw_model, raw_reads=True), PnuServer(_ObjectsOnly(general_model))
+    singles = [r for r in _read_requests(seed, 800) if r[3] == 1]
+    planned = 0
+    for request in singles * 3:
+        request = bytes([rng.choice([0, 1, 77, 255])]) + request[1:]
+        planned += request[1:] in raw._plans
+        assert _outcome(raw, request) == _outcome(general, request), request.hex(" ")
+        if rng.random() < 0.05:  # the drive changes: the next reads answer the new value
+            word = rng.choice([0x0400, 0x0406, 0x040E])
+            change = bytes([1, 2, 0, 1, 0x10, 1, 0, 1, 0, 0, 0x42, 1]) + word.to_bytes(2, "big")
+            assert raw.handle(change) == general.handle(change)
+    assert planned > 500
+
+
+@pytest.mark.parametrize("failure", ["refused", "bug", "wrong count", "wrong format", "too big"])
+def test_a_planned_read_the_model_fails_is_refused_as_the_general_path_refuses_it(failure: str) -> None:
+    """Once planned, a read whose model answer fails (an access error, a bug, a wrong number of values, a format
+    the raw way cannot pack, a value that does not fit) gets the refusal the general path gives."""
+    from akdctl.sim.errors import PnuAccessError
+    from akdctl.sim.model import DriveModel
+
+    def reader(sub: int, count: int) -> list[int]:
+        if failure == "refused":
+            raise PnuAccessError(0x14, 7)
+        if failure == "bug":
+            raise RuntimeError("model bug")
+        if failure == "wrong count":
+            return [1, 2]
+        return [1 << 40] if failure == "too big" else [3]
+
+    request = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")  # PNU 930
+    replies, errors = [], []
+    for planned in (True, False):  # the plan's way, and the raw way it stands for (_read_single)
+        model = DriveModel()
+        server = PnuServer(model, raw_reads=True)
+        server.handle(request)  # planned
+        assert request[1:] in server._plans
+        if not planned:
+            server._plans.clear()
+        info, fmt, mask, _read, array = model._pnu_shape(930)
+        model._pnu_shapes[930] = (info, 0x02 if failure == "wrong format" else fmt, (1 << 64) - 1 if failure ==
+                                  "too big" else mask, reader, array)
+        replies.append(server.handle(request))
+        errors.append(repr(server.last_exception))
+    assert replies[0] == replies[1] and errors[0] == errors[1]
+    assert replies[0][1] == 0x81  # refused

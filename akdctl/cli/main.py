@@ -11,6 +11,7 @@ silently left out of the listing.
 
 from __future__ import annotations
 
+import gc
 import os
 import re
 import sys
@@ -172,6 +173,17 @@ def _line_only(ctx: click.Context, param: click.Parameter, value: Any) -> None:
         raise click.UsageError(f"{param.opts[0]} works only with --inventory FILE (before any '--')", ctx)
 
 
+def _show_version(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    """``--version``: the line click's ``version_option`` prints (``akdctl, version 0.1.0``), then exit 0."""
+    if value and not ctx.resilient_parsing:
+        click.echo(f"akdctl, version {__version__}", color=ctx.color)
+        ctx.exit()
+
+
+#: The one type of the root's file options (``--config``, ``--pcap``): a click type is stateless, and each one built
+#: looks its name up in gettext's catalogues (a few stat calls at every start, issue 29), so both share this one.
+_FILE = click.Path(dir_okay=False)
+
 EPILOG = (
     "Global options may also follow the command (akdctl pnu get 930 --json). "
     "Targets: sim (default), sim://NAME, pn://HOST, ecat-udp://HOST/STATION, ecat://IFNAME[/POS], "
@@ -183,7 +195,7 @@ EPILOG = (
 @click.group(cls=LazyGroup, lazy={name: (module, attr, SHORT_HELP.get(name, name))
                                  for name, (module, attr) in COMMANDS.items()}, epilog=EPILOG, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-T", "--target", "target", metavar="TARGET", help="Drive to talk to (default: $AKDCTL_TARGET, config profile, sim).")
-@click.option("--config", "config_path", metavar="FILE", type=click.Path(dir_okay=False), help="Config file (default: ~/.config/akdctl/config.toml).")
+@click.option("--config", "config_path", metavar="FILE", type=_FILE, help="Config file (default: ~/.config/akdctl/config.toml).")
 @click.option("--profile", "profile_name", metavar="NAME", help="Named profile of the config file.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
 @click.option("--timeout", type=Duration(0.001, 3600), metavar="DURATION",
@@ -196,7 +208,7 @@ EPILOG = (
 @click.option("-y", "--yes", is_flag=True, help="Consent to motion without a prompt (scripts, CI).")
 @click.option("-v", "--verbose", count=True, help="More detail on stderr (repeatable).")
 @click.option("--trace", is_flag=True, help="Hex dump of every request and response frame on stderr.")
-@click.option("--pcap", metavar="FILE", type=click.Path(dir_okay=False), help="Capture every frame to a pcap file (Wireshark/tshark).")
+@click.option("--pcap", metavar="FILE", type=_FILE, help="Capture every frame to a pcap file (Wireshark/tshark).")
 @click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
 @click.option("--inventory", metavar="FILE", expose_value=False, callback=_line_only,
               help="Run the command on every drive of this inventory (see 'akdctl discover'), one process per drive.")
@@ -208,7 +220,11 @@ EPILOG = (
               help="With --inventory: start no further drive after one failed.")
 @click.option("--reference", metavar="NAME", expose_value=False, callback=_line_only,
               help="With --inventory and param diff: compare with this drive instead of the majority.")
-@click.version_option(__version__, "--version", prog_name="akdctl")
+# --version as click's version_option builds it (eager, no value), with its help and message written out: the
+# decorator looks both up in gettext's catalogues at import, a few stat calls each at every start (issue 29); click
+# ships no catalogue for them, so the words are the same.
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_show_version,
+              help="Show the version and exit.")
 @click.pass_context
 def cli(ctx: click.Context, target: str | None, config_path: str | None, profile_name: str | None,
         json_output: bool, timeout: float | None, retries: int | None, yes: bool, verbose: int, trace: bool, pcap: str | None,
@@ -287,8 +303,38 @@ def _line_run(args: list[str]) -> bool:
     return wanted(args)
 
 
+#: The young-generation threshold of this process's garbage collector (CPython's default is 700). A command spends
+#: most of its start importing modules and building the click tree: tens of thousands of long-lived objects, none of
+#: them garbage, so at 700 CPython walks them again and again for nothing (about 4 M instructions of a 260 M start).
+#: At 10 000 a one-shot command collects a few times at most, and a long-running one (``sim serve``, ``scope``, the
+#: shell) still collects its cyclic garbage, holding at most this many uncollected young objects (a few MB).
+GC_YOUNG_THRESHOLD = 10_000
+
+
+def _own_process_gc() -> None:
+    """The garbage-collector policy of a process whose command line is akdctl's (``main()`` without ``argv``)."""
+    _, middle, old = gc.get_threshold()
+    gc.set_threshold(GC_YOUNG_THRESHOLD, middle, old)
+
+
+def _before_exit() -> None:
+    """Freeze what the command built: the interpreter's shutdown collection would otherwise walk every module, class
+    and function the command imported (about 21 M instructions of a 260 M start) for cycles whose memory the operating
+    system takes back anyway. Objects still referenced are released at shutdown as before (their files flushed and
+    closed); only garbage cycles are left to the OS, whose finalizers Python does not promise to run at exit either
+    (the data model's ``__del__`` note). Collecting the young generation first cost 3 M instructions more."""
+    gc.freeze()
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the CLI and map every error to its documented exit code, in one style."""
+    """Entry point: run the CLI and map every error to its documented exit code, in one style.
+
+    Without ``argv`` it runs the process's own command line (the console script, ``python -m akdctl``), and then
+    tunes the process's garbage collector (:func:`_own_process_gc`, :func:`_before_exit`); called with ``argv`` (the
+    tests, a line run's worker) it leaves the collector of its host alone."""
+    own_process = argv is None
+    if own_process:
+        _own_process_gc()
     args = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in args or os.environ.get("AKDCTL_DEBUG") == "1"
     app: AppContext | None = None
@@ -337,4 +383,6 @@ def main(argv: list[str] | None = None) -> None:
     if error is not None:
         _print_error(app, error, json_wanted=_json_wanted(app, args), hint=hint)
         code = error.exit_code
+    if own_process:
+        _before_exit()
     sys.exit(code)

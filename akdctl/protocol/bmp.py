@@ -1071,3 +1071,24 @@ def first_read_address(data: bytes) -> tuple[int, int, int, int]:
     """(attribute, number of elements, PNU, subindex) of the first address after the header: what
     :func:`iter_read_addresses` yields first, without a generator (the server's one-parameter read, issue 29)."""
     return _ADDRESS.unpack_from(data, HEADER_SIZE)  # type: ignore[return-value]
+
+
+# ---------------------------------------------------------------------------- the server's one-parameter read, whole
+_RAW_RESPONSES: dict[tuple[int, int], struct.Struct | None] = {}  # (format, count) -> the whole response, built once
+
+
+def raw_read_response_layout(fmt: int, count: int) -> struct.Struct | None:
+    """A positive read response of one parameter, ``count`` unsigned Byte/Word/DWord elements: reference, response ID,
+    axis, number of parameters 1, then the value block :func:`raw_block_layout` packs -- the bytes
+    :func:`pack_read_response` joins from them, in one pack; None for any other format or a block that does not fit
+    a response (the general path answers and refuses those)."""
+    layout = _RAW_RESPONSES.get((fmt, count), _ABSENT)
+    if layout is _ABSENT:
+        block = raw_block_layout(fmt, count)
+        layout = None if block is None or block.size > MAX_BLOCK - HEADER_SIZE \
+            else struct.Struct(">BBBB" + block.format[1:])
+        _RAW_RESPONSES[(fmt, count)] = layout
+    return layout  # type: ignore[return-value]
+
+
+_ABSENT = object()

@@ -146,3 +146,109 @@ def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.Pnio
     return _RESPONSE[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, 0, data[4:56], boot,
                                   data[60:74], 20 + n, 0, data[78:80],
                                   _OK_BYTES if status is OK else status.encode(), n, n, 0, n) + blocks
+
+
+# --- one pass per plain record call (the simulator's PROFINET face, issue 29: a PNU read is two of them) ----------
+# Why besides plain_record_call/pack_record_response: those build a RecordCall and take a PnioStatus per call; the
+# calls that succeed -- nearly all of a poll -- need neither. The face reads the fields below, answers the OK cases
+# with write_ok/read_ok and hands every other case to plain_record_call and the general answer (tests/test_sim_faces.py
+# and tests/test_pnio_record_fast.py hold the two ways byte-equal).
+_BE32 = struct.Struct(">I").pack
+#: A Write record response with PNIOStatus OK: the reply header (as _RESPONSE), the NDR arguments of its one 64-byte
+#: IODWriteResHeader block, the request's record header (padding 0) with the data's length, then 4 + 16 bytes 0.
+_WRITE_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x6s24x")
+             for little, order in ((False, ">"), (True, "<"))}
+#: A Read record response with PNIOStatus OK, up to the data: as above with an IODReadResHeader carrying the data's
+#: length (big endian, as every PNIO block field) and 24 bytes 0.
+_READ_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x2s4s24x")
+            for little, order in ((False, ">"), (True, "<"))}
+_WRITE_OK_BLOCKS = 64  # IODWriteResHeader: block header + 60
+# The zeros of both (x): flags2, fragment number, PNIOStatus OK, the NDR offset, padding and reserved bytes.
+assert _OK_BYTES == bytes(4)
+
+
+#: From byte 0, by the request's data representation (0 big, 1 little endian): interface and activity UUID, sequence,
+#: opnum, body length, then the NDR arguments' length, maximum count, offset and actual count.
+_FIELDS = (struct.Struct(">24x16s16s8xIH4xH8xIIII"), struct.Struct("<24x16s16s8xIH4xH8xIIII"))
+#: From byte 100 (big endian, as every PNIO block): block type and length, the AR UUID, API + slot + subslot as the
+#: 8 bytes :func:`record_address` makes, index and record data length (version, sequence and padding skipped).
+_FIELDS_RECORD = struct.Struct(">HH4x16s8s2xHI")
+_ADDRESS = struct.Struct(">IHH")
+_INTERFACES = (DEVICE_INTERFACE_WIRE[False], DEVICE_INTERFACE_WIRE[True])
+
+
+def record_address(api: int, slot: int, subslot: int) -> bytes:
+    """API, slot and subslot as a record header carries them (the ``address`` of :func:`record_call_fields`)."""
+    return _ADDRESS.pack(api, slot, subslot)
+
+
+_SEQUENCE = (struct.Struct(">I").unpack_from, struct.Struct("<I").unpack_from)  # at byte 64, by drep
+#: The shapes of plain record calls seen: every byte the checks below read, but the sequence (64..67), and the
+#: record's own sequence number (106..107, not checked) -> (the fields but the sequence, the least datagram length
+#: they hold for). A client's poll repeats two shapes; the checks' answer depends on nothing else.
+_SHAPES: dict[bytes, tuple[bool, bytes, int, bytes, bytes, int, int, int]] = {}
+_SHAPES_KEPT = 64
+
+
+def record_call_fields(data: bytes) -> tuple[tuple[bool, bytes, int, bytes, bytes, int, int, int], int] | None:
+    """(shape, sequence) of a datagram :func:`plain_record_call` accepts (the same checks, no RecordCall; a shape
+    seen before is not checked twice), else None. The shape: (little endian, activity UUID bytes, opnum, AR UUID
+    bytes, address, index, length, the least datagram length it holds for); ``address``: API, slot and subslot as
+    :func:`record_address` packs them; ``length``: a write's record data length (the data is ``data[164:164 +
+    length]``), a read's most the client takes."""
+    key = data[:64] + data[68:106] + data[108:140]
+    shape = _SHAPES.get(key)
+    if shape is not None and len(data) >= shape[7]:
+        return shape, _SEQUENCE[shape[0]](data, 64)[0]
+    fields = _record_call_fields(data)
+    if fields is None:
+        return None
+    if len(_SHAPES) >= _SHAPES_KEPT:
+        _SHAPES.clear()  # many clients or shapes: start over rather than grow
+    little, activity, sequence, opnum, ar, address, index, rlength = fields
+    body = _FIELDS[little].unpack_from(data)[4]
+    shape = _SHAPES[key] = (little, activity, opnum, ar, address, index, rlength,
+                            max(164, dcerpc.HEADER_SIZE + body))
+    return shape, sequence
+
+
+def _record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, bytes, int, int] | None:
+    """:func:`record_call_fields`, every check made."""
+    if len(data) < 164 or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_REQUEST \
+            or data[2] & dcerpc.FLAG_FRAG:
+        return None
+    drep = data[4] >> 4
+    if drep > 1:
+        return None
+    interface, activity, sequence, opnum, length, args_length, maximum, offset, actual = \
+        _FIELDS[drep].unpack_from(data)
+    if interface != _INTERFACES[drep] or (opnum != OP_WRITE and opnum != OP_READ) or offset \
+            or dcerpc.HEADER_SIZE + length > len(data) or actual > maximum or args_length > length - 20 \
+            or actual > length - 20:
+        return None
+    btype, blen, ar, address, index, rlength = _FIELDS_RECORD.unpack_from(data, 100)
+    if blen != _RECORD_HEAD_LENGTH:
+        return None
+    if opnum == OP_WRITE:
+        if btype != BT_WRITE_REQ or args_length != 64 + rlength:
+            return None
+    elif btype != BT_READ_REQ or args_length != 64:
+        return None
+    return drep == 1, activity, sequence, opnum, ar, address, index, rlength
+
+
+def write_ok(data: bytes, little: bool, boot: int) -> bytes:
+    """The response to the plain Write record call ``data`` that succeeded: ``pack_record_response(data, little,
+    boot, *write_res(req, OK))`` in one pack."""
+    n = _WRITE_OK_BLOCKS
+    return _WRITE_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
+                                  20 + n, data[78:80], n, n, n, _WRITE_RES, data[106:132], data[134:140])
+
+
+def read_ok(data: bytes, little: bool, boot: int, record: bytes) -> bytes:
+    """The response to the plain Read record call ``data`` answered with ``record``: ``pack_record_response(data,
+    little, boot, *read_res(req, record))`` in one pack."""
+    n = 64 + len(record)
+    return _READ_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
+                                 20 + n, data[78:80], n, n, n, _READ_RES, data[106:132], data[134:136],
+                                 _BE32(len(record))) + record

@@ -106,6 +106,11 @@ class Component(Tracked):
     def tick(self, dt: float) -> None:
         """Advance by ``dt`` seconds of virtual time."""
 
+    def still(self) -> bool:
+        """Whether a :meth:`tick` now, of any length, would change nothing (the model then moves only its clock
+        until the revision moves: ``DriveModel.advance``). A component that overrides :meth:`tick` says when."""
+        return True
+
     def to_state(self) -> dict[str, Any]:
         return {}
 

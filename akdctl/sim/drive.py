@@ -565,7 +565,8 @@ class SimDrive:
         With the lock kept since the last transaction (:attr:`_trusted`), the held model is current: the steps of
         :meth:`_begin` and :meth:`_commit` that matter then -- the clock advanced, a save when the mark moved --
         are done here without their token read and calls (the same rules; any other case takes them)."""
-        if not self._mutex.acquire(timeout=self.lock_timeout):  # _acquire's steps, inline
+        mutex = self._mutex
+        if not mutex.acquire(True, self.lock_timeout):  # _acquire's steps, inline (positional: no keyword parsing)
             raise CommError(self._locked_text())
         if self._holding:
             lock_fd = self._lock_fd
@@ -573,36 +574,42 @@ class SimDrive:
             try:
                 lock_fd = self._take_lock()
             except BaseException:
-                self._mutex.release()
+                mutex.release()
                 raise
         try:
             held = self._held
-            if held is None or not self._trusted:
+            trusted = self._trusted  # only _take_lock (above) and _commit (below) change it
+            if held is None or not trusted:
                 held = self._begin(lock_fd, True)
+                model, meta = held.model, held.meta
             else:
                 self._held = None  # dropped unless the request succeeds (a failed one reloads)
                 model, meta = held.model, held.meta
                 now = time.time()
                 model.time_scale = scale = meta["time_scale"]
-                if now > meta["wall"]:
-                    model.advance((now - meta["wall"]) * scale)
+                wall = meta["wall"]
+                if now > wall:
+                    model.advance((now - wall) * scale)
                 meta["wall"] = now
-            server.access = held.model
+            server.access = model
             try:
                 result = answer(request)
             except DamagedState as exc:
                 raise self._corrupt(str(exc)) from None
             finally:
                 server.access = _OUTSIDE
-            mark, model = held.mark, held.model
-            if model.revision != mark[0] or held.meta.get("time_scale") != mark[1] or not self._trusted \
+            mark = held.mark
+            if model.revision != mark[0] or meta.get("time_scale") != mark[1] or not trusted \
                     or model.damage is not None:
                 self._commit(held, lock_fd)
             else:
                 self._held = held
             return result
         finally:
-            self._release(lock_fd)
+            if self._holding:
+                mutex.release()  # what _release does while the lock is kept
+            else:
+                self._release(lock_fd)
 
     def object_read(self, index: int, subindex: int) -> bytes:
         with self.transaction() as model:

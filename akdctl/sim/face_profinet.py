@@ -22,7 +22,6 @@ import select
 import socket
 import time
 import uuid
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
@@ -45,6 +44,7 @@ from akdctl.sim.inject_spec import extra_number, parse_every_nth
 from akdctl.sim.refusals import RefusalReport
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
+_PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the parameter channel's records
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
@@ -233,7 +233,13 @@ class ProfinetFace(Face):
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self.boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
-        self._cache: OrderedDict[tuple[bytes, int], list[bytes]] = OrderedDict()  # (activity bytes, sequence)
+        # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
+        self._cache: dict[tuple[bytes, int], list[bytes]] = {}
+        self._cached: list[tuple[bytes, int] | None] = [None] * REPLY_CACHE  # the cache's keys, oldest at _cached_at
+        self._cached_at = 0
+        self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
+        self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
+        self._rxdrop = self.injection.rxdrop
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._tie = itertools.count()
         self._tx_count = 0
@@ -301,8 +307,11 @@ class ProfinetFace(Face):
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
         buffer = bytearray(65535)  # one receive buffer: recvfrom(65535) allocates 64 KiB per datagram
         view = memoryview(buffer)
-        receive, datagram, stop = sock.recvfrom_into, self._datagram, self._stop
+        receive, datagram, stop, monotonic = sock.recvfrom_into, self._datagram, self._stop, time.monotonic
         next_expiry = 0.0
+        # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
+        # down, so the next receive returns at once) and at each expiry tick (at most every EXPIRY_TICK_S under
+        # traffic), not per datagram: Event.is_set is a Python call.
         while not stop.is_set():
             if self._scheduled:
                 wait = max(0.0, min(EXPIRY_TICK_S, self._scheduled[0][0] - time.monotonic()))
@@ -316,13 +325,23 @@ class ProfinetFace(Face):
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
-            next_expiry = self._maybe_expire(next_expiry)
-            if peer is None:
-                continue  # woken by interrupt(): the loop condition decides
-            try:
-                datagram(bytes(view[:size]), peer[:2])
-            except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
-                request_failed("profinet", exc)
+            while peer is not None:  # a datagram; and the ones that follow at once, while no send is scheduled
+                if monotonic() >= next_expiry:  # _maybe_expire's test, inline: it is false for most datagrams
+                    if stop.is_set():
+                        return
+                    next_expiry = self._maybe_expire(next_expiry)
+                try:
+                    datagram(bytes(view[:size]), peer[:2])
+                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                    request_failed("profinet", exc)
+                if self._scheduled:
+                    break
+                try:
+                    size, peer = receive(buffer)
+                except OSError:
+                    next_expiry = self._maybe_expire(next_expiry)
+                    break
+            # else woken by interrupt(): the loop condition decides
 
     def _maybe_expire(self, next_expiry: float) -> float:
         """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
@@ -375,12 +394,63 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- requests
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
+        """One datagram. A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass
+        when it is a retransmission, a Write that reaches the parameter manager or a Read that collects its
+        response -- what :meth:`_record_call` does for them, without a RecordCall or a PnioStatus; every other
+        datagram, and every other case of one (nothing done, nothing counted yet), goes to :meth:`_general`, which
+        answers it with the same checks as before (tests/test_sim_faces.py holds both ways equal)."""
         stats = self.stats
         stats.received += 1
-        rxdrop = self.injection.rxdrop
+        rxdrop = self._rxdrop
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
+        fields = pnio_record.record_call_fields(data) if self._short_way else None
+        if fields is None:
+            self._general(data, peer)
+            return
+        shape, sequence = fields
+        little, activity, opnum, ar_id, address, index, length, _least = shape
+        key = (activity, sequence)
+        cached = self._cache.get(key)
+        if cached is not None:
+            stats.replayed += 1
+            for frame in cached:
+                self._send(frame, peer)
+            return
+        ar = self._ars.get(ar_id)
+        frame = None
+        if ar is not None and address == self._address and index in _PARAMETER_INDICES:
+            now = time.monotonic()
+            pending = ar.pending
+            if opnum == OP_WRITE:
+                if 0 < length <= MAX_RECORD and (pending is None or pending[0] <= now):
+                    ar.last_activity = now
+                    stats.bmp_requests += 1
+                    try:
+                        response = self.drive.handle_bmp(data[164:164 + length])
+                    except Exception as exc:  # noqa: BLE001 - answered as _write answers it
+                        frame = self._write_failed(data, little, exc)
+                    else:
+                        ar.pending = (now + self.delay, response)
+                        frame = pnio_record.write_ok(data, little, self.boot_time)
+            elif pending is not None and pending[0] <= now:
+                ar.last_activity = now
+                ar.pending = None
+                frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
+        if frame is None:
+            self._general(data, peer)
+            return
+        self._remember(key, [frame])
+        if self._plain_tx:
+            self._raw_send(frame, peer)
+        else:
+            self._send(frame, peer)
+
+    def _general(self, data: bytes, peer: tuple[str, int]) -> None:
+        """Every datagram the one pass of :meth:`_datagram` does not answer: the plain record calls' second short way
+        (:meth:`_record_call`), else the general decoders."""
+        stats = self.stats
         plain = pnio_record.plain_record_call(data) if not self.fragment else None
         if plain is not None:
             little, sequence, opnum, req = plain
@@ -430,11 +500,32 @@ class ProfinetFace(Face):
             else:
                 head = pnio_record.reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body))
                 frames = [head + body]
-        self._cache[key] = frames
-        if len(self._cache) > REPLY_CACHE:
-            self._cache.popitem(last=False)
+        self._remember(key, frames)
         for frame in frames:
             self._send(frame, peer)
+
+    def _remember(self, key: tuple[bytes, int], frames: list[bytes]) -> None:
+        """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a ring of their
+        keys: trimming a dict by its first key scans the slots deleted before it)."""
+        self._cache[key] = frames
+        at = self._cached_at
+        old = self._cached[at]
+        self._cached[at] = key
+        self._cached_at = (at + 1) % REPLY_CACHE
+        if old is not None:
+            self._cache.pop(old, None)
+
+    def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
+        """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
+        plain = pnio_record.plain_record_call(data)
+        assert plain is not None  # record_call_fields accepted it: so does plain_record_call (the same checks)
+        req = plain[3]
+        if isinstance(exc, RecordRefused):  # a request no base-mode response can answer (docs/fidelity.md F1)
+            status = pnio.rw_error(True, exc.code1)
+        else:  # the parameter manager failed: a record error, not silence
+            request_failed("profinet", exc)
+            status = _failure_status(OP_WRITE, exc)
+        return pnio_record.pack_record_response(data, little, self.boot_time, *pnio_record.write_res(req, status))
 
     def _record_call(self, data: bytes, peer: tuple[str, int], little: bool, sequence: int, opnum: int,
                      req: pnio_record.RecordCall) -> None:
@@ -457,9 +548,7 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
-        cache[key] = [frame]
-        if len(cache) > REPLY_CACHE:
-            cache.popitem(last=False)
+        self._remember(key, [frame])
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:

@@ -138,6 +138,12 @@ class DriveModel:
         self._recorder: Any = None  # REC.* (sim/recorder.py), made on first use: most commands never record
         # the components that move with time (the lazy ones keep Component.tick, which does nothing), in tick order
         self._tickers = [self.motion.tick]
+        # ... and each one's declaration that a tick now would change nothing but the clock (Component.still)
+        self._stills = [self.motion.still]
+        # The revision at which every ticking component declared itself still after a step (-1: not proven). While
+        # the revision stays there, nothing persisted changed, so a step would still change nothing: advance() moves
+        # the clock only (the one place this is decided; tests/test_sim_still.py).
+        self._still_at = -1
 
     # ------------------------------------------------------------------ components
     def _build(self, name: str) -> Any:
@@ -229,13 +235,27 @@ class DriveModel:
 
     # ------------------------------------------------------------------ time
     def advance(self, dt: float) -> None:
-        """Advance virtual time; components integrate motion, timers, watchdogs."""
+        """Advance virtual time; components integrate motion, timers, watchdogs.
+
+        Why O(1) at rest: a served drive advances the clock before every request, and a drive at rest (the usual
+        poll) has nothing to integrate. After a step, each ticking component declares whether a tick would now
+        change anything (:meth:`Component.still`); if none would and no recording runs, the model remembers the
+        revision. Every change of persisted state bumps the revision (the revision rule, sim/component.Tracked), so
+        while it is unchanged the next step would find the same: only the clock moves."""
         if dt <= 0:
             return
-        if self._recorder is not None and self._recorder.running:
-            self._recorder.advance(dt, self._step)  # samples the motion at its own instants
-        else:
-            self._step(dt)
+        recorder = self._recorder
+        if self._still_at == self.revision and (recorder is None or not recorder.running):
+            self.clock += dt
+            return
+        if recorder is not None and recorder.running:
+            recorder.advance(dt, self._step)  # samples the motion at its own instants
+            return
+        self._step(dt)
+        for still in self._stills:
+            if not still():
+                return
+        self._still_at = self.revision
 
     @property
     def recorder(self) -> Any:
@@ -332,6 +352,8 @@ class DriveModel:
             values = read(subindex, count)
         else:
             values = self.stored_pnu(pnu)[subindex : subindex + count]
+        if len(values) == 1:  # the usual read: no comprehension (a function call of its own before Python 3.12)
+            return wire_format, [values[0] & mask]
         return wire_format, [v & mask for v in values]
 
     def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:

@@ -184,7 +184,10 @@ class MotionComponent(Component):
     @property
     def opmode(self) -> int:
         """PNU 930 (DRV.OPMODE) derived from the CiA 402 mode."""
-        return {4: 0, 3: 1}.get(self.mode, 2)
+        return self._opmode()
+
+    def _opmode(self) -> int:
+        return _OPMODE.get(self.mode, 2)
 
     @property
     def fault_present(self) -> bool:
@@ -345,6 +348,18 @@ class MotionComponent(Component):
             self.since_access += dt
         axis.integrate(dt)
 
+    def still(self) -> bool:
+        """A tick would change nothing, whatever its length: no fault waiting for its reaction, the watchdog not
+        counting, the axis at rest with nothing to integrate (built or not) -- :meth:`tick`'s early returns."""
+        if self.since_access:
+            return False
+        if self.state not in (FAULT, FAULT_REACTION) and self.model.faults.fault_present:
+            return False
+        if self._resting_unbuilt_axis():
+            return True
+        axis = self.axis
+        return axis.at_rest() and not (axis.vel or axis.acc_now)
+
     def _watchdog_trip(self) -> None:
         """No request for ``watchdog_s`` wall seconds while moving: ramp to standstill on our own, and say why
         with the simulator's own warning (ZSW1/statusword bit 7, 0x2000, an EMCY; docs/fidelity.md F4)."""
@@ -374,7 +389,7 @@ class MotionComponent(Component):
         m.bind_pnu(28, read=pnu_reader(lambda: _clamp32(self.position_counts)))  # XIST_A, 2^PNU1002 per rev
         m.bind_pnu(33, read=pnu_reader(lambda: self.pd.aktsatz))
         m.bind_pnu(52, read=pnu_reader(lambda: round(self._current_fraction() * (1 << 14))))
-        m.bind_pnu(930, read=pnu_reader(lambda: self.opmode),
+        m.bind_pnu(930, read=pnu_reader(self._opmode),
                    write=lambda sub, values: self.pd.write_opmode(sub, values))
 
         def obj_reader(fmt: str, func: Any) -> Any:
@@ -462,6 +477,9 @@ class MotionComponent(Component):
             self.last_writer = state["last_writer"]
         if self.state not in CIA_WORD:
             raise ValueError(f"motion state {self.state!r} is not a drive state")
+
+
+_OPMODE = {4: 0, 3: 1}  # CiA 402 mode -> DRV.OPMODE (torque 0, velocity 1, any position mode 2)
 
 
 def _clamp32(value: int) -> int:

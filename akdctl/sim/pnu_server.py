@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Collection
-from typing import Protocol
+from typing import Any, Protocol
 
 from akdctl.sim.errors import PnuAccessError, RecordRefused  # noqa: F401  (re-exported: servers raise and catch them)
 from akdctl.protocol.bmp import (
@@ -88,6 +88,7 @@ from akdctl.protocol.bmp import (
     REQ_READ,
     RESP_CHANGE_NAK,
     RESP_CHANGE_OK,
+    RESP_READ_OK,
     BmpError,
     Format,
     ParameterAddress,
@@ -107,6 +108,7 @@ from akdctl.protocol.bmp import (
     pack_failure_block,
     pack_read_response,
     raw_block_layout,
+    raw_read_response_layout,
     to_signed,
     to_unsigned,
 )
@@ -187,6 +189,7 @@ def header_refusal(request: bytes) -> int | None:
 
 
 _ONE_READ_SIZE = HEADER_SIZE + ADDRESS_SIZE  # a read request of one parameter
+_PLANS = 256  # one-parameter read plans a server keeps (request shapes; a poll has a few)
 
 
 class PnuServer:
@@ -199,15 +202,41 @@ class PnuServer:
         self.raw_reads = raw_reads
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
+        # The one-parameter value reads seen, by the request's bytes after the reference: [PNU, subindex, count,
+        # format, response layout], the checks of the request and its address passed once (_plan); the layout is
+        # bmp.raw_read_response_layout's for the format the model last answered. The value is read each time.
+        self._plans: dict[bytes, list[Any]] = {}
 
     # -- entry point -----------------------------------------------------------------------------------------
 
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = bytes(request)
+        plan = self._plans.get(data[1:])
+        if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
+            pnu, subindex, count, planned_format, layout = plan
+            try:
+                try:
+                    fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
+                except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                    return self._read_planned(data, pnu, subindex, count, exc)
+                if fmt != planned_format:  # the first read of the plan (or a model answering another format)
+                    layout = raw_read_response_layout(fmt, count)
+                    plan[3], plan[4] = fmt, layout
+                if layout is not None and len(values) == count:
+                    try:
+                        return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
+                    except struct.error:
+                        pass  # _raw_block says so
+                return self._read_planned(data, pnu, subindex, count, (fmt, values))
+            except Exception as exc:  # noqa: BLE001 - as the unplanned read below: a bug still gets an answer
+                self.last_exception = exc
+                return self._refuse(data, ERR_OPERATING_STATE)
         if len(data) == _ONE_READ_SIZE and data[1] == REQ_READ and data[3] == 1 and data[0] and data[2] in self.axes:
             # one parameter read, the poll's request: the checks header_refusal and _handle make of it, passed
             try:
+                if self.raw_reads:
+                    self._plan(data)
                 return self._read_single(data)
             except _WholeRequest as refusal:
                 return self._refuse(data, refusal.error)
@@ -296,16 +325,40 @@ class PnuServer:
             raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
         return out
 
+    def _plan(self, data: bytes) -> None:
+        """Remember a one-parameter read of a value (the request checked by :meth:`handle`) whose address
+        :meth:`_read_single` takes the raw way: its next requests go to :meth:`_read_planned` at once."""
+        attribute, count, pnu, subindex = first_read_address(data)
+        if attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu and subindex <= MAX_SUBINDEX:
+            plans = self._plans
+            if len(plans) >= _PLANS:
+                plans.clear()  # a client walking every address: start over rather than grow
+            plans[data[1:]] = [pnu, subindex, count, -1, None]  # the format and layout: at the first planned read
+
+    def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
+                      read: tuple[int, list[int]] | Exception) -> bytes:
+        """The response to a planned read (:meth:`handle` packs the usual one itself) from what the model's raw
+        access returned or raised: as :meth:`_read_single` answers it, refusals included."""
+        block = self._raw_failure(read) if isinstance(read, Exception) else self._raw_block(pnu, count, *read)
+        return pack_read_response(data, [block], block[0] == Format.ERROR)
+
+    def _raw_failure(self, exc: Exception) -> bytes:
+        if isinstance(exc, PnuAccessError):
+            return pack_failure_block(exc.error, exc.additional)
+        self.last_exception = exc  # a model bug refuses this parameter only
+        return pack_failure_block(ERR_OPERATING_STATE)
+
     def _read_raw(self, raw: Callable[[int, int, int], tuple[int, list[int]]], pnu: int, subindex: int,
                   count: int) -> bytes:
         """One value read through the model's raw access, as its value block."""
         try:
             fmt, values = raw(pnu, subindex, count)
-        except PnuAccessError as exc:
-            return pack_failure_block(exc.error, exc.additional)
-        except Exception as exc:  # noqa: BLE001 - a model bug refuses this parameter only
-            self.last_exception = exc
-            return pack_failure_block(ERR_OPERATING_STATE)
+        except Exception as exc:  # noqa: BLE001 - PnuAccessError, or a model bug: refuses this parameter only
+            return self._raw_failure(exc)
+        return self._raw_block(pnu, count, fmt, values)
+
+    def _raw_block(self, pnu: int, count: int, fmt: int, values: list[int]) -> bytes:
+        """The value block of what the model's raw access returned, or the refusal of a reply it cannot be."""
         block = raw_block_layout(fmt, count)
         if block is None or len(values) != count:
             self.last_exception = ValueError(f"pnu_read_raw({pnu}) returned format {fmt} with {len(values)} values "
