@@ -47,12 +47,12 @@ class RecordCalls:
     read_request(...)))``.
     """
 
-    __slots__ = ("_read", "_write", "_write_length", "_write_shape", "_activity", "_index")
+    __slots__ = ("_read", "_write", "_write_length", "_write_shape", "_activity_be", "_activity_le", "_index")
 
     def __init__(self, template: dcerpc.RequestTemplate, ar: bytes, address: pnio.RecordAddress,
                  read_length: int, activity: uuid.UUID | None = None) -> None:
         #: The activity's UUID as a reply carries it, big- and little-endian (for :meth:`written`/:meth:`read_data`).
-        self._activity = (activity.bytes, activity.bytes_le) if activity is not None else (b"", b"")
+        self._activity_be, self._activity_le = (activity.bytes, activity.bytes_le) if activity is not None else (b"", b"")
         self._index = address.index
         read = template.packet(0, pnio.OP_READ, pnio.encode_request_args(pnio.read_request(0, ar, address,
                                                                                              read_length)))
@@ -83,7 +83,7 @@ class RecordCalls:
         takes, with PNIOStatus OK and blocks that :func:`pnio.write_response` reads with one unpack (its header block
         first) as an OK write - what the general path takes as a done write. False: the general path decides what
         the datagram is (another call's, a refusal, busy, malformed, an unusual block layout)."""
-        head = _answer(data, size, sequence, *self._activity)
+        head = _answer(data, size, sequence, self._activity_be, self._activity_le)
         if head is None or head[0] != _OK or head[1] < _WRITE_RES_SIZE:
             return False
         btype, length, _seq, _index, status = _WRITE_RES.unpack_from(data, _REPLY_SIZE)
@@ -94,7 +94,7 @@ class RecordCalls:
         sequence number ``rw_seq``: the reply :func:`plain_response` takes, with PNIOStatus OK and blocks that
         :func:`pnio.read_response` reads with one unpack as this record's, ``rw_seq``'s - what the general path
         returns for it. None: the general path decides."""
-        head = _answer(data, size, sequence, *self._activity)
+        head = _answer(data, size, sequence, self._activity_be, self._activity_le)
         if head is None or head[0] != _OK or head[1] < 64:
             return None
         btype, length, seq, index, record_length = _READ_RES.unpack_from(data, _REPLY_SIZE)
@@ -110,6 +110,7 @@ _REPLY = {little: struct.Struct(order + "BBB1xB35x16s8xI6xH4x4sIIII")
           for little, order in ((False, ">"), (True, "<"))}
 _REPLY_SIZE = _REPLY[False].size  # 100: the header and the NDR response header
 _OK = pnio.OK.encode()
+_VERSION, _RESPONSE, _FRAG = dcerpc.RPC_VERSION, dcerpc.PT_RESPONSE, dcerpc.FLAG_FRAG  # (read once per reply)
 # The record header block of a Write/Read response (pnio's own one-unpack layouts), read where it follows the reply's
 # NDR header
 _WRITE_RES, _READ_RES = pnio.WRITE_RES_FIELDS, pnio.READ_RES_FIELDS
@@ -132,8 +133,7 @@ def _answer(data: bytes | bytearray, size: int, sequence: int, activity_be: byte
             ) -> tuple[bytes, int] | None:
     """(PNIOStatus bytes, length of the blocks) of a reply ``data[:size]`` that :func:`plain_response` takes, else
     None: the one check."""
-    if size < _REPLY_SIZE or data[0] != dcerpc.RPC_VERSION or data[1] != dcerpc.PT_RESPONSE \
-            or data[2] & dcerpc.FLAG_FRAG:
+    if size < _REPLY_SIZE or data[0] != _VERSION or data[1] != _RESPONSE or data[2] & _FRAG:
         return None
     order = data[4] >> 4
     if order > 1:

@@ -146,7 +146,8 @@ class BoundedSocket:
         left = at - _monotonic()
         if left <= 0.0:
             return None
-        if self._polled or not (left * 0.875 - 0.01) * 0.5 <= self._wait <= left * 0.875 - 0.01:
+        wanted = left * 0.875 - 0.01  # early(left), inline: the hot path
+        if self._polled or not wanted * 0.5 <= self._wait <= wanted:
             self._bound(left, False)
         try:
             return self.sock.recv_into(buffer)
