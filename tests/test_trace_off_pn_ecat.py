@@ -136,7 +136,9 @@ def test_pn_reads_call_the_trace_hooks_when_tracing_is_on(server: SimServer, cou
 def test_ecat_uploads_trace_nothing_when_tracing_is_off(server: SimServer, counts: Counter[str]) -> None:
     _ecat_uploads(server, counts, tracing=False)
     assert not {key for key in counts if "trace" in key or key.startswith("frame")}, counts
-    assert counts["deadline"] == READS
+    # At most one per request: an upload answered in its one pass (CoeObjectChannel.upload) needs none, only its
+    # end time (Budget.lone); one that goes on in the general path makes one for all its attempts.
+    assert counts["deadline"] <= READS
     assert counts["settimeout"] == 0
 
 
