@@ -26,7 +26,6 @@ from akdctl.transport.trace import Tracer
 
 # A reply: the chunks the drive sends (each its own segment: a pause between them), or SILENT / CLOSE.
 SILENT, CLOSE = "silent", "close"
-Reply = "list[bytes] | str"
 Script = Callable[[bytes], "list[bytes] | str"]
 
 
@@ -143,7 +142,7 @@ def _same(script: Script, lines: list[str], calls: list[int], **kwargs: object) 
     return quick
 
 
-def _table(replies: dict[bytes, "list[bytes] | str"]) -> Script:
+def _table(replies: dict[bytes, list[bytes] | str]) -> Script:
     return lambda line: replies.get(line, [b"Error: Command was not found.\r\n-->"])
 
 
