@@ -21,13 +21,7 @@ from __future__ import annotations
 import socket
 from typing import TYPE_CHECKING
 
-from akdctl.errors import (
-    CommandRefused,
-    CommError,
-    MalformedReply,
-    NoAnswer,
-    UsageError,
-)
+from akdctl.errors import CommandRefused, CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.links import CommandLink
 from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.tcp_stream import TcpStream
@@ -271,7 +265,7 @@ class AsciiLink(CommandLink):
             self._send(answer, repr(wire[:-2].decode()))
         return text
 
-    def _rest(self, wire: bytes, deadline: Deadline) -> str:
+    def _rest(self, wire: bytes, deadline: "Deadline") -> str:
         """Receive until the prompt, within the request's deadline (several segments, Telnet bytes, tracing)."""
         what = repr(wire[:-2].decode())
         while True:
@@ -318,7 +312,7 @@ class AkdAsciiTransport(Transport):
 
     scheme = "akd"
 
-    def __init__(self, target: Target, options: LinkOptions) -> None:
+    def __init__(self, target: "Target", options: LinkOptions) -> None:
         super().__init__(target, options)
         self._link: AsciiLink | None = None
 
@@ -328,7 +322,7 @@ class AkdAsciiTransport(Transport):
         timeout = self.options.budget.left()
         try:
             stream = TcpStream.connect(host, port, timeout)
-        except TimeoutError:
+        except socket.timeout:
             raise NoAnswer(f"{label}: no answer within {timeout:g} s (TCP connect)") from None
         except (socket.gaierror, UnicodeError) as exc:
             raise UsageError(f"{label}: cannot resolve host {host!r} ({exc})") from None
@@ -348,4 +342,4 @@ class AkdAsciiTransport(Transport):
             link.close()
 
 
-__all__ = ["PORT", "AkdAsciiTransport", "AsciiLink", "Telnet"]
+__all__ = ["AkdAsciiTransport", "AsciiLink", "Telnet", "PORT"]

@@ -58,7 +58,7 @@ class BoundedSocket:
     socket (:meth:`recv_into`).
     """
 
-    __slots__ = ("_polled", "_wait", "sock")
+    __slots__ = ("sock", "_wait", "_polled")
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         self.sock = sock
@@ -97,7 +97,7 @@ class BoundedSocket:
         then, ``b""`` when the peer closed the connection. Other failures raise ``OSError``. With no time left it
         still looks once (a millisecond) at what is already there."""
         left = at - _monotonic()
-        self._bound(max(MIN_WAIT, left), False)
+        self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
         return self._receive(at, size)
 
     def request(self, data: bytes, at: float, size: int = 4096) -> bytes | None:
@@ -108,21 +108,21 @@ class BoundedSocket:
         if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
             # _bound's window test inline (the hot path of a kernel-bounded socket): the timeout set ends within
             # SLACK before early(left), never after it
-            self._bound(max(MIN_WAIT, left), False)
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
         sock = self.sock
         try:
             sock.sendall(data)
         except BlockingIOError:   # SO_SNDTIMEO expired
-            raise TimeoutError("send timed out") from None
+            raise socket.timeout("send timed out") from None
         try:
             return sock.recv(size)
-        except (TimeoutError, BlockingIOError):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
             return self._rest(at, size)
 
     def _receive(self, at: float, size: int) -> bytes | None:
         try:
             return self.sock.recv(size)
-        except (TimeoutError, BlockingIOError):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
             return self._rest(at, size)
 
     def _rest(self, at: float, size: int) -> bytes | None:
@@ -134,7 +134,7 @@ class BoundedSocket:
             self._bound(left, True)
             try:
                 return self.sock.recv(size)
-            except (TimeoutError, BlockingIOError):
+            except (BlockingIOError, socket.timeout):
                 continue
 
     def recv_into(self, at: float, buffer: bytearray) -> int | None:
@@ -153,7 +153,7 @@ class BoundedSocket:
             self._bound(left, False)
         try:
             return self.sock.recv_into(buffer)
-        except (TimeoutError, BlockingIOError):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
             pass
         while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
             left = at - _monotonic()
@@ -162,7 +162,7 @@ class BoundedSocket:
             self._bound(left, True)
             try:
                 return self.sock.recv_into(buffer)
-            except (TimeoutError, BlockingIOError):
+            except (BlockingIOError, socket.timeout):
                 continue
 
     def send(self, data: bytes) -> None:
@@ -170,7 +170,7 @@ class BoundedSocket:
         try:
             self.sock.sendall(data)
         except BlockingIOError:   # SO_SNDTIMEO expired
-            raise TimeoutError("send timed out") from None
+            raise socket.timeout("send timed out") from None
 
     def send_last(self, data: bytes, wait: float) -> None:
         """A last send before closing (a goodbye such as UnRegisterSession), bounded by ``wait`` s whatever the
@@ -211,14 +211,14 @@ class TcpStream(BoundedSocket):
         fails as it would (EBADF), never on a descriptor number reused since."""
         left = at - _monotonic()
         if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
-            self._bound(max(MIN_WAIT, left), False)   # the window test inline, as in the base
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)   # the window test inline, as in the base
             if self._polled:   # Python's timeout (too little left for the kernel's): the socket's own calls
                 return BoundedSocket.request(self, data, at, size)
         fd = self.sock.fileno()
         try:
             sent = _write(fd, data)
         except BlockingIOError:   # SO_SNDTIMEO expired
-            raise TimeoutError("send timed out") from None
+            raise socket.timeout("send timed out") from None
         if sent < len(data):   # a send buffer that filled up part way: the rest as sendall sends it
             self.send(data[sent:])
         try:
@@ -227,7 +227,7 @@ class TcpStream(BoundedSocket):
             return self._rest(at, size)
 
     @classmethod
-    def connect(cls, host: str, port: int, timeout: float) -> TcpStream:
+    def connect(cls, host: str, port: int, timeout: float) -> "TcpStream":
         """Connect within ``timeout`` s (``socket.create_connection``'s errors as they are)."""
         sock = socket.create_connection((host, port), timeout=timeout)
         try:
@@ -237,4 +237,4 @@ class TcpStream(BoundedSocket):
             raise
 
 
-__all__ = ["KERNEL_TIMEOUTS", "MIN_WAIT", "SLACK", "BoundedSocket", "TcpStream", "early"]
+__all__ = ["BoundedSocket", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
