@@ -11,9 +11,12 @@ client at a time (a drive that closes a new connection at once is reported as bu
 Every wait is bounded: the connect by the command's timeout, each command (its send and every receive until the
 prompt) by one deadline of the command's Budget (the socket waits through :mod:`akdctl.transport.tcp_stream`), and
 a reply is at most :data:`MAX_REPLY` bytes, so an endless reply without a prompt ends in one error. A command costs
-one send and, for a short reply, one receive: a reply without Telnet bytes skips the option parser, a one-line reply
-skips the line splitting, and nothing is traced unless the tracer is active. After a command that got no prompt the connection is out of step (a late
-reply would answer the next command), so the link refuses further commands.
+one send and, for a short reply, one receive. With tracing off and nothing left from before, :meth:`AsciiLink.command`
+takes a quick path: the line out and the usual reply (one plain ASCII line and the prompt, whole in the first
+segment) checked in one pass; anything else -- more segments, Telnet bytes, Latin-1, several lines, an echo, a
+refusal, silence, a close -- goes on as the same request in the general path from the bytes it has
+(tests/test_akd_ascii_quick_path.py runs every such case both ways). After a command that got no prompt the
+connection is out of step (a late reply would answer the next command), so the link refuses further commands.
 """
 
 from __future__ import annotations
