@@ -269,3 +269,40 @@ def test_a_closed_stream_fails_as_the_socket_would(closed_stream: tcp_stream.Tcp
     """The descriptor is read from the socket each request: after close, EBADF -- never a reused number."""
     with pytest.raises(OSError):
         closed_stream.request(b"DRV.OPMODE\r\n", time.monotonic() + 0.5)
+
+
+@pytest.fixture
+def stream_pair() -> Iterator[tuple[tcp_stream.TcpStream, socket.socket]]:
+    listener = socket.create_server(("127.0.0.1", 0))
+    stream = tcp_stream.TcpStream.connect("127.0.0.1", listener.getsockname()[1], 1.0)
+    peer, _ = listener.accept()
+    listener.close()
+    yield stream, peer
+    stream.close()
+    peer.close()
+
+
+@pytest.mark.parametrize("through", ["descriptor", "socket"])
+def test_stream_request_both_ways(stream_pair: tuple[tcp_stream.TcpStream, socket.socket], through: str) -> None:
+    """TcpStream.request (os.write/os.read on the descriptor) and BoundedSocket.request (the socket's methods): the
+    same bytes sent, the same first segment (bounded by ``size``), None at the deadline, b"" on a close."""
+    stream, peer = stream_pair
+    request = tcp_stream.TcpStream.request if through == "descriptor" else tcp_stream.BoundedSocket.request
+    assert request(stream, b"X\r\n", time.monotonic() + 0.05) is None   # nothing answered
+    peer.settimeout(1.0)
+    assert peer.recv(100) == b"X\r\n"
+    peer.sendall(b"0123456789")
+    assert request(stream, b"Y\r\n", time.monotonic() + 1.0, 4) == b"0123"   # the rest stays for the next receive
+    assert stream.recv(time.monotonic() + 1.0) == b"456789"
+    assert peer.recv(100) == b"Y\r\n"
+    start = time.monotonic()
+    assert request(stream, b"Z\r\n", start + 0.1) is None
+    assert time.monotonic() - start >= 0.1
+    assert peer.recv(100) == b"Z\r\n"
+    peer.shutdown(socket.SHUT_WR)   # the drive's side closed for sending: the reply is b""
+    assert request(stream, b"W\r\n", time.monotonic() + 1.0) == b""
+    peer.close()                     # gone: its kernel resets the next request, an OSError either way
+    time.sleep(0.05)
+    with pytest.raises(OSError):
+        request(stream, b"V\r\n", time.monotonic() + 1.0)
+        request(stream, b"V\r\n", time.monotonic() + 1.0)
