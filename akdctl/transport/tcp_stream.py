@@ -1,5 +1,6 @@
 """A TCP connection to a drive whose every receive ends by a given time, with as few system calls as that allows:
-the one place the TCP transports (``akd://``, ``mb://``, ``eip://``) and ``pn://``'s UDP client wait on a socket.
+the one place the TCP transports (``akd://``, ``mb://``, ``eip://``) and the UDP clients of ``pn://`` and
+``ecat-udp://`` wait on a socket.
 
 Why a module of its own: a request/response client on loopback spends most of its CPU in system calls, and
 Python's socket timeout costs two per receive (``poll(2)`` then ``recv(2)``) plus one per ``settimeout``. On
@@ -53,7 +54,7 @@ class BoundedSocket:
     """One connected socket whose every receive ends by a given time (the rules above). One caller at a time.
 
     Stream or datagram: :class:`TcpStream` adds what TCP needs; ``pn://``'s DCE/RPC client uses this for its UDP
-    socket (:meth:`recv_into`).
+    socket (:meth:`recv_into`), ``ecat-udp://``'s gateway link too (:meth:`recv`: one datagram each).
     """
 
     __slots__ = ("sock", "_wait", "_polled")
