@@ -11,7 +11,8 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from akdctl.sim import mailbox_repeat
 from akdctl.sim.mailbox_repeat import REPEAT_WINDOW_S, MailboxRepeats
