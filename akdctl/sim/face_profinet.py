@@ -411,8 +411,8 @@ class ProfinetFace(Face):
         if fields is None:
             self._general(data, peer)
             return
-        shape, sequence = fields
-        little, activity, opnum, ar_id, address, index, length, _least = shape
+        shape, sequence, record_sequence = fields
+        little, activity, opnum, ar_id, address, index, length, _least, _replies = shape
         key = (activity, sequence)
         cache = self._cache
         cached = cache.get(key)
@@ -436,11 +436,12 @@ class ProfinetFace(Face):
                         frame = self._write_failed(data, little, exc)
                     else:
                         ar.pending = (now + self.delay, response)
-                        frame = pnio_record.write_ok(data, little, self.boot_time)
+                        frame = pnio_record.write_ok(data, shape, sequence, record_sequence, self.boot_time)
             elif pending is not None and pending[0] <= now:
                 ar.last_activity = now
                 ar.pending = None
-                frame = pnio_record.read_ok(data, little, self.boot_time, pending[1][:length])
+                frame = pnio_record.read_ok(data, shape, sequence, record_sequence, self.boot_time,
+                                            pending[1][:length])
         if frame is None:
             self._general(data, peer)
             return
