@@ -440,8 +440,10 @@ class ProfinetFace(Face):
             elif pending is not None and pending[0] <= now:
                 ar.last_activity = now
                 ar.pending = None
-                frame = pnio_record.read_ok(data, shape, sequence, record_sequence, self.boot_time,
-                                            pending[1][:length])
+                record = pending[1]
+                if len(record) > length:  # the most the client takes (a response fits it: no slice to make)
+                    record = record[:length]
+                frame = pnio_record.read_ok(data, shape, sequence, record_sequence, self.boot_time, record)
         if frame is None:
             self._general(data, peer)
             return
