@@ -569,7 +569,9 @@ class SimDrive:
         matter then -- the clock advanced, a save when the mark moved -- are done here as one straight line without
         their token read and calls (the same rules); every other case takes :meth:`_serve_general`."""
         mutex = self._mutex
-        if not mutex.acquire(True, self.lock_timeout):  # _acquire's steps, inline (positional: no keyword parsing)
+        # _acquire's steps, inline: a free mutex is taken without converting a timeout (the usual case), else waited
+        # for up to lock_timeout (positional: no keyword parsing)
+        if not mutex.acquire(False) and not mutex.acquire(True, self.lock_timeout):
             raise CommError(self._locked_text())
         held = self._held
         if held is None or not self._trusted:
