@@ -118,3 +118,38 @@ def test_a_planned_read_sends_what_a_new_plan_sends() -> None:
         assert first == again
     assert planned.sent == fresh.sent and len(planned.sent) == 6
     assert len(channel._plans) == 1
+
+
+def test_a_repeated_answer_reads_as_the_codec_reads_it_and_any_changed_byte_is_read_anew() -> None:
+    """ReadTemplate keeps the last answer's results for an answer whose bytes after the reference are all the same
+    (a poll of a value that did not change): those results must be decode_response's, in a new list each time, and
+    an answer that differs in any byte - a changed value, a failure, another format - must be read anew."""
+    asked = (ParameterAddress(930), ParameterAddress(964, 0, 2))
+    template = bmp.ReadTemplate(0, asked)
+
+    def answer(reference: int, first: int, second: bmp.ParameterResult) -> bytes:
+        request = bmp.ParameterRequest(reference, bmp.REQ_READ, 0, asked)
+        return bmp.encode_response(bmp.ParameterResponse(
+            reference, bmp.RESP_READ_NAK if isinstance(second, ParameterFailure) else bmp.RESP_READ_OK, 0,
+            (ParameterValue(bmp.Format.WORD, (first,)), second))), request
+
+    seen = []
+    for reference, first, second in [(1, 7, ParameterValue(bmp.Format.WORD, (1, 2))),
+                                     (2, 7, ParameterValue(bmp.Format.WORD, (1, 2))),   # the same answer again
+                                     (3, 8, ParameterValue(bmp.Format.WORD, (1, 2))),   # the value changed
+                                     (4, 8, ParameterValue(bmp.Format.WORD, (1, 3))),   # the last byte changed
+                                     (5, 8, ParameterFailure(0x14, 0)),                  # refused now
+                                     (6, 8, ParameterFailure(0x14, 0)),
+                                     (7, 8, ParameterValue(bmp.Format.DWORD, (1, 3))),  # another format
+                                     (8, 8, ParameterValue(bmp.Format.WORD, (1, 3)))]:
+        data, request = answer(reference, first, second)
+        got = template.results(data, reference)
+        assert got == list(bmp.decode_response(data, request).results)
+        assert got[0].values == (first,) and got[1] == second
+        assert template.results(data, reference % 255 + 1) is None  # another reference is never taken
+        if seen:
+            assert got is not seen[-1]  # a new list each time: a caller may change it
+        seen.append(got)
+    seen[1].append("changed by a caller")  # what a caller does to its list does not reach the next answer
+    data, request = answer(9, 8, ParameterValue(bmp.Format.WORD, (1, 3)))
+    assert template.results(data, 9) == list(bmp.decode_response(data, request).results)

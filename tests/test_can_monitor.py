@@ -10,13 +10,18 @@ SPEC-NOTES 21: faults reach a CANopen client as emergencies.
 from __future__ import annotations
 
 import json
+import signal
 import struct
+import subprocess
+import threading
 import time
+from collections.abc import Callable
+from typing import IO
 
 import pytest
 
 from akdctl.drive.can_events import BusWatch, describe, emcy_faults
-from tests.harness import SimServer, finish, run_akdctl, start_akdctl
+from tests.harness import SimServer, run_akdctl, start_akdctl
 
 GROUP = "239.74.163.2"
 NODE = 2
@@ -72,9 +77,49 @@ def test_monitor_needs_a_can_target(akd_inproc) -> None:
     assert code == 2 and "can://" in err and err.count("\n") == 1
 
 
+class Events:
+    """The monitor's ``--json`` lines as they come (a reader thread), so the test waits for an event instead of
+    sleeping and hoping the monitor (a cold start, maybe on a loaded machine) saw it by then."""
+
+    def __init__(self, proc: subprocess.Popen[str]) -> None:
+        self.lines: list[dict] = []  # type: ignore[type-arg]
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._read, args=(proc.stdout,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: IO[str]) -> None:
+        for line in stream:
+            with self._cond:
+                self.lines.append(json.loads(line))
+                self._cond.notify_all()
+
+    def rest(self) -> list[dict]:  # type: ignore[type-arg]
+        """Every event, once the monitor has ended (its stdout closed)."""
+        self._thread.join(timeout=30)
+        assert not self._thread.is_alive(), "the monitor's output did not end"
+        return list(self.lines)
+
+    def wait_for(self, holds: Callable[[list[dict]], object], what: str, timeout: float = 60.0) -> list[dict]:  # type: ignore[type-arg]
+        """Wait until ``holds(events so far)``; the events then. Fails naming *what* after *timeout* s."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not holds(self.lines):
+                left = deadline - time.monotonic()
+                assert left > 0, f"timed out after {timeout} s waiting for {what}; events: {self.lines}"
+                self._cond.wait(min(left, 0.5))
+            return list(self.lines)
+
+
+def _kinds(events: list[dict], kind: str) -> list[dict]:  # type: ignore[type-arg]
+    return [e for e in events if e["kind"] == kind and e.get("node") in (NODE, None)]
+
+
 @pytest.mark.slow
 @pytest.mark.root
 def test_monitor_shows_the_simulators_emergency_and_lost_heartbeat() -> None:
+    """Each step waits for the monitor to show the event before the next (a loaded machine stretches every step;
+    ``--for`` only bounds the run). ``--heartbeats`` makes each heartbeat visible, so the test knows the monitor has
+    measured the period again after the reset's boot-up before it silences the node."""
     pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
     from tests.netns import LoopbackNetns
 
@@ -82,19 +127,43 @@ def test_monitor_shows_the_simulators_emergency_and_lost_heartbeat() -> None:
     with LoopbackNetns("akdmon") as netns:
         server = SimServer("--can", f"udp_multicast:{GROUP}:{NODE}", "--can-heartbeat", "100", netns=netns.name)
         server.start()
+        mon = start_akdctl("-T", target, "can", "monitor", "--heartbeats", "--for", "120", "--json",
+                           netns=netns.name)
         try:
-            mon = start_akdctl("-T", target, "can", "monitor", "--for", "9", "--json", netns=netns.name)
-            time.sleep(1.5)  # the monitor is listening and has measured the heartbeat
-            assert run_akdctl("sim", "fault", "F501").code == 0
-            time.sleep(1.0)
-            nmt = run_akdctl("-T", target, "can", "nmt", "reset", netns=netns.name)  # a boot-up follows
-            assert nmt.code == 0, nmt.stderr
-            time.sleep(1.0)
+            seen = Events(mon)
+            try:
+                seen.wait_for(lambda ev: len(_kinds(ev, "heartbeat")) >= 2, "the node's heartbeats")
+                assert run_akdctl("sim", "fault", "F501").code == 0
+                seen.wait_for(lambda ev: _kinds(ev, "emergency"), "the emergency of F501")
+                nmt = run_akdctl("-T", target, "can", "nmt", "reset", netns=netns.name)  # a boot-up follows
+                assert nmt.code == 0, nmt.stderr
+
+                def measured_again(ev: list[dict]) -> bool:  # type: ignore[type-arg]
+                    boots = _kinds(ev, "boot-up")
+                    return bool(boots) and len([e for e in _kinds(ev, "heartbeat") if e["time"] > boots[0]["time"]]) >= 2
+                seen.wait_for(measured_again, "two heartbeats after the boot-up")
+            finally:
+                server.stop()  # the node goes silent: its heartbeat is lost
+
+            def lost_for_good(ev: list[dict]) -> bool:  # type: ignore[type-arg]
+                """A heartbeat-lost after the node's last heartbeat (a stalled server may have been reported lost
+                and back before; that one is not the loss of the stopped node)."""
+                beats = [i for i, e in enumerate(ev) if e["kind"] in ("heartbeat", "heartbeat-back")]
+                losses = [i for i, e in enumerate(ev) if e["kind"] == "heartbeat-lost"]
+                return bool(losses) and (not beats or losses[-1] > beats[-1])
+            seen.wait_for(lost_for_good, "the heartbeat to be reported lost")
+            mon.send_signal(signal.SIGINT)  # Ctrl-C ends the monitor (exit 0)
+            code = mon.wait(timeout=30)
+            events = seen.rest()
+            err = mon.stderr.read() if mon.stderr else ""
         finally:
-            server.stop()  # the node goes silent: its heartbeat is lost
-        result = finish(mon, timeout=30)
-    assert result.code == 0, result.stderr
-    events = [json.loads(line) for line in result.stdout.splitlines()]
+            if mon.poll() is None:
+                mon.kill()
+                mon.wait(timeout=10)
+            for stream in (mon.stdout, mon.stderr):
+                if stream is not None:
+                    stream.close()
+    assert code == 0, err
     kinds = [e["kind"] for e in events]
     assert "nmt-state" in kinds
     emcy = next(e for e in events if e["kind"] == "emergency")
@@ -103,8 +172,8 @@ def test_monitor_shows_the_simulators_emergency_and_lost_heartbeat() -> None:
     boot = next(e for e in events if e["kind"] == "boot-up")
     assert boot["node"] == NODE and boot["time"] > emcy["time"]
     assert any(e["kind"] == "nmt-command" and e["command"] == "reset" for e in events)
-    lost = next(e for e in events if e["kind"] == "heartbeat-lost")
-    assert lost["node"] == NODE and lost["time"] > emcy["time"]
+    lost = [e for e in events if e["kind"] == "heartbeat-lost"][-1]
+    assert lost["node"] == NODE and lost["time"] > boot["time"]
 
 
 @pytest.mark.slow
@@ -113,10 +182,13 @@ def test_status_watch_count_and_for() -> None:
     assert result.code == 0, result.stderr
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     assert len(lines) == 3 and all("status" in line for line in lines)
-    started = time.monotonic()
-    result = run_akdctl("status", "--watch", "--for", "1", "--interval", "0.2", "--json")
-    assert result.code == 0 and 3 <= len(result.stdout.splitlines()) <= 7
-    assert time.monotonic() - started < 10
+    result = run_akdctl("status", "--watch", "--for", "2", "--interval", "0.2", "--json", timeout=60)
+    # --for ends the watch by itself (run_akdctl's timeout would fail a run that hangs). At most one reading per
+    # interval: readings start at least 0.2 s apart and none starts after 2 s, so never more than 10. At least
+    # two: it reads again after the first. (A lower bound of 3 in one second failed on a loaded machine, where one
+    # reading of the simulator alone can take most of a second; two in two seconds leave that margin.)
+    assert result.code == 0, result.stderr
+    assert 2 <= len(result.stdout.splitlines()) <= 10, result.stdout
     bad = run_akdctl("status", "--count", "2")
     assert bad.code == 2 and "--watch" in bad.stderr
 

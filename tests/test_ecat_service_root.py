@@ -51,12 +51,53 @@ def _answers_again(pair: VethPair, within: float = 20.0) -> None:
         time.sleep(0.3)
 
 
+#: Defined for every pysoem script: SOEM's fixed waits (4 ms for a register frame, 700 ms for an SDO) are shorter
+#: than a Python slave can promise on a loaded machine (WkcError, seen in amend_mbx and sdo_write); the calls
+#: wrapped in it are idempotent (register and object writes of the same value, reads), so a master repeats them;
+#: ``init()`` repeats a ``config_init()`` that found no slave (0) or lost its frame (-1), ``sii()`` an EEPROM read that gave 0 (a timeout).
+AGAIN = """
+def again(call, *args):
+    for attempt in range(20):
+        try:
+            return call(*args)
+        except pysoem.WkcError:
+            if attempt == 19:
+                raise
+            time.sleep(0.05)
+
+
+def sii(slave, word):
+    # SOEM's EEPROM read gives 0 when the slave did not answer in time: for words known not to be 0, read again
+    for _ in range(20):
+        value = slave.eeprom_read(word)
+        if int.from_bytes(value, "little"):
+            return value
+        time.sleep(0.05)
+    return value
+
+
+def init():
+    # (the count is kept in out["found"] for the assertion's message)
+    # SOEM counts and configures the slaves with waits of a few ms: on a loaded machine it can find none. The
+    # pause grows, so a slave still answering the frames of the failed attempt is not flooded with more.
+    end, pause = time.monotonic() + 20, 0.2
+    while True:
+        found = m.config_init()
+        out.setdefault("found", []).append(found)
+        if found > 0 or time.monotonic() > end:  # 0: none answered; -1: SOEM's frame did not come back in time
+            return found
+        time.sleep(pause)
+        pause = min(2.0, 2 * pause)
+"""
+
+
 def _pysoem(pair: VethPair, body: str, timeout: float = 90) -> dict:  # type: ignore[type-arg]
-    script = "import json, time, pysoem\nm = pysoem.Master()\nm.open(%r)\nout = {}\ntry:\n%s\nfinally:\n    m.close()\n" \
-             "print(json.dumps(out))\n" % (pair.if_a, textwrap.indent(textwrap.dedent(body), "    "))
+    script = "import json, time, pysoem\n%s\nm = pysoem.Master()\nm.open(%r)\nout = {}\ntry:\n%s\nfinally:\n" \
+             "    m.close()\nprint(json.dumps(out))\n" % (AGAIN, pair.if_a, textwrap.indent(textwrap.dedent(body), "    "))
     result = subprocess.run(["ip", "netns", "exec", pair.a, sys.executable, "-c", script], capture_output=True,
                             text=True, timeout=timeout)
-    assert result.returncode == 0, result.stderr
+    # a negative code is a signal: -11 was pysoem writing through a NULL output pointer (see the cyclic test)
+    assert result.returncode == 0, f"pysoem script ended with {result.returncode}: {result.stderr}"
     return json.loads(result.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
@@ -64,15 +105,15 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
     """pysoem's own examples/firmware_update.py steps; then the drive answers again and returns the file."""
     _need_pysoem()
     out = _pysoem(pair, f"""
-        assert m.config_init() == 1
+        assert init() == 1, out
         s = m.slaves[0]
         s.state = pysoem.INIT_STATE; s.write_state()
         out["init"] = s.state_check(pysoem.INIT_STATE, 2_000_000)
-        rx = int.from_bytes(s.eeprom_read(pysoem.SiiOffset.BOOT_RX_MBX), "little")
-        tx = int.from_bytes(s.eeprom_read(pysoem.SiiOffset.BOOT_TX_MBX), "little")
+        rx = int.from_bytes(sii(s, pysoem.SiiOffset.BOOT_RX_MBX), "little")
+        tx = int.from_bytes(sii(s, pysoem.SiiOffset.BOOT_TX_MBX), "little")
         out["boot_mbx"] = [rx & 0xFFFF, rx >> 16, tx & 0xFFFF, tx >> 16]
-        s.amend_mbx("out", rx & 0xFFFF, rx >> 16)
-        s.amend_mbx("in", tx & 0xFFFF, tx >> 16)
+        again(s.amend_mbx, "out", rx & 0xFFFF, rx >> 16)
+        again(s.amend_mbx, "in", tx & 0xFFFF, tx >> 16)
         s.state = pysoem.BOOT_STATE; s.write_state()
         out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
         s.foe_write("AKD.i00", 0, {IMAGE!r}, 6_000_000)
@@ -91,7 +132,7 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
         except Exception as exc:
             out["missing"] = type(exc).__name__ + " " + repr(getattr(exc, "error_code", None))
     """)
-    assert out["init"] == 1 and out["boot"] == 3
+    assert out["init"] == 1 and out["boot"] == 3, out
     assert out["boot_mbx"] == [0x1800, 512, 0x1C00, 512]
     assert out["n_after"] == 1 and out["preop"] == 2
     assert bytes.fromhex(out["back"]) == IMAGE
@@ -102,29 +143,53 @@ def test_pysoem_firmware_sequence_and_foe_read(pair: VethPair, slave: SimServer,
 
 
 def test_pysoem_cyclic_process_data_in_op(pair: VethPair, slave: SimServer) -> None:
+    """pysoem maps the process data (SOEM reads the PDO assignment by SDO) and cycles it in OP.
+
+    The segfault this test used to end with now and then (SIGSEGV in the pysoem subprocess: "segfault at 0 ... in
+    libc.so.6[163f35]", a 4..7-byte memmove into address 0) was our misuse of pysoem, not a bug to isolate:
+    ``Slave.output = data`` copies ``len(data)`` bytes into SOEM's output pointer without a check (pysoem 1.1.13
+    ``_set_output`` is a bare memcpy), and that pointer is NULL when ``config_map()`` mapped no outputs for the
+    slave. SOEM maps nothing when its PDO-assignment SDO reads get no answer within its fixed 700 ms
+    (EC_TIMEOUTRXM) - no error is raised for that - which a loaded machine can cause with a slave written in
+    Python. Writing 6 bytes to a slave whose outputs were not mapped reproduces the crash byte for byte. So the
+    script writes outputs only when pysoem mapped the 6 bytes expected, and configures again (INIT, SII, mapping:
+    what a master does whose configuration failed) up to three times before the test fails on the sizes, with
+    the attempts shown."""
     _need_pysoem()
     out = _pysoem(pair, """
-        assert m.config_init() == 1
-        m.config_map()
-        s = m.slaves[0]
-        out["sizes"] = [len(s.output), len(s.input)]
+        out["map_attempts"] = []
+        for _ in range(3):
+            assert init() == 1, out
+            m.config_map()
+            s = m.slaves[0]
+            out["sizes"] = [len(s.output), len(s.input)]
+            out["map_attempts"].append(out["sizes"])
+            if out["sizes"] == [6, 6]:
+                break
+        assert out["sizes"] == [6, 6], out  # never write outputs pysoem did not map (a NULL pointer: SIGSEGV)
         out["expected"] = m.expected_wkc
+        # Not under test here, and tripped by a stall of this loop on a loaded machine: F125 supervision (seven
+        # missed frames of ~6 ms while enabled; FBUS.PARAM04 = 0) and the 100 ms SM watchdog (time 0 = off).
+        again(s.sdo_write, 0x36E8, 0, bytes(4))
+        again(s.set_watchdog, "processdata", 0)
+        out["watchdog_off"] = s._fprd(0x0420, 2, 2_000_000).hex()
         m.state = pysoem.SAFEOP_STATE; m.write_state()
         out["safeop"] = m.state_check(pysoem.SAFEOP_STATE, 2_000_000)
-        m.send_processdata(); m.receive_processdata(50_000)
+        m.send_processdata(); m.receive_processdata(2_000_000)
         m.state = pysoem.OP_STATE; m.write_state()
         wkcs = []
         for i in range(300):
             word = 0x06 if i < 100 else 0x07 if i < 150 else 0x0F
-            s.output = bytes(4) + word.to_bytes(2, "little")  # 0x1701: 0x60C1:1 (32 bit), controlword
+            s.output = bytes(4) + word.to_bytes(2, "little")  # 0x1701: 0x60C1:1 (32 bit), controlword: 6 bytes
             m.send_processdata()
-            wkcs.append(m.receive_processdata(50_000))
+            # up to 2 s for the frame to come back (it was 50 ms: a loaded machine made it -1, "no frame")
+            wkcs.append(m.receive_processdata(2_000_000))
             time.sleep(0.005)
         for _ in range(10):  # SOEM waits 2 ms for the frame: a Python slave on a loaded machine can miss that
             if m.read_state():
                 break
         out["state"] = s.state
-        out["al"] = s._fprd(0x0130, 6, 50_000).hex()
+        out["al"] = again(s._fprd, 0x0130, 6, 2_000_000).hex()
         out["wkcs"] = sorted(set(wkcs[20:]))
         out["statusword"] = int.from_bytes(s.input[4:6], "little")  # 0x1B01: 0x6063 (32 bit), statusword
         for i in range(20):
@@ -132,6 +197,7 @@ def test_pysoem_cyclic_process_data_in_op(pair: VethPair, slave: SimServer) -> N
         m.state = pysoem.PREOP_STATE; m.write_state()
     """)
     assert out["sizes"] == [6, 6]  # the ESI default assignment 0x1701 / 0x1B01
+    assert out["watchdog_off"] == "0000", out
     assert out["safeop"] == 4 and out["state"] == 8, out
     assert out["wkcs"] == [out["expected"]] == [3]
     assert out["statusword"] & 0x6F == 0x27  # operation enabled by the mapped controlword
@@ -149,10 +215,10 @@ def test_alias_through_the_cli_and_pysoem_reads_words_4_and_7(pair: VethPair, sl
     doc = json.loads(result.stdout)
     assert doc["after"]["fbus_param03"] == 1001 and doc["power_cycle_needed"] is True
     out = _pysoem(pair, """
-        m.config_init()
+        assert init() == 1, out
         s = m.slaves[0]
-        out["w4"] = int.from_bytes(s.eeprom_read(4), "little") & 0xFFFF
-        out["w7"] = int.from_bytes(s.eeprom_read(7), "little") & 0xFFFF
+        out["w4"] = int.from_bytes(sii(s, 4), "little") & 0xFFFF
+        out["w7"] = int.from_bytes(sii(s, 7), "little") & 0xFFFF
     """)
     assert out["w4"] == 1001 and out["w7"] & 0xFF == 0x71  # CRC vector of the reference
     before = cli(pair, "--json", "ecat", "reg", "read", "0x0012")
@@ -248,7 +314,9 @@ def test_soem_transport_firmware_update_and_foe_read(pair: VethPair, slave: SimS
     _need_pysoem()
     fw = tmp_path / "soem.i00"
     fw.write_bytes(IMAGE)
-    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "1"]
+    # --timeout 5, not 1: SOEM's waits for the FoE mailbox and the slave discovery come from it, and a simulated
+    # drive on a loaded machine missed a 1 s wait now and then (FoE write "SOEM result -1", "found none")
+    target = ["-T", f"ecat+soem://{pair.if_a}/0", "--timeout", "5"]
     result = run_akdctl(*target, "-y", "--json", "firmware", "update", str(fw), netns=pair.a)
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
@@ -265,10 +333,10 @@ def test_busy_slave_pysoem_and_tshark(pair: VethPair, tmp_path: Path) -> None:
     _need_pysoem()
     with slave_server(pair, "--ecat-foe-busy", "1"):
         out = _pysoem(pair, f"""
-            m.config_init()
+            assert init() == 1, out
             s = m.slaves[0]
             s.state = pysoem.INIT_STATE; s.write_state(); s.state_check(pysoem.INIT_STATE, 2_000_000)
-            s.amend_mbx("out", 0x1800, 512); s.amend_mbx("in", 0x1C00, 512)
+            again(s.amend_mbx, "out", 0x1800, 512); again(s.amend_mbx, "in", 0x1C00, 512)
             s.state = pysoem.BOOT_STATE; s.write_state()
             out["boot"] = s.state_check(pysoem.BOOT_STATE, 5_000_000)
             out["result"] = s.foe_write("p.bin", 0, {IMAGE[:1200]!r}, 6_000_000)
@@ -307,7 +375,7 @@ def test_pysoem_writes_the_alias_as_eepromtool_does(pair: VethPair, slave: SimSe
     """SOEM's eepromtool -walias: word 4, then word 7 = CRC; the simulated AKD takes it as FBUS.PARAM03."""
     _need_pysoem()
     out = _pysoem(pair, """
-        m.config_init()
+        assert init() == 1, out
         s = m.slaves[0]
         words = [int.from_bytes(s.eeprom_read(w), "little") & 0xFFFF for w in range(7)]
         words[4] = 7

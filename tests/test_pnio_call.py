@@ -126,3 +126,69 @@ def test_record_responses_read_as_the_general_block_rules(seq: int, ar: uuid.UUI
             assert fast(raw) == expected
         except CodecError:
             assert expected is None
+
+
+def _general_write(data: bytes, sequence: int, activity: uuid.UUID) -> bool:
+    """Whether the general path (RpcClient._accept, then ProfinetTransport._write_outcome) takes ``data`` as the
+    Write call's answer with the write done (status OK)."""
+    reply = _general(data, sequence, activity)
+    if reply is None or reply[0] != pnio.OK or not reply[1]:
+        return False
+    try:
+        return pnio.write_response(reply[1])[2] == pnio.OK
+    except CodecError:
+        return False
+
+
+def _general_read(data: bytes, sequence: int, activity: uuid.UUID, rw_seq: int, index: int) -> bytes | None:
+    """The record data the general path (RpcClient._accept, then ProfinetTransport._read_reply) returns for ``data``
+    as the Read call's answer, or None where it returns none (busy, refused, malformed, another record's)."""
+    reply = _general(data, sequence, activity)
+    if reply is None or reply[0] != pnio.OK:
+        return None
+    try:
+        got_seq, got_index, record = pnio.read_response(reply[1])
+    except CodecError:
+        return None
+    return record if (got_seq, got_index) == (rw_seq, index) else None
+
+
+@settings(max_examples=300, deadline=None)
+@given(activity=st.uuids(), sequence=u32, little=st.booleans(), status=statuses, record_status=statuses, seq=u16,
+       ar=st.uuids(), address=rw_addresses, data=st.binary(max_size=40), tail=st.binary(max_size=4),
+       asked=st.sampled_from(["same", "other-seq", "other-index"]),
+       mutations=st.lists(st.tuples(st.integers(0, 170), st.integers(0, 255)), max_size=3), cut=st.integers(0, 4))
+def test_written_and_read_data_take_only_what_the_general_path_takes(
+        activity: uuid.UUID, sequence: int, little: bool, status: pnio.PnioStatus, record_status: pnio.PnioStatus,
+        seq: int, ar: uuid.UUID, address: pnio.RecordAddress, data: bytes, tail: bytes, asked: str,
+        mutations: list[tuple[int, int]], cut: int) -> None:
+    template = dcerpc.RequestTemplate(OBJ, pnio.DEVICE_INTERFACE, activity)
+    calls = RecordCalls(template, ar.bytes, address, 240, activity)
+    write = bytearray(_reply(activity, sequence, little, status,
+                             pnio.IODWriteRes(seq, ar, address, len(data), record_status).encode() + tail))
+    read = bytearray(_reply(activity, sequence, little, status, pnio.IODReadRes(seq, ar, address, data).encode()))
+    for raw in (write, read):
+        for at, value in mutations:
+            if at < len(raw):
+                raw[at] = value
+        if cut:
+            del raw[-cut:]
+    rw_seq = seq if asked != "other-seq" else (seq + 1) & 0xFFFF
+    index = address.index if asked != "other-index" else (address.index + 1) & 0xFFFF
+    if index != address.index:
+        calls = RecordCalls(template, ar.bytes, pnio.RecordAddress(address.api, address.slot, address.subslot, index),
+                            240, activity)
+    assert calls.written(bytes(write), len(write), sequence) is _general_write(bytes(write), sequence, activity)
+    assert calls.read_data(bytes(read), len(read), sequence, rw_seq) == _general_read(bytes(read), sequence, activity,
+                                                                                      rw_seq, index)
+    # in a receive buffer longer than the datagram, the bytes after ``size`` are never read
+    junk = b"\xff" * 200
+    assert calls.written(bytes(write) + junk, len(write), sequence) is calls.written(bytes(write), len(write), sequence)
+    assert calls.read_data(bytearray(read) + junk, len(read), sequence, rw_seq) == calls.read_data(
+        bytes(read), len(read), sequence, rw_seq)
+    if not mutations and not cut:  # the usual answers are taken, and only for their own call
+        assert calls.written(bytes(write), len(write), sequence) is (status == pnio.OK and record_status == pnio.OK)
+        usual = status == pnio.OK and asked == "same"
+        assert calls.read_data(bytes(read), len(read), sequence, rw_seq) == (data if usual else None)
+        assert not calls.written(bytes(write), len(write), (sequence + 1) & 0xFFFFFFFF)
+        assert calls.read_data(bytes(read), len(read), (sequence + 1) & 0xFFFFFFFF, rw_seq) is None

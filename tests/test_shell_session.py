@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 
 from akdctl.cli.shell import candidates
-from tests.harness import ROOT, SimServer, _argv, akdctl_env, run_akdctl
+from tests.harness import ROOT, SimServer, _argv, akdctl_env, run_akdctl, wait_until
 
 pytestmark = pytest.mark.slow
 PROMPT = re.compile(r"akdctl \S+> $")
@@ -88,6 +88,13 @@ class PtyShell:
             os.close(self.master)
 
 
+def _moving() -> bool:
+    from akdctl.sim.drive import SimDrive
+
+    with SimDrive("default").transaction() as model:
+        return not model.component("motion").standstill
+
+
 @pytest.fixture
 def cia402_shell() -> Any:
     shell = PtyShell("-T", "sim?drive=cia402")
@@ -127,7 +134,9 @@ def test_completion_candidates() -> None:
 
 def test_ctrl_c_during_a_jog_stops_the_axis_and_returns_the_prompt(cia402_shell: PtyShell) -> None:
     cia402_shell.type("-y jog 300 --for 30\n")
-    time.sleep(2.0)  # the jog is running
+    # the jog is running: seen on the drive, not assumed after a sleep (on a loaded machine 2 s were not always
+    # enough for the shell to read the line and start it; a Ctrl-C before the jog interrupts nothing)
+    wait_until(_moving, "the jog to start", timeout=30)
     os.killpg(cia402_shell.proc.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the foreground group
     out = cia402_shell.prompt(timeout=30)
     assert "interrupted" in out

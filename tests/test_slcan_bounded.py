@@ -9,6 +9,7 @@ write timeout. Every write is now bounded by the command's ``--timeout``. And th
 from __future__ import annotations
 
 import os
+import re
 import time
 import tty
 from collections.abc import Iterator
@@ -51,10 +52,12 @@ def test_slcan_opens_fast_by_default_and_v_says_what_the_open_took(akd, tmp_path
 
     link = tmp_path / "slcan-tty"
     with SimServer("--can", f"slcan-pty:{link}:5"):
-        started = time.monotonic()
         result = akd("-v", "-T", f"can://slcan/{link}/5", "sdo", "read", "0x1018:1", timeout=30)
-        took = time.monotonic() - started
     assert result.returncode == 0, result.stderr
     assert "akdctl: opened CAN interface slcan" in result.stderr
     assert "sleep_after_open 0.05 s" in result.stderr
-    assert took < 1.9, took  # python-can alone sleeps 2 s after the open
+    # python-can alone sleeps 2 s in the open, so an open that took less cannot have slept them. Measured around
+    # the open only (the time -v reports), not around the whole run: on a loaded machine the interpreter's start
+    # alone can take 2 s, which said nothing about the open (this bound failed under load when it did).
+    took_ms = int(re.search(r"opened CAN interface slcan \S+ in (\d+) ms", result.stderr)[1])  # type: ignore[index]
+    assert took_ms < 2000, result.stderr

@@ -40,6 +40,10 @@ class CountingSocket:
         self._counts["settimeout"] += 1
         self._sock.settimeout(value)
 
+    def setsockopt(self, *args: object) -> None:  # the kernel's receive timeout (tcp_stream.BoundedSocket)
+        self._counts["settimeout"] += 1
+        self._sock.setsockopt(*args)  # type: ignore[arg-type]
+
     def __getattr__(self, name: str) -> object:
         return getattr(self._sock, name)
 
@@ -84,7 +88,7 @@ def _pn_reads(server: SimServer, counts: Counter[str], tracing: bool) -> None:
     try:
         channel = conn.parameters()
         rpc = conn.transport().rpc  # type: ignore[attr-defined]
-        rpc.sock = CountingSocket(rpc.sock, counts)
+        rpc.sock = rpc.stream.sock = CountingSocket(rpc.sock, counts)  # (the stream waits on the same socket)
         addresses = [ParameterAddress(930), ParameterAddress(964, 0, 2)]
         channel.read(addresses)  # the first read plans, and sets the socket's timeout
         counts.clear()
@@ -118,7 +122,9 @@ def _ecat_uploads(server: SimServer, counts: Counter[str], tracing: bool) -> Non
 def test_pn_reads_trace_nothing_when_tracing_is_off(server: SimServer, counts: Counter[str]) -> None:
     _pn_reads(server, counts, tracing=False)
     assert not {key for key in counts if "trace" in key or key.startswith("frame")}, counts
-    assert counts["deadline"] == READS  # one per request: both RPCs and every repeat share it
+    # At most one per request: both RPCs and every repeat share it; a request whose two calls are answered at once
+    # (ProfinetTransport.quick_exchange) needs none, only its end time.
+    assert counts["deadline"] <= READS
     assert counts["settimeout"] == 0  # the timeout set by the first read stays
 
 
@@ -130,7 +136,9 @@ def test_pn_reads_call_the_trace_hooks_when_tracing_is_on(server: SimServer, cou
 def test_ecat_uploads_trace_nothing_when_tracing_is_off(server: SimServer, counts: Counter[str]) -> None:
     _ecat_uploads(server, counts, tracing=False)
     assert not {key for key in counts if "trace" in key or key.startswith("frame")}, counts
-    assert counts["deadline"] == READS
+    # At most one per request: an upload answered in its one pass (CoeObjectChannel.upload) needs none, only its
+    # end time (Budget.lone); one that goes on in the general path makes one for all its attempts.
+    assert counts["deadline"] <= READS
     assert counts["settimeout"] == 0
 
 

@@ -108,8 +108,43 @@ class CoeObjectChannel(ObjectChannel):
         return out
 
     def upload(self, index: int, subindex: int) -> bytes:
-        with self.budget.request() as deadline:
-            data = self._upload_attempts(index, subindex, deadline, deadline.attempts)
+        """The value of ``index:subindex``.
+
+        The poll's usual case -- no request of this command outstanding or unanswered (``Budget.lone``), the
+        answer the next mailbox, expedited -- is read in one pass: the request sent as :meth:`_exchange` sends it,
+        one receive, the reply read by one codec call (``coe.expedited_upload_reply``) and taken by the same
+        counter rules. Anything else (silence, a late, foreign or other reply) goes on as the general path's first
+        attempt with the reply already received, within the same deadline."""
+        at = None if self._stale else self.budget.lone()
+        if at is None:
+            return self._upload_request(index, subindex)
+        request = coe.upload_request(index, subindex)
+        self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)
+        try:
+            counter = self._send_request(request)
+            now = time.monotonic()
+            wait = max(0.0, at - now) / self.budget.attempts  # (Deadline.share of the request's first attempt)
+            end = now + wait
+            raw = self.link.receive(wait)
+        except CommError:
+            with self.budget.request(at=at):  # the link failed: counted by the Budget as any request's failure
+                raise
+        if raw is not None:
+            now = time.monotonic()
+            reply = coe.expedited_upload_reply(raw, index, subindex) if now <= end else None
+            if reply is not None:
+                mine = self.filter.take(raw, reply[0])
+                if mine is not None:
+                    self._proven = mine
+                    return reply[1]
+        return self._upload_request(index, subindex, at, (counter, wait, end, now, raw or b""))
+
+    def _upload_request(self, index: int, subindex: int, at: float | None = None,
+                        begun: tuple[int, float, float, float, bytes] | None = None) -> bytes:
+        """An upload with all its attempts in one request's deadline; ``at``/``begun``: the one :meth:`upload`
+        began (its end time; the first attempt's counter, wait, end, clock and the reply it received)."""
+        with self.budget.request(at=at) as deadline:
+            data = self._upload_attempts(index, subindex, deadline, deadline.attempts, begun)
             if data is not None:
                 return data
             raise NoAnswer(f"no answer to SDO upload of {_where(index, subindex)} within {deadline.describe()}",
@@ -177,9 +212,14 @@ class CoeObjectChannel(ObjectChannel):
             raise NoAnswer(f"no answer to {what} within {deadline.describe()}",
                            details={"timeout": deadline.total, "attempts": deadline.attempts})
 
-    def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int) -> bytes:
+    def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int,
+                     begun: tuple[int, float, float, float, bytes] | None = None) -> bytes:
         self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)  # (what _sdo does, one call less)
-        first = self._exchange(coe.upload_request(index, subindex), self._accept_sdo, left, deadline)
+        if begun is None:
+            first = self._exchange(coe.upload_request(index, subindex), self._accept_sdo, left, deadline)
+        else:  # sent by upload(): its first reply (b"": none came) is judged here first
+            counter, wait, end, now, raw = begun
+            first = self._listen(counter, self._accept_sdo, wait, end, now, deadline, None, raw)
         if not isinstance(first, coe.SdoUploadResponse):
             raise MalformedReply(f"unexpected reply {first!r} to the SDO upload of {_where(index, subindex)}")
         if first.expedited or first.size is None:
@@ -245,11 +285,13 @@ class CoeObjectChannel(ObjectChannel):
             raise NoAnswer(f"no answer to reading {_where(index, subindex)} back")
         return data
 
-    def _upload_attempts(self, index: int, subindex: int, deadline: Deadline, attempts: int) -> bytes | None:
-        """Up to ``attempts`` uploads within ``deadline`` (an upload is safe to repeat); None if none was answered."""
+    def _upload_attempts(self, index: int, subindex: int, deadline: Deadline, attempts: int,
+                         begun: tuple[int, float, float, float, bytes] | None = None) -> bytes | None:
+        """Up to ``attempts`` uploads within ``deadline`` (an upload is safe to repeat); None if none was answered.
+        ``begun``: the first attempt was sent by :meth:`upload` (:meth:`_upload_once`)."""
         for attempt in range(attempts):
             try:
-                return self._upload_once(index, subindex, deadline, attempts - attempt)
+                return self._upload_once(index, subindex, deadline, attempts - attempt, begun if not attempt else None)
             except _Silence:
                 if deadline.expired():
                     break
@@ -410,6 +452,13 @@ class CoeObjectChannel(ObjectChannel):
         if self._stale:
             self._drain()
             self._stale = False
+        counter = self._send_request(coe_data)
+        now = time.monotonic()
+        wait = max(0.0, deadline.at - now) / max(1, left)  # (Deadline.share, with the clock read once)
+        return self._listen(counter, accept, wait, now + wait, now, deadline, until)
+
+    def _send_request(self, coe_data: bytes) -> int:
+        """Send a request; its counter, which the reply filter now judges replies against."""
         try:
             counter = self._send(coe_data)
         except NoAnswer as exc:
@@ -418,15 +467,30 @@ class CoeObjectChannel(ObjectChannel):
             log.info("sending the request was not confirmed (%s); listening for an answer anyway", exc)
             counter = self._counter
         self.filter.sent(counter)
-        now = time.monotonic()
-        wait = max(0.0, deadline.at - now) / max(1, left)  # (Deadline.share, with the clock read once)
-        end = now + wait
-        remaining = wait
+        return counter
+
+    def _listen(
+        self,
+        counter: int,
+        accept: Callable[[int, bytes, bool], T | None],
+        wait: float,
+        end: float,
+        now: float,
+        deadline: Deadline,
+        until: Callable[[T], bool] | None = None,
+        pending: bytes | None = None,
+    ) -> T:
+        """Read replies to the request sent with ``counter`` until ``end`` (``now``: the clock when it was sent, or
+        when ``pending`` came: a reply already received, judged first; b"" when that receive got nothing)."""
+        remaining = end - now
         while True:
-            raw = self.link.receive(remaining)
-            if raw is not None:
-                now = time.monotonic()
-                remaining = end - now
+            if pending is not None:
+                raw, pending = pending or None, None
+            else:
+                raw = self.link.receive(remaining)
+                if raw is not None:
+                    now = time.monotonic()
+                    remaining = end - now
             if raw is None or remaining < 0:
                 # Silence -- or only mailboxes that are not the answer until the wait ran out: a slave that keeps
                 # presenting a foreign reply (SM1 in buffered mode, issue 23 item 12) must not hold us forever.

@@ -975,7 +975,7 @@ class ReadTemplate:
     """The read request of ``addresses`` on ``axis``, encoded once by :func:`encode_request`; :meth:`request` gives
     it with a reference, :meth:`results` reads the usual answer."""
 
-    __slots__ = ("addresses", "axis", "_tail", "_shape")
+    __slots__ = ("addresses", "axis", "_tail", "_shape", "_last")
 
     def __init__(self, axis: int, addresses: "tuple[ParameterAddress, ...]", *, addresses_checked: bool = False) -> None:
         self.axis = axis
@@ -985,6 +985,12 @@ class ReadTemplate:
         #: The layout of the last answer when every block was numeric values (_Shape). A poll's answers keep their
         #: shape; one that does not is read block by block.
         self._shape: _Shape | None = None
+        #: The last answer read (its length, its bytes after the reference) and its results: the results are a
+        #: function of those bytes alone (the reference is checked first, the addresses are the template's), so an
+        #: answer whose bytes are all the same - a poll of a value that did not change - reads as the same results
+        #: (ParameterValue/ParameterFailure are immutable records; the list is new each time). Any other byte, a
+        #: changed value among them, is read anew.
+        self._last: tuple[int, bytes, tuple[ParameterResult, ...]] | None = None
 
     def request(self, reference: int) -> bytes:
         """The request's bytes with ``reference`` (1..255)."""
@@ -999,12 +1005,17 @@ class ReadTemplate:
         if size > MAX_BLOCK or size < HEADER_SIZE or data[0] != reference or data[2] != self.axis \
                 or data[3] != len(addresses) or (data[1] != RESP_READ_OK and data[1] != RESP_READ_NAK):
             return None
+        last = self._last
+        if last is not None and last[0] == size and data.endswith(last[1]):  # the same answer as the last one
+            return list(last[2])
         shape = self._shape
         if shape is not None and shape[0].size == size:  # the answer looks like the last one: one unpack
             layout, heads, expected, blocks = shape
             fields = layout.unpack(data)
             if heads(fields) == expected:
-                return [ParameterValue(fmt, fields[start:stop]) for fmt, start, stop in blocks]
+                read = [ParameterValue(fmt, fields[start:stop]) for fmt, start, stop in blocks]
+                self._last = (size, data[1:], tuple(read))
+                return read
         offset = HEADER_SIZE
         results: list[ParameterResult] = []
         try:
@@ -1019,6 +1030,7 @@ class ReadTemplate:
         if offset != size:
             return None
         self._shape = _numeric_shape(results, size)
+        self._last = (size, data[1:], tuple(results))
         return results
 
     def request_object(self, reference: int) -> ParameterRequest:

@@ -458,3 +458,27 @@ def is_upload_request(coe_data: bytes) -> bool:
     simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""
     return (len(coe_data) >= COE_HEADER_SIZE + 1 and coe_data[1] >> 4 == CoeService.SDO_REQUEST
             and coe_data[COE_HEADER_SIZE] >> 5 in (2, 3))  # ccs 2 upload initiate, 3 upload segment (CiA 301)
+
+
+# --- the client's upload in one step (the CoE SDO channel's fast path, issue 29) -----------------------------------
+# The answer to a poll is one 16-byte mailbox: mailbox header (6), CoE header (2), the expedited SDO (8). One unpack
+# reads what mailbox.split + the CoE header + expedited_upload_value read of it; anything else (another length, a
+# normal or segmented answer, an abort, an emergency, CoE service 2) is left to the general path
+# (tests/test_sdo_fast_path_parity.py holds both equal).
+
+_EXPEDITED_REPLY = struct.Struct("<HHBBHBHB")  # length, address, channel|priority, type|counter, CoE, command, index, sub
+
+
+def expedited_upload_reply(mailbox: bytes, index: int, subindex: int) -> tuple[int, bytes] | None:
+    """(mailbox counter, value) when ``mailbox`` is exactly a CoE SDO response (service 3) carrying the expedited
+    upload of ``index:subindex``; None for anything else (the caller's general path decodes it)."""
+    if len(mailbox) < _UPLOAD_MAILBOX_SIZE:
+        return None
+    length, _address, _channel, type_counter, header, command, got_index, got_subindex = \
+        _EXPEDITED_REPLY.unpack_from(mailbox)
+    if (length != _UPLOAD_MAILBOX_SIZE - 6 or type_counter & 0x0F != _MAILBOX_TYPE_COE
+            or header >> 12 != CoeService.SDO_RESPONSE or command & 0xE2 != 0x42
+            or got_index != index or got_subindex != subindex):
+        return None
+    value = mailbox[12:_UPLOAD_MAILBOX_SIZE - (command >> 2 & 0x03) if command & 0x01 else _UPLOAD_MAILBOX_SIZE]
+    return (type_counter >> 4) & 0x07, value if value.__class__ is bytes else bytes(value)

@@ -187,6 +187,7 @@ def decode_error_reply(data: bytes) -> MailboxErrorReply:
 
 
 _GATEWAY_HEADER = struct.Struct("<H")
+_GATEWAY_AND_LENGTH = struct.Struct("<HH")  # the EtherCAT header and the mailbox's own length field after it
 
 
 def wrap_gateway(mailbox: bytes) -> bytes:
@@ -202,17 +203,22 @@ def unwrap_gateway(buf: bytes) -> bytes:
     size = len(buf)
     if size < GATEWAY_HEADER_SIZE + HEADER_SIZE:
         raise MailboxError(f"gateway datagram of {size} bytes is too short for a mailbox")
-    header = buf[0] | buf[1] << 8
-    ftype = header >> 12
+    header, inner = _GATEWAY_AND_LENGTH.unpack_from(buf)
     length = header & _MAX_GATEWAY_LENGTH
+    if header >> 12 != GATEWAY_FRAME_TYPE or length != HEADER_SIZE + inner or length + GATEWAY_HEADER_SIZE > size:
+        _gateway_refused(header, inner, size)
+    mailbox = buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length]
+    return mailbox if mailbox.__class__ is bytes else bytes(mailbox)
+
+
+def _gateway_refused(header: int, inner: int, size: int) -> None:
+    """Raise the error :func:`unwrap_gateway` found (apart, so the checks above are one line)."""
+    ftype, length = header >> 12, header & _MAX_GATEWAY_LENGTH
     if ftype != GATEWAY_FRAME_TYPE:
         raise MailboxError(f"EtherCAT frame type {ftype} is not a mailbox (5)")
     if length < HEADER_SIZE or GATEWAY_HEADER_SIZE + length > size:
         raise MailboxError(f"EtherCAT header length {length} does not fit a datagram of {size} bytes")
-    inner = buf[2] | buf[3] << 8
-    if HEADER_SIZE + inner != length:
-        raise MailboxError(f"EtherCAT header length {length} disagrees with mailbox length {inner} + 6")
-    return bytes(buf[GATEWAY_HEADER_SIZE : GATEWAY_HEADER_SIZE + length])
+    raise MailboxError(f"EtherCAT header length {length} disagrees with mailbox length {inner} + 6")
 
 
 def encode_gateway(mbx: Mailbox) -> bytes:

@@ -615,3 +615,9 @@ class IM0:
 
 def _text(raw: bytes) -> str:
     return raw.decode("latin-1").rstrip(" \0")
+
+
+#: The one-unpack layouts of write_response/read_response (header block first), for protocol/pnio_call.py, which
+#: reads them at their place in a whole reply datagram instead of a copy of its blocks (issue 29, row pn).
+WRITE_RES_FIELDS = _WRITE_RES_FIELDS
+READ_RES_FIELDS = _READ_RES_FIELDS

@@ -556,9 +556,13 @@ class SimDrive:
         return self._serve(server, self._answer_mailbox, mailbox)
 
     def _answer_mailbox(self, mailbox: bytes) -> list[bytes]:
+        """The SDO server's answer, behind the emergencies the drive raised since the last mailbox: taken only
+        when the fault component's queue holds some (the usual mailbox finds it empty and changes nothing)."""
         server = self._sdo_server
-        for emcy in server.access.faults.take_emergencies():  # type: ignore[union-attr]
-            server.queue_emergency(emcy)  # type: ignore[union-attr]
+        faults = server.access.faults  # type: ignore[union-attr]
+        if faults.emergencies:
+            for emcy in faults.take_emergencies():
+                server.queue_emergency(emcy)  # type: ignore[union-attr]
         return server.handle(mailbox)  # type: ignore[union-attr]
 
     def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:

@@ -83,7 +83,7 @@ class GatewayHandler:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
-        CodecError, header_size = self._codec_error, self._header_size  # noqa: N806 - the class, looked up once
+        CodecError = self._codec_error  # noqa: N806 - the class, looked up once
         try:
             raw = self._unwrap(datagram)
         except CodecError:
@@ -92,14 +92,16 @@ class GatewayHandler:
         drive = self.stations.get(address)
         if drive is None:
             return []
-        fault = self.injector.decide() if self.injector.every else None
-        if fault == "drop":
-            return []
-        if fault == "mbxerr":
-            replies = [mailbox_error_reply(raw)]
-        elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
-            replies = [abort]
-        else:
+        replies: list[bytes] | None = None
+        if self.injector.every:
+            fault = self.injector.decide()
+            if fault == "drop":
+                return []
+            if fault == "mbxerr":
+                replies = [mailbox_error_reply(raw)]
+            elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
+                replies = [abort]
+        if replies is None:
             try:
                 replies = self.repeats.answer((peer, address), raw, drive.handle_mailbox)
             except CodecError:
@@ -107,6 +109,7 @@ class GatewayHandler:
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
                 request_failed("ethercat-udp", exc)
                 replies = failure_reply(raw)
+        wrap, header_size = self._wrap, self._header_size
         out = []
         for reply in replies:
             if len(reply) < header_size:
@@ -114,7 +117,7 @@ class GatewayHandler:
             if reply[2] | reply[3] << 8 != address:
                 reply = reply[:2] + raw[2:4] + reply[4:]
             try:
-                out.append(self._wrap(reply))
+                out.append(wrap(reply))
             except CodecError:
                 continue
         return out

@@ -34,20 +34,27 @@ class MailboxRepeats:
         self._last: OrderedDict[Hashable, tuple[bytes, list[bytes], float]] = OrderedDict()
 
     def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
-        """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it."""
-        counter = (request[5] >> 4) & 0x07 if len(request) >= 6 else 0
-        if not counter:
-            self._last.pop(link, None)  # a mailbox without a counter ends the sequence
+        """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it.
+
+        The list ``handle`` returned is kept as it is for a repeat (each repeat gets a copy): callers read it and
+        do not change it."""
+        last_of = self._last
+        if len(request) < 6 or not request[5] & 0x70:  # the counter (bits 4-6) is 0: none
+            last_of.pop(link, None)  # a mailbox without a counter ends the sequence
             return handle(request)
-        last = self._last.get(link)
         now = time.monotonic()
-        if last is not None and last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
+        last = last_of.get(link)
+        if last is None:
+            replies = handle(request)
+            last_of[link] = (request if request.__class__ is bytes else bytes(request), replies, now)
+            if len(last_of) > self.max_links:
+                last_of.popitem(last=False)
+            return replies
+        if last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
             self.repeats += 1
-            self._last.move_to_end(link)
+            last_of.move_to_end(link)
             return list(last[1])
         replies = handle(request)
-        self._last[link] = (bytes(request), list(replies), now)
-        self._last.move_to_end(link)
-        if len(self._last) > self.max_links:
-            self._last.popitem(last=False)
+        last_of[link] = (request if request.__class__ is bytes else bytes(request), replies, now)
+        last_of.move_to_end(link)
         return replies

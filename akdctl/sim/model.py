@@ -401,9 +401,7 @@ class DriveModel:
 
         entry = object_catalog.lookup(index, subindex)
         if entry is None:
-            if not object_catalog.subentries(index):
-                raise SdoAccessError(ABORT_NO_OBJECT)
-            raise SdoAccessError(ABORT_NO_SUBINDEX)
+            raise SdoAccessError(ABORT_NO_SUBINDEX if object_catalog.subentries(index) else ABORT_NO_OBJECT)
         return entry
 
     def stored_object(self, index: int, subindex: int) -> bytes:
@@ -418,14 +416,24 @@ class DriveModel:
         self.revision += 1
 
     def object_read(self, index: int, subindex: int) -> bytes:
-        binding = self._object_binding(index)
-        if binding and binding.read:
+        """A component's reader if one binds the index, else the stored value or the catalogue's default.
+
+        What the catalogue says of an address (no such object or sub-index, write-only, the default bytes) is
+        static data, so it is looked up once per (index, subindex) into :data:`_READ_PLANS`; the binding and the
+        stored value are read from this model on every call (a component built later, a value written since)."""
+        binding = self._object_bindings.get(index)
+        if binding is None and (index in LAZY_OBJECTS or index in self._object_builders):
+            binding = self._object_binding(index)  # builds the component or part that binds it
+        if binding is not None and binding.read is not None:
             return binding.read(subindex)
-        entry = self.object_entry(index, subindex)
-        if entry.access == "wo":
-            raise SdoAccessError(ABORT_WRITE_ONLY)
-        data = self.object_values.get((index, subindex))  # stored_object's rule, the entry looked up once
-        return _default_bytes(entry) if data is None else data
+        key = (index, subindex)
+        plan = _READ_PLANS.get(key)
+        if plan is None:
+            plan = _read_plan(index, subindex)
+        if plan.__class__ is int:
+            raise SdoAccessError(plan)
+        data = self.object_values.get(key)
+        return plan if data is None else data  # type: ignore[return-value]
 
     def object_write(self, index: int, subindex: int, data: bytes) -> None:
         entry = self.object_entry(index, subindex)
@@ -571,6 +579,24 @@ def _entry_size(entry: Any) -> int | None:
 
 def _entry_signed(entry: Any) -> bool:
     return entry.short_type.startswith("i")
+
+
+#: What the catalogue makes of a read of a catalogued (index, subindex) without a binding: the abort code (an int)
+#: of a write-only entry, else the default bytes. Catalogue data only (static: the catalogue and the simulator's
+#: presets never change in a process), so no model's state can make a plan stale; tests/test_fast_paths.py holds
+#: the plans equal to object_entry + _default_bytes for every catalogued address.
+_READ_PLANS: dict[tuple[int, int], bytes | int] = {}
+
+
+def _read_plan(index: int, subindex: int) -> bytes | int:
+    from akdctl.catalog import objects as object_catalog
+
+    entry = object_catalog.lookup(index, subindex)
+    if entry is None:  # not kept: the plans hold the catalogue's entries only, whatever addresses a client sends
+        return ABORT_NO_SUBINDEX if object_catalog.subentries(index) else ABORT_NO_OBJECT
+    plan = ABORT_WRITE_ONLY if entry.access == "wo" else _default_bytes(entry)
+    _READ_PLANS[(index, subindex)] = plan
+    return plan
 
 
 def _default_bytes(entry: Any) -> bytes:

@@ -180,12 +180,16 @@ class SdoServer:
             upload = plain_upload_initiate(mailbox)
             if upload is not None:
                 address, counter, index, subindex = upload
-                self._download = None
-                self._upload = None
-                value = self._read(index, subindex)
-                if isinstance(value, bytes) and 1 <= len(value) <= 4:
+                self._download = self._upload = None
+                try:  # _read, inline: the poll's one call into the model
+                    value = self.access.object_read(index, subindex)
+                except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
+                    value = self._read_failed(index, subindex, exc)
+                if value.__class__ is bytes and 1 <= len(value) <= 4:
                     replies = [pack_expedited_upload_mailbox(address, counter, index, subindex, value)]
                 else:
+                    if not isinstance(value, coe.SdoAbort):
+                        value = bytes(value)
                     replies = [self._upload_answer(_Request(address, counter), index, subindex, value)]
             else:
                 replies = self._handle(bytes(mailbox))
@@ -320,11 +324,15 @@ class SdoServer:
     def _read(self, index: int, subindex: int) -> bytes | coe.SdoAbort:
         try:
             return bytes(self.access.object_read(index, subindex))
-        except SdoAccessError as exc:
+        except Exception as exc:  # noqa: BLE001 - every failure becomes an abort
+            return self._read_failed(index, subindex, exc)
+
+    def _read_failed(self, index: int, subindex: int, exc: Exception) -> coe.SdoAbort:
+        """The abort a failed ``object_read`` answers with: the model's own code, else a general error (logged)."""
+        if isinstance(exc, SdoAccessError):
             return self._abort(index, subindex, exc.code)
-        except Exception:
-            log.exception("object_read(0x%04X, %d) failed", index, subindex)
-            return self._abort(index, subindex, coe.ABORT_GENERAL)
+        log.error("object_read(0x%04X, %d) failed", index, subindex, exc_info=exc)
+        return self._abort(index, subindex, coe.ABORT_GENERAL)
 
     def _write(self, index: int, subindex: int, data: bytes) -> coe.SdoAbort | None:
         try:

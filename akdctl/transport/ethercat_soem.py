@@ -44,9 +44,10 @@ class EthercatSoemTransport(Transport):
         for attr in ("sdo_read_timeout", "sdo_write_timeout"):
             with contextlib.suppress(AttributeError, TypeError, ValueError):
                 setattr(master, attr, micro)
-        count = master.config_init()
+        count = _config_init(master, self.options.timeout)
         if count <= 0:
-            raise NoAnswer(f"no EtherCAT slave answered on {ifname} (SOEM config_init found none)")
+            raise NoAnswer(f"no EtherCAT slave answered on {ifname} within {self.options.timeout:g} s "
+                           "(SOEM config_init found none)")
         if position >= count:
             raise UsageError(f"target {self.target.raw!r}: no slave at position {position} "
                              f"({count} slave{'s' if count != 1 else ''} found, positions 0..{count - 1})")
@@ -143,3 +144,19 @@ class EthercatSoemTransport(Transport):
 
     def open_mailbox(self) -> None:
         """Already in PRE-OP after :meth:`foe_write_in_boot` (the raw transport's counterpart re-opens it)."""
+
+
+def _config_init(master: Any, timeout: float) -> int:
+    """SOEM's ``config_init``, repeated while it finds no slave and ``timeout`` (``--timeout``) is not over.
+
+    Why: one ``config_init`` waits only SOEM's own few milliseconds per frame; a slave that answers later (a busy
+    link, a simulated drive on a loaded machine) is then "no slave", while the command was told to wait
+    ``--timeout`` for its drive. Repeating is harmless: it only counts and reads the slaves."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while True:
+        count = int(master.config_init())
+        if count > 0 or time.monotonic() >= deadline:
+            return count
+        time.sleep(0.05)

@@ -72,8 +72,8 @@ class GatewayMailboxLink(MailboxLink):
         sock = self.sock
         if sock is None:
             raise self._closed()
-        if mailbox[2:4] != self._address:  # the mailbox names the gateway's station (the channel writes it)
-            mailbox = mailbox[:2] + self._address + mailbox[4:]
+        if mailbox[2] | mailbox[3] << 8 != self.station:  # the mailbox names the gateway's station (the channel
+            mailbox = mailbox[:2] + self._address + mailbox[4:]  # writes it)
         try:
             datagram = wrap_gateway(mailbox)
         except MailboxError as exc:
@@ -118,16 +118,14 @@ class GatewayMailboxLink(MailboxLink):
                     tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
                 now = time.monotonic()
                 continue
-            address = mailbox[2:4]
-            if address != self._address and address != b"\x00\x00":
+            address = mailbox[2] | mailbox[3] << 8
+            if address != self.station and address:
                 if tracer.active:
-                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {int.from_bytes(address, 'little')}",
-                                 meta=self._meta("rx"))
+                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {address}", meta=self._meta("rx"))
                 now = time.monotonic()
                 continue
             if tracer.active:
-                tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {int.from_bytes(address, 'little')}",
-                             meta=self._meta("rx"))
+                tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {address}", meta=self._meta("rx"))
             self.received += 1
             return mailbox
 

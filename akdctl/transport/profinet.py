@@ -44,7 +44,8 @@ from akdctl.links import Deadline, RecordLink
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.pnio_call import RecordCalls, plain_response
-from akdctl.transport.base import LinkOptions, Transport, keep_socket_timeout
+from akdctl.transport.base import LinkOptions, Transport
+from akdctl.transport.tcp_stream import BoundedSocket
 
 if TYPE_CHECKING:
     from akdctl.transport.target import Target
@@ -59,6 +60,30 @@ NCA_TEXTS = {0x1C010003: "unknown interface (not a PNIO device interface)", 0x1C
              0x1C010014: "server too busy", 0x1C00001C: "protocol error", 0x1C010013: "unsupported type"}
 
 
+class Begun:
+    """A call whose first attempt :meth:`ProfinetTransport.quick_exchange` sent at ``sent_at`` (``time.monotonic()``)
+    without getting the usual answer: ``taken`` is the datagram it received instead (None: none came within the
+    attempt's wait, or the send found the host unreachable). :meth:`RpcClient.exchange` goes on from there."""
+
+    __slots__ = ("sent_at", "taken")
+
+    def __init__(self, sent_at: float, taken: bytes | None) -> None:
+        self.sent_at = sent_at
+        self.taken = taken
+
+
+class Step:
+    """Where :meth:`ProfinetTransport.quick_exchange` left a request: in the Write call (``read_seq`` -1) or the Read
+    call (``read_seq``: its record sequence number); ``datagram`` is that call's, ``begun`` where it stands."""
+
+    __slots__ = ("read_seq", "datagram", "begun")
+
+    def __init__(self, read_seq: int, datagram: bytes, begun: Begun) -> None:
+        self.read_seq = read_seq
+        self.datagram = datagram
+        self.begun = begun
+
+
 class RpcClient:
     """DCE/RPC CL calls to one PNIO device: one activity, sequence numbers, retransmission."""
 
@@ -69,7 +94,6 @@ class RpcClient:
         self.activity = uuid.uuid4()
         self.template = dcerpc.RequestTemplate(object_uuid, pnio.DEVICE_INTERFACE, self.activity)
         self._activity_be, self._activity_le = self.activity.bytes, self.activity.bytes_le
-        self._timeout = 0.0     # the socket's timeout as last set (set again only when a wait needs another)
         self.sequence = 0
         self.stale = 0          # replies dropped as duplicates or leftovers of earlier calls
         self._buffer = bytearray(65536)  # one receive buffer: no 64 KiB allocation per datagram
@@ -82,6 +106,8 @@ class RpcClient:
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
             self.sock.connect(address)
+            # every receive ends by its attempt's end, in one recv(2) where the kernel can bound it (tcp_stream)
+            self.stream = BoundedSocket(self.sock, options.timeout)
         except OSError as exc:
             self.sock.close()
             raise CommError(f"{label}: cannot reach {host}:{port} ({exc.strerror})") from None
@@ -110,44 +136,57 @@ class RpcClient:
         self.sequence = sequence = (self.sequence + 1) & 0xFFFFFFFF
         return sequence
 
-    def exchange(self, datagram: bytes, opnum: int, deadline: Deadline) -> tuple[pnio.PnioStatus, bytes]:
+    def exchange(self, datagram: bytes, opnum: int, deadline: Deadline,
+                 begun: "Begun | None" = None) -> tuple[pnio.PnioStatus, bytes]:
         """Send the datagram of call :attr:`sequence` and wait for its answer within ``deadline`` (see :meth:`call`).
 
         The same datagram goes out again after each attempt's share of the deadline: the device recognises the
         repeat by activity and sequence number and answers from its cache, so a write is not applied twice.
         The usual reply (our activity, this sequence, one unfragmented response) is read by
         :func:`pnio_call.plain_response`; every other datagram, and every datagram while tracing, by :meth:`_accept`.
+        ``begun``: the call's first attempt went out on :meth:`ProfinetTransport.quick_exchange` and did not end it;
+        this goes on from there exactly as if it had sent that attempt itself.
         """
         sequence = self.sequence
         tracing = self.options.tracer.active
         reassembler: list[dcerpc.Reassembler] | None = None  # made when the general path first takes a datagram
         attempts = deadline.attempts
-        sock, buffer, activity_be, activity_le = self.sock, self._buffer, self._activity_be, self._activity_le
+        sock, stream, buffer = self.sock, self.stream, self._buffer
+        activity_be, activity_le = self._activity_be, self._activity_le
         for sent in range(attempts):
-            if sent and deadline.expired():
-                break
-            if tracing:
-                self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}" + (" (retransmission)" if sent else ""))
-            try:
-                sock.send(datagram)
-            except OSError as exc:
-                self._send_failed(exc, opnum)
-            if sent:
-                self.retransmissions += 1
-            now = time.monotonic()
-            resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of what is left
-            wait = resend_at - now
-            while wait > 0:
-                self._timeout = keep_socket_timeout(sock, self._timeout, wait)
+            if begun is not None:  # the first attempt is out (the quick path's): its share counts from when it went
+                now = begun.sent_at
+                resend_at = now + max(0.0, deadline.at - now) / attempts
+                taken, begun = begun.taken, None
+                if taken is not None:  # a datagram the quick path did not take: the general path reads it
+                    reassembler = []
+                    result = self._accept(taken, _opname(opnum), reassembler)
+                    if result is not None:
+                        return result
+                wait = resend_at - time.monotonic()
+            else:
+                if sent and deadline.expired():
+                    break
+                if tracing:
+                    self._trace("tx", datagram, f"{_opname(opnum)} seq {sequence}"
+                                + (" (retransmission)" if sent else ""))
                 try:
-                    data = buffer[:sock.recv_into(buffer)]
-                except socket.timeout:
-                    wait = resend_at - time.monotonic()  # the socket's timeout may end a little before resend_at
-                    continue
-                except ConnectionRefusedError:
-                    raise self._refused(_opname(opnum)) from None
+                    sock.send(datagram)
                 except OSError as exc:
-                    raise CommError(f"{self.label}: receive failed ({exc.strerror})") from None
+                    self._send_failed(exc, opnum)
+                if sent:
+                    self.retransmissions += 1
+                now = time.monotonic()
+                resend_at = now + max(0.0, deadline.at - now) / (attempts - sent)  # this attempt's share of the rest
+                wait = resend_at - now
+            while wait > 0:
+                try:
+                    size = stream.recv_into(resend_at, buffer)
+                except OSError as exc:
+                    raise self._receive_failed(exc, opnum) from None
+                if size is None:
+                    break  # nothing before resend_at: the next attempt
+                data = buffer[:size]
                 if not tracing:
                     result = plain_response(data, sequence, activity_be, activity_le)
                     if result is not None:
@@ -160,11 +199,19 @@ class RpcClient:
                 wait = resend_at - time.monotonic()
         raise NoAnswer(f"{self.label}: no answer to PNIO {_opname(opnum)} within {deadline.describe()}")
 
+    def _receive_failed(self, exc: OSError, opnum: int) -> CommError:
+        """The error of a receive that failed (other than by its timeout)."""
+        if isinstance(exc, ConnectionRefusedError):
+            return self._refused(_opname(opnum))
+        return CommError(f"{self.label}: receive failed ({exc.strerror})")
+
     def _send_failed(self, exc: OSError, opnum: int) -> None:
         """A send that failed: nothing listens (refused), or the host cannot be reached now (the attempt's wait
         follows as if the datagram were lost), or the socket failed."""
         if isinstance(exc, ConnectionRefusedError):
             raise self._refused(_opname(opnum)) from None
+        if isinstance(exc, BlockingIOError):  # SO_SNDTIMEO (tcp_stream): the send buffer stayed full
+            raise CommError(f"{self.label}: cannot send (timed out)") from None
         if exc.errno not in (errno.EHOSTUNREACH, errno.ENETUNREACH):
             raise CommError(f"{self.label}: cannot send ({exc.strerror})") from None
 
@@ -234,12 +281,39 @@ class PnioRecordLink(RecordLink):
         if len(request) > MAX_RECORD:
             raise UsageError(f"{t.label}: parameter request of {len(request)} bytes exceeds the record limit "
                              f"of {MAX_RECORD} bytes")
-        with t.lock, t.options.budget.request() as deadline:
+        with t.lock:
+            options = t.options
+            # The usual request (tracing off, an AR, nothing unanswered before it): ProfinetTransport.quick_exchange
+            at = None if options.tracer.active or t._calls is None else options.budget.lone()
+            if at is None:
+                return self._exchange(request, None, None)
             try:
-                status = t.write_record(request, deadline)[0]
-                if status.busy:
-                    self._until_not_busy(deadline, status, t.write_record, request, "write")
-                status, data = t.read_record(deadline)
+                step = t.quick_exchange(request, at)
+            except BaseException:
+                t._last_activity = time.monotonic()
+                raise
+            if step.__class__ is bytes:
+                return step  # type: ignore[return-value]
+            return self._exchange(request, at, step)  # type: ignore[arg-type]
+
+    def _exchange(self, request: bytes, at: float | None, step: "Step | None") -> bytes:
+        """Write record, then read record, by the general path; ``step``: where :meth:`ProfinetTransport.quick_exchange`
+        left the same request (begun at the end time ``at``), to go on from there."""
+        t = self.t
+        with t.options.budget.request(at=at) as deadline:
+            try:
+                if step is None or step.read_seq < 0:  # the write is still to do, or to finish
+                    if step is None:
+                        status = t.write_record(request, deadline)[0]
+                    else:
+                        status = t._write_outcome(t._need_rpc().exchange(step.datagram, pnio.OP_WRITE, deadline,
+                                                                         step.begun))[0]
+                    if status.busy:
+                        self._until_not_busy(deadline, status, t.write_record, request, "write")
+                    status, data = t.read_record(deadline)
+                else:
+                    reply = t._need_rpc().exchange(step.datagram, pnio.OP_READ, deadline, step.begun)
+                    status, data = t._read_reply(t.address, step.read_seq, *reply)
                 if status.busy:
                     data = self._until_not_busy(deadline, status, t.read_record, None, "read")
                 return data
@@ -365,7 +439,7 @@ class ProfinetTransport(Transport):
             if res.ar_uuid != ar_uuid:
                 raise MalformedReply(f"{self.label}: Connect response names AR {res.ar_uuid}, we asked for {ar_uuid}")
             self.ar_uuid = ar_uuid
-            self._calls = None
+            self._record_calls()  # the parameter record's datagrams for this AR: the first request is a usual one
             self._last_activity = time.monotonic()
         self._stop.clear()
         self._keepalive = threading.Thread(target=self._keepalive_loop, name="pn-keepalive", daemon=True)
@@ -429,7 +503,12 @@ class ProfinetTransport(Transport):
         calls = self._calls or self._record_calls()  # (made for an AR: raises "not connected" without one)
         rpc = self._need_rpc()
         self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
-        status, blocks = rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE, deadline)
+        return self._write_outcome(rpc.exchange(calls.write(rpc.next_sequence(), rw_seq, data), pnio.OP_WRITE,
+                                                deadline))
+
+    def _write_outcome(self, reply: RecordReply) -> RecordReply:
+        """What a Write call's answer (PNIOStatus, blocks) means: (status, b''), busy included; raises on a refusal."""
+        status, blocks = reply
         if status is pnio.OK and blocks:  # (the usual answer: its IODWriteResHeader holds the write's own status)
             try:
                 status = pnio.write_response(blocks)[2]
@@ -465,10 +544,58 @@ class ProfinetTransport(Transport):
                 return status, data
         return self._read_reply(self.address, seq, status, blocks)
 
+    def quick_exchange(self, request: bytes, at: float) -> "bytes | Step":
+        """Write record ``request``, then read record, for a request that ends at ``at``: the record's data when both
+        calls got the usual answer at once (an OK write; an OK read of our record and sequence); else the
+        :class:`Step` where the request stands, for the general path (:meth:`PnioRecordLink._exchange`) to go on
+        from - with the same datagrams, sequence numbers and time, so every outcome is the general path's.
+
+        Why: this is a PNU read, and its usual course is two datagrams out and two back (issue 29, row pn). Only
+        without tracing and with an AR (the link checks both); raises what the calls raise for a failed send or
+        receive.
+        """
+        rpc, calls = self.rpc, self._calls
+        assert rpc is not None and calls is not None
+        attempts = self.options.budget.attempts
+        sock, stream, buffer, monotonic = rpc.sock, rpc.stream, rpc._buffer, time.monotonic
+        self._rw_seq = rw_seq = (self._rw_seq + 1) & 0xFFFF
+        rpc.sequence = sequence = (rpc.sequence + 1) & 0xFFFFFFFF
+        datagram = calls.write(sequence, rw_seq, request)
+        read_seq = -1  # the Write call first, then the Read call with its own record sequence number
+        while True:  # each call's first attempt as RpcClient.exchange makes it: send, then wait for its share
+            try:
+                sock.send(datagram)
+            except OSError as exc:
+                rpc._send_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE)  # raises unless unreachable
+                return Step(read_seq, datagram, Begun(monotonic(), None))
+            now = monotonic()
+            wait = (at - now) / attempts if at > now else 0.0
+            if wait <= 0:
+                return Step(read_seq, datagram, Begun(now, None))
+            try:
+                size = stream.recv_into(now + wait, buffer)
+            except OSError as exc:
+                raise rpc._receive_failed(exc, pnio.OP_READ if read_seq >= 0 else pnio.OP_WRITE) from None
+            if size is None:
+                return Step(read_seq, datagram, Begun(now, None))
+            if read_seq < 0:  # (each answer is read in the receive buffer: copied only for the general path)
+                if not calls.written(buffer, size, sequence):
+                    return Step(-1, datagram, Begun(now, buffer[:size]))
+                self._rw_seq = read_seq = (rw_seq + 1) & 0xFFFF
+                rpc.sequence = sequence = (sequence + 1) & 0xFFFFFFFF
+                datagram = calls.read(sequence, read_seq)
+                continue
+            record = calls.read_data(buffer, size, sequence, read_seq)
+            if record is None:
+                return Step(read_seq, datagram, Begun(now, buffer[:size]))
+            self._last_activity = now
+            return record
+
     def _record_calls(self) -> RecordCalls:
         """The parameter record's Write and Read datagrams for this AR, encoded once (``protocol/pnio_call.py``)."""
         ar = self._need_ar()
-        self._calls = RecordCalls(self._need_rpc().template, ar.bytes, self.address, MAX_RECORD)
+        rpc = self._need_rpc()
+        self._calls = RecordCalls(rpc.template, ar.bytes, self.address, MAX_RECORD, rpc.activity)
         return self._calls
 
     def _need_rpc(self) -> RpcClient:

@@ -1,5 +1,5 @@
 """A TCP connection to a drive whose every receive ends by a given time, with as few system calls as that allows:
-the one place the TCP transports (``akd://``, ``mb://``, ``eip://``) wait on a socket.
+the one place the TCP transports (``akd://``, ``mb://``, ``eip://``) and ``pn://``'s UDP client wait on a socket.
 
 Why a module of its own: a request/response client on loopback spends most of its CPU in system calls, and
 Python's socket timeout costs two per receive (``poll(2)`` then ``recv(2)``) plus one per ``settimeout``. On
@@ -49,29 +49,22 @@ def early(left: float) -> float:
     return left * 0.875 - 0.01
 
 
-class TcpStream:
-    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time."""
+class BoundedSocket:
+    """One connected socket whose every receive ends by a given time (the rules above). One caller at a time.
+
+    Stream or datagram: :class:`TcpStream` adds what TCP needs; ``pn://``'s DCE/RPC client uses this for its UDP
+    socket (:meth:`recv_into`).
+    """
 
     __slots__ = ("sock", "_wait", "_polled")
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         self.sock = sock
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._wait = -1.0     # the receive timeout set on the socket (-1: none yet)
         self._polled = True   # Python's polled timeout is on (elsewhere than Linux: always)
         if KERNEL_TIMEOUTS:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, _timeval(send_timeout))
         sock.settimeout(send_timeout)
-
-    @classmethod
-    def connect(cls, host: str, port: int, timeout: float) -> "TcpStream":
-        """Connect within ``timeout`` s (``socket.create_connection``'s errors as they are)."""
-        sock = socket.create_connection((host, port), timeout=timeout)
-        try:
-            return cls(sock, timeout)
-        except OSError:
-            sock.close()
-            raise
 
     def _bound(self, left: float, precise: bool) -> None:
         """Bound the next receive by ``left`` s: the kernel's timeout ending early, kept while within the
@@ -142,6 +135,34 @@ class TcpStream:
             except (BlockingIOError, socket.timeout):
                 continue
 
+    def recv_into(self, at: float, buffer: bytearray) -> int | None:
+        """Receive one datagram into ``buffer`` if one arrives before the monotonic time ``at``: its length, or
+        ``None`` when none did by then. Unlike :meth:`recv` it does not look when no time is left (the caller's
+        wait is over). Other failures raise ``OSError``.
+
+        The timeout set is kept while it is anywhere from half to all of what the wait wants (not only within
+        :data:`SLACK`): a datagram client's waits are shares of a request's time that differ by the moments the
+        thread was not running, and a timeout that ends early only costs the rest's wait when no datagram comes."""
+        left = at - _monotonic()
+        if left <= 0.0:
+            return None
+        wanted = left * 0.875 - 0.01  # early(left), inline: the hot path
+        if self._polled or not wanted * 0.5 <= self._wait <= wanted:
+            self._bound(left, False)
+        try:
+            return self.sock.recv_into(buffer)
+        except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
+            pass
+        while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
+            left = at - _monotonic()
+            if left <= 0.0:
+                return None
+            self._bound(left, True)
+            try:
+                return self.sock.recv_into(buffer)
+            except (BlockingIOError, socket.timeout):
+                continue
+
     def send(self, data: bytes) -> None:
         """All of ``data``; ``socket.timeout`` when the send buffer stayed full for the command's timeout."""
         try:
@@ -171,4 +192,24 @@ class TcpStream:
             pass
 
 
-__all__ = ["TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
+class TcpStream(BoundedSocket):
+    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time."""
+
+    __slots__ = ()
+
+    def __init__(self, sock: socket.socket, send_timeout: float) -> None:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        super().__init__(sock, send_timeout)
+
+    @classmethod
+    def connect(cls, host: str, port: int, timeout: float) -> "TcpStream":
+        """Connect within ``timeout`` s (``socket.create_connection``'s errors as they are)."""
+        sock = socket.create_connection((host, port), timeout=timeout)
+        try:
+            return cls(sock, timeout)
+        except OSError:
+            sock.close()
+            raise
+
+
+__all__ = ["BoundedSocket", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
