@@ -143,9 +143,12 @@ def test_ethercat_udp_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_s
     face = _served(face_ethercat_udp.from_options(SimDrive("default", tmp_path), ethercat_udp="127.0.0.1:0"))
     target = ("-T", f"ecat-udp://127.0.0.1:{face.port}/1001", "--timeout", "2")  # type: ignore[attr-defined]
     try:
-        failing.fail()
+        # every transaction fails until the read was answered: the face's own loop takes transactions too (its
+        # heartbeat and emergencies), and one of those took a single failure before the request under load
+        failing.fail(count=10**6)
         code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 1 and "0x08000000" in err
+        failing.fail(count=0)
         code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 0 and "106" in out, err
     finally:
@@ -175,9 +178,12 @@ def test_can_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_serving(
     face = _served(face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec(f"virtual:{channel}:1")))
     target = ("-T", f"can://virtual/{channel}/1", "--timeout", "2")
     try:
-        failing.fail()
+        # every transaction fails until the read was answered: the face's own loop takes transactions too (its
+        # heartbeat and emergencies), and one of those took a single failure before the request under load
+        failing.fail(count=10**6)
         code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 1 and "0x08000000" in err
+        failing.fail(count=0)
         code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 0 and "106" in out, err
     finally:
