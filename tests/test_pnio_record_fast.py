@@ -57,33 +57,47 @@ def test_record_call_fields_recognise_what_plain_record_call_does() -> None:
         little, sequence, opnum, req = plain
         assert fields == (little, data[40:56], sequence, opnum, req.ar,
                           pnio_record.record_address(req.api, req.slot, req.subslot), req.index, req.length)
-        shape, shape_sequence = pnio_record.record_call_fields(data)  # type: ignore[misc]
+        shape, shape_sequence, record_sequence = pnio_record.record_call_fields(data)  # type: ignore[misc]
         assert (shape[:2], shape_sequence, shape[2:7]) == (fields[:2], fields[2], fields[3:])
+        assert record_sequence == req.seq.to_bytes(2, "big")
         if opnum == pnio.OP_WRITE:
             assert data[164:164 + fields[-1]] == req.data
     assert recognised > 1000
 
 
 def test_ok_replies_are_the_general_replies() -> None:
+    """write_ok/read_ok pack a shape's template (cut from the general reply to its first call): every later call of
+    the shape -- another sequence number, record sequence number, boot time, record of another length -- still gets
+    the general codecs' bytes."""
     rng = random.Random(7)
-    checked = 0
-    for data in _requests(31, 2000):
-        plain = pnio_record.plain_record_call(data)
-        if plain is None:
-            continue
-        little, _sequence, opnum, req = plain
-        boot = rng.getrandbits(32)
-        if opnum == pnio.OP_WRITE:
-            expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.write_res(req, pnio.OK))
-            assert pnio_record.write_ok(data, little, boot) == expected
-        else:
-            record = bytes(rng.getrandbits(8) for _ in range(rng.choice([0, 4, 12, 240])))
-            expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.read_res(req, record))
-            assert pnio_record.read_ok(data, little, boot, record) == expected
-        reply = dcerpc.decode_packet(expected)  # and the general codecs read it back
-        assert reply.header.ptype == dcerpc.PT_RESPONSE
-        checked += 1
-    assert checked > 500
+    checked = reused = 0
+    pnio_record._SHAPES.clear()
+    for first in _requests(31, 2000):
+        for variant in range(4):
+            data = first
+            if variant:  # another sequence number and record sequence number: the same shape, its templates kept
+                data = first[:64] + rng.getrandbits(32).to_bytes(4, "big") + first[68:106] + \
+                    rng.getrandbits(16).to_bytes(2, "big") + first[108:]
+            plain = pnio_record.plain_record_call(data)
+            fields = pnio_record.record_call_fields(data)
+            assert (plain is None) == (fields is None)
+            if plain is None or fields is None:
+                break
+            little, _sequence, opnum, req = plain
+            shape, sequence, record_sequence = fields
+            reused += bool(shape[8])
+            boot = rng.getrandbits(32)
+            if opnum == pnio.OP_WRITE:
+                expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.write_res(req, pnio.OK))
+                assert pnio_record.write_ok(data, shape, sequence, record_sequence, boot) == expected
+            else:
+                record = bytes(rng.getrandbits(8) for _ in range(rng.choice([0, 4, 12, 240])))
+                expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.read_res(req, record))
+                assert pnio_record.read_ok(data, shape, sequence, record_sequence, boot, record) == expected
+            reply = dcerpc.decode_packet(expected)  # and the general codecs read it back
+            assert reply.header.ptype == dcerpc.PT_RESPONSE
+            checked += 1
+    assert checked > 1500 and reused > 1000
 
 
 def test_a_shape_seen_before_gives_what_every_check_gives() -> None:
@@ -109,6 +123,6 @@ def test_a_shape_seen_before_gives_what_every_check_gives() -> None:
             kept, checked = pnio_record.record_call_fields(data), pnio_record._record_call_fields(data)
             assert (kept is None) == (checked is None), data.hex()
             if kept is not None and checked is not None:
-                (little, activity, opnum, ar, address, index, length, _least), sequence = kept
+                (little, activity, opnum, ar, address, index, length, _least, _replies), sequence, _record = kept
                 assert (little, activity, sequence, opnum, ar, address, index, length) == checked, data.hex()
     assert hits > 1000

@@ -143,9 +143,12 @@ def test_ethercat_udp_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_s
     face = _served(face_ethercat_udp.from_options(SimDrive("default", tmp_path), ethercat_udp="127.0.0.1:0"))
     target = ("-T", f"ecat-udp://127.0.0.1:{face.port}/1001", "--timeout", "2")  # type: ignore[attr-defined]
     try:
-        failing.fail()
+        # every transaction fails until the read was answered: the face's own loop takes transactions too (its
+        # heartbeat and emergencies), and one of those took a single failure before the request under load
+        failing.fail(count=10**6)
         code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 1 and "0x08000000" in err
+        failing.fail(count=0)
         code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 0 and "106" in out, err
     finally:
@@ -175,9 +178,12 @@ def test_can_face_answers_a_failing_drive_with_an_sdo_abort_and_keeps_serving(
     face = _served(face_can.CanFace(SimDrive("default", tmp_path), face_can.parse_spec(f"virtual:{channel}:1")))
     target = ("-T", f"can://virtual/{channel}/1", "--timeout", "2")
     try:
-        failing.fail()
+        # every transaction fails until the read was answered: the face's own loop takes transactions too (its
+        # heartbeat and emergencies), and one of those took a single failure before the request under load
+        failing.fail(count=10**6)
         code, _, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 1 and "0x08000000" in err
+        failing.fail(count=0)
         code, out, err = akd_inproc(*target, "sdo", "read", "0x1018:1")
         assert code == 0 and "106" in out, err
     finally:
@@ -381,7 +387,7 @@ def test_profinet_replies_are_the_bytes_the_codecs_write(tmp_path: Path, little:
 
     face = face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0)
     sent: list[bytes] = []
-    face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+    face._sock = _Capture(sent)  # type: ignore[assignment]  # every reply goes through the socket's sendto
     ar, activity, address = uuid.uuid4(), uuid.uuid4(), pnio.RecordAddress()
     seq = iter(range(1, 100))
 
@@ -524,7 +530,7 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
             face._general = counted  # type: ignore[method-assign]
             face.boot_time = 1234
             sent: list[bytes] = []
-            face._raw_send = lambda data, peer: sent.append(data)  # type: ignore[method-assign]
+            face._sock = _Capture(sent)  # type: ignore[assignment]
             for request in requests:
                 sent.append(b"--")
                 face._datagram(request, ("127.0.0.1", 1))
@@ -536,3 +542,15 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
     assert sum(1 for f in short if f[:2] == b"\x04\x02") > 250  # mostly answered responses, not only refusals
     one_pass = len(requests) - generals.count(True)  # answered by _datagram's one pass (or dropped on receipt)
     assert one_pass > 20 and generals.count(True) > 20  # both ways were taken
+
+
+class _Capture:
+    """A stand-in for the PROFINET face's socket: what it sends is appended to ``sent`` (the face's one-pass
+    replies call ``sendto`` directly, the general path through ``_raw_send``)."""
+
+    def __init__(self, sent: list[bytes]) -> None:
+        self.sent = sent
+
+    def sendto(self, data: bytes, peer: object) -> int:
+        self.sent.append(data)
+        return len(data)

@@ -107,7 +107,7 @@ def _ecat_uploads(server: SimServer, counts: Counter[str], tracing: bool) -> Non
     try:
         objects = conn.objects()
         link = conn.transport().mailbox_link
-        link.sock = CountingSocket(link.sock, counts)  # type: ignore[union-attr]
+        link.sock = link.stream.sock = CountingSocket(link.sock, counts)  # type: ignore[union-attr]
         objects.upload(0x1018, 1)
         counts.clear()
         for _ in range(READS):
@@ -139,7 +139,7 @@ def test_ecat_uploads_trace_nothing_when_tracing_is_off(server: SimServer, count
     # At most one per request: an upload answered in its one pass (CoeObjectChannel.upload) needs none, only its
     # end time (Budget.lone); one that goes on in the general path makes one for all its attempts.
     assert counts["deadline"] <= READS
-    assert counts["settimeout"] == 0
+    assert counts["settimeout"] == 0  # the receive timeout set by the first upload stays (tcp_stream.BoundedSocket)
 
 
 def test_ecat_uploads_call_the_trace_hook_when_tracing_is_on(server: SimServer, counts: Counter[str]) -> None:

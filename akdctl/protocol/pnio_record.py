@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import functools
 import struct
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from akdctl.protocol import dcerpc, pnio
 from akdctl.protocol.pnio import BT_READ_REQ, BT_WRITE_REQ, OK, OP_READ, OP_WRITE
@@ -152,21 +152,8 @@ def pack_record_response(data: bytes, little: bool, boot: int, status: pnio.Pnio
 # Why besides plain_record_call/pack_record_response: those build a RecordCall and take a PnioStatus per call; the
 # calls that succeed -- nearly all of a poll -- need neither. The face reads the fields below, answers the OK cases
 # with write_ok/read_ok and hands every other case to plain_record_call and the general answer (tests/test_sim_faces.py
-# and tests/test_pnio_record_fast.py hold the two ways byte-equal).
-_BE32 = struct.Struct(">I").pack
-#: A Write record response with PNIOStatus OK: the reply header (as _RESPONSE), the NDR arguments of its one 64-byte
-#: IODWriteResHeader block, the request's record header (padding 0) with the data's length, then 4 + 16 bytes 0.
-_WRITE_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x6s24x")
-             for little, order in ((False, ">"), (True, "<"))}
-#: A Read record response with PNIOStatus OK, up to the data: as above with an IODReadResHeader carrying the data's
-#: length (big endian, as every PNIO block field) and 24 bytes 0.
-_READ_OK = {little: struct.Struct(order + "1sBBx52sI14sH2x2s4xII4xI6s26s2x2s4s24x")
-            for little, order in ((False, ">"), (True, "<"))}
-_WRITE_OK_BLOCKS = 64  # IODWriteResHeader: block header + 60
-# The zeros of both (x): flags2, fragment number, PNIOStatus OK, the NDR offset, padding and reserved bytes.
-assert _OK_BYTES == bytes(4)
-
-
+# and tests/test_pnio_record_fast.py hold the two ways byte-equal). The OK replies are cut once per shape from the
+# general codecs' reply (_template): a call then packs only what differs between the calls of its shape.
 #: From byte 0, by the request's data representation (0 big, 1 little endian): interface and activity UUID, sequence,
 #: opnum, body length, then the NDR arguments' length, maximum count, offset and actual count.
 _FIELDS = (struct.Struct(">24x16s16s8xIH4xH8xIIII"), struct.Struct("<24x16s16s8xIH4xH8xIIII"))
@@ -182,24 +169,34 @@ def record_address(api: int, slot: int, subslot: int) -> bytes:
     return _ADDRESS.pack(api, slot, subslot)
 
 
-_SEQUENCE = (struct.Struct(">I").unpack_from, struct.Struct("<I").unpack_from)  # at byte 64, by drep
+#: From byte 0, by the request's data representation (0 big, 1 little endian): the bytes the checks below read up to
+#: the sequence number, the sequence number, the bytes from it to the record's own sequence number, that (2 bytes,
+#: big endian as every PNIO block field: kept as bytes), and the record header's rest up to byte 140.
+_PARTS = (struct.Struct(">64sI38s2s32s").unpack_from, struct.Struct("<64sI38s2s32s").unpack_from)
+#: A shape of a plain record call: (little endian, activity UUID bytes, opnum, AR UUID bytes, address, index,
+#: length, the least datagram length it holds for, its OK replies' templates by record length: _template).
+Shape = tuple[bool, bytes, int, bytes, bytes, int, int, int, dict[int, tuple[Any, bytes, bytes, bytes, bytes]]]
 #: The shapes of plain record calls seen: every byte the checks below read, but the sequence (64..67), and the
-#: record's own sequence number (106..107, not checked) -> (the fields but the sequence, the least datagram length
-#: they hold for). A client's poll repeats two shapes; the checks' answer depends on nothing else.
-_SHAPES: dict[bytes, tuple[bool, bytes, int, bytes, bytes, int, int, int]] = {}
+#: record's own sequence number (106..107, not checked) -> its Shape. A client's poll repeats two shapes; the
+#: checks' answer depends on nothing else.
+_SHAPES: dict[bytes, Shape] = {}
 _SHAPES_KEPT = 64
 
 
-def record_call_fields(data: bytes) -> tuple[tuple[bool, bytes, int, bytes, bytes, int, int, int], int] | None:
-    """(shape, sequence) of a datagram :func:`plain_record_call` accepts (the same checks, no RecordCall; a shape
-    seen before is not checked twice), else None. The shape: (little endian, activity UUID bytes, opnum, AR UUID
-    bytes, address, index, length, the least datagram length it holds for); ``address``: API, slot and subslot as
-    :func:`record_address` packs them; ``length``: a write's record data length (the data is ``data[164:164 +
-    length]``), a read's most the client takes."""
-    key = data[:64] + data[68:106] + data[108:140]
+def record_call_fields(data: bytes) -> tuple[Shape, int, bytes] | None:
+    """(shape, sequence, record sequence) of a datagram :func:`plain_record_call` accepts (the same checks, no
+    RecordCall; a shape seen before is not checked twice), else None. The shape: (little endian, activity UUID
+    bytes, opnum, AR UUID bytes, address, index, length, the least datagram length it holds for, reply templates);
+    ``address``: API, slot and subslot as :func:`record_address` packs them; ``length``: a write's record data length
+    (the data is ``data[164:164 + length]``), a read's most the client takes; the record sequence number: its two
+    bytes, as the reply carries them back (:func:`write_ok`, :func:`read_ok`)."""
+    if len(data) < 164:
+        return None
+    head, sequence, middle, record_sequence, tail = _PARTS[data[4] >> 4 & 1](data)
+    key = head + middle + tail
     shape = _SHAPES.get(key)
     if shape is not None and len(data) >= shape[7]:
-        return shape, _SEQUENCE[shape[0]](data, 64)[0]
+        return shape, sequence, record_sequence
     fields = _record_call_fields(data)
     if fields is None:
         return None
@@ -208,8 +205,8 @@ def record_call_fields(data: bytes) -> tuple[tuple[bool, bytes, int, bytes, byte
     little, activity, sequence, opnum, ar, address, index, rlength = fields
     body = _FIELDS[little].unpack_from(data)[4]
     shape = _SHAPES[key] = (little, activity, opnum, ar, address, index, rlength,
-                            max(164, dcerpc.HEADER_SIZE + body))
-    return shape, sequence
+                            max(164, dcerpc.HEADER_SIZE + body), {})
+    return shape, sequence, record_sequence
 
 
 def _record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, bytes, int, int] | None:
@@ -237,18 +234,36 @@ def _record_call_fields(data: bytes) -> tuple[bool, bytes, int, int, bytes, byte
     return drep == 1, activity, sequence, opnum, ar, address, index, rlength
 
 
-def write_ok(data: bytes, little: bool, boot: int) -> bytes:
-    """The response to the plain Write record call ``data`` that succeeded: ``pack_record_response(data, little,
-    boot, *write_res(req, OK))`` in one pack."""
-    n = _WRITE_OK_BLOCKS
-    return _WRITE_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
-                                  20 + n, data[78:80], n, n, n, _WRITE_RES, data[106:132], data[134:140])
+def write_ok(data: bytes, shape: Shape, sequence: int, record_sequence: bytes, boot: int) -> bytes:
+    """The response to the plain Write record call ``data`` (:func:`record_call_fields` gave the rest) that
+    succeeded: what ``pack_record_response(data, little, boot, *write_res(req, OK))`` writes, in one pack."""
+    template = shape[8].get(-1)
+    if template is None:
+        template = shape[8][-1] = _template(data, None)
+    pack, head, interface, middle, tail = template
+    return pack(head, boot, interface, sequence, middle, record_sequence, tail)  # type: ignore[no-any-return]
 
 
-def read_ok(data: bytes, little: bool, boot: int, record: bytes) -> bytes:
-    """The response to the plain Read record call ``data`` answered with ``record``: ``pack_record_response(data,
-    little, boot, *read_res(req, record))`` in one pack."""
-    n = 64 + len(record)
-    return _READ_OK[little].pack(data[:1], dcerpc.PT_RESPONSE, dcerpc.FLAG_NOFACK, data[4:56], boot, data[60:74],
-                                 20 + n, data[78:80], n, n, n, _READ_RES, data[106:132], data[134:136],
-                                 _BE32(len(record))) + record
+def read_ok(data: bytes, shape: Shape, sequence: int, record_sequence: bytes, boot: int, record: bytes) -> bytes:
+    """The response to the plain Read record call ``data`` (:func:`record_call_fields` gave the rest) answered with
+    ``record``: what ``pack_record_response(data, little, boot, *read_res(req, record))`` writes, in one pack."""
+    template = shape[8].get(len(record))
+    if template is None:
+        template = shape[8][len(record)] = _template(data, record)
+    pack, head, interface, middle, tail = template
+    return pack(head, boot, interface, sequence, middle, record_sequence, tail, record)  # type: ignore[no-any-return]
+
+
+def _template(data: bytes, record: bytes | None) -> tuple[Any, bytes, bytes, bytes, bytes]:
+    """The OK reply to a shape's calls (a write's; a read's for a record of ``record``'s length) as a pack and the
+    bytes around what differs between the calls of the shape -- the boot time (56..59), the sequence number
+    (64..67), the record sequence number (106..107) and a read's record: the reply the general codecs write for
+    ``data``, cut there. Every other byte of it is one of the bytes the shape's key holds or a constant."""
+    plain = plain_record_call(data)
+    assert plain is not None  # record_call_fields accepted data: so does plain_record_call (the same checks)
+    little, _sequence, _opnum, req = plain
+    status, blocks = write_res(req, OK) if record is None else read_res(req, record)
+    full = pack_record_response(data, little, 0, status, blocks)
+    end = len(full) - (0 if record is None else len(record))
+    layout = f"{'<' if little else '>'}56sI4sI38s2s{end - 108}s" + ("" if record is None else f"{len(record)}s")
+    return struct.Struct(layout).pack, full[:56], full[60:64], full[68:106], full[108:end]

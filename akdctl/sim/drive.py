@@ -118,6 +118,7 @@ class SimDrive:
         self.meta: dict[str, Any] = {}
         self._sdo_server: Any = None
         self._pnu_server: Any = None
+        self._pnu_answer: Callable[[bytes], bytes] | None = None  # the PnuServer's handle, once it exists
         self._lock_fd = -1
         self.lock_timeout = LOCK_TIMEOUT  # sim serve lowers it to FACE_LOCK_TIMEOUT for its faces
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
@@ -532,12 +533,13 @@ class SimDrive:
 
     def handle_bmp(self, request: bytes) -> bytes:
         """Answer one PROFIdrive base-mode request as the drive's parameter manager."""
-        server = self._pnu_server
-        if server is None:
+        answer = self._pnu_answer
+        if answer is None:
             from akdctl.sim.pnu_server import PnuServer
 
-            server = self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
-        return self._serve(server, server.handle, request)
+            self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
+            answer = self._pnu_answer = self._pnu_server.handle  # bound once, not a method object per request
+        return self._serve(self._pnu_server, answer, request)
 
     def handle_mailbox(self, mailbox: bytes) -> list[bytes]:
         """Answer one EtherCAT mailbox (CoE) with the mailboxes the drive sends back.
@@ -566,12 +568,47 @@ class SimDrive:
     def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
         """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs.
 
-        With the lock kept since the last transaction (:attr:`_trusted`), the held model is current: the steps of
-        :meth:`_begin` and :meth:`_commit` that matter then -- the clock advanced, a save when the mark moved --
-        are done here without their token read and calls (the same rules; any other case takes them)."""
+        With the lock kept since the last transaction (:attr:`_trusted`; it is only ever true while the lock is
+        kept, :attr:`_holding`), the held model is current: the steps of :meth:`_begin` and :meth:`_commit` that
+        matter then -- the clock advanced, a save when the mark moved -- are done here as one straight line without
+        their token read and calls (the same rules); every other case takes :meth:`_serve_general`."""
         mutex = self._mutex
-        if not mutex.acquire(True, self.lock_timeout):  # _acquire's steps, inline (positional: no keyword parsing)
+        # _acquire's steps, inline: a free mutex is taken without converting a timeout (the usual case), else waited
+        # for up to lock_timeout (positional: no keyword parsing)
+        if not mutex.acquire(False) and not mutex.acquire(True, self.lock_timeout):
             raise CommError(self._locked_text())
+        held = self._held
+        if held is None or not self._trusted:
+            return self._serve_general(server, answer, request)  # it releases the mutex
+        try:
+            self._held = None  # dropped unless the request succeeds (a failed one reloads)
+            model, meta = held.model, held.meta
+            now = time.time()
+            model.time_scale = scale = meta["time_scale"]
+            wall = meta["wall"]
+            if now > wall:
+                model.advance((now - wall) * scale)
+            meta["wall"] = now
+            server.access = model
+            try:
+                result = answer(request)
+            except DamagedState as exc:
+                raise self._corrupt(str(exc)) from None
+            finally:
+                server.access = _OUTSIDE
+            mark = held.mark  # the mutex is held: meta's time scale is still ``scale``
+            if model.revision != mark[0] or scale != mark[1] or model.damage is not None:
+                self._commit(held, self._lock_fd)
+            else:
+                self._held = held
+            return result
+        finally:
+            mutex.release()  # what _release does while the lock is kept
+
+    def _serve_general(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
+        """:meth:`_serve` with the mutex taken, when the held model is not known current: the lock taken if it is
+        not kept, the model brought up to date by :meth:`_begin`, the request answered and committed."""
+        mutex = self._mutex
         if self._holding:
             lock_fd = self._lock_fd
         else:
@@ -581,33 +618,15 @@ class SimDrive:
                 mutex.release()
                 raise
         try:
-            held = self._held
-            trusted = self._trusted  # only _take_lock (above) and _commit (below) change it
-            if held is None or not trusted:
-                held = self._begin(lock_fd, True)
-                model, meta = held.model, held.meta
-            else:
-                self._held = None  # dropped unless the request succeeds (a failed one reloads)
-                model, meta = held.model, held.meta
-                now = time.time()
-                model.time_scale = scale = meta["time_scale"]
-                wall = meta["wall"]
-                if now > wall:
-                    model.advance((now - wall) * scale)
-                meta["wall"] = now
-            server.access = model
+            held = self._begin(lock_fd, True)
+            server.access = held.model
             try:
                 result = answer(request)
             except DamagedState as exc:
                 raise self._corrupt(str(exc)) from None
             finally:
                 server.access = _OUTSIDE
-            mark = held.mark
-            if model.revision != mark[0] or meta.get("time_scale") != mark[1] or not trusted \
-                    or model.damage is not None:
-                self._commit(held, lock_fd)
-            else:
-                self._held = held
+            self._commit(held, lock_fd)
             return result
         finally:
             if self._holding:
@@ -689,3 +708,4 @@ class _Outside:
 
 
 _OUTSIDE = _Outside()
+

@@ -15,6 +15,7 @@ from __future__ import annotations
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
+from typing import Any
 
 #: Links remembered at once (the gateway keys by client and station); the oldest is forgotten first.
 MAX_LINKS = 256
@@ -26,12 +27,17 @@ REPEAT_WINDOW_S = 1.0
 
 
 class MailboxRepeats:
-    """Per link: the last mailbox with a counter and the replies it got."""
+    """Per link: the last mailbox with a counter and the replies it got.
+
+    Each link's entry is one list ``[request, replies, time]`` changed in place, and the entry used last is known by
+    identity: the usual mailbox (a new request on the link that sent the last one) hashes its link key once (the
+    lookup), not three times (lookup, store, move to the end of the age order)."""
 
     def __init__(self, max_links: int = MAX_LINKS) -> None:
         self.max_links = max_links
         self.repeats = 0  # repeats answered without executing them (for tests and stats)
-        self._last: OrderedDict[Hashable, tuple[bytes, list[bytes], float]] = OrderedDict()
+        self._last: OrderedDict[Hashable, list[Any]] = OrderedDict()   # oldest first
+        self._newest: list[Any] | None = None   # the entry at the end of _last (used last), or None
 
     def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
         """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it.
@@ -40,21 +46,28 @@ class MailboxRepeats:
         do not change it."""
         last_of = self._last
         if len(request) < 6 or not request[5] & 0x70:  # the counter (bits 4-6) is 0: none
-            last_of.pop(link, None)  # a mailbox without a counter ends the sequence
+            if last_of.pop(link, None) is self._newest:  # a mailbox without a counter ends the sequence
+                self._newest = None
             return handle(request)
         now = time.monotonic()
-        last = last_of.get(link)
-        if last is None:
+        entry = last_of.get(link)
+        if entry is None:
             replies = handle(request)
-            last_of[link] = (request if request.__class__ is bytes else bytes(request), replies, now)
+            last_of[link] = self._newest = [request if request.__class__ is bytes else bytes(request), replies, now]
             if len(last_of) > self.max_links:
                 last_of.popitem(last=False)
             return replies
-        if last[0] == request and now - last[2] <= REPEAT_WINDOW_S:
+        if entry[0] == request and now - entry[2] <= REPEAT_WINDOW_S:
             self.repeats += 1
-            last_of.move_to_end(link)
-            return list(last[1])
+            if entry is not self._newest:
+                last_of.move_to_end(link)
+                self._newest = entry
+            return list(entry[1])
         replies = handle(request)
-        last_of[link] = (request if request.__class__ is bytes else bytes(request), replies, now)
-        last_of.move_to_end(link)
+        entry[0] = request if request.__class__ is bytes else bytes(request)
+        entry[1] = replies
+        entry[2] = now
+        if entry is not self._newest:
+            last_of.move_to_end(link)
+            self._newest = entry
         return replies

@@ -211,7 +211,7 @@ class PnuServer:
 
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
-        data = bytes(request)
+        data = request if type(request) is bytes else bytes(request)  # the usual bytes: not a call to copy them
         plan = self._plans.get(data[1:])
         if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
             pnu, subindex, count, planned_format, layout = plan

@@ -19,24 +19,9 @@ from akdctl.links import Budget
 from akdctl.transport.trace import NULL_TRACER, Tracer
 
 if TYPE_CHECKING:
-    import socket
-
     from akdctl.links import CommandLink, MailboxLink, MessageLink, NativeSdoClient, RecordLink, RegisterLink
     from akdctl.transport.ethercat_raw import ProcessDataCycle
     from akdctl.transport.target import Target
-
-
-
-def keep_socket_timeout(sock: "socket.socket", current: float, wait: float) -> float:
-    """The timeout a datagram socket's next receive runs under, when it may wait ``wait`` s and ``current`` is the
-    one last set: kept while it is no longer than the wait and at least half of it (``settimeout`` is a system
-    call), else set a little short of the wait, so the next request's slightly shorter wait keeps it. A receive
-    that times out before its wait is over waits again for the rest. The rule of ecat-udp:// (pn:// waits through
-    transport/tcp_stream.BoundedSocket, the TCP transports' kernel-bounded receive)."""
-    if current > wait or current < wait * 0.5:
-        current = wait * 0.98 if wait > 0.002 else max(0.0, wait)
-        sock.settimeout(current)
-    return current
 
 
 class LinkOptions:

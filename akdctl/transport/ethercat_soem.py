@@ -76,6 +76,27 @@ class EthercatSoemTransport(Transport):
         return self.master.slaves[self.position]
 
     def foe_read(self, name: str, password: int, max_size: int, timeout: float) -> bytes:
+        """The file, checked as far as the installed pysoem lets us.
+
+        pysoem up to 1.1.13 drops SOEM's result of ``ecx_FOEread``: a transfer whose mailbox receive timed out
+        comes back as success holding what arrived before (nothing, or whole segments), indistinguishable from a
+        file of that length (fixed upstream after 1.1.13, pysoem commit 6b6b741). With such a pysoem the file is
+        read twice and taken only when both reads agree and are not empty; anything else is a communication error
+        that names the cause, never a cut-short file written as if whole (tests/test_soem_foe_read.py)."""
+        from akdctl.errors import CommError
+
+        first = self._foe_read_once(name, password, max_size, timeout)
+        if foe_result_reported():
+            return first
+        second = self._foe_read_once(name, password, max_size, timeout)
+        if first != second or not first:
+            what = "no data" if first == second else f"{len(first)} and then {len(second)} bytes"
+            raise CommError(f"FoE read of {name!r} through SOEM gave {what}: a transfer timed out or the file "
+                            f"is empty, and pysoem {_pysoem_version()} cannot tell which (it does not report FoE "
+                            "timeouts; ecat:// does)")
+        return first
+
+    def _foe_read_once(self, name: str, password: int, max_size: int, timeout: float) -> bytes:
         from akdctl.errors import DriveError
 
         data = bytes(self._slave().foe_read(name, password, max_size + 1, int(timeout * 1e6)))
@@ -160,3 +181,22 @@ def _config_init(master: Any, timeout: float) -> int:
         if count > 0 or time.monotonic() >= deadline:
             return count
         time.sleep(0.05)
+
+
+#: The first pysoem release after the FoE read's result check was merged (pysoem commit 6b6b741, after 1.1.13).
+FOE_RESULT_CHECKED_FROM = (1, 1, 14)
+
+
+def _pysoem_version() -> str:
+    import pysoem
+
+    return str(getattr(pysoem, "__version__", "?"))
+
+
+def foe_result_reported() -> bool:
+    """Whether the installed pysoem raises when SOEM's FoE read fails (a timeout included) instead of returning
+    the part that arrived; an unknown version counts as not."""
+    import re
+
+    found = re.match(r"(\d+)\.(\d+)\.(\d+)", _pysoem_version())
+    return found is not None and tuple(int(n) for n in found.groups()) >= FOE_RESULT_CHECKED_FROM

@@ -23,12 +23,16 @@ import time
 from akdctl.errors import CommError, UsageError
 from akdctl.links import MailboxLink
 from akdctl.protocol.mailbox import MailboxError, unwrap_gateway, wrap_gateway
-from akdctl.transport.base import LinkOptions, Transport, keep_socket_timeout
+from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
+from akdctl.transport.tcp_stream import BoundedSocket
 from akdctl.transport.trace import Tracer
 
 DEFAULT_PORT = 34980
 DEFAULT_MAILBOX = 512
+#: How many ignored datagrams (foreign station, not a gateway datagram) a receive reads past its end before it
+#: reports silence: what was already queued is still looked at, a peer that never stops sending holds it no longer.
+_LATE_LOOKS = 64
 
 
 class GatewayMailboxLink(MailboxLink):
@@ -40,7 +44,8 @@ class GatewayMailboxLink(MailboxLink):
 
     traced_on_wire = True
 
-    def __init__(self, host: str, port: int, station: int, tracer: Tracer, mailbox_size: int = DEFAULT_MAILBOX) -> None:
+    def __init__(self, host: str, port: int, station: int, tracer: Tracer, mailbox_size: int = DEFAULT_MAILBOX,
+                 timeout: float = 2.0) -> None:
         self.host, self.port, self.station = host, port, station
         self.mailbox_address = station
         self.tracer = tracer
@@ -60,7 +65,13 @@ class GatewayMailboxLink(MailboxLink):
             sock.close()
             raise CommError(f"cannot reach EtherCAT gateway {host}:{port}: {exc.strerror}") from None
         self.sock: socket.socket | None = sock
-        self._timeout = -1.0  # the socket's timeout as last set (set again only when a wait needs another)
+        try:
+            # every receive ends by its wait's end, in one recv(2) where the kernel can bound it (tcp_stream: the
+            # rule pn:// waits by too); sends bounded by the command's timeout
+            self.stream = BoundedSocket(sock, timeout)
+        except OSError as exc:
+            sock.close()
+            raise CommError(f"cannot use the socket to EtherCAT gateway {host}:{port}: {exc.strerror}") from None
         self._local = sock.getsockname()[:2]
         self._remote = addr[:2]
 
@@ -93,36 +104,35 @@ class GatewayMailboxLink(MailboxLink):
         sock = self.sock
         if sock is None:
             raise self._closed()
-        now = time.monotonic()
-        deadline = now + max(0.0, timeout)
+        stream = self.stream
+        at = time.monotonic() + timeout
         tracer = self.tracer
+        late = 0
         while True:
-            # at least one try, even with no time left (timeout 0: take what is already there)
-            wait = deadline - now
-            self._timeout = current = keep_socket_timeout(sock, self._timeout, wait)  # recv waits in poll(2)
+            # at least one look, even with no time left (timeout 0: take what is already there); past the end, the
+            # datagrams ignored below are read on only while the next one is already there, and so many at most
             try:
-                data = sock.recv(4096)
-            except (socket.timeout, BlockingIOError):
-                now = time.monotonic()
-                if now < deadline and current:
-                    continue  # the socket's timeout ended a little before the wait did
-                return None  # (timeout 0: nothing there)
+                data = stream.recv(at, 4096)
             except ConnectionRefusedError:
                 raise self._refused() from None
             except OSError as exc:
                 raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+            if data is None:
+                return None
             try:
                 mailbox = unwrap_gateway(data)
             except MailboxError as exc:
                 if tracer.active:
                     tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
-                now = time.monotonic()
+                if time.monotonic() >= at and (late := late + 1) > _LATE_LOOKS:
+                    return None
                 continue
             address = mailbox[2] | mailbox[3] << 8
             if address != self.station and address:
                 if tracer.active:
                     tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {address}", meta=self._meta("rx"))
-                now = time.monotonic()
+                if time.monotonic() >= at and (late := late + 1) > _LATE_LOOKS:
+                    return None
                 continue
             if tracer.active:
                 tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {address}", meta=self._meta("rx"))
@@ -171,7 +181,8 @@ class EthercatUdpTransport(Transport):
         if not 16 <= mailbox <= 2040:
             raise UsageError(f"target {self.target.raw!r}: mailbox={mailbox} is outside 16..2040 bytes")
         self.link = self.mailbox_link = GatewayMailboxLink(self.target.host, self.target.port or DEFAULT_PORT,
-                                                           self.station, self.options.tracer, mailbox)
+                                                           self.station, self.options.tracer, mailbox,
+                                                           self.options.timeout)
 
     def close(self) -> None:
         if self.link is not None:
