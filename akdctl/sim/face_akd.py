@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import re
 import socket
+import struct
+import sys
 import threading
 from typing import Any
 
@@ -37,6 +39,7 @@ IDLE_TIMEOUT_S = 300.0
 GRACE_S = 0.3   # how long a newcomer waits for a slot a leaving client is about to free
 QUIRKS = ("echo", "prompt", "no-telnet")
 NOT_FOUND = "Error: Command was not found."
+_EOL = re.compile(rb"\r\n|\r|\n")   # a line ends with CR, LF or CRLF
 
 OPTIONS = (
     FaceOption("--akd", "akd", flag_value=DEFAULT_ADDRESS, metavar="[ADDR]",
@@ -65,6 +68,8 @@ def from_options(drive: Any, **kwargs: Any) -> "AkdFace | None":
 
 def strip_telnet(data: bytes, state: dict[str, Any]) -> bytes:
     """Remove Telnet commands (a client's WONT/DONT answers, subnegotiations) from received bytes."""
+    if IAC not in data and not state.get("pending") and not state.get("sb"):
+        return data   # the usual line: nothing to strip, nothing cut short before it (the loop below gives the same)
     data = state.get("pending", b"") + data
     state["pending"] = b""
     out = bytearray()
@@ -182,7 +187,7 @@ class AkdFace(Face):
         state: dict[str, Any] = {}
         buffer = b""
         try:
-            client.settimeout(IDLE_TIMEOUT_S)
+            _idle_timeout(client)
             if "no-telnet" not in self.quirks:
                 client.sendall(bytes([IAC, DO, NAWS]))
             if "prompt" in self.quirks:
@@ -193,7 +198,7 @@ class AkdFace(Face):
                     return
                 buffer += strip_telnet(data, state)
                 while True:
-                    match = re.search(rb"\r\n|\r|\n", buffer)
+                    match = _EOL.search(buffer)
                     if match is None:
                         if len(buffer) > MAX_LINE:
                             buffer = b""
@@ -222,7 +227,7 @@ class AkdFace(Face):
         """The reply to one command line (without prompt); ``Error: ...`` for a refusal."""
         keyword, _, argument = line.partition(" ")
         key, argument = keyword.upper(), argument.strip()
-        if any(not 32 <= ord(c) < 127 for c in line):
+        if not (line.isascii() and line.isprintable()):   # every character 32..126
             return "Error: the line holds characters the drive does not accept."
         try:
             if key.startswith("REC."):
@@ -351,6 +356,19 @@ class AkdFace(Face):
 
     def _accepted(self, model: Any, argument: str) -> str:
         return ""   # DRV.NVSAVE / NVLOAD: the simulator keeps one copy of its parameters [I]
+
+
+def _idle_timeout(client: socket.socket) -> None:
+    """A client silent for :data:`IDLE_TIMEOUT_S` is dropped. On Linux the kernel's timeouts on a blocking socket
+    bound each receive and send in the one system call (Python's timeout polls first: two per line and reply);
+    elsewhere Python's. Either way the wait ends in an ``OSError``, which ends the client."""
+    if sys.platform.startswith("linux"):
+        client.settimeout(None)
+        timeval = struct.pack("@ll", int(IDLE_TIMEOUT_S), 0)   # the OS's struct timeval, not a wire layout
+        client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, timeval)
+        client.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, timeval)
+    else:
+        client.settimeout(IDLE_TIMEOUT_S)
 
 
 def _nv_rows() -> list[AkdParam]:

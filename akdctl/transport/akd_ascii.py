@@ -11,9 +11,12 @@ client at a time (a drive that closes a new connection at once is reported as bu
 Every wait is bounded: the connect by the command's timeout, each command (its send and every receive until the
 prompt) by one deadline of the command's Budget (the socket waits through :mod:`akdctl.transport.tcp_stream`), and
 a reply is at most :data:`MAX_REPLY` bytes, so an endless reply without a prompt ends in one error. A command costs
-one send and, for a short reply, one receive: a reply without Telnet bytes skips the option parser, a one-line reply
-skips the line splitting, and nothing is traced unless the tracer is active. After a command that got no prompt the connection is out of step (a late
-reply would answer the next command), so the link refuses further commands.
+one send and, for a short reply, one receive. With tracing off and nothing left from before, :meth:`AsciiLink.command`
+takes a quick path: the line out and the usual reply (one plain ASCII line and the prompt, whole in the first
+segment) checked in one pass; anything else -- more segments, Telnet bytes, Latin-1, several lines, an echo, a
+refusal, silence, a close -- goes on as the same request in the general path from the bytes it has
+(tests/test_akd_ascii_quick_path.py runs every such case both ways). After a command that got no prompt the
+connection is out of step (a late reply would answer the next command), so the link refuses further commands.
 """
 
 from __future__ import annotations
@@ -38,6 +41,10 @@ IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
 _E = ("E", "e")   # how a refusal ("Error: ...") begins: checked before the slice and lower()
 #: How long the client listens for a banner, a prompt or options right after connecting (at most).
 SETTLE = 0.15
+#: What the quick path reads of a reply's first segment: a usual reply is a few bytes, and a bytes object of this
+#: size still comes from Python's small-object allocator (a 4 KiB one costs a malloc, a realloc and a free); a
+#: longer reply continues through the general path's receives.
+QUICK_READ = 448
 
 
 class Telnet:
@@ -112,7 +119,8 @@ class AsciiLink(CommandLink):
         self.buffer = b""
         self.broken = ""
         self.budget = options.budget
-        self._lines: dict[str, tuple[bytes, str]] = {}   # command line -> (its wire bytes, the line), checked once
+        self._lines: dict[str, tuple[bytes, str, int]] = {}   # command line -> (wire bytes, line, length), checked once
+        self._plain = True   # see _settled
 
     # ---------------------------------------------------------------- bytes
     def _receive(self, at: float, what: str) -> bool:
@@ -175,59 +183,83 @@ class AsciiLink(CommandLink):
                                 "probably in use by another client (WorkBench, a terminal, another akdctl); it "
                                 "serves one at a time") from None
             raise
-        self.buffer = b""
+        finally:
+            self.buffer = b""
+            self._settled()
 
     # ---------------------------------------------------------------- the contract
-    def _wire(self, line: str) -> tuple[bytes, str]:
-        """The bytes of a command line and the line as sent (checked and encoded once per distinct line)."""
+    def _wire(self, line: str) -> tuple[bytes, str, int]:
+        """The bytes of a command line, the line as sent and its length (checked and encoded once per line)."""
         known = self._lines.get(line)
         if known is None:
             text = line.strip()
             if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
                 raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
-            known = (text.encode("ascii") + b"\r\n", text)
+            known = (text.encode("ascii") + b"\r\n", text, len(text))
             if len(self._lines) < 256:
                 self._lines[line] = known
         return known
 
     def command(self, line: str) -> str:
-        wire, sent = self._lines.get(line) or self._wire(line)
-        if self.broken:
-            raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
-        budget = self.budget
-        at = budget.lone()
-        if at is None or self.buffer or self.tracer.active:
-            with budget.request(attempts=1, at=at) as deadline:
-                return self._general(wire, deadline)
-        # the usual exchange, with no Deadline object (links.Budget.lone): the line out, its reply back whole in
-        # one segment; anything else continues as the same request under its Deadline
         try:
-            data = self.stream.request(wire, at)
-        except OSError as exc:
-            with budget.request(attempts=1, at=at):
-                raise self._request_failed(exc, wire) from None
-        if data and data[-5:] == b"\r\n-->" and data.find(PROMPT) == len(data) - 3 and IAC not in data \
-                and self.telnet.idle:
-            # one whole plain reply: the usual read (one line, no echo, no refusal) answered here, the rest by _text
-            text = data[:-5].decode("latin-1").strip()
-            if len(text) != len(sent) and text[:1] not in _E and "\n" not in text and "\r" not in text:
-                return text
-            return self._text(sent, data[:-3])
-        with budget.request(attempts=1, at=at) as deadline:
-            if data:
-                self.buffer = self._fed(data, wire)
-            return self._rest(wire, deadline)
+            wire, _, size = self._lines[line]
+        except KeyError:
+            wire, _, size = self._wire(line)
+        if self._plain and not self.tracer.active:
+            at = self.budget.lone()
+            if at is not None:
+                # The quick path (no Deadline object: links.Budget.lone): the line out, and the usual reply -- one
+                # plain line, then the prompt, whole in the first segment -- answered here. Anything else goes on
+                # as the same request under its Deadline in the general path, from the bytes received so far.
+                try:
+                    data = self.stream.request(wire, at, QUICK_READ)
+                except OSError as exc:
+                    with self.budget.request(attempts=1, at=at):
+                        raise self._request_failed(exc, wire) from None
+                if data and data.isascii():   # ASCII: no Telnet command (IAC is 255); Latin-1 decodes as UTF-8
+                    head, prompt, tail = data.partition(PROMPT)
+                    text = head.decode().strip()
+                    # one prompt, at the end; one line (printable: no CR or LF); not only an echo of the line
+                    # (another length); not a refusal: what _text would return for it
+                    if prompt and not tail and len(text) != size and text.isprintable() and text[:1] not in _E:
+                        return text
+                return self._handover(wire, at, data)
+        return self._general(wire)
+
+    def _general(self, wire: bytes) -> str:
+        """The whole command through the general path: bytes left from before, tracing on, a request enclosing
+        this one or unanswered time counted, or a connection out of step (refused here)."""
+        try:
+            if self.broken:
+                raise CommError(f"{self.label}: the connection is out of step after {self.broken}; reconnect")
+            with self.budget.request(attempts=1) as deadline:
+                self._send(wire, repr(wire[:-2].decode()))
+                return self._rest(wire, deadline)
+        finally:
+            self._settled()
+
+    def _handover(self, wire: bytes, at: float, data: bytes | None) -> str:
+        """The quick path's request from where it stopped: ``data`` is its first segment (None: nothing came in
+        time; b"": the drive closed the connection)."""
+        try:
+            with self.budget.request(attempts=1, at=at) as deadline:
+                if data:
+                    self.buffer = self._fed(data, wire)
+                return self._rest(wire, deadline)
+        finally:
+            self._settled()
+
+    def _settled(self) -> None:
+        """Whether the next command may take the quick path: nothing left from before (no bytes in the buffer, no
+        Telnet command cut short) and the connection in step. Kept as one flag, set after every step that can
+        change it (the general path, settling), so the quick path tests one attribute instead of three."""
+        self._plain = not self.broken and not self.buffer and self.telnet.idle
 
     def _request_failed(self, exc: OSError, wire: bytes) -> CommError:
         what = repr(wire[:-2].decode())
         if isinstance(exc, socket.timeout):   # only the send waits in a way that raises
             return self._send_failed(exc, what)
         return CommError(f"{self.label}: connection failed during {what} ({exc.strerror or exc})")
-
-    def _general(self, wire: bytes, deadline: "Deadline") -> str:
-        """Bytes left from before or tracing on: the send and every receive through the general path."""
-        self._send(wire, repr(wire[:-2].decode()))
-        return self._rest(wire, deadline)
 
     def _fed(self, data: bytes, wire: bytes) -> bytes:
         """A first segment that is not a whole plain reply: Telnet bytes stripped, options answered."""
