@@ -32,7 +32,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from benchlib import Result, Settings, akdctl_root  # noqa: E402
+from benchlib import Result, Settings, akdctl_root, cpu_speed  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -138,6 +138,10 @@ def _settings(quick: bool, tmp: Path) -> Settings:
     return Settings(quick=False, tmp=tmp, rounds=15, block=400, process_rounds=15)
 
 
+def _speeds(figures: tuple[float, ...]) -> str:
+    return " / ".join(f"{ms:.0f}" for ms in figures)
+
+
 def _measure(rows: list[Row], quick: bool, tmp: Path) -> list[tuple[Row, Result]]:
     """One run: every row in order, each in its own directory; a row that raises is an error row."""
     results: list[tuple[Row, Result]] = []
@@ -146,12 +150,15 @@ def _measure(rows: list[Row], quick: bool, tmp: Path) -> list[tuple[Row, Result]
         print(f"\n[{row.name}] {row.metric} (goal {row.goal})", flush=True)
         where = tmp / row.name
         where.mkdir()
+        before = cpu_speed()
         try:
             result = row.measure()(_settings(quick, where))
         except Exception as exc:  # noqa: BLE001 - one broken row must not hide the others
             result = Result(f"error: {type(exc).__name__}", False, [str(exc)[:500]])
             if os.environ.get("BENCH_DEBUG"):
                 traceback.print_exc()
+        result.notes.append(f"machine: a fixed loop took {_speeds(before)} ms per CPU before the row, "
+                            f"{_speeds(cpu_speed())} after (benchlib.cpu_speed: ~15 fast, ~28 slow here)")
         print(f"  -> {result.value}  [{_mark(result.ok)}]  ({time.monotonic() - start:.0f} s)")
         for note in result.notes:
             print(f"     {note}")
