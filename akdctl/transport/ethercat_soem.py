@@ -89,11 +89,13 @@ class EthercatSoemTransport(Transport):
         if foe_result_reported():
             return first
         second = self._foe_read_once(name, password, max_size, timeout)
-        if first != second or not first:
-            what = "no data" if first == second else f"{len(first)} and then {len(second)} bytes"
-            raise CommError(f"FoE read of {name!r} through SOEM gave {what}: a transfer timed out or the file "
-                            f"is empty, and pysoem {_pysoem_version()} cannot tell which (it does not report FoE "
-                            "timeouts; ecat:// does)")
+        version = _pysoem_version()
+        if first != second:
+            raise CommError(f"FoE read of {name!r} through SOEM gave {len(first)} and then {len(second)} bytes: a "
+                            f"transfer timed out, and pysoem {version} does not say which (ecat:// does)")
+        if not first:
+            raise CommError(f"FoE read of {name!r} through SOEM gave no data: a transfer timed out or the file is "
+                            f"empty, and pysoem {version} cannot tell which (ecat:// can)")
         return first
 
     def _foe_read_once(self, name: str, password: int, max_size: int, timeout: float) -> bytes:
