@@ -28,6 +28,10 @@ import socket
 import struct
 import sys
 import time
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+_R = TypeVar("_R")
 
 #: How much earlier than wanted a socket timeout may end and still be kept (the wait then resumes for the rest):
 #: a wait within this below the one set costs no system call.
@@ -127,13 +131,19 @@ class BoundedSocket:
 
     def _rest(self, at: float, size: int) -> bytes | None:
         """After a timeout: None at the deadline, or what arrives in the rest of the wait."""
-        while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
+        return self._rest_of(at, self.sock.recv, size)
+
+    def _rest_of(self, at: float, receive: Callable[[Any], _R], argument: Any) -> _R | None:
+        """``receive(argument)`` in the rest of the wait after the kernel's timeout ended it early (it is set
+        short): with Python's exact timeout; None at the deadline. The one rule for :meth:`recv` and
+        :meth:`recv_into`."""
+        while True:
             left = at - _monotonic()
             if left <= 0.0:
                 return None
             self._bound(left, True)
             try:
-                return self.sock.recv(size)
+                return receive(argument)
             except (BlockingIOError, socket.timeout):
                 continue
 
@@ -154,16 +164,7 @@ class BoundedSocket:
         try:
             return self.sock.recv_into(buffer)
         except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
-            pass
-        while True:   # ended early (the kernel's timeout is set short): the rest with Python's exact timeout
-            left = at - _monotonic()
-            if left <= 0.0:
-                return None
-            self._bound(left, True)
-            try:
-                return self.sock.recv_into(buffer)
-            except (BlockingIOError, socket.timeout):
-                continue
+            return self._rest_of(at, self.sock.recv_into, buffer)
 
     def send(self, data: bytes) -> None:
         """All of ``data``; ``socket.timeout`` when the send buffer stayed full for the command's timeout."""
