@@ -11,7 +11,6 @@ checks which path ran, so a quick path that silently stopped being taken fails h
 from __future__ import annotations
 
 import socket
-import threading
 from collections.abc import Callable, Iterable, Iterator
 
 import pytest
@@ -22,26 +21,9 @@ from akdctl.transport.base import LinkOptions
 from akdctl.transport.profinet import PnioRecordLink, ProfinetTransport
 from akdctl.transport.target import split_target
 from akdctl.transport.trace import Tracer
+from tests.test_pn_transport import READ_930, CountingDrive
 
-READ_930 = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")
 CHANGE_930 = bytes.fromhex("06 02 00 01 10 01 03 A2 00 00 42 01 00 02")
-
-
-class CountingDrive:
-    """A parameter manager that records every request reaching it and answers each with its own count."""
-
-    def __init__(self) -> None:
-        self.requests: list[bytes] = []
-        self.lock = threading.Lock()
-
-    def handle_bmp(self, request: bytes) -> bytes:
-        if request[6:8] == b"\x03\xc4":  # the face asks PNU 964 for its identity at start
-            return request[:4] + bytes.fromhex("06 02 01 00 00 01")
-        with self.lock:
-            self.requests.append(request)
-        if request[1] == 0x02:
-            return request[:4] + b"\x00\x00"
-        return request[:4] + b"\x42\x01" + len(self.requests).to_bytes(2, "big")
 
 
 class Run:
