@@ -78,3 +78,19 @@ def test_a_pysoem_that_reports_timeouts_reads_once(monkeypatch: pytest.MonkeyPat
 def test_which_pysoem_reports_foe_timeouts(monkeypatch: pytest.MonkeyPatch, version: str, reported: bool) -> None:
     monkeypatch.setattr(pysoem, "__version__", version, raising=False)
     assert ethercat_soem.foe_result_reported() is reported
+
+
+def test_the_cli_writes_no_file_and_exits_3(unchecked: None, monkeypatch: pytest.MonkeyPatch, tmp_path,
+                                            akd_inproc) -> None:  # type: ignore[no-untyped-def]
+    """``akdctl ecat foe read`` through the real CLI: reads that differ leave no file and end with exit 3."""
+    slave = _Slave(b"x" * 1018, b"x" * 1500)
+
+    def fake_open(self: ethercat_soem.EthercatSoemTransport) -> None:  # the interface and SOEM left out
+        self.master = type("M", (), {"slaves": [slave], "close": lambda self: None})()
+
+    monkeypatch.setattr(ethercat_soem.EthercatSoemTransport, "open", fake_open)
+    out = tmp_path / "copy.bin"
+    code, _, err = akd_inproc("-T", "ecat+soem://eth9/0", "ecat", "foe", "read", "f.bin", "-o", str(out))
+    assert code == 3, err
+    assert "FoE read of 'f.bin' through SOEM gave 1018 and then 1500 bytes: a transfer timed out" in err
+    assert not out.exists()
