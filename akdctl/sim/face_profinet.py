@@ -48,6 +48,9 @@ _PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the 
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
+_CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
+_SPLIT, _DREP_BYTE = pnio_record.CALL_PARTS, pnio_record.DREP_BYTE
+_LEAST_CALL, _WRITE_DATA = pnio_record.LEAST_CALL, pnio_record.WRITE_DATA
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
 
@@ -238,6 +241,7 @@ class ProfinetFace(Face):
         self._cached: list[tuple[bytes, int] | None] = [None] * REPLY_CACHE  # the cache's keys, oldest at _cached_at
         self._cached_at = 0
         self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
+        self._calls: dict[bytes, tuple[Any, ...]] = {}  # plain record calls' shapes as the one pass needs them (_learn)
         self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
         self._rxdrop = self.injection.rxdrop
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
@@ -400,19 +404,31 @@ class ProfinetFace(Face):
         when it is a retransmission, a Write that reaches the parameter manager or a Read that collects its
         response -- what :meth:`_record_call` does for them, without a RecordCall or a PnioStatus; every other
         datagram, and every other case of one (nothing done, nothing counted yet), goes to :meth:`_general`, which
-        answers it with the same checks as before (tests/test_sim_faces.py holds both ways equal)."""
+        answers it with the same checks as before (tests/test_sim_faces.py holds both ways equal).
+
+        Why a memo of the face's own (:attr:`_calls`, by the shape's key, :meth:`_learn`): what the one pass needs of
+        a shape -- the codec's fields, whether it addresses this face's parameter channel, its OK reply's template --
+        is looked up with the datagram's split, in one dict lookup, instead of a call to the codec for the fields and
+        one for the reply; the key is the codec's (``pnio_record.CALL_PARTS``), so what a shape answers is what the
+        codec says of it."""
         stats = self.stats
         stats.received += 1
         rxdrop = self._rxdrop
         if rxdrop and stats.received % rxdrop == 0:
             stats.dropped += 1
             return
-        fields = pnio_record.record_call_fields(data) if self._short_way else None
-        if fields is None:
+        if len(data) < _LEAST_CALL or not self._short_way:
             self._general(data, peer)
             return
-        shape, sequence, record_sequence = fields
-        little, activity, opnum, ar_id, address, index, length, _least, _replies = shape
+        head, sequence, middle, record_sequence, tail = _SPLIT[data[_DREP_BYTE] >> 4 & 1](data)
+        key = head + middle + tail
+        call = self._calls.get(key)
+        if call is None or len(data) < call[0]:
+            call = self._learn(data, key)
+            if call is None:
+                self._general(data, peer)
+                return
+        _least, activity, write, ar_id, served, length, template, reads = call
         key = (activity, sequence)
         cache = self._cache
         cached = cache.get(key)
@@ -421,29 +437,34 @@ class ProfinetFace(Face):
             for frame in cached:
                 self._send(frame, peer)
             return
-        ar = self._ars.get(ar_id)
+        ar = self._ars.get(ar_id) if served else None
         frame = None
-        if ar is not None and address == self._address and index in _PARAMETER_INDICES:
+        if ar is not None:
             now = time.monotonic()
             pending = ar.pending
-            if opnum == OP_WRITE:
-                if 0 < length <= MAX_RECORD and (pending is None or pending[0] <= now):
+            if write:
+                if pending is None or pending[0] <= now:
                     ar.last_activity = now
                     stats.bmp_requests += 1
                     try:
-                        response = self.drive.handle_bmp(data[164:164 + length])
+                        response = self.drive.handle_bmp(data[_WRITE_DATA:_WRITE_DATA + length])
                     except Exception as exc:  # noqa: BLE001 - answered as _write answers it
-                        frame = self._write_failed(data, little, exc)
+                        frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
                     else:
                         ar.pending = (now + self.delay, response)
-                        frame = pnio_record.write_ok(data, shape, sequence, record_sequence, self.boot_time)
+                        pack, rhead, interface, rmiddle, rtail = template
+                        frame = pack(rhead, self.boot_time, interface, sequence, rmiddle, record_sequence, rtail)
             elif pending is not None and pending[0] <= now:
                 ar.last_activity = now
                 ar.pending = None
                 record = pending[1]
                 if len(record) > length:  # the most the client takes (a response fits it: no slice to make)
                     record = record[:length]
-                frame = pnio_record.read_ok(data, shape, sequence, record_sequence, self.boot_time, record)
+                template = reads.get(len(record))
+                if template is None:
+                    template = reads[len(record)] = pnio_record.ok_template(data, len(record))
+                pack, rhead, interface, rmiddle, rtail = template
+                frame = pack(rhead, self.boot_time, interface, sequence, rmiddle, record_sequence, rtail, record)
         if frame is None:
             self._general(data, peer)
             return
@@ -465,6 +486,25 @@ class ProfinetFace(Face):
                 stats.sent += 1
             except OSError:
                 pass
+
+    def _learn(self, data: bytes, key: bytes) -> tuple[Any, ...] | None:
+        """What :meth:`_datagram` keeps of a plain record call's shape (None: not one, the general path answers):
+        the least datagram length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's
+        bytes, whether the one pass may serve it here (this face's API/slot/subslot and a parameter record, and a
+        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), the
+        record length, a Write's OK reply template and a Read's by record length (``pnio_record.ok_template``)."""
+        fields = pnio_record.record_call_fields(data)
+        if fields is None:
+            return None
+        little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
+        write = opnum == OP_WRITE
+        served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
+        calls = self._calls
+        if len(calls) >= _CALLS_KEPT:
+            calls.clear()  # many clients or shapes: start over rather than grow
+        call = calls[key] = (least, activity, write, ar_id, served, length,
+                             pnio_record.ok_template(data, None) if write else None, {})
+        return call
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:
         """Every datagram the one pass of :meth:`_datagram` does not answer: the plain record calls' second short way
