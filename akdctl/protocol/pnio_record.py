@@ -260,8 +260,9 @@ def read_ok(data: bytes, shape: Shape, sequence: int, record_sequence: bytes, bo
 #: shapes looks up before it calls :func:`record_call_fields`).
 CALL_PARTS = _PARTS
 DREP_BYTE = 4
-#: The shortest datagram :func:`record_call_fields` accepts (the DCE/RPC header, NDR arguments and record header).
-LEAST_CALL = 164
+#: What a CALL_PARTS split (its data representation byte read first) raises for a datagram too short to be split,
+#: so too short to be a plain record call.
+CallTooShort = (IndexError, struct.error)
 #: Where a plain Write call's record data starts (its length is the shape's ``length``).
 WRITE_DATA = 164
 

@@ -51,7 +51,7 @@ MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented 
 REPLY_CACHE = 512
 _CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
 _SPLIT, _DREP_BYTE = pnio_record.CALL_PARTS, pnio_record.DREP_BYTE
-_LEAST_CALL, _WRITE_DATA = pnio_record.LEAST_CALL, pnio_record.WRITE_DATA
+_WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
 
@@ -239,7 +239,9 @@ class ProfinetFace(Face):
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
         # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
         self._cache: dict[tuple[bytes, int], bytes | list[bytes]] = {}  # a single frame kept as itself
-        self._ring: collections.deque[tuple[bytes, int]] = collections.deque()  # the cache's keys, oldest first
+        # the cache's keys, oldest first: always REPLY_CACHE of them (None: a free place), so keeping a reply is one
+        # popleft and one append, without a length test
+        self._ring: collections.deque[tuple[bytes, int] | None] = collections.deque([None] * REPLY_CACHE)
         self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
         self._calls: dict[bytes, tuple[Any, ...]] = {}  # plain record calls' shapes as the one pass needs them (_learn)
         self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
@@ -409,6 +411,7 @@ class ProfinetFace(Face):
         what a shape answers is what the codec says of it. The clock is read once per datagram."""
         stats, cache, calls, ars, ring = self.stats, self._cache, self._calls, self._ars, self._ring
         rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
+        handle_bmp, boot, delay = self.drive.handle_bmp, self.boot_time, self.delay
         while True:
             now = monotonic()
             if receive is not None and now >= next_expiry:  # _maybe_expire's test: false for most datagrams
@@ -420,12 +423,16 @@ class ProfinetFace(Face):
                 if rxdrop and stats.received % rxdrop == 0:
                     stats.dropped += 1
                     call = frame = None
-                elif short_way and len(data) >= _LEAST_CALL:
-                    head, sequence, middle, record_sequence, tail = _SPLIT[data[_DREP_BYTE] >> 4 & 1](data)
-                    key = head + middle + tail
-                    call = calls.get(key)
-                    if call is None or len(data) < call[0]:
-                        call = self._learn(data, key)
+                elif short_way:
+                    try:
+                        head, sequence, middle, record_sequence, tail = _SPLIT[data[_DREP_BYTE] >> 4 & 1](data)
+                    except _SHORT:  # too short to be a plain record call
+                        call = None
+                    else:
+                        key = head + middle + tail
+                        call = calls.get(key)
+                        if call is None or len(data) < call[0]:
+                            call = self._learn(data, key)
                     frame = None
                     if call is None:
                         self._general(data, peer)
@@ -445,13 +452,13 @@ class ProfinetFace(Face):
                                         ar.last_activity = now
                                         stats.bmp_requests += 1
                                         try:
-                                            response = self.drive.handle_bmp(data[_WRITE_DATA:_WRITE_DATA + length])
+                                            response = handle_bmp(data[_WRITE_DATA:length])
                                         except Exception as exc:  # noqa: BLE001 - answered as _write answers it
                                             frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
                                         else:
-                                            ar.pending = (now + self.delay, response)
+                                            ar.pending = (now + delay, response)
                                             pack, rhead, interface, rmiddle, rtail = template
-                                            frame = pack(rhead, self.boot_time, interface, sequence, rmiddle,
+                                            frame = pack(rhead, boot, interface, sequence, rmiddle,
                                                          record_sequence, rtail)
                                 elif pending is not None and pending[0] <= now:
                                     ar.last_activity = now
@@ -463,7 +470,7 @@ class ProfinetFace(Face):
                                     if template is None:
                                         template = reads[len(record)] = pnio_record.ok_template(data, len(record))
                                     pack, rhead, interface, rmiddle, rtail = template
-                                    frame = pack(rhead, self.boot_time, interface, sequence, rmiddle,
+                                    frame = pack(rhead, boot, interface, sequence, rmiddle,
                                                  record_sequence, rtail, record)
                             if frame is None:
                                 self._general(data, peer)
@@ -473,9 +480,8 @@ class ProfinetFace(Face):
                 if frame is not None:
                     # _remember's steps, inline: the reply kept (a single frame as itself, not in a list)
                     cache[key] = frame
+                    cache.pop(ring.popleft(), None)
                     ring.append(key)
-                    if len(ring) > REPLY_CACHE:
-                        cache.pop(ring.popleft(), None)
                     if plain_tx:
                         sock = self._sock  # _raw_send's steps, inline
                         if sock is not None:
@@ -510,8 +516,8 @@ class ProfinetFace(Face):
         """What :meth:`_datagram` keeps of a plain record call's shape (None: not one, the general path answers):
         the least datagram length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's
         bytes, whether the one pass may serve it here (this face's API/slot/subslot and a parameter record, and a
-        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), the
-        record length, a Write's OK reply template and a Read's by record length (``pnio_record.ok_template``)."""
+        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's
+        record data's end in the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length (``pnio_record.ok_template``)."""
         fields = pnio_record.record_call_fields(data)
         if fields is None:
             return None
@@ -521,7 +527,7 @@ class ProfinetFace(Face):
         calls = self._calls
         if len(calls) >= _CALLS_KEPT:
             calls.clear()  # many clients or shapes: start over rather than grow
-        call = calls[key] = (least, activity, write, ar_id, served, length,
+        call = calls[key] = (least, activity, write, ar_id, served, _WRITE_DATA + length if write else length,
                              pnio_record.ok_template(data, None) if write else None, {})
         return call
 
@@ -586,9 +592,8 @@ class ProfinetFace(Face):
         steps inline for the replies of its one pass (tests/test_sim_faces.py holds the two ways equal)."""
         cache, ring = self._cache, self._ring
         cache[key] = frames
+        cache.pop(ring.popleft(), None)
         ring.append(key)
-        if len(ring) > REPLY_CACHE:
-            cache.pop(ring.popleft(), None)
 
     def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
         """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
