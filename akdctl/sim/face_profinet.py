@@ -521,7 +521,7 @@ class ProfinetFace(Face):
         fields = pnio_record.record_call_fields(data)
         if fields is None:
             return None
-        little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
+        _little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
         write = opnum == OP_WRITE
         served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
         calls = self._calls
