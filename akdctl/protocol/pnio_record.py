@@ -260,6 +260,8 @@ def read_ok(data: bytes, shape: Shape, sequence: int, record_sequence: bytes, bo
 #: shapes looks up before it calls :func:`record_call_fields`).
 CALL_PARTS = _PARTS
 DREP_BYTE = 4
+#: CALL_PARTS by the data representation byte itself: ``CALL_PARTS_BY_DREP[data[DREP_BYTE]]``.
+CALL_PARTS_BY_DREP = tuple(_PARTS[drep >> 4 & 1] for drep in range(256))
 #: What a CALL_PARTS split (its data representation byte read first) raises for a datagram too short to be split,
 #: so too short to be a plain record call.
 CallTooShort = (IndexError, struct.error)

@@ -50,7 +50,7 @@ MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
 _CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
-_SPLIT, _DREP_BYTE = pnio_record.CALL_PARTS, pnio_record.DREP_BYTE
+_SPLIT_BY_DREP, _DREP_BYTE = pnio_record.CALL_PARTS_BY_DREP, pnio_record.DREP_BYTE
 _WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
@@ -412,6 +412,7 @@ class ProfinetFace(Face):
         stats, cache, calls, ars, ring = self.stats, self._cache, self._calls, self._ars, self._ring
         rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
         handle_bmp, boot, delay = self.drive.handle_bmp, self.boot_time, self.delay
+        sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
         while True:
             now = monotonic()
             if receive is not None and now >= next_expiry:  # _maybe_expire's test: false for most datagrams
@@ -425,7 +426,7 @@ class ProfinetFace(Face):
                     call = frame = None
                 elif short_way:
                     try:
-                        head, sequence, middle, record_sequence, tail = _SPLIT[data[_DREP_BYTE] >> 4 & 1](data)
+                        head, sequence, middle, record_sequence, tail = split[data[_DREP_BYTE]](data)
                     except _SHORT:  # too short to be a plain record call
                         call = None
                     else:
@@ -482,21 +483,19 @@ class ProfinetFace(Face):
                     cache[key] = frame
                     cache.pop(ring.popleft(), None)
                     ring.append(key)
-                    if plain_tx:
-                        sock = self._sock  # _raw_send's steps, inline
-                        if sock is not None:
-                            try:
-                                sock.sendto(frame, peer)
-                                stats.sent += 1
-                            except OSError:
-                                pass
-                    else:
+                    if plain_tx and sock is not None:  # _raw_send's steps, inline
+                        try:
+                            sock.sendto(frame, peer)
+                            stats.sent += 1
+                        except OSError:
+                            pass
+                    elif not plain_tx:
                         self._send(frame, peer)
             except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
                 if receive is None:
                     raise
                 request_failed("profinet", exc)
-            if receive is None or self._scheduled:
+            if receive is None or scheduled:
                 return next_expiry
             try:
                 data, peer = receive(65535)
