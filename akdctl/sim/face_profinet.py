@@ -430,15 +430,14 @@ class ProfinetFace(Face):
                     except _SHORT:  # too short to be a plain record call
                         call = None
                     else:
-                        key = head + middle + tail
-                        call = calls.get(key)
-                        if call is None or len(data) < call[0]:
-                            call = self._learn(data, key)
+                        call = calls.get(tail)  # then the rest of the shape's key compared (_learn says why)
+                        if call is None or call[0] != head or call[1] != middle or len(data) < call[2]:
+                            call = self._learn(data, head, middle, tail)
                     frame = None
                     if call is None:
                         self._general(data, peer)
                     else:
-                        _least, activity, write, ar_id, served, length, template, reads = call
+                        _head, _middle, _least, activity, write, ar_id, served, length, template, reads = call
                         key = (activity, sequence)
                         cached = cache.get(key)
                         if cached is not None:
@@ -511,12 +510,20 @@ class ProfinetFace(Face):
         for frame in (cached,) if type(cached) is bytes else cached:
             self._send(frame, peer)
 
-    def _learn(self, data: bytes, key: bytes) -> tuple[Any, ...] | None:
-        """What :meth:`_datagram` keeps of a plain record call's shape (None: not one, the general path answers):
-        the least datagram length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's
-        bytes, whether the one pass may serve it here (this face's API/slot/subslot and a parameter record, and a
-        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's
-        record data's end in the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length (``pnio_record.ok_template``)."""
+    def _learn(self, data: bytes, head: bytes, middle: bytes, tail: bytes) -> tuple[Any, ...] | None:
+        """What :meth:`_datagrams` keeps of a plain record call's shape (None: not one, the general path answers):
+        the shape's key as the codec splits it (``head``, ``middle``; ``tail`` is the memo's key), the least datagram
+        length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's bytes, whether the one
+        pass may serve it here (this face's API/slot/subslot and a parameter record, and a Write's record length
+        within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's record data's end in
+        the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length
+        (``pnio_record.ok_template``).
+
+        Why the memo is keyed by the tail (the record header from its AR UUID on) and the head and middle compared:
+        a dict lookup hashes its whole key, and the 134 bytes of the codec's key cost more to join and hash than
+        the two comparisons; the AR UUID in the tail tells one client's calls from another's, its record length a
+        Write from a Read. Two shapes with one tail (a Write of as many bytes as its Read takes) take turns in the
+        memo: each learnt again (correct, only slower)."""
         fields = pnio_record.record_call_fields(data)
         if fields is None:
             return None
@@ -526,8 +533,9 @@ class ProfinetFace(Face):
         calls = self._calls
         if len(calls) >= _CALLS_KEPT:
             calls.clear()  # many clients or shapes: start over rather than grow
-        call = calls[key] = (least, activity, write, ar_id, served, _WRITE_DATA + length if write else length,
-                             pnio_record.ok_template(data, None) if write else None, {})
+        call = calls[tail] = (head, middle, least, activity, write, ar_id, served,
+                              _WRITE_DATA + length if write else length,
+                              pnio_record.ok_template(data, None) if write else None, {})
         return call
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:
