@@ -54,6 +54,7 @@ _SPLIT_BY_DREP, _DREP_BYTE = pnio_record.CALL_PARTS_BY_DREP, pnio_record.DREP_BY
 _WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
+_NEVER = float("inf")
 
 
 def _timeval(seconds: float) -> bytes:
@@ -390,8 +391,9 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- requests
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
-        """One datagram, answered as the face's loop answers it (:meth:`_datagrams`)."""
-        self._datagrams(data, peer, None, False, 0.0)
+        """One datagram, answered as the face's loop answers it (:meth:`_datagrams`; no expiry tick: it never
+        comes)."""
+        self._datagrams(data, peer, None, False, _NEVER)
 
     def _datagrams(self, data: bytes, peer: tuple[str, int], receive: Any, v6: bool,
                    next_expiry: float) -> float | None:
@@ -415,7 +417,7 @@ class ProfinetFace(Face):
         sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
         while True:
             now = monotonic()
-            if receive is not None and now >= next_expiry:  # _maybe_expire's test: false for most datagrams
+            if now >= next_expiry:  # _maybe_expire's test: false for most datagrams
                 if self._stop.is_set():
                     return None
                 next_expiry = self._maybe_expire(next_expiry)

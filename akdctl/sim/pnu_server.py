@@ -228,11 +228,12 @@ class PnuServer:
                         values = read(0, 1)
                         if len(values) == 1:
                             value = values[0] & mask
+                            values = None  # one value: packed below
                         else:
                             values = [v & mask for v in values]
                     except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
                         return self._read_planned(data, pnu, subindex, count, exc)
-                    if len(values) == 1:
+                    if values is None:
                         if layout is not None:
                             try:
                                 return layout.pack(data[0], RESP_READ_OK, data[2], 1, planned_format, 1,  # type: ignore[no-any-return]
