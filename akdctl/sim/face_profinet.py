@@ -466,11 +466,12 @@ class ProfinetFace(Face):
                                     ar.last_activity = now
                                     ar.pending = None
                                     record = pending[1]
-                                    if len(record) > length:  # the most the client takes (usually it fits)
-                                        record = record[:length]
-                                    template = reads.get(len(record))
+                                    size = len(record)
+                                    if size > length:  # the most the client takes (usually it fits)
+                                        record, size = record[:length], length
+                                    template = reads.get(size)
                                     if template is None:
-                                        template = reads[len(record)] = pnio_record.ok_template(data, len(record))
+                                        template = reads[size] = pnio_record.ok_template(data, size)
                                     pack, rhead, interface, rmiddle, rtail = template
                                     frame = pack(rhead, boot, interface, sequence, rmiddle,
                                                  record_sequence, rtail, record)
