@@ -93,13 +93,13 @@ class Run:
 @pytest.fixture
 def count_quick(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     calls = [0]
-    real = tcp_stream.TcpStream.request
+    real = tcp_stream.TcpStream.ask
 
-    def request(self: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096) -> bytes | None:
+    def ask(self: tcp_stream.TcpStream, data: bytes, at: float, wait: float, size: int = 4096) -> bytes | None:
         calls[0] += 1
-        return real(self, data, at, size)
+        return real(self, data, at, wait, size)
 
-    monkeypatch.setattr(tcp_stream.TcpStream, "request", request)
+    monkeypatch.setattr(tcp_stream.TcpStream, "ask", ask)
     return calls
 
 
