@@ -93,13 +93,14 @@ class Run:
 @pytest.fixture
 def count_quick(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     calls = [0]
-    real = tcp_stream.TcpStream.ask
+    real = tcp_stream.TcpStream.request
 
-    def ask(self: tcp_stream.TcpStream, data: bytes, at: float, wait: float, size: int = 4096) -> bytes | None:
+    def request(self: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096,
+                wait: float = -2.0) -> bytes | None:
         calls[0] += 1
-        return real(self, data, at, wait, size)
+        return real(self, data, at, size, wait)
 
-    monkeypatch.setattr(tcp_stream.TcpStream, "ask", ask)
+    monkeypatch.setattr(tcp_stream.TcpStream, "request", request)
     return calls
 
 
@@ -282,17 +283,18 @@ def stream_pair() -> Iterator[tuple[tcp_stream.TcpStream, socket.socket]]:
     peer.close()
 
 
-@pytest.mark.parametrize("through", ["ask", "descriptor", "socket"])
+@pytest.mark.parametrize("through", ["lone", "descriptor", "socket"])
 def test_stream_request_both_ways(stream_pair: tuple[tcp_stream.TcpStream, socket.socket], through: str) -> None:
-    """TcpStream.ask and TcpStream.request (os.write/os.read on the descriptor) and BoundedSocket.request (the
-    socket's methods): the same bytes sent, the same first segment (bounded by ``size``), None at the deadline,
+    """TcpStream.request for a lone request's wait and for any (os.write/os.read on the descriptor) and
+    BoundedSocket.request (the socket's methods): the same bytes sent, the same first segment (bounded by ``size``), None at the deadline,
     b"" on a close."""
     stream, peer = stream_pair
 
-    def ask(stream: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096) -> bytes | None:
-        return stream.ask(data, at, round(at - time.monotonic(), 2), size)   # the wait a lone request's Budget gave
+    def lone(stream: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096) -> bytes | None:
+        # the wait a lone request's Budget gave
+        return tcp_stream.TcpStream.request(stream, data, at, size, round(at - time.monotonic(), 2))
 
-    request = {"ask": ask, "descriptor": tcp_stream.TcpStream.request,
+    request = {"lone": lone, "descriptor": tcp_stream.TcpStream.request,
                "socket": tcp_stream.BoundedSocket.request}[through]
     assert request(stream, b"X\r\n", time.monotonic() + 0.05) is None   # nothing answered
     peer.settimeout(1.0)
@@ -382,30 +384,30 @@ def test_tracing_switched_on_takes_the_general_path_for_a_kept_reply(count_quick
         drive.close()
 
 
-def test_ask_after_close_fails_as_the_socket_would(closed_stream: tcp_stream.TcpStream) -> None:
+def test_a_lone_request_after_close_fails_as_the_socket_would(closed_stream: tcp_stream.TcpStream) -> None:
     with pytest.raises(OSError):
-        closed_stream.ask(b"DRV.OPMODE\r\n", time.monotonic() + 0.5, 0.5)
+        closed_stream.request(b"DRV.OPMODE\r\n", time.monotonic() + 0.5, 4096, 0.5)
 
 
-def test_ask_keeps_the_receive_timeout_for_its_wait_and_checks_again_after_another(
+def test_a_lone_request_keeps_the_receive_timeout_for_its_wait_and_checks_again_after_another(
         stream_pair: tuple[tcp_stream.TcpStream, socket.socket]) -> None:
-    """ask remembers that the socket's receive timeout suits a request of its wait, and forgets it once another
-    receive set a different one: its request never waits on a timeout set for a longer wait."""
+    """TcpStream.request remembers that the socket's receive timeout suits a lone request of its wait, and forgets
+    it once another receive set a different one: its request never waits on a timeout set for a longer wait."""
     stream, peer = stream_pair
     peer.settimeout(1.0)
     wanted = tcp_stream.early(0.5)
     for _ in range(3):
         peer.sendall(b"1\r\n-->")
-        assert stream.ask(b"A\r\n", time.monotonic() + 0.5, 0.5) == b"1\r\n-->"
+        assert stream.request(b"A\r\n", time.monotonic() + 0.5, 4096, 0.5) == b"1\r\n-->"
         assert wanted - tcp_stream.SLACK <= stream._wait <= wanted and not stream._polled
     peer.sendall(b"x")
     assert stream.recv(time.monotonic() + 1.5) == b"x"    # a longer wait: a longer receive timeout
     assert stream._wait > wanted
     start = time.monotonic()
-    assert stream.ask(b"B\r\n", start + 0.2, 0.2) is None   # nobody answers: given up at its own deadline
+    assert stream.request(b"B\r\n", start + 0.2, 4096, 0.2) is None   # nobody answers: given up at its own deadline
     assert time.monotonic() >= start + 0.2
     assert stream._wait <= tcp_stream.early(0.2) or stream._polled
     peer.sendall(b"2\r\n-->")
-    assert stream.ask(b"C\r\n", time.monotonic() + 0.5, 0.5) == b"2\r\n-->"
+    assert stream.request(b"C\r\n", time.monotonic() + 0.5, 4096, 0.5) == b"2\r\n-->"
     assert wanted - tcp_stream.SLACK <= stream._wait <= wanted
     assert peer.recv(100) == b"A\r\nA\r\nA\r\nB\r\nC\r\n"

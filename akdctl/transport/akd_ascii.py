@@ -220,7 +220,7 @@ class AsciiLink(CommandLink):
                 # plain line, then the prompt, whole in the first segment -- answered here. Anything else goes on
                 # as the same request under its Deadline in the general path, from the bytes received so far.
                 try:
-                    data = self.stream.ask(wire, at, budget.timeout, QUICK_READ)
+                    data = self.stream.request(wire, at, QUICK_READ, budget.timeout)
                 except OSError as exc:
                     with budget.request(attempts=1, at=at):
                         raise self._request_failed(exc, wire) from None
