@@ -19,8 +19,8 @@ refusal (or any ':'), silence, a close -- goes on as the same request in the gen
 bytes and the line, so each line keeps its last quick reply's bytes and text: a reply of the very same bytes (a
 status read polled again) is that text without checking it again; any other bytes are checked. Nothing of the
 drive's is kept -- every command sends its line and reads its reply -- only what a check of those bytes gave.
-After a command that got no prompt the
-connection is out of step (a late reply would answer the next command), so the link refuses further commands.
+After a command that got no prompt the connection is out of step (a late reply would answer the next command), so
+the link refuses further commands.
 """
 
 from __future__ import annotations
