@@ -238,7 +238,7 @@ class ProfinetFace(Face):
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self.boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
-        # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
+        # (activity bytes, sequence) -> reply frames; the oldest forgotten first (the ring below)
         self._cache: dict[tuple[bytes, int], bytes | list[bytes]] = {}  # a single frame kept as itself
         # the cache's keys, oldest first: always REPLY_CACHE of them (None: a free place), so keeping a reply is one
         # popleft and one append, without a length test
@@ -317,7 +317,7 @@ class ProfinetFace(Face):
         # already the (host, port) pair the face keeps, an IPv6 one is cut to it
         receive, stop = sock.recvfrom, self._stop
         v6 = sock.family == socket.AF_INET6
-        next_expiry: float | None = 0.0
+        next_expiry = 0.0
         # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
         # down, so the next receive returns at once) and at each expiry tick (at most every EXPIRY_TICK_S under
         # traffic), not per datagram: Event.is_set is a Python call.
@@ -327,18 +327,19 @@ class ProfinetFace(Face):
                 ready = poller.poll(wait * 1000.0)
                 self._send_due()
                 if not any(fd == sock_fd for fd, _event in ready):
-                    next_expiry = self._maybe_expire(next_expiry or 0.0)
+                    next_expiry = self._maybe_expire(next_expiry)
                     continue
             try:
                 data, peer = receive(65535)
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
-                next_expiry = self._maybe_expire(next_expiry or 0.0)
+                next_expiry = self._maybe_expire(next_expiry)
                 continue
             if peer is None:
                 continue  # woken by interrupt(): the loop condition decides
-            next_expiry = self._datagrams(data, peer[:2] if v6 else peer, receive, v6, next_expiry or 0.0)
-            if next_expiry is None:
+            expiry = self._datagrams(data, peer[:2] if v6 else peer, receive, v6, next_expiry)
+            if expiry is None:
                 return  # stopped
+            next_expiry = expiry
 
     def _maybe_expire(self, next_expiry: float) -> float:
         """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
