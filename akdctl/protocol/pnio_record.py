@@ -254,6 +254,28 @@ def read_ok(data: bytes, shape: Shape, sequence: int, record_sequence: bytes, bo
     return pack(head, boot, interface, sequence, middle, record_sequence, tail, record)  # type: ignore[no-any-return]
 
 
+#: :func:`record_call_fields`' split of a datagram, by its data representation (``data[DREP_BYTE] >> 4 & 1``): the
+#: bytes before the sequence number, the sequence number, the bytes up to the record sequence number, that, and the
+#: rest of the record header; a shape's key is ``head + middle + tail`` (what a caller that keeps its own memo of
+#: shapes looks up before it calls :func:`record_call_fields`).
+CALL_PARTS = _PARTS
+DREP_BYTE = 4
+#: CALL_PARTS by the data representation byte itself: ``CALL_PARTS_BY_DREP[data[DREP_BYTE]]``.
+CALL_PARTS_BY_DREP = tuple(_PARTS[drep >> 4 & 1] for drep in range(256))
+#: What a CALL_PARTS split (its data representation byte read first) raises for a datagram too short to be split,
+#: so too short to be a plain record call.
+CallTooShort = (IndexError, struct.error)
+#: Where a plain Write call's record data starts (its length is the shape's ``length``).
+WRITE_DATA = 164
+
+
+def ok_template(data: bytes, record_length: int | None) -> tuple[Any, bytes, bytes, bytes, bytes]:
+    """The OK reply's template for the plain record call ``data`` (:func:`record_call_fields` accepts it): a Write's
+    (``record_length`` None) or a Read's answered with a record of that length. ``pack(head, boot, interface,
+    sequence, middle, record_sequence, tail[, record])`` writes what :func:`write_ok`/:func:`read_ok` write."""
+    return _template(data, None if record_length is None else bytes(record_length))
+
+
 def _template(data: bytes, record: bytes | None) -> tuple[Any, bytes, bytes, bytes, bytes]:
     """The OK reply to a shape's calls (a write's; a read's for a record of ``record``'s length) as a pack and the
     bytes around what differs between the calls of the shape -- the boot time (56..59), the sequence number

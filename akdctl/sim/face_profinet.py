@@ -14,6 +14,7 @@ never applied twice.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import heapq
 import itertools
@@ -48,8 +49,12 @@ _PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the 
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
 REPLY_CACHE = 512
+_CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
+_SPLIT_BY_DREP, _DREP_BYTE = pnio_record.CALL_PARTS_BY_DREP, pnio_record.DREP_BYTE
+_WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
+_NEVER = float("inf")
 
 
 def _timeval(seconds: float) -> bytes:
@@ -233,11 +238,13 @@ class ProfinetFace(Face):
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self.boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
-        # (activity bytes, sequence) -> reply frames; a plain dict trimmed oldest first (it keeps insertion order)
-        self._cache: dict[tuple[bytes, int], list[bytes]] = {}
-        self._cached: list[tuple[bytes, int] | None] = [None] * REPLY_CACHE  # the cache's keys, oldest at _cached_at
-        self._cached_at = 0
+        # (activity bytes, sequence) -> reply frames; the oldest forgotten first (the ring below)
+        self._cache: dict[tuple[bytes, int], bytes | list[bytes]] = {}  # a single frame kept as itself
+        # the cache's keys, oldest first: always REPLY_CACHE of them (None: a free place), so keeping a reply is one
+        # popleft and one append, without a length test
+        self._ring: collections.deque[tuple[bytes, int] | None] = collections.deque([None] * REPLY_CACHE)
         self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
+        self._calls: dict[bytes, tuple[Any, ...]] = {}  # plain record calls' shapes as the one pass needs them (_learn)
         self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
         self._rxdrop = self.injection.rxdrop
         self._scheduled: list[tuple[float, int, bytes, tuple[str, int]]] = []
@@ -308,7 +315,7 @@ class ProfinetFace(Face):
         # recvfrom of the largest datagram: its bytes object is shrunk to the datagram in place, which costs less
         # CPU than recvfrom_into a kept buffer plus a copy of it (~0.4 us per datagram, issue 29); an IPv4 peer is
         # already the (host, port) pair the face keeps, an IPv6 one is cut to it
-        receive, datagram, stop, monotonic = sock.recvfrom, self._datagram, self._stop, time.monotonic
+        receive, stop = sock.recvfrom, self._stop
         v6 = sock.family == socket.AF_INET6
         next_expiry = 0.0
         # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
@@ -327,23 +334,12 @@ class ProfinetFace(Face):
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
-            while peer is not None:  # a datagram; and the ones that follow at once, while no send is scheduled
-                if monotonic() >= next_expiry:  # _maybe_expire's test, inline: it is false for most datagrams
-                    if stop.is_set():
-                        return
-                    next_expiry = self._maybe_expire(next_expiry)
-                try:
-                    datagram(data, peer[:2] if v6 else peer)
-                except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
-                    request_failed("profinet", exc)
-                if self._scheduled:
-                    break
-                try:
-                    data, peer = receive(65535)
-                except OSError:
-                    next_expiry = self._maybe_expire(next_expiry)
-                    break
-            # else woken by interrupt(): the loop condition decides
+            if peer is None:
+                continue  # woken by interrupt(): the loop condition decides
+            expiry = self._datagrams(data, peer[:2] if v6 else peer, receive, v6, next_expiry)
+            if expiry is None:
+                return  # stopped
+            next_expiry = expiry
 
     def _maybe_expire(self, next_expiry: float) -> float:
         """Drop timed-out ARs at most every EXPIRY_TICK_S (an idle face: every IDLE_WAKE_S, as before)."""
@@ -396,75 +392,155 @@ class ProfinetFace(Face):
 
     # ------------------------------------------------------------- requests
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
-        """One datagram. A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass
-        when it is a retransmission, a Write that reaches the parameter manager or a Read that collects its
-        response -- what :meth:`_record_call` does for them, without a RecordCall or a PnioStatus; every other
-        datagram, and every other case of one (nothing done, nothing counted yet), goes to :meth:`_general`, which
-        answers it with the same checks as before (tests/test_sim_faces.py holds both ways equal)."""
-        stats = self.stats
-        stats.received += 1
-        rxdrop = self._rxdrop
-        if rxdrop and stats.received % rxdrop == 0:
-            stats.dropped += 1
-            return
-        fields = pnio_record.record_call_fields(data) if self._short_way else None
-        if fields is None:
-            self._general(data, peer)
-            return
-        shape, sequence, record_sequence = fields
-        little, activity, opnum, ar_id, address, index, length, _least, _replies = shape
-        key = (activity, sequence)
-        cache = self._cache
-        cached = cache.get(key)
-        if cached is not None:
-            stats.replayed += 1
-            for frame in cached:
-                self._send(frame, peer)
-            return
-        ar = self._ars.get(ar_id)
-        frame = None
-        if ar is not None and address == self._address and index in _PARAMETER_INDICES:
-            now = time.monotonic()
-            pending = ar.pending
-            if opnum == OP_WRITE:
-                if 0 < length <= MAX_RECORD and (pending is None or pending[0] <= now):
-                    ar.last_activity = now
-                    stats.bmp_requests += 1
-                    try:
-                        response = self.drive.handle_bmp(data[164:164 + length])
-                    except Exception as exc:  # noqa: BLE001 - answered as _write answers it
-                        frame = self._write_failed(data, little, exc)
-                    else:
-                        ar.pending = (now + self.delay, response)
-                        frame = pnio_record.write_ok(data, shape, sequence, record_sequence, self.boot_time)
-            elif pending is not None and pending[0] <= now:
-                ar.last_activity = now
-                ar.pending = None
-                record = pending[1]
-                if len(record) > length:  # the most the client takes (a response fits it: no slice to make)
-                    record = record[:length]
-                frame = pnio_record.read_ok(data, shape, sequence, record_sequence, self.boot_time, record)
-        if frame is None:
-            self._general(data, peer)
-            return
-        # _remember's steps, inline (a call per RPC is a measurable share of it): the reply kept in the ring
-        cache[key] = [frame]
-        ring, at = self._cached, self._cached_at
-        old = ring[at]
-        ring[at] = key
-        self._cached_at = (at + 1) % REPLY_CACHE
-        if old is not None:
-            cache.pop(old, None)
-        if not self._plain_tx:
-            self._send(frame, peer)
-            return
-        sock = self._sock  # _raw_send's steps, inline
-        if sock is not None:
+        """One datagram, answered as the face's loop answers it (:meth:`_datagrams`; no expiry tick: it never
+        comes)."""
+        self._datagrams(data, peer, None, False, _NEVER)
+
+    def _datagrams(self, data: bytes, peer: tuple[str, int], receive: Any, v6: bool,
+                   next_expiry: float) -> float | None:
+        """Answer ``data`` from ``peer``; with ``receive`` (the socket's recvfrom), go on with the datagrams that
+        follow at once, while no send is scheduled, and return the next expiry tick (None: the face was stopped).
+
+        A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass when it is a
+        retransmission, a Write that reaches the parameter manager or a Read that collects its response -- what
+        :meth:`_record_call` does for them, without a RecordCall or a PnioStatus; every other datagram, and every
+        other case of one (nothing done, nothing counted yet), goes to :meth:`_general`, which answers it with the
+        same checks (tests/test_sim_faces.py holds both ways equal).
+
+        Why one frame for every datagram of a burst, and the face's own memo of shapes (:attr:`_calls`,
+        :meth:`_learn`): a PNU read is two datagrams, and a Python call per datagram, the face's attributes looked up
+        again for each and a call to the codec for the fields and another for the reply were a measurable share of
+        what the simulator spends on it (issue 29). The memo's key is the codec's (``pnio_record.CALL_PARTS``), so
+        what a shape answers is what the codec says of it. The clock is read once per datagram."""
+        stats, cache, calls, ars, ring = self.stats, self._cache, self._calls, self._ars, self._ring
+        rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
+        handle_bmp, boot, delay = self.drive.handle_bmp, self.boot_time, self.delay
+        sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
+        while True:
+            now = monotonic()
+            if now >= next_expiry:  # _maybe_expire's test: false for most datagrams
+                if self._stop.is_set():
+                    return None
+                next_expiry = self._maybe_expire(next_expiry)
             try:
-                sock.sendto(frame, peer)
-                stats.sent += 1
-            except OSError:
-                pass
+                stats.received += 1
+                if rxdrop and stats.received % rxdrop == 0:
+                    stats.dropped += 1
+                    call = frame = None
+                elif short_way:
+                    try:
+                        head, sequence, middle, record_sequence, tail = split[data[_DREP_BYTE]](data)
+                    except _SHORT:  # too short to be a plain record call
+                        call = None
+                    else:
+                        call = calls.get(tail)  # then the rest of the shape's key compared (_learn says why)
+                        if call is None or call[0] != head or call[1] != middle or len(data) < call[2]:
+                            call = self._learn(data, head, middle, tail)
+                    frame = None
+                    if call is None:
+                        self._general(data, peer)
+                    else:
+                        _head, _middle, _least, activity, write, ar_id, served, length, template, reads = call
+                        key = (activity, sequence)
+                        cached = cache.get(key)
+                        if cached is not None:
+                            stats.replayed += 1
+                            self._replay(cached, peer)
+                        else:
+                            ar = ars.get(ar_id) if served else None
+                            if ar is not None:
+                                pending = ar.pending
+                                if write:
+                                    if pending is None or pending[0] <= now:
+                                        ar.last_activity = now
+                                        stats.bmp_requests += 1
+                                        try:
+                                            response = handle_bmp(data[_WRITE_DATA:length])
+                                        except Exception as exc:  # noqa: BLE001 - answered as _write answers it
+                                            frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
+                                        else:
+                                            ar.pending = (now + delay, response)
+                                            pack, rhead, interface, rmiddle, rtail = template
+                                            frame = pack(rhead, boot, interface, sequence, rmiddle,
+                                                         record_sequence, rtail)
+                                elif pending is not None and pending[0] <= now:
+                                    ar.last_activity = now
+                                    ar.pending = None
+                                    record = pending[1]
+                                    size = len(record)
+                                    if size > length:  # the most the client takes (usually it fits)
+                                        record, size = record[:length], length
+                                    template = reads.get(size)
+                                    if template is None:
+                                        template = reads[size] = pnio_record.ok_template(data, size)
+                                    pack, rhead, interface, rmiddle, rtail = template
+                                    frame = pack(rhead, boot, interface, sequence, rmiddle,
+                                                 record_sequence, rtail, record)
+                            if frame is None:
+                                self._general(data, peer)
+                else:
+                    frame = None
+                    self._general(data, peer)
+                if frame is not None:
+                    # _remember's steps, inline: the reply kept (a single frame as itself, not in a list)
+                    cache[key] = frame
+                    cache.pop(ring.popleft(), None)
+                    ring.append(key)
+                    if plain_tx and sock is not None:  # _raw_send's steps, inline
+                        try:
+                            sock.sendto(frame, peer)
+                            stats.sent += 1
+                        except OSError:
+                            pass
+                    elif not plain_tx:
+                        self._send(frame, peer)
+            except Exception as exc:  # noqa: BLE001 - nothing a request does may end the face
+                if receive is None:
+                    raise
+                request_failed("profinet", exc)
+            if receive is None or scheduled:
+                return next_expiry
+            try:
+                data, peer = receive(65535)
+            except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
+                return self._maybe_expire(next_expiry)
+            if peer is None:
+                return next_expiry  # woken by interrupt(): the loop's condition decides
+            if v6:
+                peer = peer[:2]
+
+    def _replay(self, cached: bytes | list[bytes], peer: tuple[str, int]) -> None:
+        """Send a kept reply again: one frame (the one pass keeps it as itself) or the frames of a list."""
+        for frame in (cached,) if type(cached) is bytes else cached:
+            self._send(frame, peer)
+
+    def _learn(self, data: bytes, head: bytes, middle: bytes, tail: bytes) -> tuple[Any, ...] | None:
+        """What :meth:`_datagrams` keeps of a plain record call's shape (None: not one, the general path answers):
+        the shape's key as the codec splits it (``head``, ``middle``; ``tail`` is the memo's key), the least datagram
+        length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's bytes, whether the one
+        pass may serve it here (this face's API/slot/subslot and a parameter record, and a Write's record length
+        within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's record data's end in
+        the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length
+        (``pnio_record.ok_template``).
+
+        Why the memo is keyed by the tail (the record header from its AR UUID on) and the head and middle compared:
+        a dict lookup hashes its whole key, and the 134 bytes of the codec's key cost more to join and hash than
+        the two comparisons; the AR UUID in the tail tells one client's calls from another's, its record length a
+        Write from a Read. Two shapes with one tail (a Write of as many bytes as its Read takes) take turns in the
+        memo: each learnt again (correct, only slower)."""
+        fields = pnio_record.record_call_fields(data)
+        if fields is None:
+            return None
+        _little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
+        write = opnum == OP_WRITE
+        served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
+        calls = self._calls
+        if len(calls) >= _CALLS_KEPT:
+            calls.clear()  # many clients or shapes: start over rather than grow
+        call = calls[tail] = (head, middle, least, activity, write, ar_id, served,
+                              _WRITE_DATA + length if write else length,
+                              pnio_record.ok_template(data, None) if write else None, {})
+        return call
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:
         """Every datagram the one pass of :meth:`_datagram` does not answer: the plain record calls' second short way
@@ -483,8 +559,7 @@ class ProfinetFace(Face):
         if view.ptype == dcerpc.PT_PING:
             cached = self._cache.get(key)
             if cached:
-                for frame in cached:
-                    self._send(frame, peer)
+                self._replay(cached, peer)
             else:
                 self._send(pnio_record.reply_head(data, view.little, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
             return
@@ -493,8 +568,7 @@ class ProfinetFace(Face):
         cached = self._cache.get(key)
         if cached is not None:
             stats.replayed += 1
-            for frame in cached:
-                self._send(frame, peer)
+            self._replay(cached, peer)
             return
         if view.is_fragment:
             reject = _nca(0x1C010003, view.little)
@@ -523,17 +597,14 @@ class ProfinetFace(Face):
         for frame in frames:
             self._send(frame, peer)
 
-    def _remember(self, key: tuple[bytes, int], frames: list[bytes]) -> None:
-        """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a ring of their
-        keys: trimming a dict by its first key scans the slots deleted before it). :meth:`_datagram` does these
+    def _remember(self, key: tuple[bytes, int], frames: bytes | list[bytes]) -> None:
+        """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a deque of their
+        keys: trimming a dict by its first key scans the slots deleted before it). :meth:`_datagrams` does these
         steps inline for the replies of its one pass (tests/test_sim_faces.py holds the two ways equal)."""
-        self._cache[key] = frames
-        at = self._cached_at
-        old = self._cached[at]
-        self._cached[at] = key
-        self._cached_at = (at + 1) % REPLY_CACHE
-        if old is not None:
-            self._cache.pop(old, None)
+        cache, ring = self._cache, self._ring
+        cache[key] = frames
+        cache.pop(ring.popleft(), None)
+        ring.append(key)
 
     def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
         """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
@@ -557,8 +628,7 @@ class ProfinetFace(Face):
         cached = cache.get(key)
         if cached is not None:
             self.stats.replayed += 1
-            for frame in cached:
-                self._send(frame, peer)
+            self._replay(cached, peer)
             return
         try:
             status, blocks = self._write(req) if opnum == OP_WRITE else self._read(req, implicit=False)
@@ -568,7 +638,7 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
-        self._remember(key, [frame])
+        self._remember(key, frame)
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:

@@ -123,6 +123,7 @@ class DriveModel:
         self._pnu_bindings: dict[int, _PnuBinding] = {}
         # pnu_read_raw's lookups, once per PNU: entry, wire format, value mask, reader, is an array
         self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}
+        self.pnu_bindings_version = 0  # moved by every bind_pnu: what pnu_read_parts gave holds while it stays
         self._object_bindings: dict[int, _ObjectBinding] = {}
         # Object indices a component binds only once a part of it is built (bind_object_later): index -> builder
         self._object_builders: dict[int, Callable[[], object]] = {}
@@ -197,6 +198,7 @@ class DriveModel:
         (``write(sub, values)``); stored values are used for the side left ``None``."""
         self._pnu_bindings[pnu] = _PnuBinding(read, write)
         self._pnu_shapes.pop(pnu, None)
+        self.pnu_bindings_version += 1
 
     def bind_object(self, index: int, read: ObjectReader | None = None, write: ObjectWriter | None = None) -> None:
         """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
@@ -355,6 +357,23 @@ class DriveModel:
         if len(values) == 1:  # the usual read: no comprehension (a function call of its own before Python 3.12)
             return wire_format, [values[0] & mask]
         return wire_format, [v & mask for v in values]
+
+    def pnu_read_parts(self, pnu: int, subindex: int, count: int) -> tuple[int, int, PnuReader] | None:
+        """For a read of one element of a PNU a component computes (no array, subindex 0): (wire format, value mask,
+        the component's reader), such that ``pnu_read_raw(pnu, 0, 1)`` is ``(format, [reader(0, 1)[0] & mask])``
+        whenever the reader returns one value; else None. Why: the PNU server plans the reads a poll repeats and
+        takes these once per plan instead of looking them up on every read (issue 29); they hold while
+        :attr:`pnu_bindings_version` stays (:meth:`bind_pnu` moves it). Raises what pnu_read_raw raises for an
+        unknown PNU."""
+        if subindex or count != 1:
+            return None
+        shape = self._pnu_shapes.get(pnu)
+        if shape is None:
+            shape = self._pnu_shape(pnu)
+        _info, wire_format, mask, read, array = shape
+        if read is None or array:
+            return None
+        return wire_format, mask, read
 
     def _pnu_shape(self, pnu: int) -> tuple[pnu_catalog.PnuInfo, int, int, PnuReader | None, bool]:
         """What every read of a PNU needs, looked up once: its entry, wire format, value mask and reader."""

@@ -197,14 +197,17 @@ class PnuServer:
 
     def __init__(self, access: ParameterAccess, *, axes: Collection[int] = (0,), raw_reads: bool = False) -> None:
         """``raw_reads``: the access objects this server is handed also answer ``pnu_read_raw`` (DriveModel's
-        (format, unsigned values) without objects), and reads take that fast path; declared, not probed."""
+        (format, unsigned values) without objects) and ``pnu_read_parts``, and reads take that fast path;
+        declared, not probed."""
         self.access = access
         self.raw_reads = raw_reads
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
         # The one-parameter value reads seen, by the request's bytes after the reference: [PNU, subindex, count,
-        # format, response layout], the checks of the request and its address passed once (_plan); the layout is
-        # bmp.raw_read_response_layout's for the format the model last answered. The value is read each time.
+        # format, response layout, model, bindings' version, reader, mask], the checks of the request and its
+        # address passed once (_plan); the layout is bmp.raw_read_response_layout's for the format the model last
+        # answered; the last four are the model's parts of a computed element's read (_plan_parts), taken again
+        # when another model (a reload) or a new binding serves it. The value is read each time.
         self._plans: dict[bytes, list[Any]] = {}
 
     # -- entry point -----------------------------------------------------------------------------------------
@@ -214,8 +217,31 @@ class PnuServer:
         data = request if type(request) is bytes else bytes(request)  # the usual bytes: not a call to copy them
         plan = self._plans.get(data[1:])
         if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
-            pnu, subindex, count, planned_format, layout = plan
+            pnu, subindex, count, planned_format, layout, model, version, read, mask = plan
+            access = self.access
             try:
+                if access is not model or (read is not None and model.pnu_bindings_version != version):
+                    read = self._plan_parts(plan, access)
+                    planned_format, layout, mask = plan[3], plan[4], plan[8]
+                if read is not None:  # DriveModel.pnu_read_raw's steps for a computed element, inline
+                    try:
+                        values = read(0, 1)
+                        if len(values) == 1:
+                            value = values[0] & mask
+                            values = None  # one value: packed below
+                        else:
+                            values = [v & mask for v in values]
+                    except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                        return self._read_planned(data, pnu, subindex, count, exc)
+                    if values is None:
+                        if layout is not None:
+                            try:
+                                return layout.pack(data[0], RESP_READ_OK, data[2], 1, planned_format, 1,  # type: ignore[no-any-return]
+                                                   value)
+                            except struct.error:
+                                pass  # _raw_block says so
+                        values = [value]
+                    return self._read_planned(data, pnu, subindex, count, (planned_format, values))
                 try:
                     fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
                 except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
@@ -333,7 +359,26 @@ class PnuServer:
             plans = self._plans
             if len(plans) >= _PLANS:
                 plans.clear()  # a client walking every address: start over rather than grow
-            plans[data[1:]] = [pnu, subindex, count, -1, None]  # the format and layout: at the first planned read
+            # the format and layout: at the first planned read; the model's parts for it: _plan_parts
+            plans[data[1:]] = [pnu, subindex, count, -1, None, None, -1, None, 0]
+
+    @staticmethod
+    def _plan_parts(plan: list[Any], access: Any) -> Any:
+        """Take a plan's read parts from ``access`` (``DriveModel.pnu_read_parts``: format, mask and the reader of a
+        computed element) and the bindings' version they hold for; the reader, or None when the read is not of that
+        kind (or the access has no parts to give): then :meth:`handle` reads through ``pnu_read_raw`` as before."""
+        try:
+            parts = access.pnu_read_parts(plan[0], plan[1], plan[2])
+            version = access.pnu_bindings_version
+        except Exception:  # noqa: BLE001 - pnu_read_raw says the same on the read itself
+            parts, version = None, -1
+        plan[5], plan[6] = access, version
+        if parts is None:
+            plan[7] = None
+            return None
+        fmt, mask, read = parts
+        plan[3], plan[4], plan[7], plan[8] = fmt, raw_read_response_layout(fmt, 1), read, mask
+        return read
 
     def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
                       read: tuple[int, list[int]] | Exception) -> bytes:
