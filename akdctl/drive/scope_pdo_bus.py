@@ -51,6 +51,7 @@ class BusInputs:
         self._last_good: float | None = None
         self._clock, self._sleep = clock, sleep
         self._zeros = bytes(cycle.rx_bytes)
+        self._expected_wkc: int = cycle.safeop_wkc  # (fixed by the mapping: read once, not per cycle)
         self.t0: float | None = None  # host instant of bus cycle 0
         self._number = -1
         self._next_status = 0.0
@@ -98,7 +99,7 @@ class BusInputs:
             number, now = self._slot()
             check = now >= self._next_status
             try:
-                got = cycle.exchange(self._zeros, with_status=check)
+                got = cycle.exchange(self._zeros, check)
             except NoAnswer:
                 # one lost frame is one gap (a loaded host or wire); frames lost for lost_limit_s: the cycle stopped
                 self.lost += 1
@@ -107,9 +108,12 @@ class BusInputs:
                     raise
         inputs, wkc, al = got
         self._last_good = now
+        expected = self._expected_wkc
+        if not check and wkc == expected:  # the usual cycle: nothing more to judge
+            self._number = number
+            return number, inputs
         if check:
             self._next_status = now + STATUS_EVERY_S
-        expected = cycle.safeop_wkc
         if al is None and wkc != expected:
             al = cycle.exchange(self._zeros)[2]  # why did it drop: a slave out of SAFE-OP says so
         if al is not None:  # read every STATUS_EVERY_S, or after a working-counter drop

@@ -315,6 +315,14 @@ class FrameTemplate:
 
     def stamp(self, index: int, data: bytes | None = None) -> bytes:
         """The frame with ``index`` in every datagram (and ``data`` in the first, of the template's length)."""
+        return bytes(self.stamp_in_place(index, data))
+
+    def stamp_in_place(self, index: int, data: bytes | None = None) -> bytearray:
+        """:meth:`stamp` without the copy: the template's own buffer, to be sent before the next stamp.
+
+        Why: the cyclic process-data frame goes out every bus cycle with the same outputs; a copy per cycle
+        and a data copy of outputs that did not change are work the master repeats for nothing. Data left out
+        stays as last stamped."""
         frame = self.frame
         for at in self._index_at:
             frame[at] = index
@@ -323,7 +331,7 @@ class FrameTemplate:
             if len(data) != end - start:
                 raise CodecError(f"datagram data of {len(data)} bytes for a {end - start}-byte slot")
             frame[start:end] = data
-        return bytes(frame)
+        return frame
 
     def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> tuple[Any, ...] | None:
         """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if

@@ -145,9 +145,23 @@ class EcatMaster:
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
         index = self._index = (self._index + 1) & 0xFF
-        frame = template.stamp(index, data)
+        return self._template_trip(sock, template, index, template.stamp(index, data), "mailbox poll/fetch")
+
+    def txrx_cyclic(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
+        """:meth:`txrx_template` for the process-data frame, sent every bus cycle: the template's own buffer
+        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last),
+        the answer is taken and judged the same way."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        index = self._index = (self._index + 1) & 0xFF
+        return self._template_trip(sock, template, index, template.stamp_in_place(index, data), "process data")
+
+    def _template_trip(self, sock: socket.socket, template: ec.FrameTemplate, index: int, frame: bytes | bytearray,
+                       note: str) -> tuple[Any, ...]:
+        """Send a stamped template frame and wait for its answer (:meth:`txrx_template`)."""
         if self.tracer.active:
-            self._trace("tx", frame, "mailbox poll/fetch")
+            self._trace("tx", bytes(frame), note)
         try:
             sock.send(frame)
         except OSError as exc:
@@ -768,7 +782,9 @@ class ProcessDataCycle:
         self.master, self.station, self.rx_bytes, self.tx_bytes = master, station, rx_bytes, tx_bytes
         self.expected_wkc = (2 if rx_bytes else 0) + (1 if tx_bytes else 0)
         self.cycles = 0
-        self._frames: dict[bool, ec.FrameTemplate] = {}  # with/without the AL status read: encoded once
+        # with/without the AL status read: each encoded once, with the outputs it holds now (stamped again only
+        # when they change)
+        self._frames: dict[bool, list[Any]] = {}  # [template, the outputs it holds (None: not stamped yet)]
 
     def configure(self) -> None:
         """In PRE-OP: SM2/SM3 with the mapping's lengths, FMMU0 outputs, FMMU1 inputs."""
@@ -786,14 +802,18 @@ class ProcessDataCycle:
     def exchange(self, outputs: bytes, with_status: bool = True) -> tuple[bytes, int, int | None]:
         """One cycle: (inputs, working counter of the LRW, AL status or None when not asked for). FrameLost when
         the frame is lost. The AL status rides in the same frame when ``with_status``."""
-        image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
-        frame = self._frames.get(with_status)
-        if frame is None:  # the same frame every cycle but for its index and outputs (as the mailbox polls)
-            datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
+        known = self._frames.get(with_status)
+        if known is None:  # the same frame every cycle but for its index and outputs (as the mailbox polls)
+            datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, bytes(self.rx_bytes + self.tx_bytes))]
             if with_status:
                 datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
-            frame = self._frames[with_status] = ec.FrameTemplate(datagrams, MASTER_MAC)
-        got = self.master.txrx_template(frame, image)
+            known = self._frames[with_status] = [ec.FrameTemplate(datagrams, MASTER_MAC), None]
+        image = None
+        if outputs != known[1]:  # (the inputs' part of the LRW goes out as zeros)
+            image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
+        got = self.master.txrx_cyclic(known[0], image)
+        if image is not None:  # stamped and sent: the frame holds these outputs now
+            known[1] = bytes(outputs)
         self.cycles += 1
         al = None if not with_status else (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
         return got[0][self.rx_bytes:], got[1], al
