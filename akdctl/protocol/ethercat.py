@@ -304,13 +304,14 @@ class FrameTemplate:
             pos += 12 + len(d.data)
         self.size = pos
         self._data_at = (ETH_HEADER + 12, ETH_HEADER + 12 + len(datagrams[0].data))
-        # The datagrams as they come back: cmd, index, ADP, ADO, length, IRQ, data, WKC each (the layout above).
-        self._reply = struct.Struct("<" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
-        self._fields = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
-        self._results = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (6, 7)))
-        sent = self._reply.unpack_from(self.frame, ETH_HEADER + 2)
-        self._expect = [tuple(v for k in range(self.count) for v in (sent[8 * k], index, sent[8 * k + 3],
-                                                                    sent[8 * k + 4]))
+        # The frame as it comes back from the EtherType on: EtherType and EtherCAT header (4 bytes), then cmd,
+        # index, ADP, ADO, length, IRQ, data, WKC of each datagram (the layout above).
+        self._reply = struct.Struct("<4s" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
+        self._fields = operator.itemgetter(0, *(1 + 8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
+        self._results = operator.itemgetter(*(1 + 8 * k + f for k in range(self.count) for f in (6, 7)))
+        sent = self._reply.unpack_from(self.frame, 12)
+        self._expect = [(self._head, *(v for k in range(self.count) for v in (sent[1 + 8 * k], index,
+                                                                             sent[1 + 8 * k + 3], sent[1 + 8 * k + 4])))
                         for index in range(256)]  # what _fields reads from the reply, per index
 
     def stamp(self, index: int, data: bytes | None = None) -> bytes:
@@ -337,10 +338,10 @@ class FrameTemplate:
         """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if
         ``reply`` (its first ``size`` bytes: a receive buffer may be longer) is this frame with ``index`` coming
         back; else None (another frame, a VLAN tag: the caller decodes it the general way)."""
-        if (len(reply) if size is None else size) < self.size or not reply.startswith(self._head, 12):
+        if (len(reply) if size is None else size) < self.size:
             return None
-        got = self._reply.unpack_from(reply, ETH_HEADER + 2)
-        if self._fields(got) != self._expect[index]:
+        got = self._reply.unpack_from(reply, 12)
+        if self._fields(got) != self._expect[index]:  # (the EtherType and EtherCAT header compared with the rest)
             return None
         return self._results(got)  # type: ignore[no-any-return]
 

@@ -149,13 +149,44 @@ class EcatMaster:
 
     def txrx_cyclic(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
         """:meth:`txrx_template` for the process-data frame, sent every bus cycle: the template's own buffer
-        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last),
-        the answer is taken and judged the same way."""
+        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last).
+
+        Why its own path: this runs once per bus cycle, so the usual cycle -- the first frame received is the
+        answer, nothing traced -- is taken in one go; anything else (our own frame, another frame, tracing on)
+        continues the general way (:meth:`_template_answer`), with the same checks and the same time left."""
         sock = self.sock
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
         index = self._index = (self._index + 1) & 0xFF
-        return self._template_trip(sock, template, index, template.stamp_in_place(index, data), "process data")
+        frame = template.stamp_in_place(index, data)
+        if self.tracer.active:
+            return self._template_trip(sock, template, index, frame, "process data")
+        try:
+            sock.send(frame)
+        except OSError as exc:
+            raise self._cannot_send(exc) from None
+        self.frames += 1
+        sent = time.monotonic()
+        if self._waits != self.frame_timeout:
+            self._wait_at_most(sock, self.frame_timeout)
+        buffer = self._buffer
+        try:
+            size = sock.recv_into(buffer)
+        except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+            raise self._lost() from None
+        except OSError as exc:
+            raise self._receive_failed(exc) from None
+        if buffer[6:12] != MASTER_MAC:  # (our own frame, seen on the way out, is not the answer)
+            got = template.read(buffer, index, size)
+            if got is not None:
+                return got
+        return self._template_answer(sock, template, index, sent, size)
+
+    def _cannot_send(self, exc: OSError) -> CommError:
+        return CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}")
+
+    def _receive_failed(self, exc: OSError) -> CommError:
+        return CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}")
 
     def _template_trip(self, sock: socket.socket, template: ec.FrameTemplate, index: int, frame: bytes | bytearray,
                        note: str) -> tuple[Any, ...]:
@@ -165,19 +196,26 @@ class EcatMaster:
         try:
             sock.send(frame)
         except OSError as exc:
-            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+            raise self._cannot_send(exc) from None
         self.frames += 1
         sent = time.monotonic()
-        buffer = self._buffer
         if self._waits != self.frame_timeout:
             self._wait_at_most(sock, self.frame_timeout)
+        return self._template_answer(sock, template, index, sent)
+
+    def _template_answer(self, sock: socket.socket, template: ec.FrameTemplate, index: int, sent: float,
+                         size: int | None = None) -> tuple[Any, ...]:
+        """The answer to a template frame sent at ``sent`` (``size``: a frame already received into the buffer,
+        looked at first); frames that are not the answer are passed over until the frame timeout."""
+        buffer = self._buffer
         while True:
-            try:
-                size = sock.recv_into(buffer)
-            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
-                raise self._lost() from None
-            except OSError as exc:
-                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if size is None:
+                try:
+                    size = sock.recv_into(buffer)
+                except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+                    raise self._lost() from None
+                except OSError as exc:
+                    raise self._receive_failed(exc) from None
             own = buffer.startswith(MASTER_MAC, 6)  # our own frame, seen on the way out, is not the answer
             got = None if own else template.read(buffer, index, size)
             if got is None and not own:  # not at the template's offsets: decode it the general way
@@ -196,6 +234,7 @@ class EcatMaster:
             if left <= 0:
                 raise self._lost()
             self._wait_at_most(sock, left)
+            size = None
 
     def txrx_pair(self, first: ec.FrameTemplate, data: bytes, second: ec.FrameTemplate
                   ) -> tuple[tuple[Any, ...] | None, tuple[Any, ...] | None]:
