@@ -111,9 +111,9 @@ class PdoSpec(Record):
 
         read = image_reader([(c.bit, c.bits, c.signed) for c in self.columns])
         converts = [c.convert for c in self.columns]
-        if all(convert is float for convert in converts):  # raw objects recorded as they are (float(float(x)))
+        if all(convert is float for convert in converts):  # raw values recorded as they are (float(float(x)))
             def as_read(image: bytes) -> list[float]:
-                return [float(raw) for raw in read(image)]
+                return list(map(float, read(image)))
             return as_read
 
         def decode(image: bytes) -> list[float]:

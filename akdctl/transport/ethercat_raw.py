@@ -176,10 +176,9 @@ class EcatMaster:
             raise self._lost() from None
         except OSError as exc:
             raise self._receive_failed(exc) from None
-        if buffer[6:12] != MASTER_MAC:  # (our own frame, seen on the way out, is not the answer)
-            got = template.read(buffer, index, size)
-            if got is not None:
-                return got
+        got = template.answer(buffer, index, size)  # (our own frame, seen on the way out, is not the answer)
+        if got is not None:
+            return got
         return self._template_answer(sock, template, index, sent, size)
 
     def _cannot_send(self, exc: OSError) -> CommError:
@@ -847,15 +846,16 @@ class ProcessDataCycle:
             if with_status:
                 datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
             known = self._frames[with_status] = [ec.FrameTemplate(datagrams, MASTER_MAC), None]
-        image = None
-        if outputs != known[1]:  # (the inputs' part of the LRW goes out as zeros)
+        if outputs == known[1]:  # the outputs the frame holds (the usual cycle: the same outputs again)
+            got = self.master.txrx_cyclic(known[0])
+        else:  # (the inputs' part of the LRW goes out as zeros)
             image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
-        got = self.master.txrx_cyclic(known[0], image)
-        if image is not None:  # stamped and sent: the frame holds these outputs now
-            known[1] = bytes(outputs)
+            got = self.master.txrx_cyclic(known[0], image)
+            known[1] = bytes(outputs)  # stamped and sent: the frame holds these outputs now
         self.cycles += 1
-        al = None if not with_status else (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
-        return got[0][self.rx_bytes:], got[1], al
+        if not with_status:
+            return got[0][self.rx_bytes:], got[1], None
+        return got[0][self.rx_bytes:], got[1], (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
 
     # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
     # slave this cycle serves, so they take the cycle alone, never the transport behind it.
