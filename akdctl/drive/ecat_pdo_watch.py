@@ -13,7 +13,7 @@ code). The slave is left in PRE-OP, outputs last written as 0.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
@@ -235,9 +235,10 @@ def leave(cycle: Any) -> None:
         pass
 
 
-def image_reader(fields: list[tuple[int, int, bool]]) -> Callable[[bytes], tuple[int, ...]]:
+def image_reader(fields: list[tuple[int, int, bool]],
+                 each: Callable[[int], Any] | None = None) -> Callable[[bytes], Sequence[Any]]:
     """A reader of several entries ((bit, bits, signed) each) out of an image at once, value for value what
-    :func:`field_value` reads.
+    :func:`field_value` reads (a tuple; with ``each``, a list of ``each(value)``).
 
     Why: the scope's pdo source reads its entries every bus cycle. When every entry starts on a byte and is 8,
     16, 32 or 64 bits wide (the usual CiA 402 objects), one precompiled struct reads them all; anything else (a
@@ -245,9 +246,10 @@ def image_reader(fields: list[tuple[int, int, bool]]) -> Callable[[bytes], tuple
     import operator
     import struct
 
-    def general(image: bytes) -> tuple[int, ...]:
+    def general(image: bytes) -> Sequence[Any]:
         value = int.from_bytes(image, "little")
-        return tuple(field_value(value, bit, bits, signed) for bit, bits, signed in fields)
+        raw = tuple(field_value(value, bit, bits, signed) for bit, bits, signed in fields)
+        return raw if each is None else list(map(each, raw))
 
     codes = {8: "b", 16: "h", 32: "i", 64: "q"}
     if not fields or any(bit % 8 or bits not in codes for bit, bits, _signed in fields):
@@ -264,17 +266,26 @@ def image_reader(fields: list[tuple[int, int, bool]]) -> Callable[[bytes], tuple
     error = struct.error
     order = [unique.index(f) for f in fields]
     if order == list(range(len(unique))):
-        def read(image: bytes) -> tuple[int, ...]:
+        if each is not None:
+            def read_each(image: bytes) -> Sequence[Any]:
+                try:
+                    return list(map(each, reads(image)))
+                except error:  # shorter than the entries: as field_value reads it (the missing bits 0)
+                    return general(image)
+            return read_each
+
+        def read(image: bytes) -> Sequence[Any]:
             try:
                 return reads(image)
-            except error:  # shorter than the entries: as field_value reads it (the missing bits 0)
+            except error:
                 return general(image)
         return read
     pick = operator.itemgetter(*order) if len(order) > 1 else (lambda got: (got[order[0]],))
 
-    def read_picked(image: bytes) -> tuple[int, ...]:
+    def read_picked(image: bytes) -> Sequence[Any]:
         try:
-            return pick(reads(image))  # type: ignore[no-any-return]
+            picked = pick(reads(image))
         except error:
             return general(image)
+        return picked if each is None else list(map(each, picked))
     return read_picked

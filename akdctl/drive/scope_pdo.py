@@ -109,12 +109,11 @@ class PdoSpec(Record):
         (drive/ecat_pdo_watch.image_reader: what field_value reads, one struct when the entries are whole bytes)."""
         from akdctl.drive.ecat_pdo_watch import image_reader
 
-        read = image_reader([(c.bit, c.bits, c.signed) for c in self.columns])
+        fields = [(c.bit, c.bits, c.signed) for c in self.columns]
         converts = [c.convert for c in self.columns]
         if all(convert is float for convert in converts):  # raw values recorded as they are (float(float(x)))
-            def as_read(image: bytes) -> list[float]:
-                return list(map(float, read(image)))
-            return as_read
+            return image_reader(fields, float)  # type: ignore[return-value]
+        read = image_reader(fields)
 
         def decode(image: bytes) -> list[float]:
             return [float(convert(raw)) for convert, raw in zip(converts, read(image))]

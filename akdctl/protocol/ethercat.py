@@ -291,10 +291,13 @@ class FrameTemplate:
     """
 
     __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
-                 "_results", "_answer")
+                 "_results", "_answer", "answer_from")
 
-    def __init__(self, datagrams: list[Datagram], src: bytes) -> None:
+    def __init__(self, datagrams: list[Datagram], src: bytes, answer_from: int = 0) -> None:
+        """``answer_from``: where in the first datagram's data :meth:`answer` starts what it gives (a process-data
+        LRW's inputs lie behind its outputs)."""
         self.frame = bytearray(encode_frame(datagrams, src))
+        self.answer_from = answer_from
         self.count = len(datagrams)
         self._head = bytes(self.frame[12:ETH_HEADER + 2])  # EtherType and EtherCAT header
         self._index_at: list[int] = []
@@ -337,7 +340,8 @@ class FrameTemplate:
 
     def answer(self, reply: bytes | bytearray, index: int, size: int) -> tuple[Any, ...] | None:
         """:meth:`read`, and None as well for a frame carrying this template's own source address (the frame
-        itself, seen on its way out): what a master takes as the answer to this frame at these offsets.
+        itself, seen on its way out): what a master takes as the answer to this frame at these offsets. The
+        first datagram's data is given from ``answer_from`` on (:meth:`from_answer_from`).
 
         Why: the process-data frame is answered every bus cycle; for a one-datagram frame one struct reads the
         source address, the header fields :meth:`read` compares, the data and the WKC at once, and two bytes
@@ -348,7 +352,8 @@ class FrameTemplate:
         if lean is False:
             if reply[6:12] == self.frame[6:12]:
                 return None
-            return self.read(reply, index, size)
+            got = self.read(reply, index, size)
+            return None if got is None else self.from_answer_from(got)
         if size < self.size:
             return None
         src, head, fixed, data, wkc = lean[0](reply, 6)
@@ -361,10 +366,16 @@ class FrameTemplate:
         fields :meth:`read` compares (the ADP and IRQ skipped as it skips them)."""
         start, end = self._data_at
         frame = self.frame
-        unpack = struct.Struct(f"<6s6s2x4s2x{end - start}sH").unpack_from
+        skip = min(self.answer_from, end - start)
+        unpack = struct.Struct(f"<6s6s2x4s2x{skip}x{end - start - skip}sH").unpack_from
         cmd = frame[ETH_HEADER + 2]
         heads = [self._head + bytes((cmd, index)) for index in range(256)]
         return unpack, bytes(frame[6:12]), heads, bytes(frame[ETH_HEADER + 6:ETH_HEADER + 10])
+
+    def from_answer_from(self, got: tuple[Any, ...]) -> tuple[Any, ...]:
+        """:meth:`read`'s result with the first datagram's data from ``answer_from`` on, as :meth:`answer` gives it."""
+        skip = self.answer_from
+        return (got[0][skip:], *got[1:]) if skip else got
 
     def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> tuple[Any, ...] | None:
         """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if

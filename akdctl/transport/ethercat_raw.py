@@ -149,7 +149,8 @@ class EcatMaster:
 
     def txrx_cyclic(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
         """:meth:`txrx_template` for the process-data frame, sent every bus cycle: the template's own buffer
-        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last).
+        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last);
+        the answer as :meth:`FrameTemplate.answer` gives it (the first datagram's data from ``answer_from`` on).
 
         Why its own path: this runs once per bus cycle, so the usual cycle -- the first frame received is the
         answer, nothing traced -- is taken in one go; anything else (our own frame, another frame, tracing on)
@@ -160,7 +161,7 @@ class EcatMaster:
         index = self._index = (self._index + 1) & 0xFF
         frame = template.stamp_in_place(index, data)
         if self.tracer.active:
-            return self._template_trip(sock, template, index, frame, "process data")
+            return template.from_answer_from(self._template_trip(sock, template, index, frame, "process data"))
         try:
             sock.send(frame)
         except OSError as exc:
@@ -179,7 +180,7 @@ class EcatMaster:
         got = template.answer(buffer, index, size)  # (our own frame, seen on the way out, is not the answer)
         if got is not None:
             return got
-        return self._template_answer(sock, template, index, sent, size)
+        return template.from_answer_from(self._template_answer(sock, template, index, sent, size))
 
     def _cannot_send(self, exc: OSError) -> CommError:
         return CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}")
@@ -845,7 +846,8 @@ class ProcessDataCycle:
             datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, bytes(self.rx_bytes + self.tx_bytes))]
             if with_status:
                 datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
-            known = self._frames[with_status] = [ec.FrameTemplate(datagrams, MASTER_MAC), None]
+            known = self._frames[with_status] = [ec.FrameTemplate(datagrams, MASTER_MAC, answer_from=self.rx_bytes),
+                                                 None]
         if outputs == known[1]:  # the outputs the frame holds (the usual cycle: the same outputs again)
             got = self.master.txrx_cyclic(known[0])
         else:  # (the inputs' part of the LRW goes out as zeros)
@@ -854,8 +856,8 @@ class ProcessDataCycle:
             known[1] = bytes(outputs)  # stamped and sent: the frame holds these outputs now
         self.cycles += 1
         if not with_status:
-            return got[0][self.rx_bytes:], got[1], None
-        return got[0][self.rx_bytes:], got[1], (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
+            return got[0], got[1], None  # (the LRW's data from the inputs on: answer_from)
+        return got[0], got[1], (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
 
     # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
     # slave this cycle serves, so they take the cycle alone, never the transport behind it.
