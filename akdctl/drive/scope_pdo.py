@@ -263,6 +263,7 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
     on_first, on_tick, on_sample = timed(on_first), timed(on_tick), timed(on_sample)
     next_inputs, decode, add = inputs.next_inputs, spec.decoder(), recording.add
     pre, trigger_slot, end = spec.pre, spec.trigger_slot, spec.cycles - spec.pre - 1
+    whole = len(spec.columns) == width  # no hidden columns: a row is recorded as it is
     ring: deque[tuple[int, list[float]]] = deque()
     armed = False
     fired = trigger.kind == "immediate"
@@ -313,7 +314,7 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
                 if recording.trigger_index is None:
                     recording.trigger_index = 0
                     trigger_cycle = number
-                add(number * cycle_s, row[:width])
+                add(number * cycle_s, row if whole else row[:width])
             if on_sample is not None:
                 on_sample(recording)
             if number - trigger_cycle >= end:
