@@ -290,7 +290,7 @@ class FrameTemplate:
     sent (the ADP is not compared: position and broadcast commands count it on the way).
     """
 
-    __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
+    __slots__ = ("frame", "size", "count", "index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
                  "_results", "_answer", "answer_from")
 
     def __init__(self, datagrams: list[Datagram], src: bytes, answer_from: int = 0) -> None:
@@ -300,10 +300,10 @@ class FrameTemplate:
         self.answer_from = answer_from
         self.count = len(datagrams)
         self._head = bytes(self.frame[12:ETH_HEADER + 2])  # EtherType and EtherCAT header
-        self._index_at: list[int] = []
+        self.index_at: list[int] = []  # where each datagram's index byte sits (stamp_in_place writes them)
         pos = ETH_HEADER + 2
         for d in datagrams:
-            self._index_at.append(pos + 1)
+            self.index_at.append(pos + 1)
             pos += 12 + len(d.data)
         self.size = pos
         self._data_at = (ETH_HEADER + 12, ETH_HEADER + 12 + len(datagrams[0].data))
@@ -329,7 +329,7 @@ class FrameTemplate:
         and a data copy of outputs that did not change are work the master repeats for nothing. Data left out
         stays as last stamped."""
         frame = self.frame
-        for at in self._index_at:
+        for at in self.index_at:
             frame[at] = index
         if data is not None:
             start, end = self._data_at

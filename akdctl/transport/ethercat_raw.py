@@ -159,7 +159,12 @@ class EcatMaster:
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
         index = self._index = (self._index + 1) & 0xFF
-        frame = template.stamp_in_place(index, data)
+        if data is None:  # the usual cycle: only the index changes (stamp_in_place without a call per cycle)
+            frame = template.frame
+            for at in template.index_at:
+                frame[at] = index
+        else:
+            frame = template.stamp_in_place(index, data)
         if self.tracer.active:
             return template.from_answer_from(self._template_trip(sock, template, index, frame, "process data"))
         try:
