@@ -198,12 +198,15 @@ SCRIPTS = {
 }
 
 
+@pytest.mark.parametrize("traced", [False, True])
 @pytest.mark.parametrize("script", sorted(SCRIPTS))
-def test_txrx_cyclic_returns_what_txrx_template_returns(script: str) -> None:
-    outcomes = []
+def test_txrx_cyclic_returns_what_txrx_template_returns(script: str, traced: bool) -> None:
+    outcomes, tracers = [], []
     for cyclic in (True, False):
         sock = Scripted(SCRIPTS[script])
-        master = EcatMaster("pd0", Tracer(record=False), timeout=0.05, retries=0, sock=sock)  # type: ignore[arg-type]
+        tracer = Tracer(record=traced)
+        tracers.append(tracer)
+        master = EcatMaster("pd0", tracer, timeout=0.05, retries=0, sock=sock)  # type: ignore[arg-type]
         template = ec.FrameTemplate([ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, bytes(10))], MASTER_MAC,
                                     answer_from=4)
         try:
@@ -215,6 +218,8 @@ def test_txrx_cyclic_returns_what_txrx_template_returns(script: str) -> None:
             outcomes.append(("lost", exc.message))
         outcomes.append(sock.sent)
     assert outcomes[0] == outcomes[2] and outcomes[1] == outcomes[3]
+    frames = [[(r.direction, r.data) for r in tracer.records] for tracer in tracers]
+    assert frames[0] == frames[1] and (len(frames[0]) > 0) == traced  # the same frames traced either way
 
 
 def test_exchange_sends_the_outputs_asked_for_though_it_stamps_only_changes() -> None:
