@@ -95,9 +95,10 @@ def count_quick(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     calls = [0]
     real = tcp_stream.TcpStream.request
 
-    def request(self: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096) -> bytes | None:
+    def request(self: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096,
+                wait: float = -2.0) -> bytes | None:
         calls[0] += 1
-        return real(self, data, at, size)
+        return real(self, data, at, size, wait)
 
     monkeypatch.setattr(tcp_stream.TcpStream, "request", request)
     return calls
@@ -282,12 +283,19 @@ def stream_pair() -> Iterator[tuple[tcp_stream.TcpStream, socket.socket]]:
     peer.close()
 
 
-@pytest.mark.parametrize("through", ["descriptor", "socket"])
+@pytest.mark.parametrize("through", ["lone", "descriptor", "socket"])
 def test_stream_request_both_ways(stream_pair: tuple[tcp_stream.TcpStream, socket.socket], through: str) -> None:
-    """TcpStream.request (os.write/os.read on the descriptor) and BoundedSocket.request (the socket's methods): the
-    same bytes sent, the same first segment (bounded by ``size``), None at the deadline, b"" on a close."""
+    """TcpStream.request for a lone request's wait and for any (os.write/os.read on the descriptor) and
+    BoundedSocket.request (the socket's methods): the same bytes sent, the same first segment (bounded by ``size``), None at the deadline,
+    b"" on a close."""
     stream, peer = stream_pair
-    request = tcp_stream.TcpStream.request if through == "descriptor" else tcp_stream.BoundedSocket.request
+
+    def lone(stream: tcp_stream.TcpStream, data: bytes, at: float, size: int = 4096) -> bytes | None:
+        # the wait a lone request's Budget gave
+        return tcp_stream.TcpStream.request(stream, data, at, size, round(at - time.monotonic(), 2))
+
+    request = {"lone": lone, "descriptor": tcp_stream.TcpStream.request,
+               "socket": tcp_stream.BoundedSocket.request}[through]
     assert request(stream, b"X\r\n", time.monotonic() + 0.05) is None   # nothing answered
     peer.settimeout(1.0)
     assert peer.recv(100) == b"X\r\n"
@@ -306,3 +314,100 @@ def test_stream_request_both_ways(stream_pair: tuple[tcp_stream.TcpStream, socke
     with pytest.raises(OSError):
         request(stream, b"V\r\n", time.monotonic() + 1.0)
         request(stream, b"V\r\n", time.monotonic() + 1.0)
+
+
+def _changing(values: dict[bytes, list[bytes | str]]) -> Script:
+    """Each line answers the next of its replies in turn (the last one again once they run out); a reply is one
+    segment, or SILENT / CLOSE."""
+    def script(line: bytes) -> list[bytes] | str:
+        queue = values.get(line)
+        if not queue:
+            return [b"Error: Command was not found.\r\n-->"]
+        reply = queue.pop(0) if len(queue) > 1 else queue[0]
+        return reply if isinstance(reply, str) else [reply]
+    return script
+
+
+def test_a_line_s_last_reply_is_kept_only_for_the_very_same_bytes(count_quick: list[int]) -> None:
+    """The quick path keeps each line's last quick reply (bytes and text): the same bytes again give that text, and
+    any other bytes -- a changed value, a refusal, silence, a close -- are checked as ever (tests both ways)."""
+    def replies() -> dict[bytes, list[bytes | str]]:
+        return {b"DRV.OPMODE": [b"2\r\n-->", b"2\r\n-->", b"3\r\n-->", b"2\r\n-->", b"Error: busy\r\n-->",
+                                b"2\r\n-->", b"2 \r\n-->", b"2\r\n\r\n-->", b"\xff\xfd\x1f2\r\n-->", b"2\r\n-->"],
+                # another line, the same reply bytes: an echo for this one (its own last reply, not the other's)
+                b"2": [b"2\r\n-->", b"2\r\n-->"]}
+
+    lines = ["DRV.OPMODE"] * 4 + ["2", "DRV.OPMODE", "2"] + ["DRV.OPMODE"] * 6
+    general = _run(True, _changing(replies()), lines, count_quick)
+    assert general.quick == 0
+    quick = _run(False, _changing(replies()), lines, count_quick)
+    assert quick.outcomes == general.outcomes
+    assert quick.received == general.received
+    assert quick.quick == len(lines)
+    assert quick.outcomes[:4] == ["2", "2", "3", "2"]
+    assert quick.outcomes[4] == ""   # "2" answered by "2": only the echo of its line
+    assert quick.outcomes[5][0] == "CommandRefused"  # type: ignore[index]
+    assert quick.outcomes[6] == ""
+    assert quick.outcomes[7:] == ["2", "2", "2", "2", "2", "2"]
+
+
+def test_a_kept_reply_is_never_an_answer_to_silence_or_a_close(count_quick: list[int]) -> None:
+    for last, timeout in ((SILENT, 0.3), (CLOSE, 1.0)):
+        runs = [_run(tracing, _changing({b"A": [b"7\r\n-->", b"7\r\n-->", last]}), ["A", "A", "A"], count_quick,
+                     timeout=timeout) for tracing in (True, False)]
+        assert runs[0].outcomes == runs[1].outcomes and runs[0].silent == runs[1].silent
+        assert runs[1].quick == 3
+        assert runs[1].outcomes[:2] == ["7", "7"]
+        assert runs[1].outcomes[2][0] == ("NoAnswer" if last == SILENT else "CommError")  # type: ignore[index]
+
+
+def test_tracing_switched_on_takes_the_general_path_for_a_kept_reply(count_quick: list[int]) -> None:
+    """A reply kept by the quick path does not bypass tracing: with the tracer on, the same bytes are traced."""
+    drive = Drive(_table(USUAL))
+    try:
+        tracer = Tracer(record=False)
+        transport = AkdAsciiTransport(split_target(f"akd://127.0.0.1:{drive.port}"),
+                                      LinkOptions(timeout=1.0, retries=0, tracer=tracer))
+        transport.open()
+        link = transport.command_link
+        assert link is not None
+        count_quick[0] = 0
+        assert link.command("DRV.OPMODE") == "2" and link.command("DRV.OPMODE") == "2"
+        assert count_quick[0] == 2
+        tracer.record = True
+        assert tracer.active
+        assert link.command("DRV.OPMODE") == "2"
+        assert count_quick[0] == 2
+        assert [r.data for r in tracer.records if r.direction == "rx"] == [b"2\r\n-->"]
+        transport.close()
+    finally:
+        drive.close()
+
+
+def test_a_lone_request_after_close_fails_as_the_socket_would(closed_stream: tcp_stream.TcpStream) -> None:
+    with pytest.raises(OSError):
+        closed_stream.request(b"DRV.OPMODE\r\n", time.monotonic() + 0.5, 4096, 0.5)
+
+
+def test_a_lone_request_keeps_the_receive_timeout_for_its_wait_and_checks_again_after_another(
+        stream_pair: tuple[tcp_stream.TcpStream, socket.socket]) -> None:
+    """TcpStream.request remembers that the socket's receive timeout suits a lone request of its wait, and forgets
+    it once another receive set a different one: its request never waits on a timeout set for a longer wait."""
+    stream, peer = stream_pair
+    peer.settimeout(1.0)
+    wanted = tcp_stream.early(0.5)
+    for _ in range(3):
+        peer.sendall(b"1\r\n-->")
+        assert stream.request(b"A\r\n", time.monotonic() + 0.5, 4096, 0.5) == b"1\r\n-->"
+        assert wanted - tcp_stream.SLACK <= stream._wait <= wanted and not stream._polled
+    peer.sendall(b"x")
+    assert stream.recv(time.monotonic() + 1.5) == b"x"    # a longer wait: a longer receive timeout
+    assert stream._wait > wanted
+    start = time.monotonic()
+    assert stream.request(b"B\r\n", start + 0.2, 4096, 0.2) is None   # nobody answers: given up at its own deadline
+    assert time.monotonic() >= start + 0.2
+    assert stream._wait <= tcp_stream.early(0.2) or stream._polled
+    peer.sendall(b"2\r\n-->")
+    assert stream.request(b"C\r\n", time.monotonic() + 0.5, 4096, 0.5) == b"2\r\n-->"
+    assert wanted - tcp_stream.SLACK <= stream._wait <= wanted
+    assert peer.recv(100) == b"A\r\nA\r\nA\r\nB\r\nC\r\n"

@@ -33,7 +33,7 @@ class ParamError(Exception):
 def _coe_entry(model: Any, row: AkdParam) -> Any:
     if row.coe is None:
         return None
-    from akdctl.catalog import objects
+    import akdctl.catalog.objects as objects   # lazy; this form skips importlib's per-call fromlist step
 
     return objects.lookup(*row.coe)
 
@@ -54,7 +54,8 @@ def read(model: Any, row: AkdParam) -> Any:
     A name is read from its CoE object where it has one, else from its PNU, else from the name store."""
     if not row.readable:
         raise ParamError(f"{row.name} is a command")
-    if row.pnu is not None and _coe_entry(model, row) is None:
+    entry = _coe_entry(model, row)   # once: the face's every read passes here
+    if row.pnu is not None and entry is None:
         try:
             info = model.pnu_info(row.pnu)
             _, values = model.pnu_read_raw(row.pnu, 0, 1)
@@ -64,9 +65,8 @@ def read(model: Any, row: AkdParam) -> Any:
         if info.signed and value >= 1 << (info.bits - 1):
             value -= 1 << info.bits
         return value
-    entry = _coe_entry(model, row)
     if entry is not None:
-        from akdctl.protocol import datatypes
+        import akdctl.protocol.datatypes as datatypes
 
         try:
             data = model.object_read(*row.coe)  # type: ignore[misc]

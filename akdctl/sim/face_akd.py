@@ -19,7 +19,6 @@ face), imported on first use.
 
 from __future__ import annotations
 
-import re
 import socket
 import struct
 import sys
@@ -39,7 +38,7 @@ IDLE_TIMEOUT_S = 300.0
 GRACE_S = 0.3   # how long a newcomer waits for a slot a leaving client is about to free
 QUIRKS = ("echo", "prompt", "no-telnet")
 NOT_FOUND = "Error: Command was not found."
-_EOL = re.compile(rb"\r\n|\r|\n")   # a line ends with CR, LF or CRLF
+_EOL_BYTES = b"\r\n"   # a line ends with CR, LF or CRLF
 
 OPTIONS = (
     FaceOption("--akd", "akd", flag_value=DEFAULT_ADDRESS, metavar="[ADDR]",
@@ -107,6 +106,16 @@ def strip_telnet(data: bytes, state: dict[str, Any]) -> bytes:
     return bytes(out)
 
 
+class _ModelSlot:
+    """The ``server`` :meth:`SimDrive._serve <akdctl.sim.drive.SimDrive._serve>` lends the model to for one request
+    (its ``access``; outside a request the drive's refusing stand-in)."""
+
+    __slots__ = ("access",)
+
+    def __init__(self) -> None:
+        self.access: Any = None
+
+
 class AkdFace(Face):
     """A TCP listener and one thread per client, answering lines from the drive model."""
 
@@ -122,6 +131,7 @@ class AkdFace(Face):
         self._clients: set[socket.socket] = set()
         self._lock = threading.Lock()
         self._freed = threading.Condition(self._lock)
+        self._model = _ModelSlot()   # what SimDrive._serve hands the model through during a request
 
     # ---------------------------------------------------------------- life cycle
     def start(self) -> None:
@@ -140,6 +150,10 @@ class AkdFace(Face):
     def stop(self) -> None:
         self._stop.set()
         if self.sock is not None:
+            try:   # wakes the accept thread (closing alone does not on Linux: stop waited out its join)
+                self.sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
             try:
                 self.sock.close()
             except OSError:
@@ -184,8 +198,9 @@ class AkdFace(Face):
             self._threads = [t for t in self._threads if t.is_alive()] + [thread]
 
     def _serve(self, client: socket.socket) -> None:
-        state: dict[str, Any] = {}
-        buffer = b""
+        state: dict[str, Any] = {}   # strip_telnet's: empty while no Telnet command is cut short or open
+        buffer = b""                 # the start of a line not ended yet
+        echo = "echo" in self.quirks
         try:
             _idle_timeout(client)
             if "no-telnet" not in self.quirks:
@@ -196,21 +211,29 @@ class AkdFace(Face):
                 data = client.recv(4096)
                 if not data:
                     return
-                buffer += strip_telnet(data, state)
-                while True:
-                    match = _EOL.search(buffer)
-                    if match is None:
-                        if len(buffer) > MAX_LINE:
-                            buffer = b""
-                            client.sendall(b"Error: the line is too long.\r\n-->")
-                        break
-                    line, buffer = buffer[:match.start()], buffer[match.end():]
-                    if match.group() == b"\r" and buffer[:1] == b"\n":
-                        buffer = buffer[1:]
+                if IAC in data or state:   # strip_telnet's own test, inline: the usual line holds no IAC
+                    data = strip_telnet(data, state)
+                    if not state.get("pending") and not state.get("sb"):
+                        state.clear()
+                if buffer:
+                    data = buffer + data
+                elif not data:
+                    continue
+                # lines end with CR, LF or CRLF: bytes.splitlines splits at exactly those; what follows the last
+                # end is the start of the next line
+                lines = data.splitlines()
+                buffer = b"" if data[-1] in _EOL_BYTES else lines.pop()
+                for line in lines:
                     text = line.decode("latin-1").strip()
                     reply = self.answer(text) if text else ""
-                    echo = (text + "\r\n") if "echo" in self.quirks and text else ""
-                    client.sendall((echo + reply.replace("\n", "\r\n") + "\r\n-->").encode("latin-1", "replace"))
+                    if "\n" in reply:
+                        reply = reply.replace("\n", "\r\n")
+                    if echo and text:
+                        reply = text + "\r\n" + reply
+                    client.sendall((reply + "\r\n-->").encode("latin-1", "replace"))
+                if len(buffer) > MAX_LINE:
+                    buffer = b""
+                    client.sendall(b"Error: the line is too long.\r\n-->")
         except OSError:
             return
         finally:
@@ -232,23 +255,30 @@ class AkdFace(Face):
         try:
             if key.startswith("REC."):
                 return self._recorder(key, argument)
-            special = _SPECIAL.get(key)
-            with self.drive.transaction() as model:
-                if special is not None:
-                    return special(self, model, argument)
-                row = lookup(key)
-                if row is None or row.kind == "text":
-                    return NOT_FOUND
-                if row.is_command:
-                    return f"Error: {row.name} is not simulated over the service channel."
-                if not argument:
-                    return format_value(row.kind, store.read(model, row), row.unit)
-                return self._write(model, row, argument)
+            # one transaction of the drive, as its other faces' requests are (SimDrive._serve: the model reached
+            # through self._model only while _answer runs; a refusal raised in it drops what it changed)
+            return self.drive._serve(self._model, self._answer, (key, argument))  # type: ignore[no-any-return]
         except store.ParamError as exc:
             return f"Error: {exc}."
         except Exception as exc:  # a face never dies of a request
             request_failed("akd ascii face", exc)
             return "Error: the drive is busy; try again."
+
+    def _answer(self, request: tuple[str, str]) -> str:
+        """The reply to ``KEYWORD`` and its argument, inside the transaction (the model: ``self._model.access``)."""
+        key, argument = request
+        model = self._model.access
+        special = _SPECIAL.get(key)
+        if special is not None:
+            return special(self, model, argument)
+        row = lookup(key)
+        if row is None or row.kind == "text":
+            return NOT_FOUND
+        if row.is_command:
+            return f"Error: {row.name} is not simulated over the service channel."
+        if not argument:
+            return format_value(row.kind, store.read(model, row), row.unit)
+        return self._write(model, row, argument)
 
     def _write(self, model: Any, row: AkdParam, argument: str) -> str:
         try:

@@ -14,15 +14,19 @@ a reply is at most :data:`MAX_REPLY` bytes, so an endless reply without a prompt
 one send and, for a short reply, one receive. With tracing off and nothing left from before, :meth:`AsciiLink.command`
 takes a quick path: the line out and the usual reply (one plain ASCII line and the prompt, whole in the first
 segment) checked in one pass; anything else -- more segments, Telnet bytes, Latin-1, several lines, an echo, a
-refusal, silence, a close -- goes on as the same request in the general path from the bytes it has
-(tests/test_akd_ascii_quick_path.py runs every such case both ways). After a command that got no prompt the
-connection is out of step (a late reply would answer the next command), so the link refuses further commands.
+refusal (or any ':'), silence, a close -- goes on as the same request in the general path from the bytes it has
+(tests/test_akd_ascii_quick_path.py runs every such case both ways). The check is a pure function of the reply's
+bytes and the line, so each line keeps its last quick reply's bytes and text: a reply of the very same bytes (a
+status read polled again) is that text without checking it again; any other bytes are checked. Nothing of the
+drive's is kept -- every command sends its line and reads its reply -- only what a check of those bytes gave.
+After a command that got no prompt the connection is out of step (a late reply would answer the next command), so
+the link refuses further commands.
 """
 
 from __future__ import annotations
 
 import socket
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from akdctl.errors import CommandRefused, CommError, MalformedReply, NoAnswer, UsageError
 from akdctl.links import CommandLink
@@ -39,6 +43,8 @@ MAX_REPLY = 1 << 20       # a DRV.HELPALL is long; a reply larger than this neve
 MAX_LINE = 256            # a command line akdctl sends (the drive's own limit is not public)
 IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
 _E = ("E", "e")   # how a refusal ("Error: ...") begins: checked before the slice and lower()
+REPLY_END = b"\r\n" + PROMPT   # how the usual reply ends: its one line, then the prompt
+_UNSEEN = object()   # a line's last quick reply before it has one: equal to no bytes, to None neither
 #: How long the client listens for a banner, a prompt or options right after connecting (at most).
 SETTLE = 0.15
 #: What the quick path reads of a reply's first segment: a usual reply is a few bytes, and a bytes object of this
@@ -119,7 +125,8 @@ class AsciiLink(CommandLink):
         self.buffer = b""
         self.broken = ""
         self.budget = options.budget
-        self._lines: dict[str, tuple[bytes, str, int]] = {}   # command line -> (wire bytes, line, length), checked once
+        # command line -> (wire bytes, its length, [the last reply's bytes, its text]): checked once; see _wire
+        self._lines: dict[str, tuple[bytes, int, list[Any]]] = {}
         self._plain = True   # see _settled
 
     # ---------------------------------------------------------------- bytes
@@ -188,41 +195,49 @@ class AsciiLink(CommandLink):
             self._settled()
 
     # ---------------------------------------------------------------- the contract
-    def _wire(self, line: str) -> tuple[bytes, str, int]:
-        """The bytes of a command line, the line as sent and its length (checked and encoded once per line)."""
+    def _wire(self, line: str) -> tuple[bytes, int, list[Any]]:
+        """The bytes of a command line, its length and its last quick reply (checked and encoded once per line)."""
         known = self._lines.get(line)
         if known is None:
             text = line.strip()
             if not text or len(text) > MAX_LINE or not (text.isascii() and text.isprintable()):
                 raise UsageError(f"a command line for the AKD is printable ASCII, 1..{MAX_LINE} characters, one line")
-            known = (text.encode("ascii") + b"\r\n", text, len(text))
+            known = (text.encode("ascii") + b"\r\n", len(text), [_UNSEEN, ""])
             if len(self._lines) < 256:
                 self._lines[line] = known
         return known
 
     def command(self, line: str) -> str:
         try:
-            wire, _, size = self._lines[line]
+            wire, size, last = self._lines[line]
         except KeyError:
-            wire, _, size = self._wire(line)
+            wire, size, last = self._wire(line)
         if self._plain and not self.tracer.active:
-            at = self.budget.lone()
+            budget = self.budget
+            at = budget.lone()
             if at is not None:
                 # The quick path (no Deadline object: links.Budget.lone): the line out, and the usual reply -- one
                 # plain line, then the prompt, whole in the first segment -- answered here. Anything else goes on
                 # as the same request under its Deadline in the general path, from the bytes received so far.
                 try:
-                    data = self.stream.request(wire, at, QUICK_READ)
+                    data = self.stream.request(wire, at, QUICK_READ, budget.timeout)
                 except OSError as exc:
-                    with self.budget.request(attempts=1, at=at):
+                    with budget.request(attempts=1, at=at):
                         raise self._request_failed(exc, wire) from None
-                if data and data.isascii():   # ASCII: no Telnet command (IAC is 255); Latin-1 decodes as UTF-8
-                    head, prompt, tail = data.partition(PROMPT)
-                    text = head.decode().strip()
-                    # one prompt, at the end; one line (printable: no CR or LF); not only an echo of the line
-                    # (another length); not a refusal: what _text would return for it
-                    if prompt and not tail and len(text) != size and text.isprintable() and text[:1] not in _E:
-                        return text
+                if data == last[0]:   # the very bytes of this line's last quick reply: the same text (see above)
+                    return last[1]    # type: ignore[no-any-return]
+                if data:
+                    head = data.removesuffix(REPLY_END)
+                    if head is not data and head.isascii():   # ASCII: no Telnet command (IAC is 255)
+                        text = head.decode()
+                        # one line of printable text (no CR or LF) and no other prompt, not a refusal (no ':' --
+                        # "Error:" has one), not only an echo of the line (another length)
+                        if text.isprintable() and ":" not in text and "-->" not in text:
+                            text = text.strip()
+                            if len(text) != size:
+                                last[0] = data
+                                last[1] = text
+                                return text
                 return self._handover(wire, at, data)
         return self._general(wire)
 

@@ -196,35 +196,64 @@ class BoundedSocket:
 
 
 class TcpStream(BoundedSocket):
-    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time."""
+    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time.
 
-    __slots__ = ()
+    Closed only through :meth:`close` (which forgets the descriptor): the fast requests write to the descriptor
+    kept at connect.
+    """
+
+    __slots__ = ("_fd", "_armed")
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().__init__(sock, send_timeout)
+        self._fd = sock.fileno()
+        self._armed = -1.0   # the whole wait the receive timeout is set for (see request); -1: none
 
-    def request(self, data: bytes, at: float, size: int = 4096) -> bytes | None:
+    def _bound(self, left: float, precise: bool) -> None:
+        self._armed = -1.0   # any new bound: request checks the window again
+        BoundedSocket._bound(self, left, precise)
+
+    def send_last(self, data: bytes, wait: float) -> None:
+        self._armed = -1.0
+        BoundedSocket.send_last(self, data, wait)
+
+    def close(self) -> None:
+        self._armed = -1.0
+        self._fd = -1   # a later request fails as on a closed socket (EBADF), never on a descriptor number reused
+        BoundedSocket.close(self)
+
+    def request(self, data: bytes, at: float, size: int = 4096, wait: float = -2.0) -> bytes | None:
         """:meth:`BoundedSocket.request`, with the same system calls made through the descriptor while the
         kernel's timeouts bound the socket (``write(2)``/``read(2)`` on a socket are ``send``/``recv`` without
         flags): ``os.write``/``os.read`` skip the socket methods' argument parsing, about a tenth of a request's
-        user-space instructions on loopback. The descriptor is read from the socket each time, so a closed socket
-        fails as it would (EBADF), never on a descriptor number reused since."""
-        left = at - _monotonic()
-        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
-            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)   # the window test inline, as in the base
-            if self._polled:   # Python's timeout (too little left for the kernel's): the socket's own calls
-                return BoundedSocket.request(self, data, at, size)
-        fd = self.sock.fileno()
+        user-space instructions on loopback. The descriptor is the one kept at connect until :meth:`close`.
+
+        ``wait``: a request that starts now and may wait ``wait`` s (``at`` is now + ``wait``: a lone request's whole
+        timeout, :meth:`akdctl.links.Budget.lone`). Such a request always waits the same, so whether the socket's
+        receive timeout suits it (the window rule) depends on ``wait`` alone: checked once, remembered, and
+        forgotten whenever the timeout is set again (:meth:`_bound`). While it holds, the request is the two system
+        calls with no clock read and no float arithmetic."""
+        if wait != self._armed:
+            left = at - _monotonic()
+            if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
+                self._bound(left if left > MIN_WAIT else MIN_WAIT, False)   # the window test inline, as in the base
+                if self._polled:   # Python's timeout (too little left for the kernel's): the socket's own calls
+                    return BoundedSocket.request(self, data, at, size)
+            if wait > 0.0:   # remember the wait when the timeout set is within the window for a whole one
+                wanted = wait * 0.875 - 0.01   # early(wait)
+                if wanted - SLACK <= self._wait <= wanted:
+                    self._armed = wait
+        fd = self._fd
         try:
             sent = _write(fd, data)
         except BlockingIOError:   # SO_SNDTIMEO expired
             raise socket.timeout("send timed out") from None
-        if sent < len(data):   # a send buffer that filled up part way: the rest as sendall sends it
+        if sent != len(data):   # a send buffer that filled up part way: the rest as sendall sends it
             self.send(data[sent:])
         try:
             return _read(fd, size)
-        except BlockingIOError:   # SO_RCVTIMEO expired (EAGAIN)
+        except BlockingIOError:   # SO_RCVTIMEO expired (EAGAIN), early by design: the rest of the wait
             return self._rest(at, size)
 
     @classmethod
