@@ -104,6 +104,21 @@ class PdoSpec(Record):
         value = int.from_bytes(image, "little")
         return [float(c.convert(field_value(value, c.bit, c.bits, c.signed))) for c in self.columns]
 
+    def decoder(self) -> Callable[[bytes], list[float]]:
+        """:meth:`decode` compiled for one recording: the columns' raw values read at once
+        (drive/ecat_pdo_watch.image_reader: what field_value reads, one struct when the entries are whole bytes)."""
+        from akdctl.drive.ecat_pdo_watch import image_reader
+
+        fields = [(c.bit, c.bits, c.signed) for c in self.columns]
+        converts = [c.convert for c in self.columns]
+        if all(convert is float for convert in converts):  # raw values recorded as they are (float(float(x)))
+            return image_reader(fields, float)  # type: ignore[return-value]
+        read = image_reader(fields)
+
+        def decode(image: bytes) -> list[float]:
+            return [float(convert(raw)) for convert, raw in zip(converts, read(image))]
+        return decode
+
 
 # ---------------------------------------------------------------------- plan: what is recorded, how fast
 def cycle_for(rate_hz: float | None, drive_cycle: tuple[int, int] | None) -> tuple[float, str]:
@@ -246,6 +261,9 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
         return run
 
     on_first, on_tick, on_sample = timed(on_first), timed(on_tick), timed(on_sample)
+    next_inputs, decode, add = inputs.next_inputs, spec.decoder(), recording.add
+    pre, trigger_slot, end = spec.pre, spec.trigger_slot, spec.cycles - spec.pre - 1
+    whole = len(spec.columns) == width  # no hidden columns: a row is recorded as it is
     ring: deque[tuple[int, list[float]]] = deque()
     armed = False
     fired = trigger.kind == "immediate"
@@ -260,14 +278,14 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
                 raise Interrupted("interrupted while recording")
             if on_tick is not None:
                 on_tick()
-            number, image = inputs.next_inputs(timeout_s)
-            row = spec.decode(image)
+            number, image = next_inputs(timeout_s)
+            row = decode(image)
             taken += 1
             last = number
             if first is None:
                 first = number
                 recording.started = utc_now()
-            if not armed and (fired or number - first >= spec.pre):
+            if not armed and (fired or number - first >= pre):
                 # armed: the pre-trigger ring is full, so a recorded motion starts now, never while the trigger
                 # is not yet looked for (its edge would pass unseen)
                 armed = True
@@ -277,29 +295,29 @@ def record(inputs: CyclicInputs, spec: PdoSpec, recording: Recording, trigger: T
                 on_row(row)
             if not fired:
                 ring.append((number, row))
-                while ring and ring[0][0] < number - spec.pre:
+                while ring and ring[0][0] < number - pre:
                     ring.popleft()
-                value = row[spec.trigger_slot] if spec.trigger_slot is not None else 0.0
-                if number - first >= spec.pre and trigger.fires(previous, value):
+                value = row[trigger_slot] if trigger_slot is not None else 0.0
+                if number - first >= pre and trigger.fires(previous, value):
                     fired = True
                     trigger_cycle = number
                     for n, r in ring:
-                        recording.add(n * cycle_s, r[:width])
+                        add(n * cycle_s, r[:width])
                     recording.trigger_index = len(recording) - 1
                     ring.clear()
                 else:
                     previous = value
-                    if (number - first) * cycle_s > timeout_s + spec.pre * cycle_s:
+                    if (number - first) * cycle_s > timeout_s + pre * cycle_s:
                         raise TriggerTimeout(f"the trigger ({trigger.text}) did not fire within {timeout_s:g} s")
                     continue
             else:
                 if recording.trigger_index is None:
                     recording.trigger_index = 0
                     trigger_cycle = number
-                recording.add(number * cycle_s, row[:width])
+                add(number * cycle_s, row if whole else row[:width])
             if on_sample is not None:
                 on_sample(recording)
-            if number - trigger_cycle >= spec.cycles - spec.pre - 1:
+            if number - trigger_cycle >= end:
                 break
     except AkdError as exc:
         if not fired:  # the cycles taken while waiting for the trigger are kept (no trigger index)

@@ -51,6 +51,7 @@ class BusInputs:
         self._last_good: float | None = None
         self._clock, self._sleep = clock, sleep
         self._zeros = bytes(cycle.rx_bytes)
+        self._expected_wkc: int = cycle.safeop_wkc  # (fixed by the mapping: read once, not per cycle)
         self.t0: float | None = None  # host instant of bus cycle 0
         self._number = -1
         self._next_status = 0.0
@@ -70,19 +71,6 @@ class BusInputs:
                  tb: TracebackType | None) -> None:
         leave(self.cycle)
 
-    def _slot(self) -> tuple[int, float]:
-        """Wait for the next cycle's slot: (its number, the host instant); a slot already past is skipped."""
-        now = self._clock()
-        number = self._number + 1
-        if self.t0 is None:
-            self.t0 = self._last_good = now
-            return 0, now
-        due = self.t0 + number * self.cycle_s
-        if now < due:
-            self._sleep(due - now)
-            return number, self._clock()
-        return max(number, int((now - self.t0) / self.cycle_s)), now  # late: the slots passed are gaps
-
     def bus_time(self, host_t: float) -> float:
         """The bus time (s since cycle 0) of a host monotonic instant."""
         return host_t - (self.t0 if self.t0 is not None else host_t)
@@ -92,24 +80,39 @@ class BusInputs:
         :data:`STATUS_EVERY_S`, the AL status: (cycle number, TxPDO image). A lost frame is FrameLost after the
         master's frame timeout (exit 3), a working-counter drop CommError (exit 3), the slave out of SAFE-OP a
         DriveError naming its AL status code (exit 1)."""
-        cycle = self.cycle
-        got: tuple[bytes, int, int | None] | None = None
-        while got is None:
-            number, now = self._slot()
+        cycle, clock = self.cycle, self._clock
+        while True:
+            # The next cycle's slot, waited for; a slot already past is skipped (late: the slots passed are gaps).
+            now = clock()
+            number = self._number + 1
+            t0 = self.t0
+            if t0 is None:
+                self.t0 = self._last_good = now
+                number = 0
+            else:
+                due = t0 + number * self.cycle_s
+                if now < due:
+                    self._sleep(due - now)
+                    now = clock()
+                else:
+                    number = max(number, int((now - t0) / self.cycle_s))
             check = now >= self._next_status
             try:
-                got = cycle.exchange(self._zeros, with_status=check)
+                inputs, wkc, al = cycle.exchange(self._zeros, check)
+                break
             except NoAnswer:
                 # one lost frame is one gap (a loaded host or wire); frames lost for lost_limit_s: the cycle stopped
                 self.lost += 1
                 self._number = number
-                if self._last_good is None or self._clock() - self._last_good > self.lost_limit_s:
+                if self._last_good is None or clock() - self._last_good > self.lost_limit_s:
                     raise
-        inputs, wkc, al = got
         self._last_good = now
+        expected = self._expected_wkc
+        if not check and wkc == expected:  # the usual cycle: nothing more to judge
+            self._number = number
+            return number, inputs
         if check:
             self._next_status = now + STATUS_EVERY_S
-        expected = cycle.safeop_wkc
         if al is None and wkc != expected:
             al = cycle.exchange(self._zeros)[2]  # why did it drop: a slave out of SAFE-OP says so
         if al is not None:  # read every STATUS_EVERY_S, or after a working-counter drop

@@ -290,49 +290,101 @@ class FrameTemplate:
     sent (the ADP is not compared: position and broadcast commands count it on the way).
     """
 
-    __slots__ = ("frame", "size", "count", "_index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
-                 "_results")
+    __slots__ = ("frame", "size", "count", "index_at", "_data_at", "_head", "_reply", "_fields", "_expect",
+                 "_results", "_answer", "answer_from")
 
-    def __init__(self, datagrams: list[Datagram], src: bytes) -> None:
+    def __init__(self, datagrams: list[Datagram], src: bytes, answer_from: int = 0) -> None:
+        """``answer_from``: where in the first datagram's data :meth:`answer` starts what it gives (a process-data
+        LRW's inputs lie behind its outputs)."""
         self.frame = bytearray(encode_frame(datagrams, src))
+        self.answer_from = answer_from
         self.count = len(datagrams)
         self._head = bytes(self.frame[12:ETH_HEADER + 2])  # EtherType and EtherCAT header
-        self._index_at: list[int] = []
+        self.index_at: list[int] = []  # where each datagram's index byte sits (stamp_in_place writes them)
         pos = ETH_HEADER + 2
         for d in datagrams:
-            self._index_at.append(pos + 1)
+            self.index_at.append(pos + 1)
             pos += 12 + len(d.data)
         self.size = pos
         self._data_at = (ETH_HEADER + 12, ETH_HEADER + 12 + len(datagrams[0].data))
-        # The datagrams as they come back: cmd, index, ADP, ADO, length, IRQ, data, WKC each (the layout above).
-        self._reply = struct.Struct("<" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
-        self._fields = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
-        self._results = operator.itemgetter(*(8 * k + f for k in range(self.count) for f in (6, 7)))
-        sent = self._reply.unpack_from(self.frame, ETH_HEADER + 2)
-        self._expect = [tuple(v for k in range(self.count) for v in (sent[8 * k], index, sent[8 * k + 3],
-                                                                    sent[8 * k + 4]))
+        # The frame as it comes back from the EtherType on: EtherType and EtherCAT header (4 bytes), then cmd,
+        # index, ADP, ADO, length, IRQ, data, WKC of each datagram (the layout above).
+        self._reply = struct.Struct("<4s" + "".join(f"BBHHHH{len(d.data)}sH" for d in datagrams))
+        self._fields = operator.itemgetter(0, *(1 + 8 * k + f for k in range(self.count) for f in (0, 1, 3, 4)))
+        self._results = operator.itemgetter(*(1 + 8 * k + f for k in range(self.count) for f in (6, 7)))
+        sent = self._reply.unpack_from(self.frame, 12)
+        self._expect = [(self._head, *(v for k in range(self.count) for v in (sent[1 + 8 * k], index,
+                                                                             sent[1 + 8 * k + 3], sent[1 + 8 * k + 4])))
                         for index in range(256)]  # what _fields reads from the reply, per index
+        self._answer: Any = None  # answer()'s one-datagram reader, made on first use
 
     def stamp(self, index: int, data: bytes | None = None) -> bytes:
         """The frame with ``index`` in every datagram (and ``data`` in the first, of the template's length)."""
+        return bytes(self.stamp_in_place(index, data))
+
+    def stamp_in_place(self, index: int, data: bytes | None = None) -> bytearray:
+        """:meth:`stamp` without the copy: the template's own buffer, to be sent before the next stamp.
+
+        Why: the cyclic process-data frame goes out every bus cycle with the same outputs; a copy per cycle
+        and a data copy of outputs that did not change are work the master repeats for nothing. Data left out
+        stays as last stamped."""
         frame = self.frame
-        for at in self._index_at:
+        for at in self.index_at:
             frame[at] = index
         if data is not None:
             start, end = self._data_at
             if len(data) != end - start:
                 raise CodecError(f"datagram data of {len(data)} bytes for a {end - start}-byte slot")
             frame[start:end] = data
-        return bytes(frame)
+        return frame
+
+    def answer(self, reply: bytes | bytearray, index: int, size: int) -> tuple[Any, ...] | None:
+        """:meth:`read`, and None as well for a frame carrying this template's own source address (the frame
+        itself, seen on its way out): what a master takes as the answer to this frame at these offsets. The
+        first datagram's data is given from ``answer_from`` on (:meth:`from_answer_from`).
+
+        Why: the process-data frame is answered every bus cycle; for a one-datagram frame one struct reads the
+        source address, the header fields :meth:`read` compares, the data and the WKC at once, and two bytes
+        compares judge them, where :meth:`read` and a separate look at the source cost several times that."""
+        lean = self._answer
+        if lean is None:
+            lean = self._answer = self._lean_reader() if self.count == 1 else False
+        if lean is False:
+            if reply[6:12] == self.frame[6:12]:
+                return None
+            got = self.read(reply, index, size)
+            return None if got is None else self.from_answer_from(got)
+        if size < self.size:
+            return None
+        src, head, fixed, data, wkc = lean[0](reply, 6)
+        if src == lean[1] or head != lean[2][index] or fixed != lean[3]:
+            return None
+        return data, wkc
+
+    def _lean_reader(self) -> tuple[Any, ...]:
+        """(unpack, own source, EtherType + header + cmd + index per index, ADO + length) for :meth:`answer`: the
+        fields :meth:`read` compares (the ADP and IRQ skipped as it skips them)."""
+        start, end = self._data_at
+        frame = self.frame
+        skip = min(self.answer_from, end - start)
+        unpack = struct.Struct(f"<6s6s2x4s2x{skip}x{end - start - skip}sH").unpack_from
+        cmd = frame[ETH_HEADER + 2]
+        heads = [self._head + bytes((cmd, index)) for index in range(256)]
+        return unpack, bytes(frame[6:12]), heads, bytes(frame[ETH_HEADER + 6:ETH_HEADER + 10])
+
+    def from_answer_from(self, got: tuple[Any, ...]) -> tuple[Any, ...]:
+        """:meth:`read`'s result with the first datagram's data from ``answer_from`` on, as :meth:`answer` gives it."""
+        skip = self.answer_from
+        return (got[0][skip:], *got[1:]) if skip else got
 
     def read(self, reply: bytes | bytearray, index: int, size: int | None = None) -> tuple[Any, ...] | None:
         """``(data, working counter)`` of each datagram in turn, flat (``data0, wkc0, data1, wkc1 ...``), if
         ``reply`` (its first ``size`` bytes: a receive buffer may be longer) is this frame with ``index`` coming
         back; else None (another frame, a VLAN tag: the caller decodes it the general way)."""
-        if (len(reply) if size is None else size) < self.size or not reply.startswith(self._head, 12):
+        if (len(reply) if size is None else size) < self.size:
             return None
-        got = self._reply.unpack_from(reply, ETH_HEADER + 2)
-        if self._fields(got) != self._expect[index]:
+        got = self._reply.unpack_from(reply, 12)
+        if self._fields(got) != self._expect[index]:  # (the EtherType and EtherCAT header compared with the rest)
             return None
         return self._results(got)  # type: ignore[no-any-return]
 

@@ -145,25 +145,82 @@ class EcatMaster:
         if sock is None:
             raise CommError(f"ecat://{self.ifname}: the link is closed")
         index = self._index = (self._index + 1) & 0xFF
-        frame = template.stamp(index, data)
+        return self._template_trip(sock, template, index, template.stamp(index, data), "mailbox poll/fetch")
+
+    def txrx_cyclic(self, template: ec.FrameTemplate, data: bytes | None = None) -> tuple[Any, ...]:
+        """:meth:`txrx_template` for the process-data frame, sent every bus cycle: the template's own buffer
+        goes out as it is (:meth:`FrameTemplate.stamp_in_place`; ``data`` None keeps the outputs stamped last);
+        the answer as :meth:`FrameTemplate.answer` gives it (the first datagram's data from ``answer_from`` on).
+
+        Why its own path: this runs once per bus cycle, so the usual cycle -- the first frame received is the
+        answer, nothing traced -- is taken in one go; anything else (our own frame, another frame, tracing on)
+        continues the general way (:meth:`_template_answer`), with the same checks and the same time left."""
+        sock = self.sock
+        if sock is None:
+            raise CommError(f"ecat://{self.ifname}: the link is closed")
+        index = self._index = (self._index + 1) & 0xFF
+        if data is None:  # the usual cycle: only the index changes (stamp_in_place without a call per cycle)
+            frame = template.frame
+            for at in template.index_at:
+                frame[at] = index
+        else:
+            frame = template.stamp_in_place(index, data)
         if self.tracer.active:
-            self._trace("tx", frame, "mailbox poll/fetch")
+            return template.from_answer_from(self._template_trip(sock, template, index, frame, "process data"))
         try:
             sock.send(frame)
         except OSError as exc:
-            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+            raise self._cannot_send(exc) from None
         self.frames += 1
         sent = time.monotonic()
-        buffer = self._buffer
         if self._waits != self.frame_timeout:
             self._wait_at_most(sock, self.frame_timeout)
+        buffer = self._buffer
+        try:
+            size = sock.recv_into(buffer)
+        except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+            raise self._lost() from None
+        except OSError as exc:
+            raise self._receive_failed(exc) from None
+        got = template.answer(buffer, index, size)  # (our own frame, seen on the way out, is not the answer)
+        if got is not None:
+            return got
+        return template.from_answer_from(self._template_answer(sock, template, index, sent, size))
+
+    def _cannot_send(self, exc: OSError) -> CommError:
+        return CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}")
+
+    def _receive_failed(self, exc: OSError) -> CommError:
+        return CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}")
+
+    def _template_trip(self, sock: socket.socket, template: ec.FrameTemplate, index: int, frame: bytes | bytearray,
+                       note: str) -> tuple[Any, ...]:
+        """Send a stamped template frame and wait for its answer (:meth:`txrx_template`)."""
+        if self.tracer.active:
+            self._trace("tx", bytes(frame), note)
+        try:
+            sock.send(frame)
+        except OSError as exc:
+            raise self._cannot_send(exc) from None
+        self.frames += 1
+        sent = time.monotonic()
+        if self._waits != self.frame_timeout:
+            self._wait_at_most(sock, self.frame_timeout)
+        return self._template_answer(sock, template, index, sent)
+
+    def _template_answer(self, sock: socket.socket, template: ec.FrameTemplate, index: int, sent: float,
+                         size: int | None = None) -> tuple[Any, ...]:
+        """The answer to a template frame sent at ``sent`` (``size``: a frame already received into the buffer,
+        looked at first); frames that are not the answer are passed over until the frame timeout."""
+        buffer = self._buffer
         while True:
-            try:
-                size = sock.recv_into(buffer)
-            except (BlockingIOError, socket.timeout):  # the receive timeout ran out
-                raise self._lost() from None
-            except OSError as exc:
-                raise CommError(f"ecat://{self.ifname}: receive failed: {exc.strerror}") from None
+            if size is None:
+                try:
+                    size = sock.recv_into(buffer)
+                except (BlockingIOError, socket.timeout):  # the receive timeout ran out
+                    raise self._lost() from None
+                except OSError as exc:
+                    raise self._receive_failed(exc) from None
             own = buffer.startswith(MASTER_MAC, 6)  # our own frame, seen on the way out, is not the answer
             got = None if own else template.read(buffer, index, size)
             if got is None and not own:  # not at the template's offsets: decode it the general way
@@ -182,6 +239,7 @@ class EcatMaster:
             if left <= 0:
                 raise self._lost()
             self._wait_at_most(sock, left)
+            size = None
 
     def txrx_pair(self, first: ec.FrameTemplate, data: bytes, second: ec.FrameTemplate
                   ) -> tuple[tuple[Any, ...] | None, tuple[Any, ...] | None]:
@@ -768,7 +826,9 @@ class ProcessDataCycle:
         self.master, self.station, self.rx_bytes, self.tx_bytes = master, station, rx_bytes, tx_bytes
         self.expected_wkc = (2 if rx_bytes else 0) + (1 if tx_bytes else 0)
         self.cycles = 0
-        self._frames: dict[bool, ec.FrameTemplate] = {}  # with/without the AL status read: encoded once
+        # with/without the AL status read: each encoded once, with the outputs it holds now (stamped again only
+        # when they change)
+        self._frames: dict[bool, list[Any]] = {}  # [template, the outputs it holds (None: not stamped yet)]
 
     def configure(self) -> None:
         """In PRE-OP: SM2/SM3 with the mapping's lengths, FMMU0 outputs, FMMU1 inputs."""
@@ -786,17 +846,23 @@ class ProcessDataCycle:
     def exchange(self, outputs: bytes, with_status: bool = True) -> tuple[bytes, int, int | None]:
         """One cycle: (inputs, working counter of the LRW, AL status or None when not asked for). FrameLost when
         the frame is lost. The AL status rides in the same frame when ``with_status``."""
-        image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
-        frame = self._frames.get(with_status)
-        if frame is None:  # the same frame every cycle but for its index and outputs (as the mailbox polls)
-            datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, image)]
+        known = self._frames.get(with_status)
+        if known is None:  # the same frame every cycle but for its index and outputs (as the mailbox polls)
+            datagrams = [ec.logical_datagram(ec.Cmd.LRW, LOGICAL_BASE, bytes(self.rx_bytes + self.tx_bytes))]
             if with_status:
                 datagrams.append(ec.Datagram(ec.Cmd.FPRD, self.station, ec.REG_AL_STATUS, bytes(2)))
-            frame = self._frames[with_status] = ec.FrameTemplate(datagrams, MASTER_MAC)
-        got = self.master.txrx_template(frame, image)
+            known = self._frames[with_status] = [ec.FrameTemplate(datagrams, MASTER_MAC, answer_from=self.rx_bytes),
+                                                 None]
+        if outputs == known[1]:  # the outputs the frame holds (the usual cycle: the same outputs again)
+            got = self.master.txrx_cyclic(known[0])
+        else:  # (the inputs' part of the LRW goes out as zeros)
+            image = bytes(outputs[:self.rx_bytes]).ljust(self.rx_bytes, b"\0") + bytes(self.tx_bytes)
+            got = self.master.txrx_cyclic(known[0], image)
+            known[1] = bytes(outputs)  # stamped and sent: the frame holds these outputs now
         self.cycles += 1
-        al = None if not with_status else (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
-        return got[0][self.rx_bytes:], got[1], al
+        if not with_status:
+            return got[0], got[1], None  # (the LRW's data from the inputs on: answer_from)
+        return got[0], got[1], (struct.unpack("<H", got[2])[0] if got[3] == 1 else 0)  # (data, WKC) flat
 
     # The steps around the exchange (drive/ecat_pdo_watch.py enter/leave, the scope's pdo source) talk to the one
     # slave this cycle serves, so they take the cycle alone, never the transport behind it.
