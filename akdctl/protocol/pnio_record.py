@@ -296,7 +296,7 @@ def ok_template_booted(data: bytes, record_length: int | None, boot: int) -> tup
     tail[, record])`` writes what :func:`write_ok`/:func:`read_ok` write for that ``boot``. Why: a face's boot time is
     fixed, so its replies' first 64 bytes are one constant per shape, and the pack takes two arguments fewer per
     reply (issue 29). Cut from :func:`ok_template`'s, which is cut from the general codecs' reply."""
-    pack, head, interface, middle, tail = ok_template(data, record_length)
+    _pack, head, interface, middle, tail = ok_template(data, record_length)
     little = data[DREP_BYTE] >> 4 & 1
     first = head + _HEAD_TAIL[bool(little)].pack(boot) + interface
     record = "" if record_length is None else f"{record_length}s"
