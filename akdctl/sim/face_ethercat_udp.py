@@ -21,6 +21,8 @@ from akdctl.sim.face import Face, FaceOption, request_failed
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
+#: Datagrams whose mailbox the gateway keeps at once (:meth:`GatewayHandler._learn`); more start the memo over.
+MAILBOXES_KEPT = 1024
 
 
 OPTIONS = (
@@ -78,17 +80,20 @@ class GatewayHandler:
         # looked up once here, not imported per datagram
         self._unwrap, self._wrap, self._header_size = mailbox.unwrap_gateway, mailbox.wrap_gateway, mailbox.HEADER_SIZE
         self._codec_error = CodecError
+        self._mailboxes: dict[bytes, tuple[bytes, int]] = {}  # datagram -> (its mailbox, station) (_learn)
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
         mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
         drive's own emergencies carry address 0)."""
         CodecError = self._codec_error  # noqa: N806 - the class, looked up once
-        try:
-            raw = self._unwrap(datagram)
-        except CodecError:
-            return []  # a gateway drops what it cannot parse
-        address = raw[2] | raw[3] << 8
+        mailbox = self._mailboxes.get(datagram) if datagram.__class__ is bytes else None
+        if mailbox is None:
+            try:
+                mailbox = self._learn(datagram)
+            except CodecError:
+                return []  # a gateway drops what it cannot parse
+        raw, address = mailbox
         drive = self.stations.get(address)
         if drive is None:
             return []
@@ -121,6 +126,23 @@ class GatewayHandler:
             except CodecError:
                 continue
         return out
+
+
+    def _learn(self, datagram: bytes) -> tuple[bytes, int]:
+        """The mailbox in ``datagram`` and its station address, kept in :attr:`_mailboxes` by the datagram's bytes.
+
+        Why: a master polls with the same few datagrams (its counter runs 1..7), and checking and cutting the
+        gateway header (``mailbox.unwrap_gateway``) again for each was a share of a served upload (issue 29). What
+        is kept is read from the datagram's bytes alone, so the key covers it; a datagram the codec refuses raises
+        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over."""
+        raw = self._unwrap(datagram)
+        mailbox = (raw, raw[2] | raw[3] << 8)
+        if datagram.__class__ is bytes:
+            kept = self._mailboxes
+            if len(kept) >= MAILBOXES_KEPT:
+                kept.clear()
+            kept[datagram] = mailbox
+        return mailbox
 
 
 class EthercatUdpFace(Face):
