@@ -78,7 +78,9 @@ class GatewayHandler:
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
         # looked up once here, not imported per datagram
-        self._unwrap, self._wrap, self._header_size = mailbox.unwrap_gateway, mailbox.wrap_gateway, mailbox.HEADER_SIZE
+        self._unwrap, self._gateway_header, self._header_size = \
+            mailbox.unwrap_gateway, mailbox.gateway_header, mailbox.HEADER_SIZE
+        self._headers: dict[int, bytes] = {}  # reply size -> its gateway header (at most 0x7FF sizes)
         self._codec_error = CodecError
         self._mailboxes: dict[bytes, tuple[bytes, int]] = {}  # datagram -> (its mailbox, station) (_learn)
 
@@ -114,19 +116,23 @@ class GatewayHandler:
             except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
                 request_failed("ethercat-udp", exc)
                 replies = failure_reply(raw)
-        wrap, header_size = self._wrap, self._header_size
+        # each reply behind the gateway header of its size (kept per size: mailbox.gateway_header)
+        headers, header_size = self._headers, self._header_size
         out = []
         for reply in replies:
-            if len(reply) < header_size:
+            size = len(reply)
+            if size < header_size:
                 continue
             if reply[2] | reply[3] << 8 != address:
                 reply = reply[:2] + raw[2:4] + reply[4:]
-            try:
-                out.append(wrap(reply))
-            except CodecError:
-                continue
+            header = headers.get(size)
+            if header is None:
+                try:
+                    header = headers[size] = self._gateway_header(size)
+                except CodecError:
+                    continue
+            out.append(header + reply)
         return out
-
 
     def _learn(self, datagram: bytes) -> tuple[bytes, int]:
         """The mailbox in ``datagram`` and its station address, kept in :attr:`_mailboxes` by the datagram's bytes.
