@@ -321,5 +321,7 @@ def test_a_gateway_header_too_long_is_refused_as_wrap_gateway_refuses_it() -> No
        st.binary(min_size=1, max_size=4))
 def test_the_upload_templates_equal_the_pack(address: int, counter: int, index: int, subindex: int,
                                              value: bytes) -> None:
-    head, tail = coe.expedited_upload_templates(address, counter, index, subindex)[len(value)]
+    templates = coe.expedited_upload_templates(address, counter, index, subindex)
+    assert sorted(templates) == [1, 2, 3, 4]
+    head, tail = templates[len(value)]
     assert head + value + tail == coe.pack_expedited_upload_mailbox(address, counter, index, subindex, value)

@@ -157,7 +157,7 @@ class SdoServer:
         self._foe_server: object | None = None  # the FoE transfer in progress (built on the first FoE mailbox)
         self._emcy_counter = 0
         #: mailbox bytes -> the plan of a plain upload initiate (:meth:`_plan`)
-        self._plans: dict[bytes, tuple[int, int, tuple[tuple[bytes, bytes], ...], _Request]] = {}
+        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request]] = {}
 
     # --- public -----------------------------------------------------------------------------
 
@@ -194,9 +194,9 @@ class SdoServer:
                     value = self.access.object_read(index, subindex)
                 except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
                     value = self._read_failed(index, subindex, exc)
-                if value.__class__ is bytes and 1 <= len(value) <= 4:
-                    head, tail = templates[len(value)]
-                    replies = [head + value + tail]
+                cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
+                if cut is not None:
+                    replies = [cut[0] + value + cut[1]]
                 else:
                     if not isinstance(value, coe.SdoAbort):
                         value = bytes(value)
@@ -216,7 +216,7 @@ class SdoServer:
             pending = []
         return pending + replies
 
-    def _plan(self, mailbox: bytes) -> tuple[int, int, tuple[tuple[bytes, bytes], ...], _Request] | None:
+    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request] | None:
         """What :meth:`handle` keeps of a plain upload initiate (None: another request, the general path answers):
         its index and subindex, the answer's templates and the request's address and counter.
 
