@@ -211,7 +211,11 @@ def test_a_datagram_that_is_not_bytes_is_answered_alike(tmp_path: Path) -> None:
     fast, ref = GatewayHandler({1001: fast_drive}), ReferenceGateway({1001: ref_drive})
     for datagram in (_upload(0x1018, 1, 1), _upload(0x1018, 4, 2)):
         assert fast.handle(bytearray(datagram), PEER) == ref.handle(datagram, PEER)
+        assert fast.handle(memoryview(bytearray(datagram)), PEER) == ref.handle(datagram, PEER)
     assert not fast._mailboxes  # only bytes are kept (a bytearray is no dict key)
+    for datagram in (_upload(0x1018, 1, 3), _upload(0x1018, 1, 3)[:-1]):  # kept as bytes, then met as a view
+        assert fast.handle(datagram, PEER) == ref.handle(datagram, PEER)
+        assert fast.handle(memoryview(datagram), PEER) == ref.handle(datagram, PEER)
 
 
 def test_the_face_serves_on_after_bad_datagrams_and_stops(tmp_path: Path) -> None:
@@ -299,6 +303,7 @@ def test_the_servers_plans_are_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
     for n in range(20):
         request = _mailbox(0x1018, n % 5, n % 7 + 1)
         assert server.handle(request) == general.handle(bytearray(request))
+        assert server.handle(memoryview(bytearray(request))) == general.handle(memoryview(request))
         assert len(server._plans) <= 4
     assert not general._plans  # a bytearray is answered without a plan
 

@@ -122,7 +122,10 @@ class GatewayHandler:
             datagram = data
             data = None
             try:
-                mailbox = mailboxes.get(datagram) if datagram.__class__ is bytes else None
+                try:
+                    mailbox = mailboxes.get(datagram)
+                except (TypeError, ValueError):  # not hashable (a bytearray, a writable view): not kept
+                    mailbox = None
                 if mailbox is None:
                     try:
                         mailbox = self._learn(datagram)

@@ -184,7 +184,10 @@ class SdoServer:
         (``coe.expedited_upload_templates``); the same rules as :meth:`_upload_fast`, which answers it when the
         value is not expedited."""
         try:
-            plan = self._plans.get(mailbox) if mailbox.__class__ is bytes else None
+            try:
+                plan = self._plans.get(mailbox)
+            except (TypeError, ValueError):  # not hashable (a bytearray, a writable view): no plan kept for it
+                plan = None
             if plan is None:
                 plan = self._plan(mailbox)
             if plan is not None:
