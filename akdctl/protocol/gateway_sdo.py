@@ -25,13 +25,15 @@ from akdctl.protocol import coe, mailbox
 _WORDS = struct.Struct("<QQ")
 #: The gateway header's bits ``unwrap_gateway`` reads: type (bits 12-15) and the 11-bit length (bit 11 is not read).
 _GATEWAY_MASK = 0xF7FF
+_GATEWAY_HEADER_SIZE = mailbox.GATEWAY_HEADER_SIZE
+_unpack = _WORDS.unpack_from
 
 
 class UploadFrames:
     """The datagrams of an upload initiate of ``index:subindex`` at ``station`` (one per mailbox counter 1..7) and
     the check of its expedited answer. Built once per object by the client; immutable."""
 
-    __slots__ = ("requests", "_expected", "_mask", "_first", "_size", "_end")
+    __slots__ = ("requests", "_expected", "_mask", "_expected2", "_mask2", "_command", "_first", "_end")
 
     def __init__(self, station: int, index: int, subindex: int) -> None:
         body = coe.upload_request(index, subindex)   # raises CoeError for an index or subindex out of range
@@ -44,23 +46,22 @@ class UploadFrames:
         gateway = mailbox.wrap_gateway(bytes(mailbox_size))[:mailbox.GATEWAY_HEADER_SIZE]
         gateway_mask = _GATEWAY_MASK.to_bytes(mailbox.GATEWAY_HEADER_SIZE, "little")
         tail = _WORDS.size - len(gateway) - len(pattern)   # the value's first bytes in the second word: not checked
-        self._expected = _WORDS.unpack(gateway + pattern + bytes(tail))
-        self._mask = _WORDS.unpack(gateway_mask + mask + bytes(tail))
+        self._expected, self._expected2 = _WORDS.unpack(gateway + pattern + bytes(tail))
+        self._mask, self._mask2 = _WORDS.unpack(gateway_mask + mask + bytes(tail))
         self._first = len(gateway) + value_at        # where the value starts in the datagram
-        self._end = self._first + 4
-        self._size = self._end                       # the datagram's whole length
+        self._command = self._first - 4              # the SDO command byte: index (2) and subindex (1) follow it
+        self._end = self._first + 4                  # the datagram's whole length
 
     def answer(self, datagram: bytes) -> tuple[int, bytes, bytes] | None:
         """(mailbox counter, value, the mailbox) when ``datagram`` is exactly the expedited answer to this upload;
         None for anything else (another object or station, a normal or segmented answer, an abort, an emergency,
         CoE service 2, a mailbox error, a malformed frame): the general path reads those."""
-        if len(datagram) != self._size:
+        end = self._end
+        if len(datagram) != end:
             return None
-        first, second = _WORDS.unpack_from(datagram)
-        mask = self._mask
-        expected = self._expected
-        if first & mask[0] != expected[0] or second & mask[1] != expected[1]:
+        first, second = _unpack(datagram)
+        if first & self._mask != self._expected or second & self._mask2 != self._expected2:
             return None
-        command = datagram[self._first - 4]   # the SDO command byte: index (2) and subindex (1) follow it
-        end = self._end - (command >> 2 & 0x03) if command & 0x01 else self._end
-        return first >> 60 & 0x07, datagram[self._first:end], datagram[mailbox.GATEWAY_HEADER_SIZE:]
+        command = datagram[self._command]
+        return (first >> 60 & 0x07, datagram[self._first:end - (command >> 2 & 0x03) if command & 0x01 else end],
+                datagram[_GATEWAY_HEADER_SIZE:])
