@@ -23,8 +23,7 @@ from hypothesis import strategies as st
 
 from akdctl.channels.coe_sdo import CoeObjectChannel
 from akdctl.errors import AkdError
-from akdctl.protocol import coe
-from akdctl.protocol import gateway_sdo
+from akdctl.protocol import coe, gateway_sdo
 from akdctl.protocol import mailbox as mbx
 from akdctl.protocol.errors import CodecError
 from akdctl.sim.drive import factory_model
@@ -114,7 +113,7 @@ def test_the_one_unpack_check_takes_only_what_the_general_path_takes(tail: bytes
 # --- the client over a real socket ---------------------------------------------------------------------------------
 
 
-def _model():  # noqa: ANN202
+def _model():
     model = factory_model("gateway-parity")
     model.object_write(0x2032, 0, b"x" * 1500)  # longer than one mailbox: segmented
     model.set_stored_object(0x2033, 0, b"AKD-x")  # a string of 5 bytes: a normal upload
@@ -178,7 +177,7 @@ class ScriptedGateway:
         while not self._stop:
             try:
                 datagram, peer = self.sock.recvfrom(4096)
-            except socket.timeout:
+            except TimeoutError:
                 continue
             except OSError:
                 return

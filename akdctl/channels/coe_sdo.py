@@ -151,12 +151,12 @@ class CoeObjectChannel(ObjectChannel):
                 taker.sent(counter)
                 if data is None:
                     return self._upload_request(index, subindex, at, (counter, wait, end, _monotonic(), b""))
-                reply = frames.answer(data)
-                if reply is not None and _monotonic() <= end:
-                    mine = taker.take(reply[2], reply[0])
+                answer = frames.answer(data)
+                if answer is not None and _monotonic() <= end:
+                    mine = taker.take(answer[2], answer[0])
                     if mine is not None:
                         self._proven = mine
-                        return reply[1]
+                        return answer[1]
                 now = _monotonic()
                 return self._upload_request(index, subindex, at, (counter, wait, end, now, self.link.frame_mailbox(data)))
         request = coe.upload_request(index, subindex)

@@ -33,7 +33,7 @@ class UploadFrames:
     """The datagrams of an upload initiate of ``index:subindex`` at ``station`` (one per mailbox counter 1..7) and
     the check of its expedited answer. Built once per object by the client; immutable."""
 
-    __slots__ = ("requests", "_expected", "_mask", "_expected2", "_mask2", "_command", "_first", "_end")
+    __slots__ = ("_command", "_end", "_expected", "_expected2", "_first", "_mask", "_mask2", "requests")
 
     def __init__(self, station: int, index: int, subindex: int) -> None:
         body = coe.upload_request(index, subindex)   # raises CoeError for an index or subindex out of range
