@@ -16,7 +16,6 @@ then segmented, never refused).
 
 from __future__ import annotations
 
-import contextlib
 import socket
 import time
 from typing import Literal
@@ -27,7 +26,7 @@ from akdctl.protocol.gateway_sdo import UploadFrames
 from akdctl.protocol.mailbox import MailboxError, unwrap_gateway, wrap_gateway
 from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
-from akdctl.transport.tcp_stream import BoundedSocket
+from akdctl.transport.tcp_stream import DatagramSocket, SendFailed
 from akdctl.transport.trace import Tracer
 
 DEFAULT_PORT = 34980
@@ -70,7 +69,7 @@ class GatewayMailboxLink(MailboxLink):
         try:
             # every receive ends by its wait's end, in one recv(2) where the kernel can bound it (tcp_stream: the
             # rule pn:// waits by too); sends bounded by the command's timeout
-            self.stream = BoundedSocket(sock, timeout)
+            self.stream = DatagramSocket(sock, timeout)
         except OSError as exc:
             sock.close()
             raise CommError(f"cannot use the socket to EtherCAT gateway {host}:{port}: {exc.strerror}") from None
@@ -159,22 +158,18 @@ class GatewayMailboxLink(MailboxLink):
         sent) while tracing: the general path traces every datagram with what it made of it."""
         if self.tracer.active:
             return False
-        sock = self.sock
-        if sock is None:
+        if self.sock is None:
             raise self._closed()
         try:
-            sock.send(frame)
+            data = self.stream.exchange(frame, at, 4096)
         except ConnectionRefusedError:
             raise self._refused() from None
-        except OSError as exc:
+        except SendFailed as exc:
             raise CommError(f"cannot send to EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
-        self.sent += 1
-        try:
-            data = self.stream.recv(at, 4096)
-        except ConnectionRefusedError:
-            raise self._refused() from None
         except OSError as exc:
+            self.sent += 1
             raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+        self.sent += 1
         if data is not None:
             self.received += 1
         return data
@@ -191,8 +186,7 @@ class GatewayMailboxLink(MailboxLink):
 
     def close(self) -> None:
         if self.sock is not None:
-            with contextlib.suppress(OSError):
-                self.sock.close()
+            self.stream.close()   # closes the socket and forgets its descriptor (DatagramSocket.exchange writes to it)
             self.sock = None
 
 

@@ -195,6 +195,64 @@ class BoundedSocket:
             pass
 
 
+class DatagramSocket(BoundedSocket):
+    """One connected UDP socket of a request/response client (``ecat-udp://``'s gateway link). One caller at a time.
+
+    :meth:`exchange` is a request in one call: the datagram out and the first datagram back, through the descriptor
+    while the kernel's timeouts bound the socket, as :meth:`TcpStream.request` does (``write(2)``/``read(2)`` on a
+    connected datagram socket are ``send``/``recv`` without flags: one datagram each way). Closed only through
+    :meth:`close` (which forgets the descriptor).
+    """
+
+    __slots__ = ("_fd",)
+
+    def __init__(self, sock: socket.socket, send_timeout: float) -> None:
+        super().__init__(sock, send_timeout)
+        self._fd = sock.fileno()
+
+    def close(self) -> None:
+        self._fd = -1   # a later exchange fails as on a closed socket (EBADF), never on a descriptor number reused
+        BoundedSocket.close(self)
+
+    def exchange(self, data: bytes, at: float, size: int = 4096) -> bytes | None:
+        """Send the datagram ``data``, then :meth:`recv` the first datagram that arrives before ``at`` (None when
+        none did). A failed send raises :class:`SendFailed` (the send's errno and text; a refusal stays
+        ``ConnectionRefusedError``), so the caller words it apart from a failed receive (plain ``OSError``)."""
+        left = at - _monotonic()
+        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
+            # _bound's window test inline, as in request(): a wait the timeout set still fits costs no call
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)
+            if self._polled:   # Python's timeout (too little left for the kernel's): the socket's own calls
+                return self._exchange_polled(data, at, size)
+        fd = self._fd
+        try:
+            _write(fd, data)
+        except ConnectionRefusedError:
+            raise
+        except OSError as exc:   # (BlockingIOError: SO_SNDTIMEO expired)
+            raise SendFailed(exc.errno, exc.strerror) from None
+        try:
+            return _read(fd, size)
+        except BlockingIOError:   # SO_RCVTIMEO expired (EAGAIN), early by design: the rest of the wait
+            return self._rest(at, size)
+
+    def _exchange_polled(self, data: bytes, at: float, size: int) -> bytes | None:
+        try:
+            self.sock.send(data)
+        except ConnectionRefusedError:
+            raise
+        except OSError as exc:
+            raise SendFailed(exc.errno, exc.strerror) from None
+        try:
+            return self.sock.recv(size)
+        except (BlockingIOError, socket.timeout):
+            return self._rest(at, size)
+
+
+class SendFailed(OSError):
+    """:meth:`DatagramSocket.exchange` could not send its datagram (errno and text of the send's failure)."""
+
+
 class TcpStream(BoundedSocket):
     """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time.
 
@@ -267,4 +325,4 @@ class TcpStream(BoundedSocket):
             raise
 
 
-__all__ = ["BoundedSocket", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
+__all__ = ["BoundedSocket", "DatagramSocket", "SendFailed", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
