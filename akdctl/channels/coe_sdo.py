@@ -120,7 +120,10 @@ class CoeObjectChannel(ObjectChannel):
         answer the next mailbox, expedited -- is read in one pass: the request sent as :meth:`_exchange` sends it,
         one receive, the reply read by one codec call (``coe.expedited_upload_reply``) and taken by the same
         counter rules. Anything else (silence, a late, foreign or other reply) goes on as the general path's first
-        attempt with the reply already received, within the same deadline."""
+        attempt with the reply already received, within the same deadline. On a link of whole frames
+        (``MailboxLink.quick_frames``: ``ecat-udp://``) the request is the frame the link's codec made once for this
+        object and counter, and the reply is checked whole (``gateway_sdo.UploadFrames.answer``) before the same
+        counter rules; a link that declines (tracing) gets the pass above."""
         at = None if self._stale else self.budget.lone()
         if at is None:
             return self._upload_request(index, subindex)
