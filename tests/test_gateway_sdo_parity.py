@@ -255,3 +255,29 @@ def test_tracing_declines_the_quick_way_and_changes_nothing(name: str,
     assert traced[3]  # every datagram traced, with what the link made of it
     assert traced == _run(gateways, SCRIPTS[name], general=True, tracing=True)
     assert traced[:3] == _run(gateways, SCRIPTS[name], general=False)[:3]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 7), st.integers(0, 7), st.sampled_from([b"a", b"b", b"c"]), st.booleans(),
+                          st.booleans()), max_size=30), st.booleans())
+def test_take_with_the_requests_counter_equals_sent_then_take(steps: list[tuple[int, int, bytes, bool, bool]],
+                                                              strict: bool) -> None:
+    """ReplyFilter.take(raw, counter, sent) (the quick upload's one call) leaves the filter as sent() then take()
+    leave it and answers the same, through any sequence of requests, replies and silences."""
+    from akdctl.channels.reply_filter import ReplyFilter
+
+    one, two = ReplyFilter(strict), ReplyFilter(strict)
+    for sent, got, content, silence, more in steps:
+        raw = content + bytes([got])
+        if silence:
+            one.sent(sent)
+            two.sent(sent)
+            one.unanswered()
+            two.unanswered()
+            continue
+        two.sent(sent)
+        assert one.take(raw, got, sent) == two.take(raw, got)
+        if more:  # a second reply to the same request: take without the counter, on both
+            assert one.take(raw, got) == two.take(raw, got)
+        assert (list(one._recent), one._sent, one._streak, one._foreign) == \
+            (list(two._recent), two._sent, two._streak, two._foreign)

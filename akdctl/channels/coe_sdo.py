@@ -150,18 +150,20 @@ class CoeObjectChannel(ObjectChannel):
             if data is not False:
                 self._counter = counter
                 self.requests += 1
-                taker = self.filter
-                taker.sent(counter)
-                if data is None:
-                    return self._upload_request(index, subindex, at, (counter, wait, end, _monotonic(), b""))
-                answer = frames.answer(data)
-                if answer is not None and _monotonic() <= end:
-                    mine = taker.take(answer[2], answer[0])
-                    if mine is not None:
-                        self._proven = mine
-                        return answer[1]
-                now = _monotonic()
-                return self._upload_request(index, subindex, at, (counter, wait, end, now, self.link.frame_mailbox(data)))
+                if data is None:  # silence in the attempt's share
+                    self.filter.sent(counter)
+                    mailbox: bytes | None = b""
+                else:
+                    answer = frames.answer(data)
+                    if answer is not None and _monotonic() <= end:
+                        mine = self.filter.take(answer[2], answer[0], counter)  # (filter.sent(counter) in the call)
+                        if mine is not None:
+                            self._proven = mine
+                            return answer[1]
+                    else:
+                        self.filter.sent(counter)
+                    mailbox = self.link.frame_mailbox(data)  # as the link's receive judges it (None: read past)
+                return self._upload_request(index, subindex, at, (counter, wait, end, _monotonic(), mailbox))
         request = coe.upload_request(index, subindex)
         self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)
         try:
