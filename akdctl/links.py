@@ -237,10 +237,10 @@ class MailboxLink(ABC):
         """The pre-encoded frames of an upload of ``index:subindex`` (only where :attr:`quick_frames`)."""
         raise NotImplementedError
 
-    def quick_request(self, frame: bytes, at: float) -> "bytes | None | Literal[False]":
-        """Send a whole frame and return the first frame that arrives before the monotonic time ``at`` as it came
-        (None: none did); False when the link cannot take the quick way now (then nothing was sent). Only where
-        :attr:`quick_frames`; failures raise as :meth:`send` and :meth:`receive` raise."""
+    def quick_request(self, frame: bytes, at: float, wait: float) -> "bytes | None | Literal[False]":
+        """Send a whole frame and return the first frame that arrives before the monotonic time ``at`` (about now +
+        ``wait``) as it came (None: none did); False when the link cannot take the quick way now (then nothing was
+        sent). Only where :attr:`quick_frames`; failures raise as :meth:`send` and :meth:`receive` raise."""
         return False
 
     def frame_mailbox(self, frame: bytes) -> bytes | None:

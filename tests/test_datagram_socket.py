@@ -83,3 +83,30 @@ def test_a_closed_socket_fails_and_writes_nothing(pair: tuple[DatagramSocket, so
     peer.settimeout(0.1)
     with pytest.raises(TimeoutError):
         peer.recv(100)
+
+
+def test_a_lone_requests_wait_is_remembered_and_forgotten_on_a_new_bound(pair: tuple[DatagramSocket, socket.socket],
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """BoundedSocket._arm (the rule TcpStream.request keeps too): once the timeout set suits a wait, a request with
+    that wait reads no clock and sets no timeout; a receive that needs another bound makes it check again."""
+    from akdctl.transport import tcp_stream
+
+    stream, peer = pair
+    local = stream.sock.getsockname()
+    reads = []
+    real = tcp_stream._monotonic
+    monkeypatch.setattr(tcp_stream, "_monotonic", lambda: reads.append(1) or real())
+
+    def request(wait: float) -> bytes | None:
+        peer.sendto(b"answer", local)
+        time.sleep(0.01)
+        return stream.exchange(b"request", real() + wait, 4096, wait)
+
+    assert request(1.0) == b"answer" and reads   # the first: the clock read, the timeout set, the wait remembered
+    reads.clear()
+    assert request(1.0) == b"answer" and not reads   # remembered: no clock read
+    assert stream.recv(real() + 0.2, 100) is None   # another wait: a new bound
+    reads.clear()
+    assert request(1.0) == b"answer" and reads   # checked again
+    for _ in range(3):
+        peer.recv(100)

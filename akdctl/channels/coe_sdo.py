@@ -140,7 +140,7 @@ class CoeObjectChannel(ObjectChannel):
             wait = budget.timeout / (budget.retries + 1)  # (Deadline.share of the request's first attempt)
             end = at - budget.timeout + wait
             try:
-                data = self.link.quick_request(frames.requests[counter], end)
+                data = self.link.quick_request(frames.requests[counter], end, wait)
             except CommError:
                 self._counter = counter
                 self.requests += 1

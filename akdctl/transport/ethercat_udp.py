@@ -152,7 +152,7 @@ class GatewayMailboxLink(MailboxLink):
     def upload_frames(self, index: int, subindex: int) -> UploadFrames:
         return UploadFrames(self.station, index, subindex)
 
-    def quick_request(self, frame: bytes, at: float) -> bytes | None | Literal[False]:
+    def quick_request(self, frame: bytes, at: float, wait: float) -> bytes | None | Literal[False]:
         """Send a datagram of :meth:`upload_frames` and return the first datagram received before ``at``, untouched:
         the SDO client checks it whole and hands anything else to :meth:`frame_mailbox`. Declined (False, nothing
         sent) while tracing: the general path traces every datagram with what it made of it."""
@@ -161,7 +161,7 @@ class GatewayMailboxLink(MailboxLink):
         if self.sock is None:
             raise self._closed()
         try:
-            data = self.stream.exchange(frame, at, 4096)
+            data = self.stream.exchange(frame, at, 4096, wait)
         except ConnectionRefusedError:
             raise self._refused() from None
         except SendFailed as exc:
