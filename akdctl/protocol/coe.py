@@ -453,6 +453,20 @@ def pack_expedited_upload_mailbox(address: int, counter: int, index: int, subind
                                    CoeService.SDO_RESPONSE << 12, 0x43 | (4 - len(value)) << 2, index, subindex, value)
 
 
+def expedited_upload_templates(address: int, counter: int, index: int, subindex: int
+                               ) -> dict[int, tuple[bytes, bytes]]:
+    """The answer mailbox of an expedited upload cut around its value, by the value's length: ``n`` (1..4) gives
+    ``(head, tail)`` with ``head + value + tail == pack_expedited_upload_mailbox(address, counter, index,
+    subindex, value)`` for every ``value`` of ``n`` bytes (no other length is expedited). Why: a server that
+    answers the same request again (a poll) joins the value between two byte strings it made once, instead of a
+    pack per answer; the layout stays this module's (the cuts are made from its pack)."""
+    out = {}
+    for size in range(1, 5):
+        whole = pack_expedited_upload_mailbox(address, counter, index, subindex, bytes(size))
+        out[size] = (whole[:_UPLOAD_MAILBOX_SIZE - 4], whole[_UPLOAD_MAILBOX_SIZE - 4 + size:])
+    return out
+
+
 def is_upload_request(coe_data: bytes) -> bool:
     """Whether CoE data (header + SDO) is a client's SDO upload request, initiate or segment: a read the
     simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""

@@ -197,6 +197,14 @@ def wrap_gateway(mailbox: bytes) -> bytes:
     return _GATEWAY_HEADER.pack(len(mailbox) | GATEWAY_FRAME_TYPE << 12) + mailbox
 
 
+def gateway_header(size: int) -> bytes:
+    """The 2-byte EtherCAT header :func:`wrap_gateway` puts before a mailbox of ``size`` bytes, alone: a gateway
+    that answers many mailboxes of a few sizes keeps one per size and joins it to each (the simulated gateway)."""
+    if size > _MAX_GATEWAY_LENGTH:
+        raise MailboxError(f"gateway frame of {size} bytes exceeds the 11-bit EtherCAT length")
+    return _GATEWAY_HEADER.pack(size | GATEWAY_FRAME_TYPE << 12)
+
+
 def unwrap_gateway(buf: bytes) -> bytes:
     """The mailbox bytes inside a gateway datagram, checked: type 5, a length that fits the datagram
     and agrees with the mailbox's own length (one rule for the client's and the gateway's side)."""
