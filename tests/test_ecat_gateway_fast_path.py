@@ -241,6 +241,29 @@ def test_the_face_serves_on_after_bad_datagrams_and_stops(tmp_path: Path) -> Non
     assert not face._threads and face.error is None
 
 
+
+def test_the_largest_gateway_frame_is_answered_whole(tmp_path: Path) -> None:
+    """A gateway frame of the most bytes its header can say (2 + 0x7FF = 2049) reaches the gateway whole over the
+    socket: the face once received at most 2048 bytes, so such a frame was cut and refused."""
+    mailbox = mbx.pack(mbx.MailboxType.COE, coe.upload_request(0x1018, 1).ljust(0x7FF - mbx.HEADER_SIZE, b"\0"),
+                       1001, 1)
+    request = mbx.wrap_gateway(mailbox)
+    assert len(request) == mbx.MAX_GATEWAY_DATAGRAM
+    drive = SimDrive("gw", tmp_path)
+    drive.serve_faces()
+    face = EthercatUdpFace("127.0.0.1", 0, GatewayHandler({1001: drive}))
+    face.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.settimeout(5.0)
+    try:
+        expected = ReferenceGateway({1001: factory_drive(tmp_path)}).handle(request, PEER)
+        assert expected, "the reference gateway answers the frame"
+        client.sendto(request, (face.host, face.port))
+        assert client.recvfrom(4096)[0] == expected[0]
+    finally:
+        client.close()
+        face.stop()
+
 def factory_drive(tmp_path: Path) -> SimDrive:
     directory = tmp_path / "reference"
     directory.mkdir(exist_ok=True)

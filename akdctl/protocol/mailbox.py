@@ -33,6 +33,7 @@ GATEWAY_HEADER_SIZE = 2
 GATEWAY_FRAME_TYPE = 5  # EtherCAT frame type "mailbox" (ETG.8200)
 GATEWAY_UDP_PORT = 34980
 _MAX_GATEWAY_LENGTH = 0x7FF
+MAX_GATEWAY_DATAGRAM = GATEWAY_HEADER_SIZE + _MAX_GATEWAY_LENGTH  # the largest gateway frame, in bytes (2049)
 
 
 class MailboxError(CodecError):

@@ -25,6 +25,9 @@ DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
 #: Datagrams whose mailbox the gateway keeps at once (:meth:`GatewayHandler._learn`); more start the memo over.
 MAILBOXES_KEPT = 1024
+#: What one receive takes: more than the largest gateway frame (``mailbox.MAX_GATEWAY_DATAGRAM``, 2049 bytes), so
+#: none is cut short.
+RECEIVE_SIZE = 4096
 
 
 OPTIONS = (
@@ -114,7 +117,7 @@ class GatewayHandler:
                 if receive is None or stopped():
                     return
                 try:
-                    data, peer = receive(2048)
+                    data, peer = receive(RECEIVE_SIZE)
                 except OSError:
                     return
                 if peer is None:
@@ -220,7 +223,7 @@ class EthercatUdpFace(Face):
         serve, stopped, receive, send = self.handler.serve, self._stop.is_set, sock.recvfrom, sock.sendto
         while not stopped():
             try:
-                data, peer = receive(2048)
+                data, peer = receive(RECEIVE_SIZE)
             except OSError:
                 break
             if peer is None:
