@@ -28,7 +28,10 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from akdctl.protocol.record import Record
 
 if TYPE_CHECKING:
+    from typing import Literal
+
     from akdctl.protocol import cip, enip
+    from akdctl.protocol.gateway_sdo import UploadFrames
 
 
 class Deadline:
@@ -224,6 +227,26 @@ class MailboxLink(ABC):
     @abstractmethod
     def receive(self, timeout: float) -> bytes | None:
         """Next mailbox from the slave, or ``None`` if nothing came in ``timeout`` s."""
+
+    #: True when the link sends whole pre-encoded frames (:meth:`upload_frames`, :meth:`quick_request`,
+    #: :meth:`frame_mailbox`: the ETG.8200 gateway's datagrams), so the SDO client's poll skips the layer-by-layer
+    #: encoding and decoding (issue 29). False: the client uses :meth:`send` and :meth:`receive` only.
+    quick_frames: ClassVar[bool] = False
+
+    def upload_frames(self, index: int, subindex: int) -> "UploadFrames":
+        """The pre-encoded frames of an upload of ``index:subindex`` (only where :attr:`quick_frames`)."""
+        raise NotImplementedError
+
+    def quick_request(self, frame: bytes, at: float, wait: float) -> "bytes | None | Literal[False]":
+        """Send a whole frame and return the first frame that arrives before the monotonic time ``at`` (about now +
+        ``wait``) as it came (None: none did); False when the link cannot take the quick way now (then nothing was
+        sent). Only where :attr:`quick_frames`; failures raise as :meth:`send` and :meth:`receive` raise."""
+        return False
+
+    def frame_mailbox(self, frame: bytes) -> bytes | None:
+        """The mailbox in a frame :meth:`quick_request` returned, judged as :meth:`receive` judges what it reads
+        (None: a frame :meth:`receive` would have read past)."""
+        raise NotImplementedError
 
 
 class MessageLink(ABC):

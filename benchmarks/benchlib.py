@@ -334,3 +334,35 @@ def cpu_speed() -> tuple[float, ...]:
     finally:
         os.sched_setaffinity(0, set(allowed))
     return tuple(figures)
+
+
+def allowed_cpus() -> list[int]:
+    """The CPUs this process may run on, in order (one, unnamed, where affinity cannot be read)."""
+    try:
+        return sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return []
+
+
+class OnCpu:
+    """``with OnCpu(cpu):`` -- processes started inside run on ``cpu`` only (``None``: no change).
+
+    Why: each vCPU here has speed phases of its own (:func:`cpu_speed`), so two sides of a comparison that the
+    scheduler puts on different CPUs can differ by ~1.8x for no reason of their own. Started on one CPU, both sides
+    of a pair meet the same phase. How: the calling thread's affinity is set for the duration (a child inherits the
+    mask of the thread that starts it) and restored after; the measuring process's other threads are not touched."""
+
+    def __init__(self, cpu: int | None) -> None:
+        self.cpu = cpu
+        self._before: set[int] | None = None
+
+    def __enter__(self) -> "OnCpu":
+        if self.cpu is not None:
+            self._before = set(os.sched_getaffinity(0))
+            os.sched_setaffinity(0, {self.cpu})
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._before is not None:
+            os.sched_setaffinity(0, self._before)
+            self._before = None

@@ -3,7 +3,9 @@
 Each pair starts the minimal app and then the akdctl command (``--help`` against the app's ``--help``, the drive
 commands against the app running a subcommand), both with stdout piped as in a script. What is compared is the CPU
 time of each process (user + system, from ``wait4``: what the process itself cost, whatever else the machine runs);
-the ratio is the median of the per-pair ratios, and the wall time is shown beside it. The drive commands talk to the
+the ratio is the median of the per-pair ratios, and the wall time is shown beside it. Both processes of a pair run
+on one CPU, the pairs taking the CPUs in turn (:class:`benchlib.OnCpu`: each CPU here has speed phases of its own, and
+a pair split across two CPUs compared their phases as much as the programs). The drive commands talk to the
 default target, the in-process simulator, in a state directory of their own whose state file exists (``sim reset``
 first, as after any first use: the start includes reading it), with an empty config directory.
 """
@@ -15,7 +17,7 @@ import subprocess
 import sys
 import time
 
-from benchlib import Result, Settings, akdctl_env, fmt_ratio
+from benchlib import OnCpu, Result, Settings, akdctl_env, allowed_cpus, fmt_ratio
 
 MINIMAL_CLICK = '''
 import click
@@ -80,14 +82,16 @@ def cold_start(s: Settings) -> Result:
     for _, args, base, _ in COMMANDS:  # warm: page cache, bytecode
         _start(akdctl + list(args), env)
         _start(minimal + list(base), env)
+    cpus = allowed_cpus()
     ratios: dict[str, float] = {}
     notes = []
     ok = True
     for label, args, base, goal in COMMANDS:
         pairs = []
-        for _ in range(s.process_rounds):
-            b = _start(minimal + list(base), env)
-            a = _start(akdctl + list(args), env)
+        for k in range(s.process_rounds):
+            with OnCpu(cpus[k % len(cpus)] if cpus else None):
+                b = _start(minimal + list(base), env)
+                a = _start(akdctl + list(args), env)
             pairs.append((a, b))
         ratio = statistics.median(a[0] / b[0] for a, b in pairs)
         ratios[label] = ratio
@@ -100,5 +104,5 @@ def cold_start(s: Settings) -> Result:
     value = " / ".join(f"{fmt_ratio(ratios[label])}×" for label, *_ in COMMANDS[1:4]) \
         + f", param get {fmt_ratio(ratios['param get DRV.OPMODE'])}× (--help {fmt_ratio(ratios['--help'])}×)"
     notes.append(f"CPU time per process (user + system); medians of {s.process_rounds} interleaved pairs of "
-                 "process starts")
+                 "process starts, each pair on one CPU")
     return Result(value, ok, notes, {k: v for k, v in ratios.items()})

@@ -10,7 +10,7 @@ one :class:`row_peers.Worker` and :func:`benchlib.interleave` already implement.
 
 from __future__ import annotations
 
-from benchlib import Result, Settings, fmt_ratio, fmt_us, interleave
+from benchlib import OnCpu, Result, Settings, allowed_cpus, fmt_ratio, fmt_us, interleave
 from row_peers import Worker
 
 # The block loop every script ends with (``op`` is the one operation; it raises on a wrong answer).
@@ -39,13 +39,20 @@ def compare(script: str, where: dict[str, str], s: Settings, n: int, *, peer: st
     """akdctl (kind ``akdctl``) against ``peer`` and any ``yardsticks`` (names of kinds in ``script``), each in its
     own worker, in interleaved blocks of ``n`` operations; pass when ours is ``speed_goal`` x the peer's ops/s or
     better (and, with ``cpu_goal``, its client CPU per op no more than the peer's: the CPU ratio is shown either
-    way). A worker that does not start or dies is the row's value (``<kind> crashed``), not an exception."""
+    way). A worker that does not start or dies is the row's value (``<kind> crashed``), not an exception.
+
+    Every client worker runs on one CPU (:class:`benchlib.OnCpu`; the server is left to the scheduler): an op is a
+    ping-pong through one server, so a client's CPU speed is in its wall time, and each CPU here has speed phases of
+    its own -- two clients the scheduler happened to put on different CPUs compared those phases as much as the
+    clients."""
     kinds = ("akdctl", peer, *yardsticks)
+    cpus = allowed_cpus()
     workers: list[ScriptWorker] = []
     try:
         try:
-            for kind in kinds:
-                workers.append(ScriptWorker(script, kind, where[kind]))
+            with OnCpu(cpus[-1] if cpus else None):  # every client on one CPU: see compare's docstring
+                for kind in kinds:
+                    workers.append(ScriptWorker(script, kind, where[kind]))
             run = interleave(*(lambda w=w: w.sample(n) for w in workers), rounds=s.rounds)
         except RuntimeError as exc:
             failed = next((k for k in kinds if str(exc).startswith(k + " ")), "a worker")

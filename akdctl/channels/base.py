@@ -104,7 +104,9 @@ class LazyObjectChannel(ObjectChannel):
     @property
     def channel(self) -> ObjectChannel:
         if self._channel is None:
-            self._channel = self._build()
+            self._channel = channel = self._build()
+            # a poll's uploads go straight to the channel once it is built: no second call per upload
+            self.upload = channel.upload  # type: ignore[method-assign]
         return self._channel
 
     @property

@@ -48,6 +48,7 @@ from akdctl.protocol.errors import CodecError
 
 if TYPE_CHECKING:
     from akdctl.protocol import coe_info
+    from akdctl.protocol.gateway_sdo import UploadFrames
 
 
 T = TypeVar("T")
@@ -55,6 +56,9 @@ T = TypeVar("T")
 _SDO_REQUEST = int(CoeService.SDO_REQUEST)
 _SDO_RESPONSE = int(CoeService.SDO_RESPONSE)
 _EMERGENCY = int(CoeService.EMERGENCY)
+#: Objects whose upload frames a channel keeps (upload): more than a poll or a monitor reads.
+_FRAMES_KEPT = 256
+_monotonic = time.monotonic
 
 
 def _coe_sdo(request: coe.SdoMessage) -> bytes:
@@ -96,6 +100,8 @@ class CoeObjectChannel(ObjectChannel):
         self._doubtful: set[tuple[int, int]] = set()  # objects with a write that went unanswered
         self._want: tuple[type, int, int, str, int | None] = (coe.SdoUploadResponse, 0, 0, "upload", None)
         self._emergencies: list[Emergency] = []
+        self._quick = link.quick_frames  # the poll's frames come pre-encoded from the link (upload)
+        self._frames: dict[tuple[int, int], UploadFrames] = {}
 
     @property
     def timeout(self) -> float:
@@ -114,10 +120,50 @@ class CoeObjectChannel(ObjectChannel):
         answer the next mailbox, expedited -- is read in one pass: the request sent as :meth:`_exchange` sends it,
         one receive, the reply read by one codec call (``coe.expedited_upload_reply``) and taken by the same
         counter rules. Anything else (silence, a late, foreign or other reply) goes on as the general path's first
-        attempt with the reply already received, within the same deadline."""
+        attempt with the reply already received, within the same deadline. On a link of whole frames
+        (``MailboxLink.quick_frames``: ``ecat-udp://``) the request is the frame the link's codec made once for this
+        object and counter, and the reply is checked whole (``gateway_sdo.UploadFrames.answer``) before the same
+        counter rules; a link that declines (tracing) gets the pass above."""
         at = None if self._stale else self.budget.lone()
         if at is None:
             return self._upload_request(index, subindex)
+        if self._quick:
+            # A link of whole pre-encoded frames (MailboxLink.quick_frames: the ETG.8200 gateway): the datagram of
+            # this object and counter out, the first datagram in, checked whole by the codec (gateway_sdo), then
+            # taken by the same counter rules. Anything else goes on as the general path's first attempt, from the
+            # same counter, datagram and deadline; declined (tracing): the one pass below.
+            frames = self._frames.get((index, subindex))
+            if frames is None:
+                frames = self._upload_frames(index, subindex)
+            counter = self._counter + 1 if self._counter < 7 else 1
+            budget = self.budget
+            wait = budget.timeout / (budget.retries + 1)  # (Deadline.share of the request's first attempt)
+            end = at - budget.timeout + wait
+            try:
+                data = self.link.quick_request(frames.requests[counter], end, wait)
+            except CommError:
+                self._counter = counter
+                self.requests += 1
+                self.filter.sent(counter)
+                with budget.request(at=at):  # the link failed: counted by the Budget as any request's failure
+                    raise
+            if data is not False:
+                self._counter = counter
+                self.requests += 1
+                if data is None:  # silence in the attempt's share
+                    self.filter.sent(counter)
+                    mailbox: bytes | None = b""
+                else:
+                    answer = frames.answer(data)
+                    if answer is not None and _monotonic() <= end:
+                        mine = self.filter.take(answer[2], answer[0], counter)  # (filter.sent(counter) in the call)
+                        if mine is not None:
+                            self._proven = mine
+                            return answer[1]
+                    else:
+                        self.filter.sent(counter)
+                    mailbox = self.link.frame_mailbox(data)  # as the link's receive judges it (None: read past)
+                return self._upload_request(index, subindex, at, (counter, wait, end, _monotonic(), mailbox))
         request = coe.upload_request(index, subindex)
         self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)
         try:
@@ -139,10 +185,20 @@ class CoeObjectChannel(ObjectChannel):
                     return reply[1]
         return self._upload_request(index, subindex, at, (counter, wait, end, now, raw or b""))
 
+    def _upload_frames(self, index: int, subindex: int) -> UploadFrames:
+        """The link's pre-encoded frames of an upload of ``index:subindex``, kept for the next poll of it (a few
+        hundred objects at most: a command that reads more starts over)."""
+        frames = self.link.upload_frames(index, subindex)
+        if len(self._frames) >= _FRAMES_KEPT:
+            self._frames.clear()
+        self._frames[(index, subindex)] = frames
+        return frames
+
     def _upload_request(self, index: int, subindex: int, at: float | None = None,
-                        begun: tuple[int, float, float, float, bytes] | None = None) -> bytes:
+                        begun: tuple[int, float, float, float, bytes | None] | None = None) -> bytes:
         """An upload with all its attempts in one request's deadline; ``at``/``begun``: the one :meth:`upload`
-        began (its end time; the first attempt's counter, wait, end, clock and the reply it received)."""
+        began (its end time; the first attempt's counter, wait, end, clock and the reply it received: b"" none
+        came, None one came that the link reads past, so the attempt listens on)."""
         with self.budget.request(at=at) as deadline:
             data = self._upload_attempts(index, subindex, deadline, deadline.attempts, begun)
             if data is not None:
@@ -213,7 +269,7 @@ class CoeObjectChannel(ObjectChannel):
                            details={"timeout": deadline.total, "attempts": deadline.attempts})
 
     def _upload_once(self, index: int, subindex: int, deadline: Deadline, left: int,
-                     begun: tuple[int, float, float, float, bytes] | None = None) -> bytes:
+                     begun: tuple[int, float, float, float, bytes | None] | None = None) -> bytes:
         self._want = (coe.SdoUploadResponse, index, subindex, "upload", None)  # (what _sdo does, one call less)
         if begun is None:
             first = self._exchange(coe.upload_request(index, subindex), self._accept_sdo, left, deadline)
@@ -286,7 +342,7 @@ class CoeObjectChannel(ObjectChannel):
         return data
 
     def _upload_attempts(self, index: int, subindex: int, deadline: Deadline, attempts: int,
-                         begun: tuple[int, float, float, float, bytes] | None = None) -> bytes | None:
+                         begun: tuple[int, float, float, float, bytes | None] | None = None) -> bytes | None:
         """Up to ``attempts`` uploads within ``deadline`` (an upload is safe to repeat); None if none was answered.
         ``begun``: the first attempt was sent by :meth:`upload` (:meth:`_upload_once`)."""
         for attempt in range(attempts):

@@ -81,16 +81,22 @@ class ReplyFilter:
             self._streak = 0
         self._foreign = False
 
-    def take(self, raw: bytes, counter: int) -> bool | None:
+    def take(self, raw: bytes, counter: int, sent: int = -1) -> bool | None:
         """:meth:`admit`, then :meth:`mine` and :meth:`accepted` for a reply the channel takes whatever the
         counter says (its content answers the request): None when it is not admitted, else whether it is proven
-        ours. One call for a client's one-pass path; tests/test_sdo_fast_path_parity.py holds it equal to the three."""
+        ours. One call for a client's one-pass path; tests/test_sdo_fast_path_parity.py holds it equal to the three.
+        ``sent``: the counter of the request this reply is the first look after, when :meth:`sent` was not called
+        for it yet (the same call does it: tests/test_gateway_sdo_parity.py holds it equal to the two calls)."""
+        if sent < 0:
+            sent = self._sent
+        else:
+            self._sent = sent
+            self._foreign = False
         if not counter:
             return False
         if raw in self._recent:
             return None
         echoes = self.strict or self._streak >= ECHO_AFTER
-        sent = self._sent
         if echoes and counter != sent:
             self._foreign = True
             return None

@@ -453,6 +453,20 @@ def pack_expedited_upload_mailbox(address: int, counter: int, index: int, subind
                                    CoeService.SDO_RESPONSE << 12, 0x43 | (4 - len(value)) << 2, index, subindex, value)
 
 
+def expedited_upload_templates(address: int, counter: int, index: int, subindex: int
+                               ) -> dict[int, tuple[bytes, bytes]]:
+    """The answer mailbox of an expedited upload cut around its value, by the value's length: ``n`` (1..4) gives
+    ``(head, tail)`` with ``head + value + tail == pack_expedited_upload_mailbox(address, counter, index,
+    subindex, value)`` for every ``value`` of ``n`` bytes (no other length is expedited). Why: a server that
+    answers the same request again (a poll) joins the value between two byte strings it made once, instead of a
+    pack per answer; the layout stays this module's (the cuts are made from its pack)."""
+    out = {}
+    for size in range(1, 5):
+        whole = pack_expedited_upload_mailbox(address, counter, index, subindex, bytes(size))
+        out[size] = (whole[:_UPLOAD_MAILBOX_SIZE - 4], whole[_UPLOAD_MAILBOX_SIZE - 4 + size:])
+    return out
+
+
 def is_upload_request(coe_data: bytes) -> bool:
     """Whether CoE data (header + SDO) is a client's SDO upload request, initiate or segment: a read the
     simulated slave answers from memory on the frame thread (:mod:`akdctl.sim.face_ethercat_raw`)."""
@@ -482,3 +496,15 @@ def expedited_upload_reply(mailbox: bytes, index: int, subindex: int) -> tuple[i
         return None
     value = mailbox[12:_UPLOAD_MAILBOX_SIZE - (command >> 2 & 0x03) if command & 0x01 else _UPLOAD_MAILBOX_SIZE]
     return (type_counter >> 4) & 0x07, value if value.__class__ is bytes else bytes(value)
+
+
+def expedited_upload_pattern(address: int, index: int, subindex: int) -> tuple[bytes, bytes, int]:
+    """What :func:`expedited_upload_reply` checks of a reply from ``address``, as (bytes, mask, value offset): the
+    first 14 bytes of an accepted mailbox, ANDed with ``mask``, equal ``bytes`` (length 10, CoE, service 3, an
+    expedited upload command, the index and subindex, and the address); the counter, the channel, the reserved bit,
+    the CoE number, the size bits and the value are masked out. For a client that checks a whole frame in one step
+    (:mod:`akdctl.protocol.gateway_sdo`): the layout stays this module's."""
+    return (_EXPEDITED_REPLY.pack(_UPLOAD_MAILBOX_SIZE - 6, address, 0, _MAILBOX_TYPE_COE,
+                                  CoeService.SDO_RESPONSE << 12, 0x42, index, subindex),
+            _EXPEDITED_REPLY.pack(0xFFFF, 0xFFFF, 0, 0x0F, 0xF000, 0xE2, 0xFFFF, 0xFF),
+            _EXPEDITED_REPLY.size)

@@ -33,6 +33,7 @@ GATEWAY_HEADER_SIZE = 2
 GATEWAY_FRAME_TYPE = 5  # EtherCAT frame type "mailbox" (ETG.8200)
 GATEWAY_UDP_PORT = 34980
 _MAX_GATEWAY_LENGTH = 0x7FF
+MAX_GATEWAY_DATAGRAM = GATEWAY_HEADER_SIZE + _MAX_GATEWAY_LENGTH  # the largest gateway frame, in bytes (2049)
 
 
 class MailboxError(CodecError):
@@ -195,6 +196,14 @@ def wrap_gateway(mailbox: bytes) -> bytes:
     if len(mailbox) > _MAX_GATEWAY_LENGTH:
         raise MailboxError(f"gateway frame of {len(mailbox)} bytes exceeds the 11-bit EtherCAT length")
     return _GATEWAY_HEADER.pack(len(mailbox) | GATEWAY_FRAME_TYPE << 12) + mailbox
+
+
+def gateway_header(size: int) -> bytes:
+    """The 2-byte EtherCAT header :func:`wrap_gateway` puts before a mailbox of ``size`` bytes, alone: a gateway
+    that answers many mailboxes of a few sizes keeps one per size and joins it to each (the simulated gateway)."""
+    if size > _MAX_GATEWAY_LENGTH:
+        raise MailboxError(f"gateway frame of {size} bytes exceeds the 11-bit EtherCAT length")
+    return _GATEWAY_HEADER.pack(size | GATEWAY_FRAME_TYPE << 12)
 
 
 def unwrap_gateway(buf: bytes) -> bytes:

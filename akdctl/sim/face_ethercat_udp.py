@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import contextlib
 import socket
+from collections.abc import Callable
+from typing import Any
 
 from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
@@ -21,6 +23,11 @@ from akdctl.sim.face import Face, FaceOption, request_failed
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
+#: Datagrams whose mailbox the gateway keeps at once (:meth:`GatewayHandler._learn`); more start the memo over.
+MAILBOXES_KEPT = 1024
+#: What one receive takes: more than the largest gateway frame (``mailbox.MAX_GATEWAY_DATAGRAM``, 2049 bytes), so
+#: none is cut short.
+RECEIVE_SIZE = 4096
 
 
 OPTIONS = (
@@ -76,51 +83,114 @@ class GatewayHandler:
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
         # looked up once here, not imported per datagram
-        self._unwrap, self._wrap, self._header_size = mailbox.unwrap_gateway, mailbox.wrap_gateway, mailbox.HEADER_SIZE
+        self._unwrap, self._gateway_header, self._header_size = \
+            mailbox.unwrap_gateway, mailbox.gateway_header, mailbox.HEADER_SIZE
+        self._headers: dict[int, bytes] = {}  # reply size -> its gateway header (at most 0x7FF sizes)
         self._codec_error = CodecError
+        self._mailboxes: dict[bytes, tuple[bytes, int]] = {}  # datagram -> (its mailbox, station) (_learn)
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
-        """The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it); each
-        mailbox the drive answers goes back behind the 2-byte header with the station's address in it (the
-        drive's own emergencies carry address 0)."""
-        CodecError = self._codec_error  # noqa: N806 - the class, looked up once
-        try:
-            raw = self._unwrap(datagram)
-        except CodecError:
-            return []  # a gateway drops what it cannot parse
-        address = raw[2] | raw[3] << 8
-        drive = self.stations.get(address)
-        if drive is None:
-            return []
-        replies: list[bytes] | None = None
-        if self.injector.every:
-            fault = self.injector.decide()
-            if fault == "drop":
-                return []
-            if fault == "mbxerr":
-                replies = [mailbox_error_reply(raw)]
-            elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
-                replies = [abort]
-        if replies is None:
-            try:
-                replies = self.repeats.answer((peer, address), raw, drive.handle_mailbox)
-            except CodecError:
-                replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
-            except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
-                request_failed("ethercat-udp", exc)
-                replies = failure_reply(raw)
-        wrap, header_size = self._wrap, self._header_size
-        out = []
-        for reply in replies:
-            if len(reply) < header_size:
-                continue
-            if reply[2] | reply[3] << 8 != address:
-                reply = reply[:2] + raw[2:4] + reply[4:]
-            try:
-                out.append(wrap(reply))
-            except CodecError:
-                continue
+        """The datagrams that answer ``datagram`` (:meth:`serve`'s answer to it alone; a failure raises)."""
+        out: list[bytes] = []
+        self.serve(datagram, peer, None, lambda frame, _peer: out.append(frame))
         return out
+
+    def serve(self, datagram: bytes, peer: Any, receive: Callable[[int], tuple[bytes, Any]] | None,
+              send: Callable[[bytes, Any], object], stopped: Callable[[], bool] = bool) -> None:
+        """Answer ``datagram`` from ``peer`` with ``send(frame, peer)``; with ``receive`` (a socket's recvfrom), go
+        on with the datagrams it returns until it fails, is woken (no peer) or ``stopped()`` is true.
+
+        The datagram's mailbox goes to its station's drive as it came (``unwrap_gateway`` checked it, once per
+        distinct datagram: :meth:`_learn`); each mailbox the drive answers goes back behind the 2-byte header of
+        its size (``mailbox.gateway_header``, kept per size) with the station's address in it (the drive's own
+        emergencies carry address 0). A send that fails (OSError) is lost, as on a network.
+
+        Why one frame for the datagrams that follow: a Python call per datagram and the gateway's attributes
+        looked up again for each were a share of what a served upload cost (issue 29); :meth:`handle` answers
+        through this same code."""
+        CodecError = self._codec_error  # noqa: N806 - the class, looked up once
+        mailboxes, stations, injector, answer = self._mailboxes, self.stations, self.injector, self.repeats.answer
+        headers, header_size = self._headers, self._header_size
+        data: bytes | None = datagram
+        while True:
+            if data is None:
+                if receive is None or stopped():
+                    return
+                try:
+                    data, peer = receive(RECEIVE_SIZE)
+                except OSError:
+                    return
+                if peer is None:
+                    return  # woken by the face's interrupt(): its loop decides
+            datagram = data
+            data = None
+            try:
+                try:
+                    mailbox = mailboxes.get(datagram)
+                except (TypeError, ValueError):  # not hashable (a bytearray, a writable view): not kept
+                    mailbox = None
+                if mailbox is None:
+                    try:
+                        mailbox = self._learn(datagram)
+                    except CodecError:
+                        continue  # a gateway drops what it cannot parse
+                raw, address = mailbox
+                drive = stations.get(address)
+                if drive is None:
+                    continue
+                replies: list[bytes] | None = None
+                if injector.every:
+                    fault = injector.decide()
+                    if fault == "drop":
+                        continue
+                    if fault == "mbxerr":
+                        replies = [mailbox_error_reply(raw)]
+                    elif fault == "abort" and (abort := sdo_abort_reply(raw)) is not None:
+                        replies = [abort]
+                if replies is None:
+                    try:
+                        replies = answer((peer, address), raw, drive.handle_mailbox)
+                    except CodecError:
+                        replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
+                    except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
+                        request_failed("ethercat-udp", exc)
+                        replies = failure_reply(raw)
+                for reply in replies:
+                    size = len(reply)
+                    if size < header_size:
+                        continue
+                    if reply[2] | reply[3] << 8 != address:
+                        reply = reply[:2] + raw[2:4] + reply[4:]
+                    header = headers.get(size)
+                    if header is None:
+                        try:
+                            header = headers[size] = self._gateway_header(size)
+                        except CodecError:
+                            continue
+                    try:
+                        send(header + reply, peer)
+                    except OSError:
+                        pass
+            except Exception as exc:  # noqa: BLE001 - one bad request must not end the face (a gateway drops it)
+                if receive is None:
+                    raise
+                request_failed("ethercat-udp", exc)
+
+    def _learn(self, datagram: bytes) -> tuple[bytes, int]:
+        """The mailbox in ``datagram`` and its station address, kept in :attr:`_mailboxes` by the datagram's bytes.
+
+        Why: a master polls with the same few datagrams (its counter runs 1..7), and checking and cutting the
+        gateway header (``mailbox.unwrap_gateway``) again for each was a share of a served upload (issue 29). What
+        is kept is read from the datagram's bytes alone, so the key covers it; a datagram the codec refuses raises
+        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over."""
+        raw = self._unwrap(datagram)
+        mailbox = (raw, raw[2] | raw[3] << 8)
+        if datagram.__class__ is bytes:
+            kept = self._mailboxes
+            if len(kept) >= MAILBOXES_KEPT:
+                kept.clear()
+            kept[datagram] = mailbox
+        return mailbox
 
 
 class EthercatUdpFace(Face):
@@ -150,24 +220,15 @@ class EthercatUdpFace(Face):
         them; :meth:`interrupt` wakes the receive instead (shutdown)."""
         sock = self._sock
         assert sock is not None
-        handle, stop = self.handler.handle, self._stop
-        while not stop.is_set():
+        serve, stopped, receive, send = self.handler.serve, self._stop.is_set, sock.recvfrom, sock.sendto
+        while not stopped():
             try:
-                data, peer = sock.recvfrom(2048)
+                data, peer = receive(RECEIVE_SIZE)
             except OSError:
                 break
             if peer is None:
                 continue  # woken by interrupt(): the loop condition decides
-            try:
-                replies = handle(data, peer)
-            except Exception as exc:  # noqa: BLE001 - one bad request must not kill the face (a real gateway drops it)
-                request_failed("ethercat-udp", exc)
-                replies = []
-            for reply in replies:
-                try:
-                    sock.sendto(reply, peer)
-                except OSError:
-                    pass
+            serve(data, peer, receive, send, stopped)  # answers this one and those that follow
 
     def interrupt(self) -> None:
         """Wake the blocking receive: a shut-down socket returns from it at once (Linux, also unconnected UDP)."""

@@ -16,16 +16,17 @@ then segmented, never refused).
 
 from __future__ import annotations
 
-import contextlib
 import socket
 import time
+from typing import Literal
 
 from akdctl.errors import CommError, UsageError
 from akdctl.links import MailboxLink
+from akdctl.protocol.gateway_sdo import UploadFrames
 from akdctl.protocol.mailbox import MailboxError, unwrap_gateway, wrap_gateway
 from akdctl.transport.base import LinkOptions, Transport
 from akdctl.transport.target import Target
-from akdctl.transport.tcp_stream import BoundedSocket
+from akdctl.transport.tcp_stream import DatagramSocket, SendFailed
 from akdctl.transport.trace import Tracer
 
 DEFAULT_PORT = 34980
@@ -51,8 +52,8 @@ class GatewayMailboxLink(MailboxLink):
         self.tracer = tracer
         self.mailbox_size = mailbox_size
         self._address = station.to_bytes(2, "little")
-        self.sent = 0
-        self.received = 0
+        self.sent = 0       # datagrams sent
+        self.received = 0   # datagrams handed up: the mailboxes receive returned, the datagrams quick_request did
         try:
             infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
         except socket.gaierror as exc:
@@ -68,7 +69,7 @@ class GatewayMailboxLink(MailboxLink):
         try:
             # every receive ends by its wait's end, in one recv(2) where the kernel can bound it (tcp_stream: the
             # rule pn:// waits by too); sends bounded by the command's timeout
-            self.stream = BoundedSocket(sock, timeout)
+            self.stream = DatagramSocket(sock, timeout)
         except OSError as exc:
             sock.close()
             raise CommError(f"cannot use the socket to EtherCAT gateway {host}:{port}: {exc.strerror}") from None
@@ -106,7 +107,6 @@ class GatewayMailboxLink(MailboxLink):
             raise self._closed()
         stream = self.stream
         at = time.monotonic() + timeout
-        tracer = self.tracer
         late = 0
         while True:
             # at least one look, even with no time left (timeout 0: take what is already there); past the end, the
@@ -119,25 +119,60 @@ class GatewayMailboxLink(MailboxLink):
                 raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
             if data is None:
                 return None
-            try:
-                mailbox = unwrap_gateway(data)
-            except MailboxError as exc:
-                if tracer.active:
-                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: {exc}", meta=self._meta("rx"))
-                if time.monotonic() >= at and (late := late + 1) > _LATE_LOOKS:
-                    return None
-                continue
-            address = mailbox[2] | mailbox[3] << 8
-            if address != self.station and address:
-                if tracer.active:
-                    tracer.frame("rx", "ecat-gw", data, note=f"ignored: from station {address}", meta=self._meta("rx"))
-                if time.monotonic() >= at and (late := late + 1) > _LATE_LOOKS:
-                    return None
-                continue
+            mailbox = self.frame_mailbox(data)
+            if mailbox is not None:
+                self.received += 1
+                return mailbox
+            if time.monotonic() >= at and (late := late + 1) > _LATE_LOOKS:
+                return None
+
+    def frame_mailbox(self, frame: bytes) -> bytes | None:
+        """The mailbox in a gateway datagram (traced as received), or None for one a receive reads past (traced
+        as ignored): not a gateway datagram, or from another station (address 0: the gateway's own answer)."""
+        tracer = self.tracer
+        try:
+            mailbox = unwrap_gateway(frame)
+        except MailboxError as exc:
             if tracer.active:
-                tracer.frame("rx", "ecat-gw", data, note=f"gateway <- station {address}", meta=self._meta("rx"))
+                tracer.frame("rx", "ecat-gw", frame, note=f"ignored: {exc}", meta=self._meta("rx"))
+            return None
+        address = mailbox[2] | mailbox[3] << 8
+        if address != self.station and address:
+            if tracer.active:
+                tracer.frame("rx", "ecat-gw", frame, note=f"ignored: from station {address}", meta=self._meta("rx"))
+            return None
+        if tracer.active:
+            tracer.frame("rx", "ecat-gw", frame, note=f"gateway <- station {address}", meta=self._meta("rx"))
+        return mailbox
+
+    # --- the poll's quick way (MailboxLink.quick_frames): whole datagrams, pre-encoded by the codec ---------------
+
+    quick_frames = True
+
+    def upload_frames(self, index: int, subindex: int) -> UploadFrames:
+        return UploadFrames(self.station, index, subindex)
+
+    def quick_request(self, frame: bytes, at: float, wait: float) -> bytes | None | Literal[False]:
+        """Send a datagram of :meth:`upload_frames` and return the first datagram received before ``at``, untouched:
+        the SDO client checks it whole and hands anything else to :meth:`frame_mailbox`. Declined (False, nothing
+        sent) while tracing: the general path traces every datagram with what it made of it."""
+        if self.tracer.active:
+            return False
+        if self.sock is None:
+            raise self._closed()
+        try:
+            data = self.stream.exchange(frame, at, 4096, wait)
+        except ConnectionRefusedError:
+            raise self._refused() from None
+        except SendFailed as exc:
+            raise CommError(f"cannot send to EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+        except OSError as exc:
+            self.sent += 1
+            raise CommError(f"EtherCAT gateway {self.host}:{self.port}: {exc.strerror}") from None
+        self.sent += 1
+        if data is not None:
             self.received += 1
-            return mailbox
+        return data
 
     def _refused(self) -> CommError:
         """ICMP port unreachable came back (ECONNREFUSED on the connected socket): no gateway listens there,
@@ -151,8 +186,7 @@ class GatewayMailboxLink(MailboxLink):
 
     def close(self) -> None:
         if self.sock is not None:
-            with contextlib.suppress(OSError):
-                self.sock.close()
+            self.stream.close()   # closes the socket and forgets its descriptor (DatagramSocket.exchange writes to it)
             self.sock = None
 
 

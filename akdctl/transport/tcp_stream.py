@@ -63,12 +63,13 @@ class BoundedSocket:
     socket (:meth:`recv_into`), ``ecat-udp://``'s gateway link too (:meth:`recv`: one datagram each).
     """
 
-    __slots__ = ("sock", "_wait", "_polled")
+    __slots__ = ("sock", "_wait", "_polled", "_armed")
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         self.sock = sock
         self._wait = -1.0     # the receive timeout set on the socket (-1: none yet)
         self._polled = True   # Python's polled timeout is on (elsewhere than Linux: always)
+        self._armed = -1.0    # the whole wait the receive timeout is set for (see _arm); -1: none
         if KERNEL_TIMEOUTS:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, _timeval(send_timeout))
         sock.settimeout(send_timeout)
@@ -76,6 +77,7 @@ class BoundedSocket:
     def _bound(self, left: float, precise: bool) -> None:
         """Bound the next receive by ``left`` s: the kernel's timeout ending early, kept while within the
         window; Python's exact one when ``precise`` or too little is left for the kernel's."""
+        self._armed = -1.0   # any new bound: a remembered wait is checked again (_arm)
         if KERNEL_TIMEOUTS:
             wait = left * 0.875 - 0.01   # early(left), inline: the hot path
             if precise or wait < MIN_WAIT:
@@ -129,6 +131,25 @@ class BoundedSocket:
         except (BlockingIOError, socket.timeout):   # SO_RCVTIMEO expired (EAGAIN) / Python's timeout
             return self._rest(at, size)
 
+    def _arm(self, at: float, wait: float) -> bool:
+        """Bound the socket for a request that starts now and may wait ``wait`` s (``at`` is now + ``wait``: a lone
+        request's whole timeout or its first attempt's share, :meth:`akdctl.links.Budget.lone`), and remember ``wait``
+        when the timeout set is within the window for a whole one: such a request always waits the same, so whether
+        the timeout suits it depends on ``wait`` alone, and the caller skips this call (no clock read, no float
+        arithmetic) while ``wait == self._armed``; any new bound forgets it. False when Python's polled timeout
+        bounds the socket (too little left for the kernel's): the caller then uses the socket's own calls.
+        The one rule for :meth:`TcpStream.request` and :meth:`DatagramSocket.exchange`."""
+        left = at - _monotonic()
+        if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
+            self._bound(left if left > MIN_WAIT else MIN_WAIT, False)   # the window test inline, as in request()
+            if self._polled:
+                return False
+        if wait > 0.0:
+            wanted = wait * 0.875 - 0.01   # early(wait)
+            if wanted - SLACK <= self._wait <= wanted:
+                self._armed = wait
+        return True
+
     def _rest(self, at: float, size: int) -> bytes | None:
         """After a timeout: None at the deadline, or what arrives in the rest of the wait."""
         return self._rest_of(at, self.sock.recv, size)
@@ -178,6 +199,7 @@ class BoundedSocket:
         receive waits left set; errors as :meth:`send`."""
         self._polled = True
         self._wait = -1.0
+        self._armed = -1.0
         self.sock.settimeout(wait)
         self.sock.sendall(data)
 
@@ -195,6 +217,63 @@ class BoundedSocket:
             pass
 
 
+class DatagramSocket(BoundedSocket):
+    """One connected UDP socket of a request/response client (``ecat-udp://``'s gateway link). One caller at a time.
+
+    :meth:`exchange` is a request in one call: the datagram out and the first datagram back, through the descriptor
+    while the kernel's timeouts bound the socket, as :meth:`TcpStream.request` does (``write(2)``/``read(2)`` on a
+    connected datagram socket are ``send``/``recv`` without flags: one datagram each way). Closed only through
+    :meth:`close` (which forgets the descriptor).
+    """
+
+    __slots__ = ("_fd",)
+
+    def __init__(self, sock: socket.socket, send_timeout: float) -> None:
+        super().__init__(sock, send_timeout)
+        self._fd = sock.fileno()
+
+    def close(self) -> None:
+        self._armed = -1.0
+        self._fd = -1   # a later exchange fails as on a closed socket (EBADF), never on a descriptor number reused
+        BoundedSocket.close(self)
+
+    def exchange(self, data: bytes, at: float, size: int = 4096, wait: float = -2.0) -> bytes | None:
+        """Send the datagram ``data``, then :meth:`recv` the first datagram that arrives before ``at`` (None when
+        none did). A failed send raises :class:`SendFailed` (the send's errno and text; a refusal stays
+        ``ConnectionRefusedError``), so the caller words it apart from a failed receive (plain ``OSError``).
+        ``wait``: a request that starts now and ends at ``at`` = now + ``wait`` (:meth:`BoundedSocket._arm`: while the
+        timeout set suits such a wait, the request is the two system calls with no clock read)."""
+        if wait != self._armed and not self._arm(at, wait):
+            return self._exchange_polled(data, at, size)   # Python's timeout: the socket's own calls
+        fd = self._fd
+        try:
+            _write(fd, data)
+        except ConnectionRefusedError:
+            raise
+        except OSError as exc:   # (BlockingIOError: SO_SNDTIMEO expired)
+            raise SendFailed(exc.errno, exc.strerror) from None
+        try:
+            return _read(fd, size)
+        except BlockingIOError:   # SO_RCVTIMEO expired (EAGAIN), early by design: the rest of the wait
+            return self._rest(at, size)
+
+    def _exchange_polled(self, data: bytes, at: float, size: int) -> bytes | None:
+        try:
+            self.sock.send(data)
+        except ConnectionRefusedError:
+            raise
+        except OSError as exc:
+            raise SendFailed(exc.errno, exc.strerror) from None
+        try:
+            return self.sock.recv(size)
+        except (BlockingIOError, socket.timeout):
+            return self._rest(at, size)
+
+
+class SendFailed(OSError):
+    """:meth:`DatagramSocket.exchange` could not send its datagram (errno and text of the send's failure)."""
+
+
 class TcpStream(BoundedSocket):
     """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time.
 
@@ -202,21 +281,12 @@ class TcpStream(BoundedSocket):
     kept at connect.
     """
 
-    __slots__ = ("_fd", "_armed")
+    __slots__ = ("_fd",)
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().__init__(sock, send_timeout)
         self._fd = sock.fileno()
-        self._armed = -1.0   # the whole wait the receive timeout is set for (see request); -1: none
-
-    def _bound(self, left: float, precise: bool) -> None:
-        self._armed = -1.0   # any new bound: request checks the window again
-        BoundedSocket._bound(self, left, precise)
-
-    def send_last(self, data: bytes, wait: float) -> None:
-        self._armed = -1.0
-        BoundedSocket.send_last(self, data, wait)
 
     def close(self) -> None:
         self._armed = -1.0
@@ -232,18 +302,10 @@ class TcpStream(BoundedSocket):
         ``wait``: a request that starts now and may wait ``wait`` s (``at`` is now + ``wait``: a lone request's whole
         timeout, :meth:`akdctl.links.Budget.lone`). Such a request always waits the same, so whether the socket's
         receive timeout suits it (the window rule) depends on ``wait`` alone: checked once, remembered, and
-        forgotten whenever the timeout is set again (:meth:`_bound`). While it holds, the request is the two system
-        calls with no clock read and no float arithmetic."""
-        if wait != self._armed:
-            left = at - _monotonic()
-            if self._polled or not self._wait <= left * 0.875 - 0.01 <= self._wait + SLACK:
-                self._bound(left if left > MIN_WAIT else MIN_WAIT, False)   # the window test inline, as in the base
-                if self._polled:   # Python's timeout (too little left for the kernel's): the socket's own calls
-                    return BoundedSocket.request(self, data, at, size)
-            if wait > 0.0:   # remember the wait when the timeout set is within the window for a whole one
-                wanted = wait * 0.875 - 0.01   # early(wait)
-                if wanted - SLACK <= self._wait <= wanted:
-                    self._armed = wait
+        forgotten whenever the timeout is set again (:meth:`BoundedSocket._arm`). While it holds, the request is the
+        two system calls with no clock read and no float arithmetic."""
+        if wait != self._armed and not self._arm(at, wait):
+            return BoundedSocket.request(self, data, at, size)   # Python's timeout: the socket's own calls
         fd = self._fd
         try:
             sent = _write(fd, data)
@@ -267,4 +329,4 @@ class TcpStream(BoundedSocket):
             raise
 
 
-__all__ = ["BoundedSocket", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
+__all__ = ["BoundedSocket", "DatagramSocket", "SendFailed", "TcpStream", "SLACK", "MIN_WAIT", "KERNEL_TIMEOUTS", "early"]
