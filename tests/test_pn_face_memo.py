@@ -110,3 +110,25 @@ def test_a_call_differing_from_a_kept_shape_in_a_compared_part_is_answered_as_it
     short, general = (_frames(requests, tmp_path / str(way), monkeypatch, way) for way in (True, False))
     assert short == general
     assert sum(1 for frame in short if frame[:2] == b"\x04\x02") > 150
+
+
+def test_a_new_boot_time_reaches_the_replies_of_shapes_already_kept(tmp_path: Path) -> None:
+    """The memo's reply templates carry the face's boot time: setting another one forgets them, so the next replies
+    of the same shapes carry the new one, as the general path's do."""
+    ar, activity = uuid.uuid4(), uuid.uuid4()
+    address = pnio.RecordAddress()
+    face = face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0)
+    face.boot_time = 1111
+    sent: list[bytes] = []
+    face._sock = _Capture(sent)  # type: ignore[assignment]
+    face._datagram(_connect(ar, activity), ("127.0.0.1", 1))
+    for sequence in range(2, 12, 2):
+        if sequence == 6:
+            face.boot_time = 2222
+        face._datagram(_call(pnio.OP_WRITE, pnio.IODWriteReq(sequence, ar, address, READ_930).encode(), sequence,
+                             activity), ("127.0.0.1", 1))
+        face._datagram(_call(pnio.OP_READ, pnio.IODReadReq(sequence + 1, ar, address, 240).encode(), sequence + 1,
+                             activity), ("127.0.0.1", 1))
+    boots = [dcerpc.decode_packet(frame).header.server_boot for frame in sent[1:]]
+    assert boots == [1111] * 4 + [2222] * 6
+    assert face._calls  # the short way answered them

@@ -126,3 +126,32 @@ def test_a_shape_seen_before_gives_what_every_check_gives() -> None:
                 (little, activity, opnum, ar, address, index, length, _least, _replies), sequence, _record = kept
                 assert (little, activity, sequence, opnum, ar, address, index, length) == checked, data.hex()
     assert hits > 1000
+
+
+def test_booted_templates_pack_the_general_replies() -> None:
+    """ok_template_booted (the face's templates, its boot time written in) packs the general codecs' bytes for every
+    call of the shape: other sequence numbers, record sequence numbers, records."""
+    rng = random.Random(11)
+    checked = 0
+    for first in _requests(37, 600):
+        plain = pnio_record.plain_record_call(first)
+        if plain is None:
+            continue
+        boot = rng.getrandbits(32)
+        write = plain[2] == pnio.OP_WRITE
+        length = None if write else rng.choice([0, 4, 12, 240])
+        pack, head, middle, tail = pnio_record.ok_template_booted(first, length, boot)
+        for _ in range(3):
+            sequence, record_sequence = rng.getrandbits(32), rng.getrandbits(16).to_bytes(2, "big")
+            data = first[:64] + sequence.to_bytes(4, "little" if plain[0] else "big") + first[68:106] + \
+                record_sequence + first[108:]
+            little, _sequence, _opnum, req = pnio_record.plain_record_call(data)  # type: ignore[misc]
+            if write:
+                expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.write_res(req, pnio.OK))
+                assert pack(head, sequence, middle, record_sequence, tail) == expected
+            else:
+                record = bytes(rng.getrandbits(8) for _ in range(length or 0))
+                expected = pnio_record.pack_record_response(data, little, boot, *pnio_record.read_res(req, record))
+                assert pack(head, sequence, middle, record_sequence, tail, record) == expected
+            checked += 1
+    assert checked > 300

@@ -106,3 +106,34 @@ def test_a_reader_that_fails_is_refused_as_the_raw_read_refuses_it() -> None:
     model.bind_pnu(930, read=failing)
     assert _answer(server, model, READ_930) == _general(model, READ_930)
     assert _answer(server, model, READ_930)[1] == 0x81
+
+
+def test_one_read_response_packer_writes_the_layouts_bytes() -> None:
+    """bmp.one_read_response_packer (the planned read's pack) writes raw_read_response_layout's bytes for every format
+    it packs, every axis and reference, and refuses the same values (struct.error)."""
+    import struct
+
+    from akdctl.protocol import bmp
+
+    checked = 0
+    for fmt in range(256):
+        layout = bmp.raw_read_response_layout(fmt, 1)
+        for axis in (0, 1, 255):
+            packer = bmp.one_read_response_packer(fmt, axis)
+            assert (packer is None) == (layout is None)
+            if packer is None or layout is None:
+                continue
+            pack, fixed = packer
+            for reference in (1, 0x7F, 255):
+                for value in (0, 1, 0x7F, 0xFF, 0x100, 0xFFFF, 0x10000, 0xFFFFFFFF, 1 << 32, -1):
+                    try:
+                        expected: bytes | type = layout.pack(reference, bmp.RESP_READ_OK, axis, 1, fmt, 1, value)
+                    except struct.error:
+                        expected = struct.error
+                    try:
+                        got: bytes | type = pack(reference, fixed, value)
+                    except struct.error:
+                        got = struct.error
+                    assert got == expected
+                    checked += 1
+    assert checked > 100

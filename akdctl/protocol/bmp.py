@@ -31,6 +31,7 @@ from __future__ import annotations
 import operator
 import struct
 from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
@@ -1092,3 +1093,16 @@ def raw_read_response_layout(fmt: int, count: int) -> struct.Struct | None:
 
 
 _ABSENT = object()
+
+
+def one_read_response_packer(fmt: int, axis: int) -> tuple[Any, bytes] | None:
+    """:func:`raw_read_response_layout` ``(fmt, 1)`` with every field but the reference and the value fixed:
+    ``(pack, fixed)`` such that ``pack(reference, fixed, value)`` writes what
+    ``raw_read_response_layout(fmt, 1).pack(reference, RESP_READ_OK, axis, 1, fmt, 1, value)`` writes (and raises
+    the same ``struct.error`` for a value out of range); None where that layout is None. Why: a planned read
+    (the simulator's PNU server, issue 29) packs three arguments instead of seven."""
+    layout = raw_read_response_layout(fmt, 1)
+    if layout is None:
+        return None
+    value = layout.format[len(">BBBBBB"):]  # the element (and a pad byte), as raw_block_layout writes it
+    return struct.Struct(">B5s" + value).pack, bytes((RESP_READ_OK, axis, 1, fmt, 1))

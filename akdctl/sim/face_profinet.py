@@ -236,7 +236,7 @@ class ProfinetFace(Face):
         self.mac = mac
         self.stats = FaceStats()
         self.vendor_id, self.device_id = 0x0100, 0x0001
-        self.boot_time = int(time.time()) & 0xFFFFFFFF
+        self._boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
         # (activity bytes, sequence) -> reply frames; the oldest forgotten first (the ring below)
         self._cache: dict[tuple[bytes, int], bytes | list[bytes]] = {}  # a single frame kept as itself
@@ -293,6 +293,17 @@ class ProfinetFace(Face):
             if fd >= 0:
                 os.close(fd)
         self._wake_r = self._wake_w = -1
+
+    @property
+    def boot_time(self) -> int:
+        """The server boot time every reply carries (DCE/RPC CL header)."""
+        return self._boot_time
+
+    @boot_time.setter
+    def boot_time(self, value: int) -> None:
+        """A new boot time: the memo of call shapes is forgotten, since its reply templates carry the old one."""
+        self._boot_time = value
+        self._calls.clear()
 
     def describe(self) -> str:
         text = f"profinet udp {self.host}:{self.port}"
@@ -414,7 +425,7 @@ class ProfinetFace(Face):
         what a shape answers is what the codec says of it. The clock is read once per datagram."""
         stats, cache, calls, ars, ring = self.stats, self._cache, self._calls, self._ars, self._ring
         rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
-        handle_bmp, boot, delay = self.drive.handle_bmp, self.boot_time, self.delay
+        handle_bmp, delay = self.drive.handle_bmp, self.delay
         sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
         while True:
             now = monotonic()
@@ -460,9 +471,8 @@ class ProfinetFace(Face):
                                             frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
                                         else:
                                             ar.pending = (now + delay, response)
-                                            pack, rhead, interface, rmiddle, rtail = template
-                                            frame = pack(rhead, boot, interface, sequence, rmiddle,
-                                                         record_sequence, rtail)
+                                            pack, rhead, rmiddle, rtail = template
+                                            frame = pack(rhead, sequence, rmiddle, record_sequence, rtail)
                                 elif pending is not None and pending[0] <= now:
                                     ar.last_activity = now
                                     ar.pending = None
@@ -472,10 +482,9 @@ class ProfinetFace(Face):
                                         record, size = record[:length], length
                                     template = reads.get(size)
                                     if template is None:
-                                        template = reads[size] = pnio_record.ok_template(data, size)
-                                    pack, rhead, interface, rmiddle, rtail = template
-                                    frame = pack(rhead, boot, interface, sequence, rmiddle,
-                                                 record_sequence, rtail, record)
+                                        template = reads[size] = pnio_record.ok_template_booted(data, size, self._boot_time)
+                                    pack, rhead, rmiddle, rtail = template
+                                    frame = pack(rhead, sequence, rmiddle, record_sequence, rtail, record)
                             if frame is None:
                                 self._general(data, peer)
                 else:
@@ -539,7 +548,7 @@ class ProfinetFace(Face):
             calls.clear()  # many clients or shapes: start over rather than grow
         call = calls[tail] = (head, middle, least, activity, write, ar_id, served,
                               _WRITE_DATA + length if write else length,
-                              pnio_record.ok_template(data, None) if write else None, {})
+                              pnio_record.ok_template_booted(data, None, self._boot_time) if write else None, {})
         return call
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:

@@ -108,6 +108,7 @@ from akdctl.protocol.bmp import (
     pack_failure_block,
     pack_read_response,
     raw_block_layout,
+    one_read_response_packer,
     raw_read_response_layout,
     to_signed,
     to_unsigned,
@@ -204,9 +205,10 @@ class PnuServer:
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
         # The one-parameter value reads seen, by the request's bytes after the reference: [PNU, subindex, count,
-        # format, response layout, model, bindings' version, reader, mask], the checks of the request and its
-        # address passed once (_plan); the layout is bmp.raw_read_response_layout's for the format the model last
-        # answered; the last four are the model's parts of a computed element's read (_plan_parts), taken again
+        # format, response layout, model, bindings' version, reader, mask, axis, fixed bytes], the checks of the
+        # request and its address passed once (_plan); the layout is bmp.raw_read_response_layout's for the format
+        # the model last answered -- for a computed element's read, bmp.one_read_response_packer's pack and its fixed
+        # bytes; the model, version, reader and mask are the model's parts of such a read (_plan_parts), taken again
         # when another model (a reload) or a new binding serves it. The value is read each time.
         self._plans: dict[bytes, list[Any]] = {}
 
@@ -217,12 +219,12 @@ class PnuServer:
         data = request if type(request) is bytes else bytes(request)  # the usual bytes: not a call to copy them
         plan = self._plans.get(data[1:])
         if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
-            pnu, subindex, count, planned_format, layout, model, version, read, mask = plan
+            pnu, subindex, count, planned_format, layout, model, version, read, mask, _axis, fixed = plan
             access = self.access
             try:
                 if access is not model or (read is not None and model.pnu_bindings_version != version):
                     read = self._plan_parts(plan, access)
-                    planned_format, layout, mask = plan[3], plan[4], plan[8]
+                    planned_format, layout, mask, fixed = plan[3], plan[4], plan[8], plan[10]
                 if read is not None:  # DriveModel.pnu_read_raw's steps for a computed element, inline
                     try:
                         values = read(0, 1)
@@ -234,10 +236,9 @@ class PnuServer:
                     except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
                         return self._read_planned(data, pnu, subindex, count, exc)
                     if values is None:
-                        if layout is not None:
+                        if layout is not None:  # here: the plan's one_read_response_packer, ``fixed`` its bytes
                             try:
-                                return layout.pack(data[0], RESP_READ_OK, data[2], 1, planned_format, 1,  # type: ignore[no-any-return]
-                                                   value)
+                                return layout(data[0], fixed, value)  # type: ignore[no-any-return]
                             except struct.error:
                                 pass  # _raw_block says so
                         values = [value]
@@ -360,7 +361,7 @@ class PnuServer:
             if len(plans) >= _PLANS:
                 plans.clear()  # a client walking every address: start over rather than grow
             # the format and layout: at the first planned read; the model's parts for it: _plan_parts
-            plans[data[1:]] = [pnu, subindex, count, -1, None, None, -1, None, 0]
+            plans[data[1:]] = [pnu, subindex, count, -1, None, None, -1, None, 0, data[2], b""]
 
     @staticmethod
     def _plan_parts(plan: list[Any], access: Any) -> Any:
@@ -374,10 +375,12 @@ class PnuServer:
             parts, version = None, -1
         plan[5], plan[6] = access, version
         if parts is None:
-            plan[7] = None
+            plan[3], plan[4], plan[7] = -1, None, None  # pnu_read_raw's way: its first read takes the layout again
             return None
         fmt, mask, read = parts
-        plan[3], plan[4], plan[7], plan[8] = fmt, raw_read_response_layout(fmt, 1), read, mask
+        packer = one_read_response_packer(fmt, plan[9])
+        plan[3], plan[7], plan[8] = fmt, read, mask
+        plan[4], plan[10] = packer if packer is not None else (None, b"")
         return read
 
     def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
