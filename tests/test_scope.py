@@ -136,8 +136,10 @@ def _csv(path: Path) -> tuple[list[str], list[list[float]]]:
 
 def test_polled_recording_during_a_jog_shows_the_ramp(akd_inproc, tmp_path: Path) -> None:
     csv, svg = tmp_path / "jog.csv", tmp_path / "jog.svg"
+    # --for leaves 1.4 s after the jog's 0.8 s for the stop ramp to reach 0 rpm: with 0.8 s, a loaded host (the suite
+    # at -n 2) once ended the recording on the last few rpm of the ramp
     code, _out, err = akd_inproc("-y", "scope", "VL.FB", "PL.ERR", "--jog", "600", "--jog-for", "0.8s",
-                                "--for", "1.6s", "--csv", str(csv), "--svg", str(svg), "--no-plot")
+                                "--for", "2.2s", "--csv", str(csv), "--svg", str(svg), "--no-plot")
     assert code == 0, err
     lines, rows = _csv(csv)
     assert lines[0].startswith("# akdctl scope: target=sim source=poll rate=")
