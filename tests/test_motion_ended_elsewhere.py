@@ -7,6 +7,8 @@ Through the real CLI on the simulated drive in real time: a `move 10` at 60 rpm 
 
 from __future__ import annotations
 
+import selectors
+import subprocess
 import time
 
 import pytest
@@ -49,13 +51,30 @@ def test_a_stop_or_disable_from_a_second_process_ends_the_move_at_once(profile: 
     proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
     try:
         wait_until(_moving, "the move to start")
+        # ... and the move's first poll done (its first progress line): that poll keeps the control word the move
+        # left, which the second command then changes. Without this wait a loaded host once ran the whole `stop`
+        # before the move's first poll, so the move took the stopped control word for its own.
+        first = _first_line(proc, timeout=20.0)
         assert run("-T", target, other).code == 0
         stopped = time.monotonic()
         result = finish(proc, timeout=30)
     finally:
         if proc.poll() is None:
             proc.kill()
+    err = first + result.err
     assert time.monotonic() - stopped < 1.5, "the move waited after another command stopped it"
-    assert result.code == 1, result.err
-    assert "ended by something else" in result.err and "did not finish within" not in result.err
-    assert "akdctl stop" in result.err or "disabled" in result.err
+    assert result.code == 1, err
+    assert "ended by something else" in err and "did not finish within" not in err
+    assert "akdctl stop" in err or "disabled" in err
+
+
+def _first_line(proc: subprocess.Popen[str], timeout: float) -> str:
+    """The first line the background CLI writes to stderr, waited for at most ``timeout`` s."""
+    assert proc.stderr is not None
+    with selectors.DefaultSelector() as selector:
+        selector.register(proc.stderr, selectors.EVENT_READ)
+        if not selector.select(timeout):
+            pytest.fail(f"the move wrote no progress line within {timeout:g} s")
+    line = proc.stderr.readline()
+    assert line.startswith("akdctl: move to "), line
+    return line
