@@ -140,12 +140,12 @@ def nmt(command: str, node: str | None, no_wait: bool) -> None:
     target_node = transport.node_id if node_id is None else node_id
     transport.nmt(command, target_node)
     state = None
+    expected = EXPECTED_STATE[command]
     if target_node != 0 and not no_wait:
-        state = transport.nmt_state(target_node, fresh=True)
+        state = transport.nmt_state(target_node, fresh=True, expect=expected)
     data = {"target": app.target.display, "node": target_node or "all", "command": command, "nmt_state": state}
     app.emit(data, Doc(f"NMT {command} sent to {'all nodes' if target_node == 0 else f'node {target_node}'}",
                        app.target.display).kv("NMT state", state or "(not confirmed)"))
-    expected = EXPECTED_STATE[command]
     if state is not None and state != expected:
         raise CheckFailed(f"node {target_node} reports {state} after NMT {command} (expected {expected})")
 

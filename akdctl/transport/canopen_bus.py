@@ -62,6 +62,8 @@ from akdctl.protocol.nmt import state_name as _state_name
 from akdctl.transport.base import LinkOptions, Transport
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import can
     import canopen
 
@@ -339,12 +341,15 @@ class CanopenTransport(Transport):
             self._remote_node(node_id).nmt.add_heartbeat_callback(watch.seen)
         return watch
 
-    def nmt_state(self, node: int | None = None, timeout: float | None = None, fresh: bool = False) -> str:
+    def nmt_state(self, node: int | None = None, timeout: float | None = None, fresh: bool = False,
+                  expect: str | None = None) -> str:
         """The node's NMT state from its heartbeat, or by node guarding if it sends none.
 
         A heartbeat seen in the last ``timeout`` seconds answers at once unless
         ``fresh``: then only what came after the last NMT command counts. Halfway through
-        the wait a node-guarding remote frame asks nodes without heartbeat.
+        the wait a node-guarding remote frame asks nodes without heartbeat. With ``expect``
+        (a state name), states that came but are not it are waited past until the wait ends
+        (a heartbeat sent before the command took effect), and then the last one is the answer.
         Raises :class:`NoAnswer` if neither came in time.
         """
         node_id = self.node_id if node is None else node
@@ -352,10 +357,13 @@ class CanopenTransport(Transport):
         wait = self.options.timeout if timeout is None else timeout
         now = time.monotonic()
         since = (self._nmt_sent_at if self._nmt_sent_at is not None else now) if fresh else now - wait
-        state = watch.wait_after(since, wait / 2)
+        wanted = None if expect is None else (lambda code: _state_name(code) == expect)
+        state = watch.wait_after(since, wait / 2, wanted)
         if state is None:
             self._send(0x700 + node_id, b"", remote=True)
-            state = watch.wait_after(since, wait / 2)
+            state = watch.wait_after(since, wait / 2, wanted)
+        elif wanted is not None and not wanted(state):
+            state = watch.wait_after(since, wait / 2, wanted)
         if state is None:
             raise NoAnswer(f"no heartbeat or node-guarding reply from CANopen node {node_id} on {self.config.describe()} within {wait:g} s")
         return _state_name(state)
@@ -429,12 +437,17 @@ class _StateWatch:
             self._state, self._at = state, time.monotonic()
             self._cond.notify_all()
 
-    def wait_after(self, since: float, timeout: float) -> int | None:
+    def wait_after(self, since: float, timeout: float, wanted: Callable[[int], bool] | None = None) -> int | None:
+        """The state once one came at or after ``since`` -- with ``wanted``, once one came that it accepts --
+        waiting at most ``timeout``; when the wait ends, the last state that came after ``since`` (None: none).
+
+        Why ``wanted``: a heartbeat the node sent just before an NMT command took effect can arrive after the
+        command was sent, so the first state after it may still be the old one."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._at < since:
+            while self._at < since or (wanted is not None and self._state is not None and not wanted(self._state)):
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    return None
+                    return self._state if self._at >= since else None
                 self._cond.wait(left)
             return self._state
