@@ -20,6 +20,7 @@ from akdctl.errors import UsageError
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.ecat_inject import Injector, failure_reply, mailbox_error_reply, sdo_abort_reply, warm_up
 from akdctl.sim.face import Face, FaceOption, request_failed
+from akdctl.sim.memo import remember
 
 DEFAULT_ADDR = "127.0.0.1:34980"
 DEFAULT_STATION = 1001
@@ -186,10 +187,7 @@ class GatewayHandler:
         raw = self._unwrap(datagram)
         mailbox = (raw, raw[2] | raw[3] << 8)
         if datagram.__class__ is bytes:
-            kept = self._mailboxes
-            if len(kept) >= MAILBOXES_KEPT:
-                kept.clear()
-            kept[datagram] = mailbox
+            remember(self._mailboxes, datagram, mailbox, MAILBOXES_KEPT)
         return mailbox
 
 

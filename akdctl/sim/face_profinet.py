@@ -43,6 +43,7 @@ from akdctl.sim.errors import RecordRefused
 from akdctl.sim.face import Face, FaceOption, request_failed
 from akdctl.sim.inject_spec import extra_number, parse_every_nth
 from akdctl.sim.refusals import RefusalReport
+from akdctl.sim.memo import remember
 
 DEFAULT_ADDRESS = "127.0.0.1:34964"
 _PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the parameter channel's records
@@ -543,13 +544,10 @@ class ProfinetFace(Face):
         _little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
         write = opnum == OP_WRITE
         served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
-        calls = self._calls
-        if len(calls) >= _CALLS_KEPT:
-            calls.clear()  # many clients or shapes: start over rather than grow
-        call = calls[tail] = (head, middle, least, activity, write, ar_id, served,
-                              _WRITE_DATA + length if write else length,
-                              pnio_record.ok_template_booted(data, None, self._boot_time) if write else None, {})
-        return call
+        return remember(self._calls, tail, (head, middle, least, activity, write, ar_id, served,
+                                            _WRITE_DATA + length if write else length,
+                                            pnio_record.ok_template_booted(data, None, self._boot_time)
+                                            if write else None, {}), _CALLS_KEPT)
 
     def _general(self, data: bytes, peer: tuple[str, int]) -> None:
         """Every datagram the one pass of :meth:`_datagram` does not answer: the plain record calls' second short way

@@ -37,6 +37,7 @@ from akdctl.protocol.emcy import Emergency, encode_emcy
 from akdctl.protocol.errors import CodecError
 from akdctl.protocol.record import Record
 from akdctl.sim.errors import SdoAccessError  # noqa: F401  (re-exported: servers raise and catch it)
+from akdctl.sim.memo import remember
 
 if TYPE_CHECKING:
     from akdctl.protocol import coe_info
@@ -234,10 +235,7 @@ class SdoServer:
         plan = (index, subindex, coe.expedited_upload_templates(address, counter, index, subindex),
                 _Request(address, counter))
         if mailbox.__class__ is bytes:
-            plans = self._plans
-            if len(plans) >= PLANS_KEPT:
-                plans.clear()
-            plans[mailbox] = plan
+            remember(self._plans, mailbox, plan, PLANS_KEPT)
         return plan
 
     # --- mailbox level ----------------------------------------------------------------------
