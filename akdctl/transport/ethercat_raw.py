@@ -130,7 +130,7 @@ class EcatMaster:
             try:
                 sock.send(frame)
             except OSError as exc:
-                raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+                raise self._cannot_send(exc) from None
             self.frames += 1
             reply = self._wait(self._index, len(datagrams))
             if reply is not None:
@@ -167,14 +167,7 @@ class EcatMaster:
             frame = template.stamp_in_place(index, data)
         if self.tracer.active:
             return template.from_answer_from(self._template_trip(sock, template, index, frame, "process data"))
-        try:
-            sock.send(frame)
-        except OSError as exc:
-            raise self._cannot_send(exc) from None
-        self.frames += 1
-        sent = time.monotonic()
-        if self._waits != self.frame_timeout:
-            self._wait_at_most(sock, self.frame_timeout)
+        sent = self._put(sock, frame)
         buffer = self._buffer
         try:
             size = sock.recv_into(buffer)
@@ -198,6 +191,10 @@ class EcatMaster:
         """Send a stamped template frame and wait for its answer (:meth:`txrx_template`)."""
         if self.tracer.active:
             self._trace("tx", bytes(frame), note)
+        return self._template_answer(sock, template, index, self._put(sock, frame))
+
+    def _put(self, sock: socket.socket, frame: bytes | bytearray) -> float:
+        """Send one template frame, count it, bound the receive by the frame timeout; the instant it went out."""
         try:
             sock.send(frame)
         except OSError as exc:
@@ -206,7 +203,7 @@ class EcatMaster:
         sent = time.monotonic()
         if self._waits != self.frame_timeout:
             self._wait_at_most(sock, self.frame_timeout)
-        return self._template_answer(sock, template, index, sent)
+        return sent
 
     def _template_answer(self, sock: socket.socket, template: ec.FrameTemplate, index: int, sent: float,
                          size: int | None = None) -> tuple[Any, ...]:
@@ -260,7 +257,7 @@ class EcatMaster:
                 sock.send(frame)
                 self.frames += 1
         except OSError as exc:
-            raise CommError(f"ecat://{self.ifname}: cannot send: {exc.strerror}") from None
+            raise self._cannot_send(exc) from None
         sent = time.monotonic()
         buffer = self._buffer
         if self._waits != self.frame_timeout:

@@ -217,14 +217,10 @@ class BoundedSocket:
             pass
 
 
-class DatagramSocket(BoundedSocket):
-    """One connected UDP socket of a request/response client (``ecat-udp://``'s gateway link). One caller at a time.
-
-    :meth:`exchange` is a request in one call: the datagram out and the first datagram back, through the descriptor
-    while the kernel's timeouts bound the socket, as :meth:`TcpStream.request` does (``write(2)``/``read(2)`` on a
-    connected datagram socket are ``send``/``recv`` without flags: one datagram each way). Closed only through
-    :meth:`close` (which forgets the descriptor).
-    """
+class _DescriptorSocket(BoundedSocket):
+    """A :class:`BoundedSocket` whose fast requests write and read its descriptor, kept from connect until
+    :meth:`close` (which forgets it: a later request fails as on a closed socket, EBADF, never on a descriptor
+    number reused). What :class:`DatagramSocket` and :class:`TcpStream` share."""
 
     __slots__ = ("_fd",)
 
@@ -234,8 +230,19 @@ class DatagramSocket(BoundedSocket):
 
     def close(self) -> None:
         self._armed = -1.0
-        self._fd = -1   # a later exchange fails as on a closed socket (EBADF), never on a descriptor number reused
+        self._fd = -1
         BoundedSocket.close(self)
+
+
+class DatagramSocket(_DescriptorSocket):
+    """One connected UDP socket of a request/response client (``ecat-udp://``'s gateway link). One caller at a time.
+
+    :meth:`exchange` is a request in one call: the datagram out and the first datagram back, through the descriptor
+    while the kernel's timeouts bound the socket, as :meth:`TcpStream.request` does (``write(2)``/``read(2)`` on a
+    connected datagram socket are ``send``/``recv`` without flags: one datagram each way).
+    """
+
+    __slots__ = ()
 
     def exchange(self, data: bytes, at: float, size: int = 4096, wait: float = -2.0) -> bytes | None:
         """Send the datagram ``data``, then :meth:`recv` the first datagram that arrives before ``at`` (None when
@@ -274,24 +281,16 @@ class SendFailed(OSError):
     """:meth:`DatagramSocket.exchange` could not send its datagram (errno and text of the send's failure)."""
 
 
-class TcpStream(BoundedSocket):
-    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time.
-
-    Closed only through :meth:`close` (which forgets the descriptor): the fast requests write to the descriptor
-    kept at connect.
+class TcpStream(_DescriptorSocket):
+    """One connected TCP socket (TCP_NODELAY: a request is one segment, sent at once). One caller at a time; the
+    fast requests go through the descriptor (:class:`_DescriptorSocket`).
     """
 
-    __slots__ = ("_fd",)
+    __slots__ = ()
 
     def __init__(self, sock: socket.socket, send_timeout: float) -> None:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().__init__(sock, send_timeout)
-        self._fd = sock.fileno()
-
-    def close(self) -> None:
-        self._armed = -1.0
-        self._fd = -1   # a later request fails as on a closed socket (EBADF), never on a descriptor number reused
-        BoundedSocket.close(self)
 
     def request(self, data: bytes, at: float, size: int = 4096, wait: float = -2.0) -> bytes | None:
         """:meth:`BoundedSocket.request`, with the same system calls made through the descriptor while the
