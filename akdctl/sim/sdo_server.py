@@ -28,7 +28,7 @@ an abort code, and undecodable bytes become mailbox error replies.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
@@ -144,13 +144,21 @@ class _Upload:
 class SdoServer:
     """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
 
-    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False) -> None:
+    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False,
+                 faults: bool = False) -> None:
         """``files``: the access objects this server is handed also store files (``foe_read``/``foe_write``,
-        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused."""
+        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused.
+        ``faults``: they also hold the drive's fault component (``access.faults``, :class:`akdctl.sim.faults.
+        FaultComponent`), whose queued emergencies :meth:`handle` sends ahead of its answer (declared, not probed)."""
         if mailbox_size < 32:
             raise ValueError("mailbox_size must be at least 32 bytes")
         self.access = access
         self.files = files
+        self.faults = faults
+        # the fault component of the access object last seen (:meth:`_take_faults`): a model's, once built, is kept
+        # for the model's life, so it is looked up again only when the access object is another one
+        self._faults_of: object = None
+        self._fault_queue: Any = None
         self.mailbox_size = mailbox_size
         self._download: _Download | None = None
         self._upload: _Upload | None = None
@@ -183,7 +191,17 @@ class SdoServer:
         into a plan kept in :attr:`_plans` (:meth:`_plan` says why that is safe), and answered expedited by
         joining the value read from the model between the plan's two byte strings
         (``coe.expedited_upload_templates``); the same rules as :meth:`_upload_fast`, which answers it when the
-        value is not expedited."""
+        value is not expedited.
+
+        With ``faults`` declared, the emergencies the drive queued since the last mailbox are taken first (outside
+        the refusal below: what the fault component raises, a damaged state, reaches the caller)."""
+        if self.faults:
+            access = self.access
+            if access is not self._faults_of:
+                self._fault_queue = access.faults  # type: ignore[attr-defined]
+                self._faults_of = access
+            if self._fault_queue.emergencies:  # the usual mailbox finds none and changes nothing
+                self._emergencies += self._fault_queue.take_emergencies()
         try:
             try:
                 plan = self._plans.get(mailbox)
@@ -200,7 +218,8 @@ class SdoServer:
                     value = self._read_failed(index, subindex, exc)
                 cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
                 if cut is not None:
-                    replies = [cut[0] + value + cut[1]]
+                    head, tail = cut
+                    replies = [head + value + tail] if tail else [head + value]  # 4 bytes: no tail to join
                 else:
                     if not isinstance(value, coe.SdoAbort):
                         value = bytes(value)
