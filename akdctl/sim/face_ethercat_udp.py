@@ -80,7 +80,8 @@ class GatewayHandler:
         from akdctl.protocol.errors import CodecError
         from akdctl.sim.mailbox_repeat import MailboxRepeats, counted
 
-        self.stations = stations
+        self.stations = stations  # fixed for the handler's life: each drive's handle_mailbox is bound once, here
+        self._answers = {address: drive.handle_mailbox for address, drive in stations.items()}
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
         # looked up once here, not imported per datagram
@@ -112,7 +113,7 @@ class GatewayHandler:
         looked up again for each were a share of what a served upload cost (issue 29); :meth:`handle` answers
         through this same code."""
         CodecError = self._codec_error  # noqa: N806 - the class, looked up once
-        mailboxes, stations, injector = self._mailboxes, self.stations, self.injector
+        mailboxes, answers, injector = self._mailboxes, self._answers, self.injector
         answer, answer_counted = self.repeats.answer, self.repeats.answer_counted
         headers, header_size = self._headers, self._header_size
         data: bytes | None = datagram
@@ -139,8 +140,8 @@ class GatewayHandler:
                     except CodecError:
                         continue  # a gateway drops what it cannot parse
                 raw, address, has_counter, low, high = mailbox
-                drive = stations.get(address)
-                if drive is None:
+                handle = answers.get(address)  # the station's drive.handle_mailbox
+                if handle is None:
                     continue
                 replies: list[bytes] | None = None
                 if injector.every:
@@ -153,8 +154,7 @@ class GatewayHandler:
                         replies = [abort]
                 if replies is None:
                     try:
-                        replies = (answer_counted if has_counter else answer)(
-                            (peer, address), raw, drive.handle_mailbox)
+                        replies = (answer_counted if has_counter else answer)((peer, address), raw, handle)
                     except CodecError:
                         replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
                     except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
@@ -166,8 +166,9 @@ class GatewayHandler:
                         continue
                     if reply[2] != low or reply[3] != high:  # not the station's address (an emergency's is 0)
                         reply = reply[:2] + raw[2:4] + reply[4:]
-                    header = headers.get(size)
-                    if header is None:
+                    try:
+                        header = headers[size]
+                    except KeyError:
                         try:
                             header = headers[size] = self._gateway_header(size)
                         except CodecError:

@@ -195,8 +195,8 @@ class SdoServer:
 
         With ``faults`` declared, the emergencies the drive queued since the last mailbox are taken first (outside
         the refusal below: what the fault component raises, a damaged state, reaches the caller)."""
+        access = self.access
         if self.faults:
-            access = self.access
             if access is not self._faults_of:
                 self._fault_queue = access.faults  # type: ignore[attr-defined]
                 self._faults_of = access
@@ -213,7 +213,7 @@ class SdoServer:
                 index, subindex, templates, request = plan
                 self._download = self._upload = None
                 try:  # _read, inline: the poll's one call into the model
-                    value = self.access.object_read(index, subindex)
+                    value = access.object_read(index, subindex)
                 except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
                     value = self._read_failed(index, subindex, exc)
                 cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
