@@ -166,7 +166,7 @@ class SdoServer:
         self._foe_server: object | None = None  # the FoE transfer in progress (built on the first FoE mailbox)
         self._emcy_counter = 0
         #: mailbox bytes -> the plan of a plain upload initiate (:meth:`_plan`)
-        self._plans: dict[bytes, tuple[int, int, tuple[tuple[bytes, bytes] | None, ...], _Request]] = {}
+        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request]] = {}
 
     # --- public -----------------------------------------------------------------------------
 
@@ -216,8 +216,7 @@ class SdoServer:
                     value = access.object_read(index, subindex)
                 except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
                     value = self._read_failed(index, subindex, exc)
-                # the cut by the value's length (None at 0 and past 4, and for an abort: not expedited)
-                cut = templates[size] if value.__class__ is bytes and (size := len(value)) <= 4 else None
+                cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
                 if cut is not None:
                     head, tail = cut
                     replies = [head + value + tail] if tail else [head + value]  # 4 bytes: no tail to join
@@ -240,7 +239,7 @@ class SdoServer:
             pending = []
         return pending + replies
 
-    def _plan(self, mailbox: bytes) -> tuple[int, int, tuple[tuple[bytes, bytes] | None, ...], _Request] | None:
+    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request] | None:
         """What :meth:`handle` keeps of a plain upload initiate (None: another request, the general path answers):
         its index and subindex, the answer's templates and the request's address and counter.
 
@@ -252,8 +251,7 @@ class SdoServer:
         if upload is None:
             return None
         address, counter, index, subindex = upload
-        by_size = coe.expedited_upload_templates(address, counter, index, subindex)
-        plan = (index, subindex, tuple(by_size.get(size) for size in range(5)),  # indexed by length: no hash
+        plan = (index, subindex, coe.expedited_upload_templates(address, counter, index, subindex),
                 _Request(address, counter))
         if mailbox.__class__ is bytes:
             remember(self._plans, mailbox, plan, PLANS_KEPT)
