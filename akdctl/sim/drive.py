@@ -551,13 +551,13 @@ class SimDrive:
         The SDO server keeps segmented-transfer state between mailboxes, so it
         lives as long as this object; it reaches the model of the running
         transaction only (outside one, its access object refuses every call).
-        It takes the emergencies the model's fault component queued ahead of each answer (``faults=True``).
+        Its access object is the model (``drive_model=True``): its queued emergencies go ahead of each answer.
         """
         answer = self._sdo_answer
         if answer is None:
             from akdctl.sim.sdo_server import SdoServer
 
-            self._sdo_server = SdoServer(_OUTSIDE, files=True, faults=True)
+            self._sdo_server = SdoServer(_OUTSIDE, files=True, drive_model=True)
             answer = self._sdo_answer = self._sdo_server.handle  # bound once, not a method object per request
         return self._serve(self._sdo_server, answer, mailbox)
 

@@ -145,16 +145,17 @@ class SdoServer:
     """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
 
     def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False,
-                 faults: bool = False) -> None:
+                 drive_model: bool = False) -> None:
         """``files``: the access objects this server is handed also store files (``foe_read``/``foe_write``,
         :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused.
-        ``faults``: they also hold the drive's fault component (``access.faults``, :class:`akdctl.sim.faults.
-        FaultComponent`), whose queued emergencies :meth:`handle` sends ahead of its answer (declared, not probed)."""
+        ``drive_model``: they are the drive's model (:class:`akdctl.sim.model.DriveModel`): the emergencies its
+        fault component queued go out ahead of each answer, and a planned upload of a plain stored value is read
+        by the model's ``object_read_parts`` (:meth:`handle`). Both declared, not probed."""
         if mailbox_size < 32:
             raise ValueError("mailbox_size must be at least 32 bytes")
         self.access = access
         self.files = files
-        self.faults = faults
+        self.drive_model = drive_model
         # the fault component of the access object last seen (:meth:`_take_faults`): a model's, once built, is kept
         # for the model's life, so it is looked up again only when the access object is another one
         self._faults_of: object = None
@@ -166,7 +167,7 @@ class SdoServer:
         self._foe_server: object | None = None  # the FoE transfer in progress (built on the first FoE mailbox)
         self._emcy_counter = 0
         #: mailbox bytes -> the plan of a plain upload initiate (:meth:`_plan`)
-        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request]] = {}
+        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request, list[Any]]] = {}
 
     # --- public -----------------------------------------------------------------------------
 
@@ -193,10 +194,13 @@ class SdoServer:
         (``coe.expedited_upload_templates``); the same rules as :meth:`_upload_fast`, which answers it when the
         value is not expedited.
 
-        With ``faults`` declared, the emergencies the drive queued since the last mailbox are taken first (outside
-        the refusal below: what the fault component raises, a damaged state, reaches the caller)."""
+        With ``drive_model`` declared, the emergencies the drive queued since the last mailbox are taken first
+        (outside the refusal below: what the fault component raises, a damaged state, reaches the caller), and the
+        plan keeps what the model's ``object_read_parts`` says of its address, for that model and while its
+        ``object_bindings_version`` stays (:meth:`_read_parts`): a plain stored value is then read from
+        ``object_values`` itself, the rest through ``object_read``."""
         access = self.access
-        if self.faults:
+        if self.drive_model:
             if access is not self._faults_of:
                 self._fault_queue = access.faults  # type: ignore[attr-defined]
                 self._faults_of = access
@@ -210,12 +214,23 @@ class SdoServer:
             if plan is None:
                 plan = self._plan(mailbox)
             if plan is not None:
-                index, subindex, templates, request = plan
+                index, subindex, templates, request, parts = plan
                 self._download = self._upload = None
-                try:  # _read, inline: the poll's one call into the model
-                    value = access.object_read(index, subindex)
-                except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
-                    value = self._read_failed(index, subindex, exc)
+                # parts: [model, its object_bindings_version, key, default] (_read_parts); the model is None until
+                # a drive model's read was planned, and the key None for an address object_read must answer
+                model = parts[0]
+                if model is access and parts[1] == model.object_bindings_version and (key := parts[2]) is not None:
+                    value = model.object_values.get(key)
+                    if value is None:
+                        value = parts[3]
+                else:
+                    try:  # _read, inline: the poll's one call into the model
+                        value = access.object_read(index, subindex)
+                    except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
+                        value = self._read_failed(index, subindex, exc)
+                    else:
+                        if self.drive_model and (model is not access or parts[1] != model.object_bindings_version):
+                            self._read_parts(access, index, subindex, parts)
                 cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
                 if cut is not None:
                     head, tail = cut
@@ -239,7 +254,7 @@ class SdoServer:
             pending = []
         return pending + replies
 
-    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request] | None:
+    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request, list[Any]] | None:
         """What :meth:`handle` keeps of a plain upload initiate (None: another request, the general path answers):
         its index and subindex, the answer's templates and the request's address and counter.
 
@@ -252,10 +267,23 @@ class SdoServer:
             return None
         address, counter, index, subindex = upload
         plan = (index, subindex, coe.expedited_upload_templates(address, counter, index, subindex),
-                _Request(address, counter))
+                _Request(address, counter), [None, -1, None, None])
         if mailbox.__class__ is bytes:
             remember(self._plans, mailbox, plan, PLANS_KEPT)
         return plan
+
+    @staticmethod
+    def _read_parts(model: Any, index: int, subindex: int, parts: list[Any]) -> None:
+        """Fill a plan's ``parts`` from the drive model's ``object_read_parts``, after a read of it through
+        ``object_read`` that did not fail: ``[model, its object_bindings_version, key, default]``, the key and
+        default None when the address is not a plain stored value (a component binds it, or will).
+
+        Why the key is complete: the model answers from its bindings (the version moves with each), static
+        catalogue data and the stored value, which :meth:`handle` reads at each use; another model (a reload)
+        is another object."""
+        version = model.object_bindings_version  # the read before this one made whatever binding it builds
+        read = model.object_read_parts(index, subindex)
+        parts[:] = (model, version, None, None) if read is None else (model, version, *read)
 
     # --- mailbox level ----------------------------------------------------------------------
     # A request is taken apart once (mailbox.split: type, counter, address, data) and every reply is packed
