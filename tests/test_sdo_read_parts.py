@@ -210,3 +210,22 @@ def test_queued_emergencies_go_out_ahead_of_the_answer_once() -> None:
     second.faults.raise_fault("F501")  # another model: its own fault component
     assert _services(_answer(server, second, request)) == [CoeService.EMERGENCY, CoeService.SDO_RESPONSE]
     assert _services(_answer(server, first, request)) == [CoeService.SDO_RESPONSE]
+
+
+def test_a_plan_keeps_no_old_model_alive() -> None:
+    """After a reload the server holds the new model only: a plan names the model it read by number, so a state of
+    many megabytes is not kept once replaced (the plans of requests no longer sent included)."""
+    import gc
+    import weakref
+
+    first = _model()
+    server = SdoServer(first, drive_model=True)
+    for counter in range(1, 8):
+        _answer(server, first, _upload(0x6081, 0, counter))
+        _answer(server, first, _upload(0x1018, 1, counter))
+    gone = weakref.ref(first)
+    second = _model()
+    assert _answer(server, second, _upload(0x1018, 1)) == _general(second, _upload(0x1018, 1))
+    del first
+    gc.collect()
+    assert gone() is None

@@ -158,8 +158,11 @@ class SdoServer:
         self.drive_model = drive_model
         # the fault component of the access object last seen (:meth:`_take_faults`): a model's, once built, is kept
         # for the model's life, so it is looked up again only when the access object is another one
-        self._faults_of: object = None
+        # drive_model: the model last handed to this server, its fault component, and the count of models seen
+        # (a plan's parts name the one they were read from by that count: no plan keeps an old model alive)
+        self._model: Any = None
         self._fault_queue: Any = None
+        self._models_seen = 0
         self.mailbox_size = mailbox_size
         self._download: _Download | None = None
         self._upload: _Upload | None = None
@@ -200,10 +203,12 @@ class SdoServer:
         ``object_bindings_version`` stays (:meth:`_read_parts`): a plain stored value is then read from
         ``object_values`` itself, the rest through ``object_read``."""
         access = self.access
+        model = self._model
         if self.drive_model:
-            if access is not self._faults_of:
+            if access is not model:  # another model (the first, a reload): what was read of the last is forgotten
                 self._fault_queue = access.faults  # type: ignore[attr-defined]
-                self._faults_of = access
+                self._model = model = access
+                self._models_seen += 1
             if self._fault_queue.emergencies:  # the usual mailbox finds none and changes nothing
                 self._emergencies += self._fault_queue.take_emergencies()
         try:
@@ -216,10 +221,10 @@ class SdoServer:
             if plan is not None:
                 index, subindex, templates, request, parts = plan
                 self._download = self._upload = None
-                # parts: [model, its object_bindings_version, key, default] (_read_parts); the model is None until
-                # a drive model's read was planned, and the key None for an address object_read must answer
-                model = parts[0]
-                if model is access and parts[1] == model.object_bindings_version and (key := parts[2]) is not None:
+                # parts: [the model's number, its object_bindings_version, key, default] (_read_parts); the number
+                # is None until a drive model's read was planned, the key None for an address object_read answers
+                if parts[0] == self._models_seen and parts[1] == model.object_bindings_version \
+                        and (key := parts[2]) is not None:
                     value = model.object_values.get(key)
                     if value is None:
                         value = parts[3]
@@ -229,8 +234,9 @@ class SdoServer:
                     except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
                         value = self._read_failed(index, subindex, exc)
                     else:
-                        if self.drive_model and (model is not access or parts[1] != model.object_bindings_version):
-                            self._read_parts(access, index, subindex, parts)
+                        if self.drive_model and (parts[0] != self._models_seen
+                                                 or parts[1] != model.object_bindings_version):
+                            parts[:] = self._models_seen, *self._read_parts(model, index, subindex)
                 cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
                 if cut is not None:
                     head, tail = cut
@@ -273,17 +279,17 @@ class SdoServer:
         return plan
 
     @staticmethod
-    def _read_parts(model: Any, index: int, subindex: int, parts: list[Any]) -> None:
-        """Fill a plan's ``parts`` from the drive model's ``object_read_parts``, after a read of it through
-        ``object_read`` that did not fail: ``[model, its object_bindings_version, key, default]``, the key and
-        default None when the address is not a plain stored value (a component binds it, or will).
+    def _read_parts(model: Any, index: int, subindex: int) -> tuple[int, Any, Any]:
+        """What a plan keeps of the drive model's ``object_read_parts``, after a read through ``object_read`` that
+        did not fail: ``(object_bindings_version, key, default)``, key and default None when the address is not a
+        plain stored value (a component binds it, or will once built).
 
-        Why the key is complete: the model answers from its bindings (the version moves with each), static
-        catalogue data and the stored value, which :meth:`handle` reads at each use; another model (a reload)
-        is another object."""
-        version = model.object_bindings_version  # the read before this one made whatever binding it builds
+        Why that key is complete: the model answers from its bindings (the version moves with each), static
+        catalogue data and the stored value, which :meth:`handle` reads at each use; another model (a reload) is
+        another number (:attr:`_models_seen`)."""
+        version = model.object_bindings_version  # the read before this made whatever binding it builds
         read = model.object_read_parts(index, subindex)
-        parts[:] = (model, version, None, None) if read is None else (model, version, *read)
+        return (version, None, None) if read is None else (version, *read)
 
     # --- mailbox level ----------------------------------------------------------------------
     # A request is taken apart once (mailbox.split: type, counter, address, data) and every reply is packed
