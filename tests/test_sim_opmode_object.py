@@ -1,6 +1,6 @@
 """DRV.OPMODE is one operating mode on the simulated AKD, whichever address reads or writes it.
 
-The AKD gives DRV.OPMODE the CoE object 35B4h and PNU 930 [V reference/akd-parameter-names.md]. The simulator kept a
+The AKD gives DRV.OPMODE the CoE object 35B4h and PNU 930, HOME.MODE 50CBh and PNU 1001 [V reference/akd-parameter-names.md]. The simulator kept a
 stored copy of 35B4h beside the live mode PNU 930 reads, so a factory drive answered ``param get DRV.OPMODE`` with 0
 (torque) while ``pnu get 930`` and ``status`` said 1 (velocity). Both now go through one rule
 (``MotionComponent.set_opmode``).
@@ -81,3 +81,27 @@ def test_the_cli_reads_the_same_mode_by_name_and_by_pnu() -> None:
     named = json.loads(by_name.stdout)["parameters"][0]
     assert named["name"] == "DRV.OPMODE"
     assert named["value"] == json.loads(by_pnu.stdout)["parameters"][0]["values"][0] == 1
+
+
+# HOME.MODE: 50CBh is "available also via PNU 1001" [V reference/akd-parameter-names.md, section 3]
+
+
+def _home_mode_object(model: DriveModel) -> int:
+    return int(struct.unpack("<I", model.object_read(0x50CB, 0))[0])
+
+
+def test_home_mode_by_pnu_shows_in_its_object_and_back() -> None:
+    model = DriveModel()
+    assert _home_mode_object(model) == model.pnu_read_raw(1001, 0, 1)[1][0] == 0
+    model.pnu_write_raw(1001, 0, 0x42, [3])  # U16, as the commissioning example's step sets it
+    assert _home_mode_object(model) == 3
+    model.object_write(0x50CB, 0, struct.pack("<I", 1))
+    assert model.pnu_read_raw(1001, 0, 1)[1][0] == 1
+
+
+def test_home_mode_outside_the_pnu_range_is_refused_by_object() -> None:
+    model = DriveModel()
+    with pytest.raises(SdoAccessError) as refused:
+        model.object_write(0x50CB, 0, struct.pack("<I", 21))
+    assert refused.value.code == ABORT_VALUE_RANGE
+    assert model.pnu_read_raw(1001, 0, 1)[1][0] == 0

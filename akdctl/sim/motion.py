@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 from akdctl.profiles import units
 from akdctl.profiles.motion_tasks import MT_LOAD, MT_NUM, MT_SET
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
+from akdctl.sim.component import ABORT_NO_SUBINDEX, ABORT_VALUE_RANGE, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
 
@@ -436,6 +436,10 @@ class MotionComponent(Component):
         # reads and writes what PNU 930 does (a stored copy read 0 beside PNU 930's 1 on a factory drive)
         m.bind_object(0x35B4, read=obj_reader("<I", self._opmode),
                       write=lambda sub, data: self.cia.write_opmode_object(sub, data))
+        # HOME.MODE is 50CBh and "available also via PNU 1001" [V reference/akd-parameter-names.md, section 3]: the
+        # object is the PNU's stored value, not a second copy of it
+        m.bind_object(0x50CB, read=obj_reader("<I", lambda: self.model.stored_pnu(1001)[0]),
+                      write=self._write_home_mode_object)
         # Actual current: 2077h is scaled in mA [V seed 001, "Actual Current 0x2077 sub 0, 32 bit, scaled in mA"];
         # IL.FB 3558h in the 1000:1 float scaling of the AKD's CoE objects [I: its own scale row was not read].
         m.bind_object(0x2077, read=obj_reader("<i", self.current_ma))
@@ -458,6 +462,16 @@ class MotionComponent(Component):
         # (tests/test_sim_lazy.py checks it), so the first access to one builds it
         for index in TASK_TABLE_OBJECTS:
             m.bind_object_later(index, lambda: self.tasks)
+
+    def _write_home_mode_object(self, sub: int, data: bytes) -> None:
+        """HOME.MODE by 50CBh (UDINT): stored as PNU 1001, within the PNU's range, as a PNU 1001 write stores it."""
+        if sub != 0:
+            raise SdoAccessError(ABORT_NO_SUBINDEX)
+        value = struct.unpack("<I", data)[0]
+        low, high = self.model.pnu_info(1001).limits()
+        if not low <= value <= high:
+            raise SdoAccessError(ABORT_VALUE_RANGE)
+        self.model.set_stored_pnu(1001, [value])
 
     def current_ma(self) -> int:
         """The actual current in mA (signed, as a fraction of the simulated drive's peak current)."""
