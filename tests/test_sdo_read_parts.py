@@ -229,3 +229,35 @@ def test_a_plan_keeps_no_old_model_alive() -> None:
     del first
     gc.collect()
     assert gone() is None
+
+
+def test_the_kept_answer_follows_the_value() -> None:
+    """A plan keeps the expedited answer it gave with the value object it joined: a value written since (another
+    object, equal or not) is joined anew, the factory default again after the stored one is removed."""
+    model = _model()
+    server = SdoServer(model, drive_model=True)
+    request = _upload(0x6081, 0)
+    first = [_answer(server, model, request) for _ in range(3)]
+    assert first[0] == first[2] == _general(model, request)
+    assert _parts(server, request)[5] == first[0][0]  # kept
+    for value in (5, 6, 6, 0):  # 6 twice: equal content, another object
+        model.object_write(0x6081, 0, value.to_bytes(4, "little"))
+        for _ in range(2):
+            reply = _answer(server, model, request)
+            assert reply == _general(model, request) and reply[0][-4:] == value.to_bytes(4, "little")
+    model.object_values.pop((0x6081, 0))
+    assert _answer(server, model, request) == _general(model, request) == first[0]
+
+
+def test_a_long_plain_value_starts_its_transfer_on_every_upload() -> None:
+    """Only expedited answers are kept: a plain value longer than 4 bytes is answered by the general packing, which
+    starts the segmented transfer each time (the next segment request continues it as on the general path)."""
+    model, general_model = _model(), _model()
+    fast, general = SdoServer(model, drive_model=True), SdoServer(general_model)
+    request = _upload(0x2032, 0)  # 1500 bytes: segmented
+    for _ in range(3):
+        assert _answer(fast, model, request) == general.handle(request)
+        assert fast._upload is not None and general._upload is not None
+        segment = mbx.pack(mbx.MailboxType.COE, coe.encode_coe(CoeService.SDO_REQUEST,
+                                                              coe.encode_sdo(coe.SdoUploadSegment(0))), 1001, 4)
+        assert _answer(fast, model, segment) == general.handle(segment)

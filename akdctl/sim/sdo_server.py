@@ -201,7 +201,10 @@ class SdoServer:
         (outside the refusal below: what the fault component raises, a damaged state, reaches the caller), and the
         plan keeps what the model's ``object_read_parts`` says of its address, for that model and while its
         ``object_bindings_version`` stays (:meth:`_read_parts`): a plain stored value is then read from
-        ``object_values`` itself, the rest through ``object_read``."""
+        ``object_values`` itself, the rest through ``object_read``. The plan also keeps the expedited answer it gave
+        from those parts with the value it joined: the same value object again (bytes: the same content) gets the
+        same answer bytes; any other is joined anew. Only expedited answers are kept: a longer value's answer starts
+        a transfer (:meth:`_upload_answer`), every time."""
         access = self.access
         model = self._model
         if self.drive_model:
@@ -221,14 +224,20 @@ class SdoServer:
             if plan is not None:
                 index, subindex, templates, request, parts = plan
                 self._download = self._upload = None
-                # parts: [the model's number, its object_bindings_version, key, default] (_read_parts); the number
-                # is None until a drive model's read was planned, the key None for an address object_read answers
+                # parts: [the model's number, its object_bindings_version, key, default, value, answer]
+                # (_read_parts); the number is None until a drive model's read was planned, the key None for an
+                # address object_read answers; value and answer: the last expedited answer given from the parts
+                answer = None
                 if parts[0] == self._models_seen and parts[1] == model.object_bindings_version \
                         and (key := parts[2]) is not None:
+                    plain = True
                     value = model.object_values.get(key)
                     if value is None:
                         value = parts[3]
+                    if value is parts[4]:  # the very bytes answered last (immutable, kept alive by the plan)
+                        answer = parts[5]
                 else:
+                    plain = False
                     try:  # _read, inline: the poll's one call into the model
                         value = access.object_read(index, subindex)
                     except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
@@ -236,15 +245,19 @@ class SdoServer:
                     else:
                         if self.drive_model and (parts[0] != self._models_seen
                                                  or parts[1] != model.object_bindings_version):
-                            parts[:] = self._models_seen, *self._read_parts(model, index, subindex)
-                cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
-                if cut is not None:
-                    head, tail = cut
-                    replies = [head + value + tail] if tail else [head + value]  # 4 bytes: no tail to join
-                else:
-                    if not isinstance(value, coe.SdoAbort):
-                        value = bytes(value)
-                    replies = [self._upload_answer(request, index, subindex, value)]
+                            parts[:4] = self._models_seen, *self._read_parts(model, index, subindex)
+                if answer is None:
+                    cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
+                    if cut is not None:
+                        head, tail = cut
+                        answer = head + value + tail if tail else head + value  # 4 bytes: no tail to join
+                        if plain:
+                            parts[4], parts[5] = value, answer
+                    else:
+                        if not isinstance(value, coe.SdoAbort):
+                            value = bytes(value)
+                        answer = self._upload_answer(request, index, subindex, value)
+                replies = [answer]
             else:
                 replies = self._handle(bytes(mailbox))
         except Exception:  # the simulator must never die on a request; log and refuse
@@ -273,7 +286,7 @@ class SdoServer:
             return None
         address, counter, index, subindex = upload
         plan = (index, subindex, coe.expedited_upload_templates(address, counter, index, subindex),
-                _Request(address, counter), [None, -1, None, None])
+                _Request(address, counter), [None, -1, None, None, None, None])
         if mailbox.__class__ is bytes:
             remember(self._plans, mailbox, plan, PLANS_KEPT)
         return plan
