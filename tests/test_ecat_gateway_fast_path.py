@@ -386,3 +386,33 @@ def test_masters_and_stations_sharing_counters_are_answered_as_the_reference(tmp
     assert fast.repeats.repeats == ref.repeats.repeats > 0
     for side_fast, side_ref in zip(fast_drives, ref_drives):
         assert side_fast.snapshot()["objects"] == side_ref.snapshot()["objects"]
+
+
+def test_frames_follow_the_replies_emergencies_and_writes_included(tmp_path: Path) -> None:
+    """The gateway keeps the last frame per datagram by the reply object it framed (the SDO server answers an
+    unchanged value with the same object): a fault's emergency ahead of the answer (address 0, rewritten to the
+    station's) and a value written between polls are framed anew, and every frame equals the reference's."""
+    fast_drive, ref_drive = _drives(tmp_path)
+    fast, ref = GatewayHandler({1001: fast_drive}), ReferenceGateway({1001: ref_drive})
+    polls = [_upload(0x6081, 0, counter) for counter in range(1, 8)]
+
+    def poll_all() -> list[list[bytes]]:
+        out = []
+        for datagram in polls:
+            got = fast.handle(datagram, PEER)
+            assert got == ref.handle(datagram, PEER), datagram.hex()
+            out.append(got)
+        return out
+
+    first = poll_all()
+    assert poll_all() == first
+    for drive in (fast_drive, ref_drive):
+        with drive.transaction() as model:
+            model.faults.raise_fault("F501")
+    with_emergency = poll_all()
+    assert len(with_emergency[0]) == 2 and with_emergency[0][0][4:6] == (1001).to_bytes(2, "little")
+    assert poll_all() == first  # delivered once; the answers as before
+    value = coe.encode_sdo(coe.SdoDownloadInitiate(0x6081, 0, (2468).to_bytes(4, "little"), 4, True))
+    assert fast.handle(_sdo(value, 0), PEER) == ref.handle(_sdo(value, 0), PEER)
+    after = poll_all()
+    assert all(frames[0][-4:] == (2468).to_bytes(4, "little") for frames in after)

@@ -90,8 +90,9 @@ class GatewayHandler:
         self._headers: dict[int, bytes] = {}  # reply size -> its gateway header (at most 0x7FF sizes)
         self._codec_error = CodecError
         self._counted = counted
-        #: datagram -> (its mailbox, station, whether the mailbox has a counter, the station's two bytes) (_learn)
-        self._mailboxes: dict[bytes, tuple[bytes, int, bool, int, int]] = {}
+        #: datagram -> (its mailbox, station, whether the mailbox has a counter, the station's two bytes, the last
+        #: reply framed for it and its frame) (_learn)
+        self._mailboxes: dict[bytes, tuple[bytes, int, bool, int, int, list[Any]]] = {}
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagrams that answer ``datagram`` (:meth:`serve`'s answer to it alone; a failure raises)."""
@@ -139,7 +140,7 @@ class GatewayHandler:
                         mailbox = self._learn(datagram)
                     except CodecError:
                         continue  # a gateway drops what it cannot parse
-                raw, address, has_counter, low, high = mailbox
+                raw, address, has_counter, low, high, framed = mailbox
                 handle = answers.get(address)  # the station's drive.handle_mailbox
                 if handle is None:
                     continue
@@ -161,20 +162,26 @@ class GatewayHandler:
                         request_failed("ethercat-udp", exc)
                         replies = failure_reply(raw)
                 for reply in replies:
-                    size = len(reply)
-                    if size < header_size:
-                        continue
-                    if reply[2] != low or reply[3] != high:  # not the station's address (an emergency's is 0)
-                        reply = reply[:2] + raw[2:4] + reply[4:]
-                    try:
-                        header = headers[size]
-                    except KeyError:
-                        try:
-                            header = headers[size] = self._gateway_header(size)
-                        except CodecError:
+                    if reply is framed[0]:  # the very bytes framed last for this datagram (kept alive here)
+                        frame = framed[1]
+                    else:
+                        size = len(reply)
+                        if size < header_size:
                             continue
+                        body = reply
+                        if reply[2] != low or reply[3] != high:  # not the station's address (an emergency's is 0)
+                            body = reply[:2] + raw[2:4] + reply[4:]
+                        try:
+                            header = headers[size]
+                        except KeyError:
+                            try:
+                                header = headers[size] = self._gateway_header(size)
+                            except CodecError:
+                                continue
+                        frame = header + body
+                        framed[0], framed[1] = reply, frame
                     try:
-                        send(header + reply, peer)
+                        send(frame, peer)
                     except OSError:
                         pass
             except Exception as exc:  # noqa: BLE001 - one bad request must not end the face (a gateway drops it)
@@ -182,16 +189,22 @@ class GatewayHandler:
                     raise
                 request_failed("ethercat-udp", exc)
 
-    def _learn(self, datagram: bytes) -> tuple[bytes, int, bool, int, int]:
+    def _learn(self, datagram: bytes) -> tuple[bytes, int, bool, int, int, list[Any]]:
         """The mailbox in ``datagram``, its station address, whether it carries a counter (``mailbox_repeat.counted``:
-        only then can it be a repeat) and the address's two bytes, kept in :attr:`_mailboxes` by the datagram's bytes.
+        only then can it be a repeat) and the address's two bytes, kept in :attr:`_mailboxes` by the datagram's bytes;
+        and ``[reply, frame]``, the last reply :meth:`serve` framed for it with its frame.
 
         Why: a master polls with the same few datagrams (its counter runs 1..7), and checking and cutting the
         gateway header (``mailbox.unwrap_gateway``) again for each was a share of a served upload (issue 29). What
         is kept is read from the datagram's bytes alone, so the key covers it; a datagram the codec refuses raises
-        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over."""
+        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over.
+
+        Why the last frame: the drive answers a poll of an unchanged value with the same reply object (the SDO
+        server keeps its answer, ``SdoServer.handle``), and the frame depends on the reply's bytes and this
+        datagram's station alone; bytes do not change, and the one kept here is not freed, so the same object is the
+        same bytes. Any other reply is framed anew."""
         raw = self._unwrap(datagram)
-        mailbox = (raw, raw[2] | raw[3] << 8, self._counted(raw), raw[2], raw[3])
+        mailbox = (raw, raw[2] | raw[3] << 8, self._counted(raw), raw[2], raw[3], [None, None])
         if datagram.__class__ is bytes:
             remember(self._mailboxes, datagram, mailbox, MAILBOXES_KEPT)
         return mailbox
