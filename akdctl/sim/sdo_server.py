@@ -156,10 +156,9 @@ class SdoServer:
         self.access = access
         self.files = files
         self.drive_model = drive_model
-        # the fault component of the access object last seen (:meth:`_take_faults`): a model's, once built, is kept
-        # for the model's life, so it is looked up again only when the access object is another one
-        # drive_model: the model last handed to this server, its fault component, and the count of models seen
-        # (a plan's parts name the one they were read from by that count: no plan keeps an old model alive)
+        # drive_model: the model last handed to this server, its fault component (a model's, once built, is kept
+        # for the model's life) and the count of models seen (a plan's parts name the model they were read from by
+        # that count: no plan keeps an old model alive)
         self._model: Any = None
         self._fault_queue: Any = None
         self._models_seen = 0
@@ -280,7 +279,9 @@ class SdoServer:
         Why a memo by the mailbox's bytes: a client polls the same few objects, and reading the 16 bytes apart
         and packing the answer again was a measurable share of a served upload (issue 29). Everything the plan
         holds is read from those bytes alone, so the key covers it; the value is read from the model on every
-        request. The memo is bounded (:data:`PLANS_KEPT`): many distinct requests start it over."""
+        request. Its last item, the parts of a drive model's read (:meth:`_read_parts`) and the last answer given
+        from them, is checked against the model at each use (:meth:`handle`). The memo is bounded
+        (:data:`PLANS_KEPT`): many distinct requests start it over."""
         upload = plain_upload_initiate(mailbox)
         if upload is None:
             return None
