@@ -193,3 +193,39 @@ def test_out_of_order_calls_get_the_same_frames_every_way(tmp_path: Path, monkey
     if not inject:  # every request answered but the older ones (and pings of them): some were discarded
         unanswered = b"".join(b"." if f == b"--" else b"x" for f in frames[0]).split(b".")[1:].count(b"")
         assert unanswered > 10
+
+
+@pytest.mark.parametrize("delay", [0.0, 30.0])
+def test_a_kept_receive_buffer_answers_as_the_datagrams_bytes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                              delay: float) -> None:
+    """The face's loop receives into one kept buffer (recvfrom_into): a datagram cut short, after a longer one of
+    the same shape, leaves that one's bytes behind it in the buffer. Its size alone must tell it short: every
+    datagram is answered as the general path answers its own bytes."""
+    rng = random.Random(8200)
+    ar, activity = uuid.uuid4(), uuid.uuid4()
+    requests = [_connect(ar, activity)]
+    for sequence in range(1, 300):
+        request = _write(ar, sequence, activity) if sequence % 2 else _read(ar, sequence, activity)
+        kind = rng.random()
+        if kind < 0.25:  # cut short: inside the record header, its padding, the record data, or by one byte
+            request = request[:rng.choice([100, 139, 150, 163, 164, len(request) - 1])]
+        elif kind < 0.3:
+            request += bytes(rng.randint(1, 8))
+        requests.append(request)
+        if rng.random() < 0.1:
+            requests.append(request)
+    frames = []
+    for way in ("one pass", "general"):
+        with monkeypatch.context() as patch:
+            face, sent = _face(tmp_path / way.replace(" ", "-"), patch, way, delay=delay)
+            buffer = bytearray(rng.randbytes(1024))
+            for request in requests:
+                sent.append(b"--")
+                if way == "general":
+                    face._datagram(request, PEER)
+                else:  # as recvfrom_into leaves it: the datagram at the start, the buffer's old bytes after it
+                    buffer[:len(request)] = request
+                    face._datagrams(buffer, len(request), PEER, None, False, face_profinet._NEVER)
+            frames.append(sent)
+    assert frames[0] == frames[1]
+    assert sum(1 for f in frames[0] if f[:2] == b"\x04\x02") > 150

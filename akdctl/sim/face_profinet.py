@@ -322,10 +322,12 @@ class ProfinetFace(Face):
         poller.register(sock_fd, select.POLLIN)
         poller.register(self._wake_r, select.POLLIN)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
-        # recvfrom of the largest datagram: its bytes object is shrunk to the datagram in place, which costs less
-        # CPU than recvfrom_into a kept buffer plus a copy of it (~0.4 us per datagram, issue 29); an IPv4 peer is
-        # already the (host, port) pair the face keeps, an IPv6 one is cut to it
-        receive, stop = sock.recvfrom, self._stop
+        # recvfrom_into one kept buffer of the largest datagram: the one pass of _datagrams reads a plain record
+        # call's parts from it and copies nothing else (recvfrom made and shrank a 64 KiB bytes object per datagram,
+        # issue 29); every other way gets the datagram's bytes. An IPv4 peer is already the (host, port) pair the
+        # face keeps, an IPv6 one is cut to it.
+        buffer = bytearray(65535)
+        receive, stop = sock.recvfrom_into, self._stop
         v6 = sock.family == socket.AF_INET6
         next_expiry = 0.0
         # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
@@ -340,13 +342,13 @@ class ProfinetFace(Face):
                     next_expiry = self._maybe_expire(next_expiry)
                     continue
             try:
-                data, peer = receive(65535)
+                size, peer = receive(buffer)
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
             if peer is None:
                 continue  # woken by interrupt(): the loop condition decides
-            expiry = self._datagrams(data, peer[:2] if v6 else peer, receive, v6, next_expiry)
+            expiry = self._datagrams(buffer, size, peer[:2] if v6 else peer, receive, v6, next_expiry)
             if expiry is None:
                 return  # stopped
             next_expiry = expiry
@@ -404,12 +406,13 @@ class ProfinetFace(Face):
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
         """One datagram, answered as the face's loop answers it (:meth:`_datagrams`; no expiry tick: it never
         comes)."""
-        self._datagrams(data, peer, None, False, _NEVER)
+        self._datagrams(data, len(data), peer, None, False, _NEVER)
 
-    def _datagrams(self, data: bytes, peer: tuple[str, int], receive: Any, v6: bool,
+    def _datagrams(self, data: bytes | bytearray, size: int, peer: tuple[str, int], receive: Any, v6: bool,
                    next_expiry: float) -> float | None:
-        """Answer ``data`` from ``peer``; with ``receive`` (the socket's recvfrom), go on with the datagrams that
-        follow at once, while no send is scheduled, and return the next expiry tick (None: the face was stopped).
+        """Answer the datagram of ``size`` bytes at the start of ``data`` from ``peer``; with ``receive`` (the socket's
+        recvfrom_into, ``data`` its buffer), go on with the datagrams that follow at once, while no send is
+        scheduled, and return the next expiry tick (None: the face was stopped).
 
         A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass when it is a
         retransmission, a Write that reaches the parameter manager or a Read that collects its response -- what
@@ -438,17 +441,17 @@ class ProfinetFace(Face):
                     stats.dropped += 1
                     call = frame = None
                 elif short_way:
-                    try:
+                    try:  # (a kept buffer is never too short: a shape's least length tells a short datagram)
                         head, sequence, middle, record_sequence, tail = split[data[_DREP_BYTE]](data)
                     except _SHORT:  # too short to be a plain record call
                         call = None
                     else:
                         call = calls.get(tail)  # then the rest of the shape's key compared (_learn says why)
-                        if call is None or call[0] != head or call[1] != middle or len(data) < call[2]:
-                            call = self._learn(data, head, middle, tail)
+                        if call is None or call[0] != head or call[1] != middle or size < call[2]:
+                            call = self._learn(bytes(data[:size]), head, middle, tail)
                     frame = None
                     if call is None:
-                        self._general(data, peer)
+                        self._general(bytes(data[:size]), peer)
                     else:
                         _head, _middle, _least, last, write, ar_id, served, length, template, reads = call
                         if last[0] == sequence:  # a retransmission of the activity's last call: its reply again
@@ -467,7 +470,8 @@ class ProfinetFace(Face):
                                         try:
                                             response = handle_bmp(data[_WRITE_DATA:length])
                                         except Exception as exc:  # noqa: BLE001 - answered as _write answers it
-                                            frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
+                                            frame = self._write_failed(bytes(data[:size]), head[_DREP_BYTE] >> 4 == 1,
+                                                                       exc)
                                         else:
                                             ar.pending = (now + delay, response)
                                             pack, rhead, rmiddle, rtail = template
@@ -476,19 +480,20 @@ class ProfinetFace(Face):
                                     ar.last_activity = now
                                     ar.pending = None
                                     record = pending[1]
-                                    size = len(record)
-                                    if size > length:  # the most the client takes (usually it fits)
-                                        record, size = record[:length], length
-                                    template = reads.get(size)
+                                    kept = len(record)
+                                    if kept > length:  # the most the client takes (usually it fits)
+                                        record, kept = record[:length], length
+                                    template = reads.get(kept)
                                     if template is None:
-                                        template = reads[size] = pnio_record.ok_template_booted(data, size, self._boot_time)
+                                        template = reads[kept] = pnio_record.ok_template_booted(
+                                            bytes(data[:size]), kept, self._boot_time)
                                     pack, rhead, rmiddle, rtail = template
                                     frame = pack(rhead, sequence, rmiddle, record_sequence, rtail, record)
                             if frame is None:
-                                self._general(data, peer)
+                                self._general(bytes(data[:size]), peer)
                 else:
                     frame = None
-                    self._general(data, peer)
+                    self._general(bytes(data[:size]), peer)
                 if frame is not None:
                     last[0] = sequence  # _remember's steps, inline: the reply kept (a single frame as itself)
                     last[1] = frame
@@ -507,7 +512,7 @@ class ProfinetFace(Face):
             if receive is None or scheduled:
                 return next_expiry
             try:
-                data, peer = receive(65535)
+                size, peer = receive(data)
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 return self._maybe_expire(next_expiry)
             if peer is None:
