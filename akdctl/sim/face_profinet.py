@@ -429,6 +429,8 @@ class ProfinetFace(Face):
         rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
         handle_bmp, delay = self.drive.handle_bmp, self.delay
         sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
+        direct = plain_tx and sock is not None  # replies sent by sendto here (_raw_send's steps)
+        half, sequences = _HALF, _SEQUENCES
         while True:
             now = monotonic()
             if now >= next_expiry:  # _maybe_expire's test: false for most datagrams
@@ -454,10 +456,14 @@ class ProfinetFace(Face):
                         self._general(bytes(data[:size]), peer)
                     else:
                         _head, _middle, _least, last, write, ar_id, served, length, template, reads = call
-                        if last[0] == sequence:  # a retransmission of the activity's last call: its reply again
+                        try:  # how far the call is past the activity's last one (_older's rule, in one step)
+                            ahead = (sequence - last[0]) & sequences
+                        except TypeError:  # no call of the activity answered yet: this one is new
+                            ahead = 1
+                        if not ahead:  # a retransmission of the activity's last call: its reply again
                             stats.replayed += 1
                             self._replay(last[1], peer)
-                        elif last[0] is not None and (last[0] - sequence) & _SEQUENCES < _HALF:
+                        elif ahead > half:
                             pass  # older than the activity's last call: discarded (_activity)
                         else:
                             ar = ars.get(ar_id) if served else None
@@ -497,7 +503,7 @@ class ProfinetFace(Face):
                 if frame is not None:
                     last[0] = sequence  # _remember's steps, inline: the reply kept (a single frame as itself)
                     last[1] = frame
-                    if plain_tx and sock is not None:  # _raw_send's steps, inline
+                    if direct:  # _raw_send's steps, inline
                         try:
                             sock.sendto(frame, peer)
                             stats.sent += 1
