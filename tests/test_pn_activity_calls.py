@@ -229,3 +229,20 @@ def test_a_kept_receive_buffer_answers_as_the_datagrams_bytes(tmp_path: Path, mo
             frames.append(sent)
     assert frames[0] == frames[1]
     assert sum(1 for f in frames[0] if f[:2] == b"\x04\x02") > 150
+
+
+def test_the_write_data_reader_reads_the_record_plain_record_call_reads() -> None:
+    """pnio_record.write_data_reader (the one pass's Write record data, from a buffer that may hold older bytes
+    after the datagram) gives the data plain_record_call finds, in either byte order."""
+    from akdctl.protocol import pnio_record
+
+    rng = random.Random(164)
+    ar = uuid.uuid4()
+    for _ in range(50):
+        record = rng.randbytes(rng.randint(1, 240))
+        datagram = _write(ar, rng.randrange(1 << 32), uuid.uuid4(), record, little=rng.random() < 0.5)
+        plain = pnio_record.plain_record_call(datagram)
+        assert plain is not None and plain[3].data == record
+        buffer = bytearray(datagram + rng.randbytes(64))
+        assert pnio_record.write_data_reader(len(record))(buffer) == (record,)
+        assert pnio_record.write_data_reader(len(record))(datagram) == (record,)

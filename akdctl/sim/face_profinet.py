@@ -53,7 +53,7 @@ ACTIVITIES_KEPT = 512  # activities whose last reply the face keeps for retransm
 _SEQUENCES, _HALF = 0xFFFFFFFF, 0x80000000  # the 32-bit sequence number space; its older half of any number
 _CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
 _SPLIT_BY_DREP, _DREP_BYTE = pnio_record.CALL_PARTS_BY_DREP, pnio_record.DREP_BYTE
-_WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
+_SHORT = pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
 _NEVER = float("inf")
@@ -455,7 +455,7 @@ class ProfinetFace(Face):
                     if call is None:
                         self._general(bytes(data[:size]), peer)
                     else:
-                        _head, _middle, _least, last, write, ar_id, served, length, template, reads = call
+                        _head, _middle, _least, last, write, ar_id, length, template, reads = call
                         try:  # how far the call is past the activity's last one (_older's rule, in one step)
                             ahead = (sequence - last[0]) & sequences
                         except TypeError:  # no call of the activity answered yet: this one is new
@@ -466,7 +466,7 @@ class ProfinetFace(Face):
                         elif ahead > half:
                             pass  # older than the activity's last call: discarded (_activity)
                         else:
-                            ar = ars.get(ar_id) if served else None
+                            ar = ars.get(ar_id)  # (None for a shape the one pass does not serve: no AR)
                             if ar is not None:
                                 pending = ar.pending
                                 if write:
@@ -474,7 +474,8 @@ class ProfinetFace(Face):
                                         ar.last_activity = now
                                         stats.bmp_requests += 1
                                         try:
-                                            response = handle_bmp(data[_WRITE_DATA:length])
+                                            (request,) = length(data)  # the record data (write_data_reader)
+                                            response = handle_bmp(request)
                                         except Exception as exc:  # noqa: BLE001 - answered as _write answers it
                                             frame = self._write_failed(bytes(data[:size]), head[_DREP_BYTE] >> 4 == 1,
                                                                        exc)
@@ -534,11 +535,11 @@ class ProfinetFace(Face):
     def _learn(self, data: bytes, head: bytes, middle: bytes, tail: bytes) -> tuple[Any, ...] | None:
         """What :meth:`_datagrams` keeps of a plain record call's shape (None: not one, the general path answers):
         the shape's key as the codec splits it (``head``, ``middle``; ``tail`` is the memo's key), the least datagram
-        length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's bytes, whether the one
-        pass may serve it here (this face's API/slot/subslot and a parameter record, and a Write's record length
-        within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's record data's end in
-        the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length
-        (``pnio_record.ok_template``); in place of the activity UUID, the activity's last call (:meth:`_activity`).
+        length it holds for, the activity's last call (:meth:`_activity`), whether it is a Write, the AR UUID's bytes
+        if the one pass may serve it here, else None (this face's API/slot/subslot and a parameter record, and a
+        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's
+        record data reader (``pnio_record.write_data_reader``) or the most a Read takes, a Write's OK reply template
+        and a Read's by record length (``pnio_record.ok_template``).
 
         Why the memo is keyed by the tail (the record header from its AR UUID on) and the head and middle compared:
         a dict lookup hashes its whole key, and the 134 bytes of the codec's key cost more to join and hash than
@@ -551,8 +552,9 @@ class ProfinetFace(Face):
         _little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
         write = opnum == OP_WRITE
         served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
-        return remember(self._calls, tail, (head, middle, least, self._activity(activity), write, ar_id, served,
-                                            _WRITE_DATA + length if write else length,
+        return remember(self._calls, tail, (head, middle, least, self._activity(activity), write,
+                                            ar_id if served else None,
+                                            pnio_record.write_data_reader(length) if write else length,
                                             pnio_record.ok_template_booted(data, None, self._boot_time)
                                             if write else None, {}), _CALLS_KEPT)
 
