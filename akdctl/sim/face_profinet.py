@@ -443,19 +443,25 @@ class ProfinetFace(Face):
                     stats.dropped += 1
                     call = frame = None
                 elif short_way:
+                    frame = None
                     try:  # (a kept buffer is never too short: a shape's least length tells a short datagram)
                         head, sequence, middle, record_sequence, tail = split[data[_DREP_BYTE]](data)
                     except _SHORT:  # too short to be a plain record call
-                        call = None
+                        head = None
                     else:
-                        call = calls.get(tail)  # then the rest of the shape's key compared (_learn says why)
-                        if call is None or call[0] != head or call[1] != middle or size < call[2]:
+                        try:  # the shape kept for the tail, then the rest of its key compared (_learn says why)
+                            kept_head, kept_middle, least, last, write, ar_id, length, template, reads = calls[tail]
+                        except KeyError:
+                            kept_head = None
+                        if kept_head != head or kept_middle != middle or size < least:
                             call = self._learn(bytes(data[:size]), head, middle, tail)
-                    frame = None
-                    if call is None:
+                            if call is None:
+                                head = None
+                            else:
+                                kept_head, kept_middle, least, last, write, ar_id, length, template, reads = call
+                    if head is None:
                         self._general(bytes(data[:size]), peer)
                     else:
-                        _head, _middle, _least, last, write, ar_id, length, template, reads = call
                         try:  # how far the call is past the activity's last one (_older's rule, in one step)
                             ahead = (sequence - last[0]) & sequences
                         except TypeError:  # no call of the activity answered yet: this one is new
