@@ -353,3 +353,66 @@ def test_the_upload_templates_equal_the_pack(address: int, counter: int, index: 
     assert sorted(templates) == [1, 2, 3, 4]
     head, tail = templates[len(value)]
     assert head + value + tail == coe.pack_expedited_upload_mailbox(address, counter, index, subindex, value)
+
+
+def test_masters_and_stations_sharing_counters_are_answered_as_the_reference(tmp_path: Path) -> None:
+    """Several masters behind one gateway, two stations, the same counters reused by each, repeats from each and
+    mailboxes without a counter, interleaved; every peer a new (address, port) tuple as a socket returns it (equal
+    to the last one, not the same object): the link used last is found by comparing, the others by lookup."""
+    for side in ("a", "b"):
+        (tmp_path / side).mkdir()
+    fast_drives, ref_drives = _drives(tmp_path / "a"), _drives(tmp_path / "b")  # two stations behind each gateway
+    fast = GatewayHandler({1001: fast_drives[0], 1002: fast_drives[1]})
+    ref = ReferenceGateway({1001: ref_drives[0], 1002: ref_drives[1]})
+    steps = []
+    reads_new: dict[int, int] = {}  # step -> the value its answer must carry (not the reference's word: its rule)
+    value = 1000
+    for counter in (1, 2, 1, 3, 0, 3):
+        for port, station in ((5000, 1001), (5001, 1001), (5000, 1002), (5002, 1002)):
+            upload = _upload(0x6081, 0, counter, station)
+            steps += [(port, upload), (port, upload)]  # the second one a repeat (unless no counter)
+            value += 1
+            write = coe.encode_sdo(coe.SdoDownloadInitiate(0x6081, 0, value.to_bytes(4, "little"), 4, True))
+            steps.append((port + 9, _sdo(write, 0, station)))  # a third master writes, without a counter
+            steps.append((port + 7, upload))  # another master, the same bytes: executed, it reads the new value
+            reads_new[len(steps) - 1] = value
+            steps.append((port, _sdo(write, counter, station)))  # the same counter again, other bytes: executed
+    for n, (port, datagram) in enumerate(steps):
+        peer = (".".join(("127", "0", "0", "1")), int(str(port)))  # new objects each time, as recvfrom makes them
+        got = fast.handle(datagram, peer)
+        assert got == ref.handle(datagram, peer), (n, port, datagram.hex())
+        if n in reads_new:
+            assert got[0][-4:] == reads_new[n].to_bytes(4, "little"), n
+    assert fast.repeats.repeats == ref.repeats.repeats > 0
+    for side_fast, side_ref in zip(fast_drives, ref_drives):
+        assert side_fast.snapshot()["objects"] == side_ref.snapshot()["objects"]
+
+
+def test_frames_follow_the_replies_emergencies_and_writes_included(tmp_path: Path) -> None:
+    """The gateway keeps the last frame per datagram by the reply object it framed (the SDO server answers an
+    unchanged value with the same object): a fault's emergency ahead of the answer (address 0, rewritten to the
+    station's) and a value written between polls are framed anew, and every frame equals the reference's."""
+    fast_drive, ref_drive = _drives(tmp_path)
+    fast, ref = GatewayHandler({1001: fast_drive}), ReferenceGateway({1001: ref_drive})
+    polls = [_upload(0x6081, 0, counter) for counter in range(1, 8)]
+
+    def poll_all() -> list[list[bytes]]:
+        out = []
+        for datagram in polls:
+            got = fast.handle(datagram, PEER)
+            assert got == ref.handle(datagram, PEER), datagram.hex()
+            out.append(got)
+        return out
+
+    first = poll_all()
+    assert poll_all() == first
+    for drive in (fast_drive, ref_drive):
+        with drive.transaction() as model:
+            model.faults.raise_fault("F501")
+    with_emergency = poll_all()
+    assert len(with_emergency[0]) == 2 and with_emergency[0][0][4:6] == (1001).to_bytes(2, "little")
+    assert poll_all() == first  # delivered once; the answers as before
+    value = coe.encode_sdo(coe.SdoDownloadInitiate(0x6081, 0, (2468).to_bytes(4, "little"), 4, True))
+    assert fast.handle(_sdo(value, 0), PEER) == ref.handle(_sdo(value, 0), PEER)
+    after = poll_all()
+    assert all(frames[0][-4:] == (2468).to_bytes(4, "little") for frames in after)

@@ -119,6 +119,7 @@ class SimDrive:
         self._sdo_server: Any = None
         self._pnu_server: Any = None
         self._pnu_answer: Callable[[bytes], bytes] | None = None  # the PnuServer's handle, once it exists
+        self._sdo_answer: Callable[[bytes], list[bytes]] | None = None  # the SdoServer's handle, once it exists
         self._lock_fd = -1
         self.lock_timeout = LOCK_TIMEOUT  # sim serve lowers it to FACE_LOCK_TIMEOUT for its faces
         # flock excludes other open files, not threads sharing this one (the faces of one `sim serve`)
@@ -550,23 +551,15 @@ class SimDrive:
         The SDO server keeps segmented-transfer state between mailboxes, so it
         lives as long as this object; it reaches the model of the running
         transaction only (outside one, its access object refuses every call).
+        Its access object is the model (``drive_model=True``): its queued emergencies go ahead of each answer.
         """
-        server = self._sdo_server
-        if server is None:
+        answer = self._sdo_answer
+        if answer is None:
             from akdctl.sim.sdo_server import SdoServer
 
-            server = self._sdo_server = SdoServer(_OUTSIDE, files=True)
-        return self._serve(server, self._answer_mailbox, mailbox)
-
-    def _answer_mailbox(self, mailbox: bytes) -> list[bytes]:
-        """The SDO server's answer, behind the emergencies the drive raised since the last mailbox: taken only
-        when the fault component's queue holds some (the usual mailbox finds it empty and changes nothing)."""
-        server = self._sdo_server
-        faults = server.access.faults  # type: ignore[union-attr]
-        if faults.emergencies:
-            for emcy in faults.take_emergencies():
-                server.queue_emergency(emcy)  # type: ignore[union-attr]
-        return server.handle(mailbox)  # type: ignore[union-attr]
+            self._sdo_server = SdoServer(_OUTSIDE, files=True, drive_model=True)
+            answer = self._sdo_answer = self._sdo_server.handle  # bound once, not a method object per request
+        return self._serve(self._sdo_server, answer, mailbox)
 
     def _serve(self, server: Any, answer: Callable[[bytes], T], request: bytes) -> T:
         """One face request as one transaction: ``server`` reaches the model only while ``answer`` runs.

@@ -78,9 +78,10 @@ class GatewayHandler:
     def __init__(self, stations: dict[int, SimDrive], injector: Injector | None = None) -> None:
         from akdctl.protocol import mailbox
         from akdctl.protocol.errors import CodecError
-        from akdctl.sim.mailbox_repeat import MailboxRepeats
+        from akdctl.sim.mailbox_repeat import MailboxRepeats, counted
 
-        self.stations = stations
+        self.stations = stations  # fixed for the handler's life: each drive's handle_mailbox is bound once, here
+        self._answers = {address: drive.handle_mailbox for address, drive in stations.items()}
         self.injector = injector or Injector()
         self.repeats = MailboxRepeats()  # a duplicated request datagram is not executed twice (issue 23.14)
         # looked up once here, not imported per datagram
@@ -88,7 +89,10 @@ class GatewayHandler:
             mailbox.unwrap_gateway, mailbox.gateway_header, mailbox.HEADER_SIZE
         self._headers: dict[int, bytes] = {}  # reply size -> its gateway header (at most 0x7FF sizes)
         self._codec_error = CodecError
-        self._mailboxes: dict[bytes, tuple[bytes, int]] = {}  # datagram -> (its mailbox, station) (_learn)
+        self._counted = counted
+        #: datagram -> (its mailbox, station, whether the mailbox has a counter, the station's two bytes, the last
+        #: reply framed for it and its frame) (_learn)
+        self._mailboxes: dict[bytes, tuple[bytes, int, bool, int, int, list[Any]]] = {}
 
     def handle(self, datagram: bytes, peer: object = None) -> list[bytes]:
         """The datagrams that answer ``datagram`` (:meth:`serve`'s answer to it alone; a failure raises)."""
@@ -110,7 +114,8 @@ class GatewayHandler:
         looked up again for each were a share of what a served upload cost (issue 29); :meth:`handle` answers
         through this same code."""
         CodecError = self._codec_error  # noqa: N806 - the class, looked up once
-        mailboxes, stations, injector, answer = self._mailboxes, self.stations, self.injector, self.repeats.answer
+        mailboxes, answers, injector = self._mailboxes, self._answers, self.injector
+        answer, answer_counted = self.repeats.answer, self.repeats.answer_counted
         headers, header_size = self._headers, self._header_size
         data: bytes | None = datagram
         while True:
@@ -135,9 +140,9 @@ class GatewayHandler:
                         mailbox = self._learn(datagram)
                     except CodecError:
                         continue  # a gateway drops what it cannot parse
-                raw, address = mailbox
-                drive = stations.get(address)
-                if drive is None:
+                raw, address, has_counter, low, high, framed = mailbox
+                handle = answers.get(address)  # the station's drive.handle_mailbox
+                if handle is None:
                     continue
                 replies: list[bytes] | None = None
                 if injector.every:
@@ -150,26 +155,33 @@ class GatewayHandler:
                         replies = [abort]
                 if replies is None:
                     try:
-                        replies = answer((peer, address), raw, drive.handle_mailbox)
+                        replies = (answer_counted if has_counter else answer)((peer, address), raw, handle)
                     except CodecError:
                         replies = [mailbox_error_reply(raw, 1)]  # syntax of the mailbox protocol header wrong
                     except Exception as exc:  # noqa: BLE001 - the drive failed: the master gets an abort, not silence
                         request_failed("ethercat-udp", exc)
                         replies = failure_reply(raw)
                 for reply in replies:
-                    size = len(reply)
-                    if size < header_size:
-                        continue
-                    if reply[2] | reply[3] << 8 != address:
-                        reply = reply[:2] + raw[2:4] + reply[4:]
-                    header = headers.get(size)
-                    if header is None:
-                        try:
-                            header = headers[size] = self._gateway_header(size)
-                        except CodecError:
+                    if reply is framed[0]:  # the very bytes framed last for this datagram (kept alive here)
+                        frame = framed[1]
+                    else:
+                        size = len(reply)
+                        if size < header_size:
                             continue
+                        body = reply
+                        if reply[2] != low or reply[3] != high:  # not the station's address (an emergency's is 0)
+                            body = reply[:2] + raw[2:4] + reply[4:]
+                        try:
+                            header = headers[size]
+                        except KeyError:
+                            try:
+                                header = headers[size] = self._gateway_header(size)
+                            except CodecError:
+                                continue
+                        frame = header + body
+                        framed[0], framed[1] = reply, frame
                     try:
-                        send(header + reply, peer)
+                        send(frame, peer)
                     except OSError:
                         pass
             except Exception as exc:  # noqa: BLE001 - one bad request must not end the face (a gateway drops it)
@@ -177,15 +189,22 @@ class GatewayHandler:
                     raise
                 request_failed("ethercat-udp", exc)
 
-    def _learn(self, datagram: bytes) -> tuple[bytes, int]:
-        """The mailbox in ``datagram`` and its station address, kept in :attr:`_mailboxes` by the datagram's bytes.
+    def _learn(self, datagram: bytes) -> tuple[bytes, int, bool, int, int, list[Any]]:
+        """The mailbox in ``datagram``, its station address, whether it carries a counter (``mailbox_repeat.counted``:
+        only then can it be a repeat) and the address's two bytes, kept in :attr:`_mailboxes` by the datagram's bytes;
+        and ``[reply, frame]``, the last reply :meth:`serve` framed for it with its frame.
 
         Why: a master polls with the same few datagrams (its counter runs 1..7), and checking and cutting the
         gateway header (``mailbox.unwrap_gateway``) again for each was a share of a served upload (issue 29). What
         is kept is read from the datagram's bytes alone, so the key covers it; a datagram the codec refuses raises
-        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over."""
+        its error and is not kept. Bounded by :data:`MAILBOXES_KEPT`: many distinct datagrams start it over.
+
+        Why the last frame: the drive answers a poll of an unchanged value with the same reply object (the SDO
+        server keeps its answer, ``SdoServer.handle``), and the frame depends on the reply's bytes and this
+        datagram's station alone; bytes do not change, and the one kept here is not freed, so the same object is the
+        same bytes. Any other reply is framed anew."""
         raw = self._unwrap(datagram)
-        mailbox = (raw, raw[2] | raw[3] << 8)
+        mailbox = (raw, raw[2] | raw[3] << 8, self._counted(raw), raw[2], raw[3], [None, None])
         if datagram.__class__ is bytes:
             remember(self._mailboxes, datagram, mailbox, MAILBOXES_KEPT)
         return mailbox

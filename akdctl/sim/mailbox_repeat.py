@@ -26,48 +26,79 @@ MAX_LINKS = 256
 REPEAT_WINDOW_S = 1.0
 
 
+def counted(request: bytes) -> bool:
+    """Whether ``request`` carries a counter (byte 5, bits 4-6; 0 = none): only such a mailbox can be a repeat.
+    A caller that sees the same request bytes again (the gateway's datagram memo) asks once and calls
+    :meth:`MailboxRepeats.answer_counted` for those that do."""
+    return len(request) >= 6 and bool(request[5] & 0x70)
+
+
 class MailboxRepeats:
     """Per link: the last mailbox with a counter and the replies it got.
 
     Each link's entry is one list ``[request, replies, time]`` changed in place, and the entry used last is known by
-    identity: the usual mailbox (a new request on the link that sent the last one) hashes its link key once (the
-    lookup), not three times (lookup, store, move to the end of the age order)."""
+    identity with its link: the usual mailbox (a new request on the link that sent the last one) finds its entry by
+    comparing the link with that one's, without hashing it (a gateway's link is a new (address, port) pair per
+    datagram, whose hash is computed afresh), and changes the age order not at all."""
 
     def __init__(self, max_links: int = MAX_LINKS) -> None:
         self.max_links = max_links
         self.repeats = 0  # repeats answered without executing them (for tests and stats)
         self._last: OrderedDict[Hashable, list[Any]] = OrderedDict()   # oldest first
         self._newest: list[Any] | None = None   # the entry at the end of _last (used last), or None
+        self._newest_link: Hashable = None   # its link (meaningful while _newest is not None)
 
     def answer(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]) -> list[bytes]:
         """``handle(request)``'s replies, or the replies of the previous mailbox when ``request`` repeats it.
 
         The list ``handle`` returned is kept as it is for a repeat (each repeat gets a copy): callers read it and
         do not change it."""
-        last_of = self._last
-        if len(request) < 6 or not request[5] & 0x70:  # the counter (bits 4-6) is 0: none
-            if last_of.pop(link, None) is self._newest:  # a mailbox without a counter ends the sequence
-                self._newest = None
-            return handle(request)
+        if counted(request):
+            return self.answer_counted(link, request, handle)
+        if self._last.pop(link, None) is self._newest:  # a mailbox without a counter ends the sequence
+            self._newest = None
+        return handle(request)
+
+    def answer_counted(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]]
+                       ) -> list[bytes]:
+        """:meth:`answer` for a ``request`` that :func:`counted` says carries a counter."""
         now = time.monotonic()
-        entry = last_of.get(link)
-        if entry is None:
-            replies = handle(request)
-            last_of[link] = self._newest = [request if request.__class__ is bytes else bytes(request), replies, now]
-            if len(last_of) > self.max_links:
-                last_of.popitem(last=False)
-            return replies
+        entry = self._newest
+        if entry is None or self._newest_link != link:
+            return self._answer_other(link, request, handle, now)
         if entry[0] == request and now - entry[2] <= REPEAT_WINDOW_S:
             self.repeats += 1
-            if entry is not self._newest:
-                last_of.move_to_end(link)
-                self._newest = entry
             return list(entry[1])
         replies = handle(request)
         entry[0] = request if request.__class__ is bytes else bytes(request)
         entry[1] = replies
         entry[2] = now
-        if entry is not self._newest:
+        return replies
+
+    def _answer_other(self, link: Hashable, request: bytes, handle: Callable[[bytes], list[bytes]], now: float
+                      ) -> list[bytes]:
+        """:meth:`answer_counted` on a link other than the one used last: its entry looked up, and moved to the end
+        of the age order once the request was answered."""
+        last_of = self._last
+        entry = last_of.get(link)
+        if entry is None:
+            replies = handle(request)
+            last_of[link] = entry = [request if request.__class__ is bytes else bytes(request), replies, now]
+            if len(last_of) > self.max_links:
+                last_of.popitem(last=False)
+                if not last_of:  # max_links 0: the new entry itself is forgotten
+                    self._newest = None
+                    return replies
+        elif entry[0] == request and now - entry[2] <= REPEAT_WINDOW_S:
+            self.repeats += 1
+            replies = list(entry[1])
             last_of.move_to_end(link)
-            self._newest = entry
+        else:
+            replies = handle(request)
+            entry[0] = request if request.__class__ is bytes else bytes(request)
+            entry[1] = replies
+            entry[2] = now
+            last_of.move_to_end(link)
+        self._newest = entry
+        self._newest_link = link
         return replies

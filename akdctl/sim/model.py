@@ -125,6 +125,8 @@ class DriveModel:
         self._pnu_shapes: dict[int, tuple[Any, int, int, PnuReader | None, bool]] = {}
         self.pnu_bindings_version = 0  # moved by every bind_pnu: what pnu_read_parts gave holds while it stays
         self._object_bindings: dict[int, _ObjectBinding] = {}
+        # moved by every bind_object / bind_object_later: what object_read_parts gave holds while it stays
+        self.object_bindings_version = 0
         # Object indices a component binds only once a part of it is built (bind_object_later): index -> builder
         self._object_builders: dict[int, Callable[[], object]] = {}
         # The components, named here as typed handles for each other and for the faces. ``motion`` (the one that
@@ -203,11 +205,13 @@ class DriveModel:
     def bind_object(self, index: int, read: ObjectReader | None = None, write: ObjectWriter | None = None) -> None:
         """Like :meth:`bind_pnu` for a whole object index (``read(sub)``, ``write(sub, data)``)."""
         self._object_bindings[index] = _ObjectBinding(read, write)
+        self.object_bindings_version += 1
 
     def bind_object_later(self, index: int, build: Callable[[], object]) -> None:
         """An object whose binding a component makes only when the part that owns it is built (the motion task
         table, sim/motion.py): the first access calls ``build``, which binds it, and finds that binding."""
         self._object_builders[index] = build
+        self.object_bindings_version += 1
 
     def component(self, name: str) -> Component | None:
         if name in LAZY:
@@ -453,6 +457,24 @@ class DriveModel:
             raise SdoAccessError(plan)
         data = self.object_values.get(key)
         return plan if data is None else data  # type: ignore[return-value]
+
+    def object_read_parts(self, index: int, subindex: int) -> tuple[tuple[int, int], bytes] | None:
+        """For an address whose read is its stored value (no component binds its index, none will once built, the
+        catalogue lets it be read): the key of :attr:`object_values` and the bytes read when nothing is stored;
+        None for any other, whose reads go through :meth:`object_read`.
+
+        Why: a served upload polls the same address, and finding again that nothing binds it was a share of what
+        it cost (issue 29). What this gives depends on the bindings (:attr:`object_bindings_version` moves with
+        every one made) and static catalogue data; the stored value is read at each use, as object_read does."""
+        if index in self._object_bindings or index in LAZY_OBJECTS or index in self._object_builders:
+            return None
+        key = (index, subindex)
+        plan = _READ_PLANS.get(key)
+        if plan is None:
+            plan = _read_plan(index, subindex)
+        if plan.__class__ is int:
+            return None
+        return key, plan  # type: ignore[return-value]
 
     def object_write(self, index: int, subindex: int, data: bytes) -> None:
         entry = self.object_entry(index, subindex)

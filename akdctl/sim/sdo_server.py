@@ -28,7 +28,7 @@ an abort code, and undecodable bytes become mailbox error replies.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 
 from akdctl.io.log import log
 from akdctl.protocol import coe, mailbox as mbx
@@ -144,13 +144,24 @@ class _Upload:
 class SdoServer:
     """The CoE side of one simulated slave; keeps the state of one segmented transfer."""
 
-    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False) -> None:
+    def __init__(self, access: ObjectAccess, mailbox_size: int = 512, *, files: bool = False,
+                 drive_model: bool = False) -> None:
         """``files``: the access objects this server is handed also store files (``foe_read``/``foe_write``,
-        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused."""
+        :class:`akdctl.sim.foe.FileAccess`), so FoE mailboxes are answered; otherwise they are refused.
+        ``drive_model``: they are the drive's model (:class:`akdctl.sim.model.DriveModel`): the emergencies its
+        fault component queued go out ahead of each answer, and a planned upload of a plain stored value is read
+        by the model's ``object_read_parts`` (:meth:`handle`). Both declared, not probed."""
         if mailbox_size < 32:
             raise ValueError("mailbox_size must be at least 32 bytes")
         self.access = access
         self.files = files
+        self.drive_model = drive_model
+        # drive_model: the model last handed to this server, its fault component (a model's, once built, is kept
+        # for the model's life) and the count of models seen (a plan's parts name the model they were read from by
+        # that count: no plan keeps an old model alive)
+        self._model: Any = None
+        self._fault_queue: Any = None
+        self._models_seen = 0
         self.mailbox_size = mailbox_size
         self._download: _Download | None = None
         self._upload: _Upload | None = None
@@ -158,7 +169,7 @@ class SdoServer:
         self._foe_server: object | None = None  # the FoE transfer in progress (built on the first FoE mailbox)
         self._emcy_counter = 0
         #: mailbox bytes -> the plan of a plain upload initiate (:meth:`_plan`)
-        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request]] = {}
+        self._plans: dict[bytes, tuple[int, int, dict[int, tuple[bytes, bytes]], _Request, list[Any]]] = {}
 
     # --- public -----------------------------------------------------------------------------
 
@@ -183,7 +194,25 @@ class SdoServer:
         into a plan kept in :attr:`_plans` (:meth:`_plan` says why that is safe), and answered expedited by
         joining the value read from the model between the plan's two byte strings
         (``coe.expedited_upload_templates``); the same rules as :meth:`_upload_fast`, which answers it when the
-        value is not expedited."""
+        value is not expedited.
+
+        With ``drive_model`` declared, the emergencies the drive queued since the last mailbox are taken first
+        (outside the refusal below: what the fault component raises, a damaged state, reaches the caller), and the
+        plan keeps what the model's ``object_read_parts`` says of its address, for that model and while its
+        ``object_bindings_version`` stays (:meth:`_read_parts`): a plain stored value is then read from
+        ``object_values`` itself, the rest through ``object_read``. The plan also keeps the expedited answer it gave
+        from those parts with the value it joined: the same value object again (bytes: the same content) gets the
+        same answer bytes; any other is joined anew. Only expedited answers are kept: a longer value's answer starts
+        a transfer (:meth:`_upload_answer`), every time."""
+        access = self.access
+        model = self._model
+        if self.drive_model:
+            if access is not model:  # another model (the first, a reload): what was read of the last is forgotten
+                self._fault_queue = access.faults  # type: ignore[attr-defined]
+                self._model = model = access
+                self._models_seen += 1
+            if self._fault_queue.emergencies:  # the usual mailbox finds none and changes nothing
+                self._emergencies += self._fault_queue.take_emergencies()
         try:
             try:
                 plan = self._plans.get(mailbox)
@@ -192,19 +221,42 @@ class SdoServer:
             if plan is None:
                 plan = self._plan(mailbox)
             if plan is not None:
-                index, subindex, templates, request = plan
+                index, subindex, templates, request, parts = plan
                 self._download = self._upload = None
-                try:  # _read, inline: the poll's one call into the model
-                    value = self.access.object_read(index, subindex)
-                except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
-                    value = self._read_failed(index, subindex, exc)
-                cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
-                if cut is not None:
-                    replies = [cut[0] + value + cut[1]]
+                # parts: [the model's number, its object_bindings_version, key, default, value, answer]
+                # (_read_parts); the number is None until a drive model's read was planned, the key None for an
+                # address object_read answers; value and answer: the last expedited answer given from the parts
+                answer = None
+                if parts[0] == self._models_seen and parts[1] == model.object_bindings_version \
+                        and (key := parts[2]) is not None:
+                    plain = True
+                    value = model.object_values.get(key)
+                    if value is None:
+                        value = parts[3]
+                    if value is parts[4]:  # the very bytes answered last (immutable, kept alive by the plan)
+                        answer = parts[5]
                 else:
-                    if not isinstance(value, coe.SdoAbort):
-                        value = bytes(value)
-                    replies = [self._upload_answer(request, index, subindex, value)]
+                    plain = False
+                    try:  # _read, inline: the poll's one call into the model
+                        value = access.object_read(index, subindex)
+                    except Exception as exc:  # noqa: BLE001 - every failure becomes an abort (_read_failed)
+                        value = self._read_failed(index, subindex, exc)
+                    else:
+                        if self.drive_model and (parts[0] != self._models_seen
+                                                 or parts[1] != model.object_bindings_version):
+                            parts[:4] = self._models_seen, *self._read_parts(model, index, subindex)
+                if answer is None:
+                    cut = templates.get(len(value)) if value.__class__ is bytes else None  # None: not expedited
+                    if cut is not None:
+                        head, tail = cut
+                        answer = head + value + tail if tail else head + value  # 4 bytes: no tail to join
+                        if plain:
+                            parts[4], parts[5] = value, answer
+                    else:
+                        if not isinstance(value, coe.SdoAbort):
+                            value = bytes(value)
+                        answer = self._upload_answer(request, index, subindex, value)
+                replies = [answer]
             else:
                 replies = self._handle(bytes(mailbox))
         except Exception:  # the simulator must never die on a request; log and refuse
@@ -220,23 +272,38 @@ class SdoServer:
             pending = []
         return pending + replies
 
-    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request] | None:
+    def _plan(self, mailbox: bytes) -> tuple[int, int, dict[int, tuple[bytes, bytes]], _Request, list[Any]] | None:
         """What :meth:`handle` keeps of a plain upload initiate (None: another request, the general path answers):
         its index and subindex, the answer's templates and the request's address and counter.
 
         Why a memo by the mailbox's bytes: a client polls the same few objects, and reading the 16 bytes apart
         and packing the answer again was a measurable share of a served upload (issue 29). Everything the plan
         holds is read from those bytes alone, so the key covers it; the value is read from the model on every
-        request. The memo is bounded (:data:`PLANS_KEPT`): many distinct requests start it over."""
+        request. Its last item, the parts of a drive model's read (:meth:`_read_parts`) and the last answer given
+        from them, is checked against the model at each use (:meth:`handle`). The memo is bounded
+        (:data:`PLANS_KEPT`): many distinct requests start it over."""
         upload = plain_upload_initiate(mailbox)
         if upload is None:
             return None
         address, counter, index, subindex = upload
         plan = (index, subindex, coe.expedited_upload_templates(address, counter, index, subindex),
-                _Request(address, counter))
+                _Request(address, counter), [None, -1, None, None, None, None])
         if mailbox.__class__ is bytes:
             remember(self._plans, mailbox, plan, PLANS_KEPT)
         return plan
+
+    @staticmethod
+    def _read_parts(model: Any, index: int, subindex: int) -> tuple[int, Any, Any]:
+        """What a plan keeps of the drive model's ``object_read_parts``, after a read through ``object_read`` that
+        did not fail: ``(object_bindings_version, key, default)``, key and default None when the address is not a
+        plain stored value (a component binds it, or will once built).
+
+        Why that key is complete: the model answers from its bindings (the version moves with each), static
+        catalogue data and the stored value, which :meth:`handle` reads at each use; another model (a reload) is
+        another number (:attr:`_models_seen`)."""
+        version = model.object_bindings_version  # the read before this made whatever binding it builds
+        read = model.object_read_parts(index, subindex)
+        return (version, None, None) if read is None else (version, *read)
 
     # --- mailbox level ----------------------------------------------------------------------
     # A request is taken apart once (mailbox.split: type, counter, address, data) and every reply is packed
