@@ -49,7 +49,7 @@ def _parse(path: Path) -> ast.Module:
     return _parsed(str(path), stat.st_mtime_ns, stat.st_size)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _parsed(path: str, _mtime_ns: int, _size: int) -> ast.Module:
     return ast.parse(Path(path).read_text(encoding="utf-8"), path)
 
@@ -67,7 +67,7 @@ def _imports(path: Path, root: Path = ROOT) -> set[str]:
     return set(_imports_of(str(path), stat.st_mtime_ns, stat.st_size, root))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _imports_of(name: str, _mtime_ns: int, _size: int, root: Path) -> frozenset[str]:
     path = Path(name)
     found: set[str] = set()
