@@ -36,3 +36,11 @@ def test_the_progress_line_of_home_carries_the_phase() -> None:
                            deadline_s=60.0)
     m = measure(plan, _status("cia402", 0x0237, 6), 1.0)
     assert m.to_go.startswith("homing in progress, at 0.2500 rev")
+    assert "gives up in 59 s" in m.to_go
+
+
+def test_a_completed_homing_has_no_deadline_left_in_its_progress_line() -> None:
+    plan = SimpleNamespace(request=SimpleNamespace(kind="home"), duration_s=None, end_rev=None, start_rev=None,
+                           deadline_s=60.0)
+    m = measure(plan, _status("profidrive", 0x2837, 2, standstill=True), 1.0)
+    assert m.to_go.startswith("homing completed, at 0.2500 rev") and "gives up" not in m.to_go

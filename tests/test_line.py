@@ -242,9 +242,10 @@ def test_discover_inventory_commission_and_diff_a_line_of_eight_drives(tmp_path:
         diff = run_akdctl("--inventory", str(inv_path), "--select", "coe", "params", "diff", "--source", "objects", "--json")
         assert diff.code == 5, diff
         differences = json.loads(diff.stdout)["differences"]
-        assert [d["key"] for d in differences] == ["0x6060:0"], differences
-        assert set(differences[0]["differ"]) == odd  # the minority differs from the majority
-        assert differences[0]["expected"] == "1"
+        # one mode, two addresses: DRV.OPMODE 35B4h (2, position) and 0x6060 (1, profile position) both differ
+        assert [d["key"] for d in differences] == ["0x35B4:0", "0x6060:0"], differences
+        assert all(set(d["differ"]) == odd for d in differences)  # the minority differs from the majority
+        assert [d["expected"] for d in differences] == ["2", "1"]
         # killing one server mid-run fails its drives only; the others finish and the report says so
         slow = _write(tmp_path, "[recipe]\nname='slow'\n[[step]]\naction='check_faults'\n"
                                 "[[step]]\naction='wait'\nseconds=2\n[[step]]\naction='check_faults'\n", "slow.toml")

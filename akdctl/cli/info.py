@@ -9,26 +9,15 @@ import click
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
 
-#: Identity values whose words the catalogue knows (catalog/meanings.py), by their place in read_identity's result.
-_WORDS = {
-    "profidrive.drive_unit.manufacturer": {"pnu": 964, "element": 0},
-    "profidrive.drive_object.type_class": {"pnu": 975, "element": 5},
-    "canopen.vendor_id": {"obj": (0x1018, 1)},
-    "canopen.product_code": {"obj": (0x1018, 2)},
-}
-
 
 def _flatten(prefix: str, value: Any, doc: Doc) -> None:
-    from akdctl.drive.values import value_words
+    from akdctl.drive.identity import value_text
 
     if isinstance(value, dict):
         for key, sub in value.items():
             _flatten(f"{prefix}.{key}" if prefix else key, sub, doc)
     elif isinstance(value, int) and not isinstance(value, bool):
-        where = _WORDS.get(prefix)
-        notes = [f"0x{value:X}" if value > 9 else "", value_words(value, **where) if where else ""]  # type: ignore[arg-type]
-        shown = ", ".join(n for n in notes if n)
-        doc.kv(prefix, f"{value} ({shown})" if shown else str(value))
+        doc.kv(prefix, value_text(prefix, value))
     else:
         doc.kv(prefix, value)
 

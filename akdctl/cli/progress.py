@@ -53,16 +53,17 @@ def measure(plan: Any, status: Any, elapsed: float) -> Measure:
         to_go = abs(plan.end_rev - status.position_rev)
         return Measure(max(total - to_go, 0.0), total, target, f"{to_go:.4f} rev to go", _eta(plan, to_go, speed))
     where = f"at {status.position_rev:.4f} rev" if status.position_rev is not None else "searching"
-    phase = None
+    phase, finished = None, False
     if r.kind == "home":
-        from akdctl.drive.axis.base import AxisStatus  # loaded with the axis that produced the status
+        from akdctl.drive.axis.base import HOMING_COMPLETED, AxisStatus  # loaded with the axis that gave the status
 
         phase = status.homing_phase() if isinstance(status, AxisStatus) else None
+        finished = phase == HOMING_COMPLETED
     if phase:  # what the drive reports of the homing's progress (issue 28 item 7)
         where = f"{phase}, {where}"
     if status.velocity_rpm is not None:
         where += f", {status.velocity_rpm:.1f} rpm"
-    if plan.deadline_s:
+    if plan.deadline_s and not finished:  # a finished homing has nothing left to give up on
         where += f" (gives up in {max(plan.deadline_s - elapsed, 0.0):.0f} s)"
     return Measure(None, None, "", where, None)
 

@@ -106,7 +106,13 @@ def _header_doc(data: dict[str, Any], path: str) -> Doc:
                      f"{target.get('drive_profile') or 'auto'})")
     for section, text in sorted((data.get("errors") or {}).items()):
         doc.kv(f"error in {section}", text)
-    _flatten("identity", data.get("identity") or {}, doc)
+    from akdctl.drive.bundle_report import identity
+
+    section = identity(data)  # the page's identity rows: who the drive is in words, then each value with its words
+    for key, value in section.pairs:
+        doc.kv(f"identity.{key}", value)
+    for note in section.notes:
+        doc.kv("identity", note)
     return doc
 
 

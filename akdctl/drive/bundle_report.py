@@ -12,6 +12,7 @@ that section, never an exception), so a damaged-but-loadable bundle still gives 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 #: PNUs whose value the selected telegram sets (PZD set point / actual value assignment): compared with nothing.
@@ -70,10 +71,12 @@ def text(value: Any) -> str:
     return str(value)
 
 
-def _flat(prefix: str, value: Any, section: Section, depth: int = 0) -> None:
+def _flat(prefix: str, value: Any, section: Section, depth: int = 0,
+          shown: Callable[[str, Any], Any] | None = None) -> None:
+    """Nested values as dotted key/value pairs; ``shown(key, value)`` gives a leaf's text where the caller knows more."""
     if isinstance(value, dict) and depth < 6:
         for key, sub in value.items():
-            _flat(f"{prefix}.{key}" if prefix else str(key), sub, section, depth + 1)
+            _flat(f"{prefix}.{key}" if prefix else str(key), sub, section, depth + 1, shown)
     elif isinstance(value, list) and value and all(isinstance(v, dict) and "set" in v for v in value):
         section.kv(prefix, ", ".join(text(v.get("name", v.get("bit"))) for v in value if v.get("set")) or "none set")
     elif isinstance(value, list) and len(value) > 16:
@@ -82,7 +85,7 @@ def _flat(prefix: str, value: Any, section: Section, depth: int = 0) -> None:
         section.kv(prefix, "; ".join(" ".join(text(x) for x in v.values()) if isinstance(v, dict) else text(v)
                                      for v in value))
     else:
-        section.kv(prefix, value)
+        section.kv(prefix, shown(prefix, value) if shown is not None else value)
 
 
 def _dict(value: Any) -> dict[str, Any]:
@@ -108,12 +111,24 @@ def header(data: dict[str, Any], name: str) -> Section:
 
 
 def identity(data: dict[str, Any]) -> Section:
+    """Who the drive is in words first (vendor, model, firmware, serial: ``info``'s summary), then every value read,
+    numbers with their words as ``info`` shows them (``256 (0x100, Kollmorgen)``)."""
+    from akdctl.drive.identity import summary, value_text
+
     s = Section("identity", "Identity")
     ident = data.get("identity")
     if isinstance(ident, dict) and "error" in ident:
         s.notes.append(f"not readable: {text(ident['error'])}")
-    else:
-        _flat("", _dict(ident), s)
+        return s
+    ident = _dict(ident)
+    try:
+        brief = summary(ident)
+    except (TypeError, ValueError, AttributeError, KeyError):  # a bundle from elsewhere may hold anything
+        brief = {}
+    for key, value in brief.items():
+        s.kv(key, value)
+    _flat("", ident, s, shown=lambda key, value: value_text(key, value)
+          if isinstance(value, int) and not isinstance(value, bool) else value)
     return s
 
 
@@ -126,8 +141,8 @@ def status(data: dict[str, Any]) -> Section:
     st = _dict(st)
     for key in ("state", "state_text", "mode_text", "enabled", "fault", "warning", "homed", "target_reached",
                 "standstill", "position_counts", "position_rev", "velocity_rpm", "current_pct", "word_hex"):
-        if key in st:
-            s.kv(key.replace("_", " "), st[key])
+        if key in st:  # None: the drive's status does not say (homed outside position mode, for one)
+            s.kv(key.replace("_", " "), "not reported" if st[key] is None else st[key])
     for key in ("faults", "warnings"):
         items = _list(st.get(key))
         if items:

@@ -208,3 +208,26 @@ def _decimal(serial: Any) -> str | None:
 def _vendor_number(*numbers: Any) -> str | None:
     number = next((n for n in numbers if isinstance(n, int)), None)
     return None if number is None else f"vendor {number} (0x{number:X})"
+
+
+#: Identity values whose words the catalogue knows (catalog/meanings.py), by their place in read_identity's result.
+_VALUE_WORDS: dict[str, dict[str, Any]] = {
+    "profidrive.drive_unit.manufacturer": {"pnu": 964, "element": 0},
+    "profidrive.drive_object.type_class": {"pnu": 975, "element": 5},
+    "canopen.vendor_id": {"obj": (0x1018, 1)},
+    "canopen.product_code": {"obj": (0x1018, 2)},
+}
+
+
+def value_text(path: str, value: Any) -> str:
+    """One identity value as ``info`` and a support bundle's page show it: a number with its hex form and its words
+    where the catalogue knows them (``256 (0x100, Kollmorgen)`` for ``profidrive.drive_unit.manufacturer``), anything
+    else as its text. ``path`` is the value's place in :func:`read_identity`'s result, dotted."""
+    if not isinstance(value, int) or isinstance(value, bool):
+        return str(value)
+    from akdctl.drive.values import value_words
+
+    where = _VALUE_WORDS.get(path)
+    notes = [f"0x{value:X}" if value > 9 else "", (value_words(value, **where) or "") if where else ""]
+    shown = ", ".join(n for n in notes if n)
+    return f"{value} ({shown})" if shown else str(value)

@@ -8,9 +8,8 @@ stored values under a private key (``0x10000 | n``, or ``0x20000 |`` a hash of t
 this module in the drive's own form: numbers (floats for float parameters), text for strings.
 
 A name with a PNU (DRV.OPMODE 930, HOME.MODE 1001) is written to the PNU and to its CoE object, and read from the
-CoE object: a write by name shows on both views, an SDO write on every name view; a PNU written by number alone
-(``pnu set 1001=...``) stays apart from the CoE object, as the simulator kept the two before [I: one parameter on a
-real drive].
+CoE object. The motion component binds both objects (35B4h, 50CBh) to what the PNU holds, so every address shows one
+value: a write by name, by PNU number (``pnu set 1001=...``) or by SDO shows on all the others.
 
 The simulator's own simplifications [I]: a ``var``-scaled CoE object (CiA 402 velocities/positions) is taken 1:1;
 an [I] float scale is applied as the catalogue states it; ranges are the catalogue's published ones.

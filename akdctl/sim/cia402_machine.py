@@ -257,6 +257,19 @@ class Cia402Machine(FieldState):
         d.mode = mode
         d.model.set_stored_pnu(930, [d.opmode])
 
+    def write_opmode_object(self, sub: int, data: bytes) -> None:
+        """DRV.OPMODE by its CoE object 35B4h (UDINT): PNU 930's rule (:meth:`MotionComponent.set_opmode`), refused with the
+        abort codes a refused 0x6060 write gets."""
+        d = self.drive
+        d.feed()
+        if sub != 0:
+            raise SdoAccessError(ABORT_NO_SUBINDEX)
+        value = struct.unpack("<I", data)[0]
+        if value > 2:
+            raise SdoAccessError(ABORT_VALUE_RANGE)
+        if not d.set_opmode(value):
+            raise SdoAccessError(ABORT_DEVICE_STATE)
+
     def read_quick_stop_code(self, sub: int) -> bytes:
         if sub != 0:
             raise SdoAccessError(ABORT_NO_SUBINDEX)

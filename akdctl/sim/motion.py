@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 from akdctl.profiles import units
 from akdctl.profiles.motion_tasks import MT_LOAD, MT_NUM, MT_SET
 from akdctl.profiles.units import CIA_COUNTS_PER_REV
-from akdctl.sim.component import ABORT_NO_SUBINDEX, Component, FieldState
+from akdctl.sim.component import ABORT_NO_SUBINDEX, ABORT_VALUE_RANGE, Component, FieldState
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.power_states import CIA_WORD, ENABLED, FAULT, FAULT_REACTION, POWERED, QUICK_STOP, SOD
 
@@ -188,6 +188,19 @@ class MotionComponent(Component):
 
     def _opmode(self) -> int:
         return _OPMODE.get(self.mode, 2)
+
+    def set_opmode(self, value: int) -> bool:
+        """DRV.OPMODE written, by PNU 930 or its object 35B4h (0 torque, 1 velocity, 2 position; the caller checked
+        the range): the one rule of both. False, and nothing changed, unless the axis stands still and is not homing;
+        a different mode drops the kept motion task. Each caller answers a refusal in its own protocol."""
+        axis = self.axis
+        if not axis.at_rest() or axis.homing is not None:
+            return False
+        if OPMODE_TO_CIA[value] != self.mode and self._opmode() != value:
+            axis.forget_task()
+            self.mode = OPMODE_TO_CIA[value]
+        self.model.set_stored_pnu(930, [value])
+        return True
 
     @property
     def fault_present(self) -> bool:
@@ -419,6 +432,14 @@ class MotionComponent(Component):
         # The AKD names of the same actual values (issue 23.7): one live value, every address of it.
         # VL.FB is 3618h *and* 606Ch [V reference/akd-parameter-names.md, G1]: the same reader.
         m.bind_object(0x3618, read=obj_reader("<i", lambda: counts(self.axis.vel)))
+        # DRV.OPMODE is 35B4h and PNU 930 [V reference/akd-parameter-names.md]: one operating mode, so the object
+        # reads and writes what PNU 930 does (a stored copy read 0 beside PNU 930's 1 on a factory drive)
+        m.bind_object(0x35B4, read=obj_reader("<I", self._opmode),
+                      write=lambda sub, data: self.cia.write_opmode_object(sub, data))
+        # HOME.MODE is 50CBh and "available also via PNU 1001" [V reference/akd-parameter-names.md, section 3]: the
+        # object is the PNU's stored value, not a second copy of it
+        m.bind_object(0x50CB, read=obj_reader("<I", lambda: self.model.stored_pnu(1001)[0]),
+                      write=self._write_home_mode_object)
         # Actual current: 2077h is scaled in mA [V seed 001, "Actual Current 0x2077 sub 0, 32 bit, scaled in mA"];
         # IL.FB 3558h in the 1000:1 float scaling of the AKD's CoE objects [I: its own scale row was not read].
         m.bind_object(0x2077, read=obj_reader("<i", self.current_ma))
@@ -441,6 +462,16 @@ class MotionComponent(Component):
         # (tests/test_sim_lazy.py checks it), so the first access to one builds it
         for index in TASK_TABLE_OBJECTS:
             m.bind_object_later(index, lambda: self.tasks)
+
+    def _write_home_mode_object(self, sub: int, data: bytes) -> None:
+        """HOME.MODE by 50CBh (UDINT): stored as PNU 1001, within the PNU's range, as a PNU 1001 write stores it."""
+        if sub != 0:
+            raise SdoAccessError(ABORT_NO_SUBINDEX)
+        value = struct.unpack("<I", data)[0]
+        low, high = self.model.pnu_info(1001).limits()
+        if not low <= value <= high:
+            raise SdoAccessError(ABORT_VALUE_RANGE)
+        self.model.set_stored_pnu(1001, [value])
 
     def current_ma(self) -> int:
         """The actual current in mA (signed, as a fraction of the simulated drive's peak current)."""
@@ -481,6 +512,8 @@ class MotionComponent(Component):
 
 
 _OPMODE = {4: 0, 3: 1}  # CiA 402 mode -> DRV.OPMODE (torque 0, velocity 1, any position mode 2)
+#: DRV.OPMODE (PNU 930, 35B4h) -> the CiA 402 mode of the one axis (0 torque, 1 velocity, 2 profile position).
+OPMODE_TO_CIA = {0: 4, 1: 3, 2: 1}
 
 
 def _clamp32(value: int) -> int:

@@ -36,9 +36,6 @@ if TYPE_CHECKING:
 #: AKD HOME.MODE (PNU 1001) → the simulator's homing procedure; other modes end in a homing error.
 HOME_MODE_PROCEDURES = {0: "current", 1: "limit-", 2: "limit-index", 3: "switch", 4: "switch-index", 5: "index"}
 
-#: PNU 930 (DRV.OPMODE) → CiA 402 mode of the one axis (0 torque, 1 velocity, 2 position).
-OPMODE_TO_CIA = {0: 4, 1: 3, 2: 1}
-
 
 class Stw1Machine(FieldState):
     """STW1 writes, NSOLL_A and PNU 930 writes, and the ZSW1 they produce."""
@@ -239,12 +236,8 @@ class Stw1Machine(FieldState):
     def write_opmode(self, sub: int, values: list[int]) -> None:
         d = self.drive
         d.feed()
-        if not d.axis.at_rest() or d.axis.homing is not None:
+        if not d.set_opmode(values[0]):
             raise PnuAccessError(PE_OPERATING_STATE, None, "operating mode changes only at standstill")
-        if OPMODE_TO_CIA[values[0]] != d.mode and d.opmode != values[0]:
-            d.axis.forget_task()
-            d.mode = OPMODE_TO_CIA[values[0]]
-        d.model.set_stored_pnu(930, values)
 
     # ------------------------------------------------------------------ ZSW1
     def zsw1(self) -> int:

@@ -27,6 +27,10 @@ if TYPE_CHECKING:
     from akdctl.channels.base import ObjectChannel
 
 
+#: The homing phase a finished homing reports (:meth:`AxisStatus.homing_phase`; the progress line drops its deadline).
+HOMING_COMPLETED = "homing completed"
+
+
 class AxisStatus(Record):
     """What the drive reports, decoded. ``word`` is ZSW1 or the statusword; ``warnings``: the active warnings (number,
     code, text) when the drive names them (0x2000), empty when it only sets the bit. Mutable, unhashable."""
@@ -95,11 +99,11 @@ class AxisStatus(Record):
             return {(False, False, False): "homing in progress",
                     (False, False, True): "homing interrupted or not started",
                     (False, True, False): "home found, still moving to it",
-                    (False, True, True): "homing completed"}.get(
+                    (False, True, True): HOMING_COMPLETED}.get(
                 bits, "homing error" + (" at standstill" if bits[2] else ", still moving"))
         if self.profile == "profidrive" and self.mode == 2:
             if self.word & sw.ZSW1_HOME_POSITION_SET and self.word & sw.ZSW1_DRIVE_STOPPED:
-                return "homing completed"
+                return HOMING_COMPLETED
             if self.word & sw.ZSW1_HOME_POSITION_SET:
                 return "home position set, still moving"
             return "searching for the reference" if not self.standstill else "homing not running"
