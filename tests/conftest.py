@@ -59,6 +59,24 @@ def _bytecode_cache() -> None:
 
 _bytecode_cache()
 
+
+def _hypothesis_profile() -> None:
+    """Property tests judge results, never time: no per-example deadline and no "too slow" health check.
+
+    Why: both are wall-clock limits (200 ms an example; data generation), so a loaded host -- the suite runs on two
+    workers on two cores, beside whatever else runs there -- failed correct code with DeadlineExceeded or
+    FailedHealthCheck; the project asserts no timings in tests. Loaded before any test module is imported, so
+    every ``@settings`` without a deadline of its own inherits it; ``max_examples`` stay each test's own."""
+    try:
+        from hypothesis import HealthCheck, settings
+    except ImportError:
+        return
+    settings.register_profile("akdctl", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    settings.load_profile("akdctl")
+
+
+_hypothesis_profile()
+
 from tests.harness import ROOT, run_akdctl  # noqa: F401 - re-exported: tests import them from here too
 from tests.watch import Watch
 
