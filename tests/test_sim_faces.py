@@ -504,7 +504,10 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
                            sequence, little)
         kind = rng.random()
         if kind < 0.2:  # a byte of the DCE/RPC header, NDR arguments or record header changed
-            where = rng.randrange(min(len(request), 170))
+            # not of the sequence number (64..67): a raised one makes the activity's later calls older, discarded
+            # (tests/test_pn_activity_calls.py), and too few would be answered to compare the two ways
+            where = rng.randrange(min(len(request), 170) - 4)
+            where += 4 if where >= 64 else 0
             request = request[:where] + bytes([rng.randrange(256)]) + request[where + 1:]
         elif kind < 0.3:
             request = request[:rng.randrange(len(request))]

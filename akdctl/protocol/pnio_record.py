@@ -302,3 +302,11 @@ def ok_template_booted(data: bytes, record_length: int | None, boot: int) -> tup
     record = "" if record_length is None else f"{record_length}s"
     layout = f"{'<' if little else '>'}64sI38s2s{len(tail)}s{record}"
     return struct.Struct(layout).pack, first, middle, tail
+
+
+def write_data_reader(length: int) -> Any:
+    """The record data of a plain Write call whose record is ``length`` bytes: ``reader(buffer)`` gives
+    ``(data[WRITE_DATA:WRITE_DATA + length],)`` as bytes from any buffer holding the datagram at its start. Why: a
+    face that receives into a kept bytearray gets the request's bytes with one unpack, where a slice of the
+    bytearray and its copy to bytes cost twice that (issue 29)."""
+    return struct.Struct(f"{WRITE_DATA}x{length}s").unpack_from

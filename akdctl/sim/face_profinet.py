@@ -8,13 +8,13 @@ delay makes the device answer "busy" (0xB5) the way a real parameter manager
 does while it works, so clients must poll. Fault injection drops, duplicates
 or delays every Nth datagram so clients' retransmission and stale-reply
 handling are exercised over a real socket. Requests are recognised by activity
-UUID + sequence number: a repeated request gets the cached reply again and is
-never applied twice.
+UUID + sequence number: a repeated request gets the kept reply again and is
+never applied twice; a request older than the activity's last answered call is
+discarded, as a DCE/RPC CL server does (:meth:`ProfinetFace._activity`).
 """
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import heapq
 import itertools
@@ -49,10 +49,11 @@ DEFAULT_ADDRESS = "127.0.0.1:34964"
 _PARAMETER_INDICES = frozenset((INDEX_PROFIDRIVE, INDEX_PROFIDRIVE_ALT))  # the parameter channel's records
 MAX_RECORD = 240
 MAX_ARS = 4  # ARs the device holds at once (the AKD's number is not documented [I])
-REPLY_CACHE = 512
+ACTIVITIES_KEPT = 512  # activities whose last reply the face keeps for retransmissions (sim/memo.remember)
+_SEQUENCES, _HALF = 0xFFFFFFFF, 0x80000000  # the 32-bit sequence number space; its older half of any number
 _CALLS_KEPT = 64  # shapes of plain record calls a face keeps (_learn): a client's poll repeats two
 _SPLIT_BY_DREP, _DREP_BYTE = pnio_record.CALL_PARTS_BY_DREP, pnio_record.DREP_BYTE
-_WRITE_DATA, _SHORT = pnio_record.WRITE_DATA, pnio_record.CallTooShort
+_SHORT = pnio_record.CallTooShort
 EXPIRY_TICK_S = 0.05  # timed-out ARs are looked for at most this often (with datagrams coming in)
 IDLE_WAKE_S = 0.2  # the loop wakes this often without datagrams (AR timeouts, stop)
 _NEVER = float("inf")
@@ -188,7 +189,7 @@ class FaceStats:
     dropped: int = 0
     duplicated: int = 0
     delayed: int = 0
-    replayed: int = 0          # requests answered again from the cache
+    replayed: int = 0          # requests answered again with their kept reply
     bmp_requests: int = 0      # requests handed to the parameter manager (each at most once)
     busy_answers: int = 0      # reads/writes answered 0xB5 while the parameter manager worked
     ars_timed_out: int = 0
@@ -239,11 +240,8 @@ class ProfinetFace(Face):
         self.vendor_id, self.device_id = 0x0100, 0x0001
         self._boot_time = int(time.time()) & 0xFFFFFFFF
         self._ars: dict[bytes, _AR] = {}  # by the AR UUID's 16 bytes (as a record header carries it)
-        # (activity bytes, sequence) -> reply frames; the oldest forgotten first (the ring below)
-        self._cache: dict[tuple[bytes, int], bytes | list[bytes]] = {}  # a single frame kept as itself
-        # the cache's keys, oldest first: always REPLY_CACHE of them (None: a free place), so keeping a reply is one
-        # popleft and one append, without a length test
-        self._ring: collections.deque[tuple[bytes, int] | None] = collections.deque([None] * REPLY_CACHE)
+        # activity bytes -> [the sequence number of its last answered call, that call's reply frames] (_activity)
+        self._last: dict[bytes, list[Any]] = {}
         self._short_way = not fragment  # plain record calls answered in one pass (_datagram); fragments: never
         self._calls: dict[bytes, tuple[Any, ...]] = {}  # plain record calls' shapes as the one pass needs them (_learn)
         self._address = pnio_record.record_address(api, slot, subslot)  # as record_call_fields gives it
@@ -324,10 +322,12 @@ class ProfinetFace(Face):
         poller.register(sock_fd, select.POLLIN)
         poller.register(self._wake_r, select.POLLIN)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE_WAKE_S))
-        # recvfrom of the largest datagram: its bytes object is shrunk to the datagram in place, which costs less
-        # CPU than recvfrom_into a kept buffer plus a copy of it (~0.4 us per datagram, issue 29); an IPv4 peer is
-        # already the (host, port) pair the face keeps, an IPv6 one is cut to it
-        receive, stop = sock.recvfrom, self._stop
+        # recvfrom_into one kept buffer of the largest datagram: the one pass of _datagrams reads a plain record
+        # call's parts from it and copies nothing else (recvfrom made and shrank a 64 KiB bytes object per datagram,
+        # issue 29); every other way gets the datagram's bytes. An IPv4 peer is already the (host, port) pair the
+        # face keeps, an IPv6 one is cut to it.
+        buffer = bytearray(65535)
+        receive, stop = sock.recvfrom_into, self._stop
         v6 = sock.family == socket.AF_INET6
         next_expiry = 0.0
         # The stop flag is looked at whenever the loop did not just receive a datagram (stop() shuts the socket
@@ -342,13 +342,13 @@ class ProfinetFace(Face):
                     next_expiry = self._maybe_expire(next_expiry)
                     continue
             try:
-                data, peer = receive(65535)
+                size, peer = receive(buffer)
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 next_expiry = self._maybe_expire(next_expiry)
                 continue
             if peer is None:
                 continue  # woken by interrupt(): the loop condition decides
-            expiry = self._datagrams(data, peer[:2] if v6 else peer, receive, v6, next_expiry)
+            expiry = self._datagrams(buffer, size, peer[:2] if v6 else peer, receive, v6, next_expiry)
             if expiry is None:
                 return  # stopped
             next_expiry = expiry
@@ -406,12 +406,13 @@ class ProfinetFace(Face):
     def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
         """One datagram, answered as the face's loop answers it (:meth:`_datagrams`; no expiry tick: it never
         comes)."""
-        self._datagrams(data, peer, None, False, _NEVER)
+        self._datagrams(data, len(data), peer, None, False, _NEVER)
 
-    def _datagrams(self, data: bytes, peer: tuple[str, int], receive: Any, v6: bool,
+    def _datagrams(self, data: bytes | bytearray, size: int, peer: tuple[str, int], receive: Any, v6: bool,
                    next_expiry: float) -> float | None:
-        """Answer ``data`` from ``peer``; with ``receive`` (the socket's recvfrom), go on with the datagrams that
-        follow at once, while no send is scheduled, and return the next expiry tick (None: the face was stopped).
+        """Answer the datagram of ``size`` bytes at the start of ``data`` from ``peer``; with ``receive`` (the socket's
+        recvfrom_into, ``data`` its buffer), go on with the datagrams that follow at once, while no send is
+        scheduled, and return the next expiry tick (None: the face was stopped).
 
         A plain record call (:func:`pnio_record.record_call_fields`) is answered here in one pass when it is a
         retransmission, a Write that reaches the parameter manager or a Read that collects its response -- what
@@ -424,10 +425,12 @@ class ProfinetFace(Face):
         again for each and a call to the codec for the fields and another for the reply were a measurable share of
         what the simulator spends on it (issue 29). The memo's key is the codec's (``pnio_record.CALL_PARTS``), so
         what a shape answers is what the codec says of it. The clock is read once per datagram."""
-        stats, cache, calls, ars, ring = self.stats, self._cache, self._calls, self._ars, self._ring
+        stats, calls, ars = self.stats, self._calls, self._ars
         rxdrop, short_way, plain_tx, monotonic = self._rxdrop, self._short_way, self._plain_tx, time.monotonic
         handle_bmp, delay = self.drive.handle_bmp, self.delay
         sock, scheduled, split = self._sock, self._scheduled, _SPLIT_BY_DREP
+        direct = plain_tx and sock is not None  # replies sent by sendto here (_raw_send's steps)
+        half, sequences = _HALF, _SEQUENCES
         while True:
             now = monotonic()
             if now >= next_expiry:  # _maybe_expire's test: false for most datagrams
@@ -440,26 +443,36 @@ class ProfinetFace(Face):
                     stats.dropped += 1
                     call = frame = None
                 elif short_way:
-                    try:
+                    frame = None
+                    try:  # (a kept buffer is never too short: a shape's least length tells a short datagram)
                         head, sequence, middle, record_sequence, tail = split[data[_DREP_BYTE]](data)
                     except _SHORT:  # too short to be a plain record call
-                        call = None
+                        head = None
                     else:
-                        call = calls.get(tail)  # then the rest of the shape's key compared (_learn says why)
-                        if call is None or call[0] != head or call[1] != middle or len(data) < call[2]:
-                            call = self._learn(data, head, middle, tail)
-                    frame = None
-                    if call is None:
-                        self._general(data, peer)
+                        try:  # the shape kept for the tail, then the rest of its key compared (_learn says why)
+                            kept_head, kept_middle, least, last, write, ar_id, length, template, reads = calls[tail]
+                        except KeyError:
+                            kept_head = None
+                        if kept_head != head or kept_middle != middle or size < least:
+                            call = self._learn(bytes(data[:size]), head, middle, tail)
+                            if call is None:
+                                head = None
+                            else:
+                                kept_head, kept_middle, least, last, write, ar_id, length, template, reads = call
+                    if head is None:
+                        self._general(bytes(data[:size]), peer)
                     else:
-                        _head, _middle, _least, activity, write, ar_id, served, length, template, reads = call
-                        key = (activity, sequence)
-                        cached = cache.get(key)
-                        if cached is not None:
+                        try:  # how far the call is past the activity's last one (_older's rule, in one step)
+                            ahead = (sequence - last[0]) & sequences
+                        except TypeError:  # no call of the activity answered yet: this one is new
+                            ahead = 1
+                        if not ahead:  # a retransmission of the activity's last call: its reply again
                             stats.replayed += 1
-                            self._replay(cached, peer)
+                            self._replay(last[1], peer)
+                        elif ahead > half:
+                            pass  # older than the activity's last call: discarded (_activity)
                         else:
-                            ar = ars.get(ar_id) if served else None
+                            ar = ars.get(ar_id)  # (None for a shape the one pass does not serve: no AR)
                             if ar is not None:
                                 pending = ar.pending
                                 if write:
@@ -467,9 +480,11 @@ class ProfinetFace(Face):
                                         ar.last_activity = now
                                         stats.bmp_requests += 1
                                         try:
-                                            response = handle_bmp(data[_WRITE_DATA:length])
+                                            (request,) = length(data)  # the record data (write_data_reader)
+                                            response = handle_bmp(request)
                                         except Exception as exc:  # noqa: BLE001 - answered as _write answers it
-                                            frame = self._write_failed(data, head[_DREP_BYTE] >> 4 == 1, exc)
+                                            frame = self._write_failed(bytes(data[:size]), head[_DREP_BYTE] >> 4 == 1,
+                                                                       exc)
                                         else:
                                             ar.pending = (now + delay, response)
                                             pack, rhead, rmiddle, rtail = template
@@ -478,25 +493,24 @@ class ProfinetFace(Face):
                                     ar.last_activity = now
                                     ar.pending = None
                                     record = pending[1]
-                                    size = len(record)
-                                    if size > length:  # the most the client takes (usually it fits)
-                                        record, size = record[:length], length
-                                    template = reads.get(size)
+                                    kept = len(record)
+                                    if kept > length:  # the most the client takes (usually it fits)
+                                        record, kept = record[:length], length
+                                    template = reads.get(kept)
                                     if template is None:
-                                        template = reads[size] = pnio_record.ok_template_booted(data, size, self._boot_time)
+                                        template = reads[kept] = pnio_record.ok_template_booted(
+                                            bytes(data[:size]), kept, self._boot_time)
                                     pack, rhead, rmiddle, rtail = template
                                     frame = pack(rhead, sequence, rmiddle, record_sequence, rtail, record)
                             if frame is None:
-                                self._general(data, peer)
+                                self._general(bytes(data[:size]), peer)
                 else:
                     frame = None
-                    self._general(data, peer)
+                    self._general(bytes(data[:size]), peer)
                 if frame is not None:
-                    # _remember's steps, inline: the reply kept (a single frame as itself, not in a list)
-                    cache[key] = frame
-                    cache.pop(ring.popleft(), None)
-                    ring.append(key)
-                    if plain_tx and sock is not None:  # _raw_send's steps, inline
+                    last[0] = sequence  # _remember's steps, inline: the reply kept (a single frame as itself)
+                    last[1] = frame
+                    if direct:  # _raw_send's steps, inline
                         try:
                             sock.sendto(frame, peer)
                             stats.sent += 1
@@ -511,7 +525,7 @@ class ProfinetFace(Face):
             if receive is None or scheduled:
                 return next_expiry
             try:
-                data, peer = receive(65535)
+                size, peer = receive(data)
             except OSError:  # the receive timeout (EAGAIN), or the socket shut down/closed by stop()
                 return self._maybe_expire(next_expiry)
             if peer is None:
@@ -527,11 +541,11 @@ class ProfinetFace(Face):
     def _learn(self, data: bytes, head: bytes, middle: bytes, tail: bytes) -> tuple[Any, ...] | None:
         """What :meth:`_datagrams` keeps of a plain record call's shape (None: not one, the general path answers):
         the shape's key as the codec splits it (``head``, ``middle``; ``tail`` is the memo's key), the least datagram
-        length it holds for, the activity UUID's bytes, whether it is a Write, the AR UUID's bytes, whether the one
-        pass may serve it here (this face's API/slot/subslot and a parameter record, and a Write's record length
-        within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's record data's end in
-        the datagram or the most a Read takes, a Write's OK reply template and a Read's by record length
-        (``pnio_record.ok_template``).
+        length it holds for, the activity's last call (:meth:`_activity`), whether it is a Write, the AR UUID's bytes
+        if the one pass may serve it here, else None (this face's API/slot/subslot and a parameter record, and a
+        Write's record length within 1..MAX_RECORD: what :meth:`_write`/:meth:`_read` check after the AR), a Write's
+        record data reader (``pnio_record.write_data_reader``) or the most a Read takes, a Write's OK reply template
+        and a Read's by record length (``pnio_record.ok_template``).
 
         Why the memo is keyed by the tail (the record header from its AR UUID on) and the head and middle compared:
         a dict lookup hashes its whole key, and the 134 bytes of the codec's key cost more to join and hash than
@@ -544,8 +558,9 @@ class ProfinetFace(Face):
         _little, activity, opnum, ar_id, address, index, length, least, _replies = fields[0]
         write = opnum == OP_WRITE
         served = address == self._address and index in _PARAMETER_INDICES and (not write or 0 < length <= MAX_RECORD)
-        return remember(self._calls, tail, (head, middle, least, activity, write, ar_id, served,
-                                            _WRITE_DATA + length if write else length,
+        return remember(self._calls, tail, (head, middle, least, self._activity(activity), write,
+                                            ar_id if served else None,
+                                            pnio_record.write_data_reader(length) if write else length,
                                             pnio_record.ok_template_booted(data, None, self._boot_time)
                                             if write else None, {}), _CALLS_KEPT)
 
@@ -562,21 +577,24 @@ class ProfinetFace(Face):
             view = dcerpc.view_packet(data)  # the header's fields, its UUIDs left as wire bytes
         except CodecError:
             return      # not DCE/RPC: a real device ignores it too
-        key = (data[40:56], view.sequence)  # the activity UUID's bytes and the sequence number
+        activity, sequence = data[40:56], view.sequence  # the activity UUID's bytes and the sequence number
         if view.ptype == dcerpc.PT_PING:
-            cached = self._cache.get(key)
-            if cached:
-                self._replay(cached, peer)
-            else:
+            last = self._last.get(activity)
+            if last is not None and last[0] == sequence:
+                self._replay(last[1], peer)
+            elif last is None or not _older(last[0], sequence):
                 self._send(pnio_record.reply_head(data, view.little, dcerpc.PT_NOCALL, self.boot_time, 0), peer)
-            return
+            return      # a ping of a call older than the activity's last one: discarded (_activity)
         if view.ptype != dcerpc.PT_REQUEST:
             return      # acks, facks, stray responses
-        cached = self._cache.get(key)
-        if cached is not None:
-            stats.replayed += 1
-            self._replay(cached, peer)
-            return
+        last = self._last.get(activity)
+        if last is not None:
+            if last[0] == sequence:
+                stats.replayed += 1
+                self._replay(last[1], peer)
+                return
+            if _older(last[0], sequence):
+                return  # older than the activity's last call: discarded (_activity)
         if view.is_fragment:
             reject = _nca(0x1C010003, view.little)
             head = pnio_record.reply_head(data, view.little, dcerpc.PT_REJECT, self.boot_time, len(reject))
@@ -600,18 +618,33 @@ class ProfinetFace(Face):
             else:
                 head = pnio_record.reply_head(data, view.little, dcerpc.PT_RESPONSE, self.boot_time, len(body))
                 frames = [head + body]
-        self._remember(key, frames)
+        self._remember(activity, sequence, frames)
         for frame in frames:
             self._send(frame, peer)
 
-    def _remember(self, key: tuple[bytes, int], frames: bytes | list[bytes]) -> None:
-        """Keep a reply for retransmissions: the REPLY_CACHE newest, the oldest forgotten first (a deque of their
-        keys: trimming a dict by its first key scans the slots deleted before it). :meth:`_datagrams` does these
-        steps inline for the replies of its one pass (tests/test_sim_faces.py holds the two ways equal)."""
-        cache, ring = self._cache, self._ring
-        cache[key] = frames
-        cache.pop(ring.popleft(), None)
-        ring.append(key)
+    def _activity(self, activity: bytes) -> list[Any]:
+        """The activity's last call: [its sequence number, its reply frames] ([None, None] before any), made on first
+        use and kept among the ACTIVITIES_KEPT (sim/memo.remember; the shapes that hold theirs are forgotten with them).
+
+        Why one call per activity and not a memo of every recent (activity, sequence): DCE/RPC CL allows one call in
+        progress per activity, so a client retransmits only its latest call, and a request whose sequence number is
+        below the activity's current one is discarded by the server (MS-RPCE 3.2.3.5.4 REQUEST: "If N is less than
+        the activity ID element's lowest-allowed-sequence number, the server MUST discard the packet"; a new call
+        raises that number to its own; 3.2.3.5.5 PING likewise). What an AKD does there is not documented [I]: the
+        face follows the protocol. Keeping the last reply is a store into this list, where a memo by (activity,
+        sequence) built, hashed and evicted a key per datagram (issue 29)."""
+        last = self._last.get(activity)
+        if last is None:
+            if len(self._last) >= ACTIVITIES_KEPT:
+                self._calls.clear()  # shapes hold their activity's list: forgotten with it
+            last = remember(self._last, activity, [None, None], ACTIVITIES_KEPT)
+        return last
+
+    def _remember(self, activity: bytes, sequence: int, frames: bytes | list[bytes]) -> None:
+        """Keep a reply for retransmissions of its call, the activity's last (:meth:`_activity`). :meth:`_datagrams`
+        does these steps inline for the replies of its one pass (tests/test_sim_faces.py holds the two ways equal)."""
+        last = self._activity(activity)
+        last[0], last[1] = sequence, frames
 
     def _write_failed(self, data: bytes, little: bool, exc: Exception) -> bytes:
         """The reply to a plain Write whose request the parameter manager refused or failed on (as :meth:`_write`)."""
@@ -630,13 +663,15 @@ class ProfinetFace(Face):
         """A plain Write or Read record request (:func:`pnio_record.plain_record_call`): what the general path does for
         it, without building a header view or calling the argument decoders; the response packed in one step
         (:func:`pnio_record.pack_record_response`)."""
-        key = (data[40:56], sequence)
-        cache = self._cache
-        cached = cache.get(key)
-        if cached is not None:
-            self.stats.replayed += 1
-            self._replay(cached, peer)
-            return
+        activity = data[40:56]
+        last = self._last.get(activity)
+        if last is not None:
+            if last[0] == sequence:
+                self.stats.replayed += 1
+                self._replay(last[1], peer)
+                return
+            if _older(last[0], sequence):
+                return  # older than the activity's last call: discarded (_activity)
         try:
             status, blocks = self._write(req) if opnum == OP_WRITE else self._read(req, implicit=False)
         except CodecError:
@@ -645,7 +680,7 @@ class ProfinetFace(Face):
             request_failed("profinet", exc)
             status, blocks = _failure_status(opnum, exc), b""
         frame = pnio_record.pack_record_response(data, little, self.boot_time, status, blocks)
-        self._remember(key, frame)
+        self._remember(activity, sequence, frame)
         if self._plain_tx:
             self._raw_send(frame, peer)
         else:
@@ -799,6 +834,12 @@ def _failure_status(opnum: int, exc: Exception) -> pnio.PnioStatus:
     if opnum in (pnio.OP_READ, pnio.OP_WRITE, pnio.OP_READ_IMPLICIT):
         return pnio.rw_error(opnum == pnio.OP_WRITE, 0xC2 if isinstance(exc, CommError) else 0xC3)
     return pnio.PnioStatus(0x81, 0x81, 0x40, 0x06)
+
+
+def _older(last: int | None, sequence: int) -> bool:
+    """Whether ``sequence`` is below ``last`` (the activity's last answered call; None: none yet) in the 32-bit
+    sequence space, which wraps: the half of it below ``last`` is older."""
+    return last is not None and 0 < (last - sequence) & _SEQUENCES < _HALF
 
 
 def _nca(status: int, little: bool) -> bytes:

@@ -205,57 +205,43 @@ class PnuServer:
         self.axes = frozenset(axes)
         self.last_exception: BaseException | None = None
         # The one-parameter value reads seen, by the request's bytes after the reference: [PNU, subindex, count,
-        # format, response layout, model, bindings' version, reader, mask, axis, fixed bytes], the checks of the
+        # format, response layout, model, bindings' version, reader, mask, axis, fixed bytes, quick], the checks of the
         # request and its address passed once (_plan); the layout is bmp.raw_read_response_layout's for the format
         # the model last answered -- for a computed element's read, bmp.one_read_response_packer's pack and its fixed
         # bytes; the model, version, reader and mask are the model's parts of such a read (_plan_parts), taken again
-        # when another model (a reload) or a new binding serves it. The value is read each time.
+        # when another model (a reload) or a new binding serves it; last, those parts with the pack and its bytes as
+        # one tuple when there is a pack (handle's quick way: one unpack, not eight lookups in the list), else None.
+        # The value is read each time.
         self._plans: dict[bytes, list[Any]] = {}
 
     # -- entry point -----------------------------------------------------------------------------------------
 
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
-        data = request if type(request) is bytes else bytes(request)  # the usual bytes: not a call to copy them
+        data = request
+        if type(data) is not bytes:  # the usual bytes: not a call to copy them
+            data = bytes(data)
         plan = self._plans.get(data[1:])
-        if plan is not None and data[0]:  # _read_planned's steps, inline: the poll's request
-            pnu, subindex, count, planned_format, layout, model, version, read, mask, _axis, fixed = plan
-            access = self.access
+        if plan is not None and data[0]:
             try:
-                if access is not model or (read is not None and model.pnu_bindings_version != version):
-                    read = self._plan_parts(plan, access)
-                    planned_format, layout, mask, fixed = plan[3], plan[4], plan[8], plan[10]
-                if read is not None:  # DriveModel.pnu_read_raw's steps for a computed element, inline
-                    try:
-                        values = read(0, 1)
-                        if len(values) == 1:
-                            value = values[0] & mask
-                            values = None  # one value: packed below
-                        else:
-                            values = [v & mask for v in values]
-                    except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
-                        return self._read_planned(data, pnu, subindex, count, exc)
-                    if values is None:
-                        if layout is not None:  # here: the plan's one_read_response_packer, ``fixed`` its bytes
+                quick = plan[11]
+                if quick is not None:
+                    model, version, read, mask, pack, fixed = quick
+                    if self.access is model and model.pnu_bindings_version == version:
+                        # the poll's request: a computed element read by the parts the plan holds for this model
+                        # (DriveModel.pnu_read_raw's steps, inline), packed by bmp.one_read_response_packer's pack
+                        try:
+                            values = read(0, 1)
+                            value = values[0] & mask if len(values) == 1 else None
+                        except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                            return self._read_planned(data, plan[0], plan[1], plan[2], exc)
+                        if value is not None:
                             try:
-                                return layout(data[0], fixed, value)  # type: ignore[no-any-return]
+                                return pack(data[0], fixed, value)  # type: ignore[no-any-return]
                             except struct.error:
                                 pass  # _raw_block says so
-                        values = [value]
-                    return self._read_planned(data, pnu, subindex, count, (planned_format, values))
-                try:
-                    fmt, values = self.access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
-                except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
-                    return self._read_planned(data, pnu, subindex, count, exc)
-                if fmt != planned_format:  # the first read of the plan (or a model answering another format)
-                    layout = raw_read_response_layout(fmt, count)
-                    plan[3], plan[4] = fmt, layout
-                if layout is not None and len(values) == count:
-                    try:
-                        return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)
-                    except struct.error:
-                        pass  # _raw_block says so
-                return self._read_planned(data, pnu, subindex, count, (fmt, values))
+                        return self._read_computed(data, plan, values, value)
+                return self._read_plan(data, plan)
             except Exception as exc:  # noqa: BLE001 - as the unplanned read below: a bug still gets an answer
                 self.last_exception = exc
                 return self._refuse(data, ERR_OPERATING_STATE)
@@ -281,6 +267,53 @@ class PnuServer:
         except Exception as exc:  # noqa: BLE001 - a model bug must still produce an answer, as a device would
             self.last_exception = exc
             return self._refuse(data, ERR_OPERATING_STATE)
+
+    def _read_computed(self, data: bytes, plan: list[Any], values: Any, value: int | None) -> bytes:
+        """A planned computed element's read that :meth:`handle` did not pack itself (the reader gave other than one
+        value, the plan has no packer, or the value does not fit it): answered by :meth:`_read_planned`."""
+        if value is None:
+            try:
+                values = [v & plan[8] for v in values]
+            except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                return self._read_planned(data, plan[0], plan[1], plan[2], exc)
+        else:
+            values = [value]
+        return self._read_planned(data, plan[0], plan[1], plan[2], (plan[3], values))
+
+    def _read_plan(self, data: bytes, plan: list[Any]) -> bytes:
+        """A planned read whose parts are not (or no longer) this model's, or that has none: the parts taken again
+        (:meth:`_plan_parts`), then read as a computed element or through ``pnu_read_raw``, whose format's layout
+        the plan keeps."""
+        pnu, subindex, count, planned_format, layout, model, version, read, mask, _axis, fixed, _quick = plan
+        access = self.access
+        if access is not model or (read is not None and model.pnu_bindings_version != version):
+            read = self._plan_parts(plan, access)
+            planned_format, layout, mask, fixed = plan[3], plan[4], plan[8], plan[10]
+        if read is not None:  # DriveModel.pnu_read_raw's steps for a computed element, inline
+            try:
+                values = read(0, 1)
+                value = values[0] & mask if len(values) == 1 else None
+            except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+                return self._read_planned(data, pnu, subindex, count, exc)
+            if value is not None and layout is not None:  # here: the plan's one_read_response_packer
+                try:
+                    return layout(data[0], fixed, value)  # type: ignore[no-any-return]
+                except struct.error:
+                    pass  # _raw_block says so
+            return self._read_computed(data, plan, values, value)
+        try:
+            fmt, values = access.pnu_read_raw(pnu, subindex, count)  # type: ignore[attr-defined]
+        except Exception as exc:  # noqa: BLE001 - refused as _read_raw refuses it
+            return self._read_planned(data, pnu, subindex, count, exc)
+        if fmt != planned_format:  # the first read of the plan (or a model answering another format)
+            layout = raw_read_response_layout(fmt, count)
+            plan[3], plan[4] = fmt, layout
+        if layout is not None and len(values) == count:
+            try:
+                return layout.pack(data[0], RESP_READ_OK, data[2], 1, fmt, count, *values)  # type: ignore[no-any-return]
+            except struct.error:
+                pass  # _raw_block says so
+        return self._read_planned(data, pnu, subindex, count, (fmt, values))
 
     @staticmethod
     def _refuse(data: bytes, error: int) -> bytes:
@@ -361,7 +394,7 @@ class PnuServer:
             if len(plans) >= _PLANS:
                 plans.clear()  # a client walking every address: start over rather than grow
             # the format and layout: at the first planned read; the model's parts for it: _plan_parts
-            plans[data[1:]] = [pnu, subindex, count, -1, None, None, -1, None, 0, data[2], b""]
+            plans[data[1:]] = [pnu, subindex, count, -1, None, None, -1, None, 0, data[2], b"", None]
 
     @staticmethod
     def _plan_parts(plan: list[Any], access: Any) -> Any:
@@ -376,11 +409,14 @@ class PnuServer:
         plan[5], plan[6] = access, version
         if parts is None:
             plan[3], plan[4], plan[7] = -1, None, None  # pnu_read_raw's way: its first read takes the layout again
+            plan[11] = None
             return None
         fmt, mask, read = parts
         packer = one_read_response_packer(fmt, plan[9])
         plan[3], plan[7], plan[8] = fmt, read, mask
         plan[4], plan[10] = packer if packer is not None else (None, b"")
+        # what handle's quick way reads: the parts with the model and version they hold for, and the packer
+        plan[11] = None if packer is None else (access, version, read, mask, plan[4], plan[10])
         return read
 
     def _read_planned(self, data: bytes, pnu: int, subindex: int, count: int,
