@@ -39,6 +39,7 @@ class Drive:
         self.listener = socket.create_server(("127.0.0.1", 0))
         self.port = self.listener.getsockname()[1]
         self.done = threading.Event()
+        self.connected = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
@@ -47,6 +48,7 @@ class Drive:
             conn, _ = self.listener.accept()
         except OSError:
             return
+        self.connected.set()
         with conn:
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             for chunk in self.on_connect:
@@ -74,9 +76,17 @@ class Drive:
                     for n, chunk in enumerate(reply):
                         if n:
                             time.sleep(0.02)   # its own segment
-                        conn.sendall(chunk)
+                        try:
+                            conn.sendall(chunk)
+                        except OSError:
+                            return  # the client has gone (a reply to its last line, read after it closed)
 
     def close(self) -> None:
+        """After the client closed its end: the thread reads on to the end of the stream, so ``received`` holds every
+        byte the client sent however late this thread runs (a loaded host once ended it before it had read the
+        last line: one run's bytes differed from the other's); ``done`` and the closed listener end it otherwise."""
+        if self.connected.is_set():
+            self.thread.join(timeout=6)
         self.done.set()
         self.listener.close()
         self.thread.join(timeout=6)

@@ -45,9 +45,11 @@ def _writes() -> int:
 @pytest.mark.slow  # runs the real CLI in subprocesses
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_a_backup_of_any_string_restores(tmp_path: Path, suffix: str) -> None:
-    from tests.harness import run_akdctl
+    from tests.harness import run_akdctl, run_akdctl_inproc
 
-    assert run_akdctl("sim", "reset").code == 0
+    # The runs under test (the writes of each text, backup, restore) are subprocesses; the preparation and the
+    # reading back run the CLI's entry point in this process (run_akdctl_inproc: same drive, no cold start).
+    assert run_akdctl_inproc("sim", "reset").code == 0
     for round_number in range(0, len(STRINGS), len(OBJECTS)):
         chosen = dict(zip(OBJECTS, STRINGS[round_number:round_number + len(OBJECTS)]))
         for address, text in chosen.items():
@@ -57,7 +59,7 @@ def test_a_backup_of_any_string_restores(tmp_path: Path, suffix: str) -> None:
         made = run_akdctl("-T", TARGET, "params", "backup", "-o", str(backup), "--only", ",".join(chosen))
         assert made.code == 0, made.err
         for address in chosen:
-            assert run_akdctl("-T", TARGET, "--yes", "sdo", "write", address, "vs", "other").code == 0
+            assert run_akdctl_inproc("-T", TARGET, "--yes", "sdo", "write", address, "vs", "other").code == 0
 
         before = _writes()
         dry = run_akdctl("-T", TARGET, "--json", "params", "restore", str(backup), "--dry-run")
@@ -68,7 +70,7 @@ def test_a_backup_of_any_string_restores(tmp_path: Path, suffix: str) -> None:
         restored = run_akdctl("-T", TARGET, "params", "restore", str(backup))
         assert restored.code == 0, restored.err
         for address, text in chosen.items():
-            read = run_akdctl("-T", TARGET, "--json", "sdo", "read", address)
+            read = run_akdctl_inproc("-T", TARGET, "--json", "sdo", "read", address)
             assert json.loads(read.out)["value"] == text, (address, text)
 
 
@@ -76,21 +78,21 @@ def test_a_backup_of_any_string_restores(tmp_path: Path, suffix: str) -> None:
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_a_string_object_holding_bytes_that_are_not_utf8_restores_byte_for_byte(tmp_path: Path, suffix: str) -> None:
     """Decoding such bytes replaced them with U+FFFD, and the restore wrote EF BF BD and called it verified."""
-    from tests.harness import run_akdctl
+    from tests.harness import run_akdctl, run_akdctl_inproc
 
-    assert run_akdctl("sim", "reset").code == 0
+    assert run_akdctl_inproc("sim", "reset").code == 0  # preparation and reading back in this process, as above
     raw = {"0x2031:0": "41ff42", "0x2032:0": "e9c3", "0x3899:0": "80"}
     for address, octets in raw.items():
         assert run_akdctl("-T", TARGET, "--yes", "sdo", "write", address, "os", octets).code == 0
     backup = tmp_path / f"bytes{suffix}"
     assert run_akdctl("-T", TARGET, "params", "backup", "-o", str(backup), "--only", ",".join(raw)).code == 0
     for address in raw:
-        assert run_akdctl("-T", TARGET, "--yes", "sdo", "write", address, "vs", "other").code == 0
+        assert run_akdctl_inproc("-T", TARGET, "--yes", "sdo", "write", address, "vs", "other").code == 0
     dry = run_akdctl("-T", TARGET, "params", "restore", str(backup), "--dry-run")
     assert dry.code == 0 and "not UTF-8 text" in dry.out, dry.err
     restored = run_akdctl("-T", TARGET, "params", "restore", str(backup))
     assert restored.code == 0, restored.err
     for address, octets in raw.items():
-        read = run_akdctl("-T", TARGET, "--json", "sdo", "read", address, "os")
+        read = run_akdctl_inproc("-T", TARGET, "--json", "sdo", "read", address, "os")
         assert json.loads(read.out)["value"] == octets, address
     assert run_akdctl("-T", TARGET, "params", "diff", str(backup)).code == 0

@@ -103,6 +103,20 @@ def test_info_cip_get_set_and_parameters(serve, tmp_path) -> None:
     assert akdctl(tmp_path, server.target, "eip", "param", "set", "EIP.PROFUNIT", "65536").returncode == 0
 
 
+@pytest.fixture(scope="module")
+def refusing_table_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, Path]]:
+    """One served drive for the whole bad-input table, and the folder whose ``state`` it and the clients share.
+
+    Why shared: every row is refused (by the face or before anything is sent), so none changes what the next one
+    sees, and a server start per row was most of the table's time."""
+    folder = tmp_path_factory.mktemp("eip-bad-input")
+    server = Server(folder / "state")
+    try:
+        yield server, folder
+    finally:
+        server.stop()
+
+
 @pytest.mark.parametrize("argv, code, words", [
     (("cip", "get", "0x99/1/1"), 1, "object does not exist"),                      # unknown class
     (("cip", "get", "0x0F/999/1"), 1, "object does not exist"),                    # unknown instance
@@ -116,9 +130,9 @@ def test_info_cip_get_set_and_parameters(serve, tmp_path) -> None:
     (("cip", "get", "0x0F/x/1"), 2, "not a number"),
     (("cip", "set", "0x0F/796/1", "u99", "1"), 2, "unknown type"),
 ])
-def test_bad_input_one_line_and_exit_code(serve, tmp_path, argv, code, words) -> None:
-    server = serve()
-    result = akdctl(tmp_path, server.target, *argv)
+def test_bad_input_one_line_and_exit_code(refusing_table_server, argv, code, words) -> None:
+    server, folder = refusing_table_server
+    result = akdctl(folder, server.target, *argv)
     assert result.returncode == code, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and words in lines[0] and "Traceback" not in result.stderr

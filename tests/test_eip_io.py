@@ -21,11 +21,20 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture
 def drive(tmp_path: Path):
-    """A served, enabled and homed simulated drive: (server, its I/O port)."""
+    """A served, enabled and homed simulated drive: (server, its I/O port).
+
+    Enabling and homing are the preparation, not what these tests are about: they run the CLI's entry point in
+    this process (run_akdctl_inproc, same arguments and state folder as the subprocess runs) instead of two cold
+    starts per test."""
+    from tests.harness import run_akdctl_inproc
+
     server = Server(tmp_path / "state")
     try:
-        assert akdctl(tmp_path, server.target, "-y", "enable").returncode == 0
-        assert akdctl(tmp_path, server.target, "-y", "home", "--mode", "0", timeout=3).returncode == 0
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setenv("AKDCTL_STATE_DIR", str(tmp_path / "state"))
+            for timeout, args in (("2.0", ("-y", "enable")), ("3", ("-y", "home", "--mode", "0"))):
+                prepared = run_akdctl_inproc("-T", server.target, "--timeout", timeout, *args)
+                assert prepared.code == 0, (args, prepared.err)
         yield server, server.io_port
     finally:
         server.stop()

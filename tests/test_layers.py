@@ -7,6 +7,7 @@ Lazy imports inside functions count too: a packaging mistake or a cycle hides th
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "akdctl"
@@ -40,6 +41,19 @@ ALLOWED: dict[str, set[str]] = {
 ALLOW_LIST: set[tuple[str, str]] = set()
 
 
+def _parse(path: Path) -> ast.Module:
+    """The module's syntax tree, parsed once per session for each version of the file (path, size and mtime).
+
+    Why: the checks below each parse every module of the package (a second of CPU or more per check)."""
+    stat = path.stat()
+    return _parsed(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.cache
+def _parsed(path: str, _mtime_ns: int, _size: int) -> ast.Module:
+    return ast.parse(Path(path).read_text(encoding="utf-8"), path)
+
+
 def _package(path: Path, root: Path = ROOT) -> tuple[str, str]:
     rel = path.relative_to(root.parent).with_suffix("")
     module = ".".join(rel.parts)
@@ -47,9 +61,17 @@ def _package(path: Path, root: Path = ROOT) -> tuple[str, str]:
 
 
 def _imports(path: Path, root: Path = ROOT) -> set[str]:
-    """Every ``akdctl.<package>...`` a module imports (``from akdctl import x`` counts when x is a module)."""
+    """Every ``akdctl.<package>...`` a module imports (``from akdctl import x`` counts when x is a module); worked
+    out once per session for each version of the file (two checks ask for every module's)."""
+    stat = path.stat()
+    return set(_imports_of(str(path), stat.st_mtime_ns, stat.st_size, root))
+
+
+@functools.cache
+def _imports_of(name: str, _mtime_ns: int, _size: int, root: Path) -> frozenset[str]:
+    path = Path(name)
     found: set[str] = set()
-    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    tree = _parse(path)
     type_only = {id(n) for block in ast.walk(tree)
                  if isinstance(block, ast.If) and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
                  for stmt in block.body for n in ast.walk(stmt)}
@@ -65,7 +87,7 @@ def _imports(path: Path, root: Path = ROOT) -> set[str]:
                          if (root / a.name).is_dir() or (root / f"{a.name}.py").is_file())
         elif isinstance(node, ast.ImportFrom) and node.module:
             found.add(node.module)
-    return {name for name in found if name.startswith("akdctl.")}
+    return frozenset(name for name in found if name.startswith("akdctl."))
 
 
 def upward_imports(root: Path = ROOT) -> list[str]:
@@ -127,7 +149,7 @@ def capability_probes(root: Path = ROOT) -> list[str]:
     found = []
     for path in sorted(root.rglob("*.py")):
         module, package = _package(path, root)
-        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        tree = _parse(path)
         for node in ast.walk(tree):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr") \
                     and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) \
@@ -169,5 +191,5 @@ def test_no_module_getattr() -> None:
     such names hide from readers, checkers and ``grep``; a user imports the module that defines them."""
     found = [str(path.relative_to(ROOT.parent)) for path in sorted(ROOT.rglob("*.py"))
              if any(isinstance(node, ast.FunctionDef) and node.name == "__getattr__"
-                    for node in ast.parse(path.read_text(encoding="utf-8")).body)]
+                    for node in _parse(path).body)]
     assert found == []

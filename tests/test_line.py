@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from akdctl.drive import inventory
 from akdctl.errors import UsageError
-from tests.harness import SimServer, finish, run_akdctl, start_akdctl
+from tests.harness import SimServer, finish, run_akdctl, run_akdctl_inproc, start_akdctl
 
 
 def _write(tmp_path: Path, text: str, name: str = "line.toml") -> str:
@@ -201,8 +201,8 @@ value = ${vars.mode}
 @pytest.mark.slow
 def test_discover_inventory_commission_and_diff_a_line_of_eight_drives(tmp_path: Path, isolated_env: Path) -> None:
     env = {"AKDCTL_STATE_DIR": str(isolated_env)}
-    for name in ("s1", "s2", "s3"):
-        assert run_akdctl("-T", f"sim://{name}", "sdo", "read", "0x1018:1").code == 0
+    for name in ("s1", "s2", "s3"):  # three simulated drives to discover (made in this process: preparation)
+        assert run_akdctl_inproc("-T", f"sim://{name}", "sdo", "read", "0x1018:1").code == 0
     gateway = SimServer("--ethercat-udp", "127.0.0.1:0", "--ecat-stations", "1001=e1,1002=e2,1003=e3", env=env)
     profinet = SimServer("--profinet", "127.0.0.1:0", "--name", "p1", env=env)
     eip = SimServer("--ethernetip", "127.0.0.1:0", "--eip-io-port", "0", "--name", "i1", env=env)

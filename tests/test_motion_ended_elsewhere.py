@@ -7,7 +7,10 @@ Through the real CLI on the simulated drive in real time: a `move 10` at 60 rpm 
 
 from __future__ import annotations
 
+import fcntl
+import os
 import selectors
+import signal
 import subprocess
 import time
 
@@ -78,3 +81,53 @@ def _first_line(proc: subprocess.Popen[str], timeout: float) -> str:
     line = proc.stderr.readline()
     assert line.startswith("akdctl: move to "), line
     return line
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("profile, home", [("profidrive", "0"), ("cia402", "35")])
+def test_a_move_that_polls_only_after_the_whole_stop_still_says_it_was_ended_elsewhere(profile: str,
+                                                                                        home: str) -> None:
+    """A loaded host can hold the move's process for the whole of another command's ``stop``: the move then never
+    sees the stop's halt word, only what the stop left. That must still read as ended elsewhere, not as a "target
+    reached" somewhere else (CiA 402 once left the very control word an absolute move leaves, 0x002F). The move is
+    held with SIGSTOP across the stop, so the case is made, not waited for."""
+    target = f"sim?drive={profile}"
+    assert run("sim", "speed", "--realtime").code == 0
+    assert run("-T", target, "-y", "home", "--mode", home).code == 0
+    proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
+    try:
+        wait_until(_moving, "the move to start")
+        first = _first_line(proc, timeout=20.0)
+        _pause_outside_the_drive_lock(proc)
+        try:
+            assert run("-T", target, "stop").code == 0
+        finally:
+            os.kill(proc.pid, signal.SIGCONT)
+        result = finish(proc, timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = first + result.err
+    assert result.code == 1, err
+    assert "ended by something else" in err and "akdctl stop" in err, err
+
+
+def _pause_outside_the_drive_lock(proc: subprocess.Popen[str]) -> None:
+    """SIGSTOP the move at a moment it does not hold the simulated drive's lock (held, it would lock out the
+    ``stop`` under test): stopped inside a transaction, it is let go for a moment and stopped again."""
+    deadline = time.monotonic() + 20.0
+    fd = os.open(SimDrive("default").lock_path, os.O_RDWR)
+    try:
+        while True:
+            os.kill(proc.pid, signal.SIGSTOP)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.kill(proc.pid, signal.SIGCONT)
+                assert time.monotonic() < deadline, "the move held the drive's lock for 20 s"
+                time.sleep(0.005)
+                continue
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            return
+    finally:
+        os.close(fd)

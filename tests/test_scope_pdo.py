@@ -380,6 +380,11 @@ def test_a_silent_slave_stops_the_cycle_with_exit_3_after_the_link_timeout(conn:
 
     request = op.build_request(["STATUSWORD"], samples=300, rate_hz=100.0, source="pdo")
     plan = op.plan(conn, request)
+    # The link timeout under test is the master's frame wait: the real one (the transport's 0.5 s), not the 20 s the
+    # fixture gives tests that are not about lost frames -- each wait for the silent slave (the lost cycle, then
+    # leaving SAFE-OP: outputs 0 and PRE-OP with its retries) would otherwise take 20 s, ~100 s in all. A loaded
+    # host that holds the slave past it before the silence merely loses a frame (a gap) sooner.
+    conn.transport().master.frame_timeout = 0.5  # type: ignore[attr-defined]
     timer = threading.Timer(0.3, lambda: setattr(wire, "silent", True))
     timer.start()
     try:

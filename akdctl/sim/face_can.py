@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qsl
 
 from akdctl.errors import UsageError
-from akdctl.io.canbus import BusConfig, close_bus, open_bus
+from akdctl.io.canbus import NOTIFIER_CYCLE_S, BusConfig, close_bus, open_bus
 from akdctl.sim.face import Face, FaceOption, request_failed
 
 if TYPE_CHECKING:
@@ -148,7 +148,7 @@ class CanFace(Face):
             self.drive.object_write(0x1017, 0, struct.pack("<H", self.heartbeat_ms))
         self.bus = _open_face_bus(self.spec)
         self.network = canopen.Network(self.bus)
-        self.network.NOTIFIER_CYCLE = 0.2
+        self.network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
         self.network.listeners.append(_RemoteFrameListener(self))
         self.network.connect()
         self.node = _make_node(self)

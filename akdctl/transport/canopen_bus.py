@@ -56,7 +56,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
 from akdctl.errors import AkdError, CommError, NoAnswer, UsageError
-from akdctl.io.canbus import SLCAN_SLEEP_AFTER_OPEN, BusConfig, close_bus, open_bus, reason
+from akdctl.io.canbus import NOTIFIER_CYCLE_S, SLCAN_SLEEP_AFTER_OPEN, BusConfig, close_bus, open_bus, reason
 from akdctl.links import CanopenSdoClient
 from akdctl.protocol.nmt import state_name as _state_name
 from akdctl.transport.base import LinkOptions, Transport
@@ -201,7 +201,7 @@ def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "canopen.Network":
             pass
 
     network = TracingNetwork(bus)
-    network.NOTIFIER_CYCLE = 0.2  # quicker shutdown of the receive thread
+    network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S  # how long a close waits for the receive thread
     network.listeners.append(TraceListener())
     return network
 

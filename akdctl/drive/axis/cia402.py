@@ -203,7 +203,10 @@ class Cia402Axis(Axis):
         except DriveError:
             self.controlword(base | sw.CW_HALT)  # not taken: keep holding with halt
             return self.read_status()
-        self.controlword(base)
+        # Handshake without bit 5 as well (it counts only on the rising edge of bit 4, CiA 402 pp): 0x000F is a word
+        # no absolute move leaves (start_move keeps 0x002F), so a move polled from another process that missed the
+        # halt still sees its control word changed ("ended by something else"), not a "target reached" elsewhere.
+        self.controlword(sw.CW_ENABLE_OPERATION_CMD)
         return self.wait_for(lambda s: s.standstill, "standstill at the stop position", allow_fault=True)
 
     def _quick_stop_command(self) -> None:
