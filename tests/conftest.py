@@ -14,7 +14,8 @@ Two markers are policed here rather than trusted:
 The same hook fails an in-process test whose socket connects, sends or resolves a name beyond loopback, or binds to
 every interface: no test sends a packet off the machine.
 
-Bytecode is cached even where the environment says ``PYTHONDONTWRITEBYTECODE`` (see :func:`_bytecode_cache`).
+Bytecode is cached even where the environment says ``PYTHONDONTWRITEBYTECODE`` (see :func:`_bytecode_cache`), in a
+directory of this run's that its first process removes at its end (:func:`run_cache`).
 
 The suite runs on two pytest-xdist workers (README's test command), so nothing here is shared between tests: state
 and config live in ``tmp_path``, servers bind port 0, namespaces have random names.  What a test leaves behind is
@@ -33,20 +34,42 @@ from pathlib import Path
 import pytest
 
 
+#: The environment variable naming this run's cache directory (:func:`run_cache`), inherited by xdist workers and
+#: every subprocess.
+RUN_CACHE_ENV = "AKDCTL_TESTS_RUN_CACHE"
+
+
+def run_cache() -> Path:
+    """This run's directory for caches its processes share (bytecode, mypy's incremental cache): made by the first
+    pytest process of the run (the xdist controller, which loads this file before it starts its workers, or the
+    only process) and removed when that process exits, so the suite leaves no cache behind in the user's home
+    or the checkout. A worker or subprocess finds it in the environment (:data:`RUN_CACHE_ENV`)."""
+    named = os.environ.get(RUN_CACHE_ENV)
+    if named:
+        return Path(named)
+    import atexit
+    import shutil
+    import tempfile
+
+    made = tempfile.mkdtemp(prefix="akdctl-tests-")
+    os.environ[RUN_CACHE_ENV] = made
+    atexit.register(shutil.rmtree, made, True)
+    return Path(made)
+
+
 def _bytecode_cache() -> None:
-    """Where ``PYTHONDONTWRITEBYTECODE`` is set (kept out of the checkout), compiled bytecode goes to a cache of its
-    own (``PYTHONPYCACHEPREFIX`` in the user's cache directory) instead of nowhere.
+    """Where ``PYTHONDONTWRITEBYTECODE`` is set (kept out of the checkout), compiled bytecode goes to this run's
+    cache (``PYTHONPYCACHEPREFIX``, :func:`run_cache`) instead of nowhere.
 
     Why: the suite starts the CLI in a subprocess about a thousand times, and without cached bytecode every one of
     them compiles each module it imports (~0.12 s of its ~0.25 s CPU), and every xdist worker rewrites the asserts
-    of every test module it collects (~14 s CPU) - work an installed package (.pyc files) or a second run never
-    does. Set before any test module is imported, and in the environment every subprocess inherits; the source
-    tree stays free of ``__pycache__``. Python checks each cached file against its source (mtime and size), so an
-    edited module is compiled anew. A prefix chosen by the caller is left as it is."""
+    of every test module it collects (~14 s CPU) - work an installed package (.pyc files) never does. Set before
+    any test module is imported, and in the environment every subprocess inherits; the source tree stays free of
+    ``__pycache__``. Python checks each cached file against its source (mtime and size), so an edited module is
+    compiled anew. A prefix chosen by the caller is left as it is."""
     if not os.environ.get("PYTHONDONTWRITEBYTECODE") or os.environ.get("PYTHONPYCACHEPREFIX"):
         return
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    prefix = base / "akdctl-tests" / "pycache"
+    prefix = run_cache() / "pycache"
     try:
         prefix.mkdir(mode=0o700, parents=True, exist_ok=True)
     except OSError:

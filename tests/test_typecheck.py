@@ -21,16 +21,14 @@ mypy = pytest.importorskip("mypy", reason="mypy is in the 'test' extra")
 
 
 def _cache_dir() -> Path:
-    """mypy's incremental cache for this checkout, kept between runs in the user's cache directory.
+    """mypy's incremental cache, shared by this run's two checks (tests/conftest.run_cache, removed at the run's end).
 
-    Why: from an empty cache the check takes ~10 s of CPU, nearly all of it re-analysing modules that did not
-    change; mypy keys each cached module on its source's hash and the options, so a changed module (and what
-    depends on it) is analysed anew. Per checkout (a hash of its path), so work trees do not evict each other."""
-    import hashlib
-    import os
+    Why: from an empty cache the check takes ~10 s of CPU, nearly all of it analysing modules the other check
+    analysed already; mypy keys each cached module on its source's hash and the options, so a changed module (and
+    what depends on it) is analysed anew."""
+    from tests.conftest import run_cache
 
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "akdctl-tests" / "mypy" / hashlib.sha256(str(ROOT).encode()).hexdigest()[:12]
+    return run_cache() / "mypy"
 
 
 @pytest.mark.slow
