@@ -15,32 +15,10 @@ import pytest
 from akdctl.protocol import dcerpc, pnio
 from akdctl.sim import face_profinet
 from akdctl.sim.drive import SimDrive
+from tests.pn_calls import READ_930, CaptureSocket, connect
+from tests.pn_calls import call as _call
 
-READ_930 = bytes.fromhex("01 01 00 01 10 01 03 A2 00 00")
 PEER = ("127.0.0.1", 1)
-
-
-class _Capture:
-    def __init__(self, sent: list[bytes]) -> None:
-        self.sent = sent
-
-    def sendto(self, data: bytes, peer: object) -> int:
-        self.sent.append(data)
-        return len(data)
-
-
-def _call(opnum: int, blocks: bytes, sequence: int, activity: uuid.UUID, *, little: bool = False,
-          ptype: int = dcerpc.PT_REQUEST) -> bytes:
-    head = dcerpc.RpcHeader(ptype=ptype, object_uuid=pnio.object_uuid(0x100, 1), interface_uuid=pnio.DEVICE_INTERFACE,
-                            activity_uuid=activity, sequence=sequence, opnum=opnum,
-                            drep=dcerpc.DREP_LITTLE if little else dcerpc.DREP_BIG)
-    return dcerpc.encode_packet(head, pnio.encode_request_args(blocks, little=little))
-
-
-def _connect(ar: uuid.UUID, activity: uuid.UUID, sequence: int = 0) -> bytes:
-    block = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar, 1, b"\x02\0\0\0\0\x01", pnio.object_uuid(0, 0, 0),
-                            pnio.DEVICE_ACCESS_PROPERTIES, 100, b"test").encode()
-    return _call(pnio.OP_CONNECT, block, sequence, activity)
 
 
 def _write(ar: uuid.UUID, sequence: int, activity: uuid.UUID, bmp: bytes = READ_930, **kw: Any) -> bytes:
@@ -69,7 +47,7 @@ def _face(directory: Path, monkeypatch: pytest.MonkeyPatch, way: str, **options:
     face._short_way = way == "one pass"
     face.boot_time = 77
     sent: list[bytes] = []
-    face._sock = _Capture(sent)  # type: ignore[assignment]
+    face._sock = CaptureSocket(sent)  # type: ignore[assignment]
     return face, sent
 
 
@@ -84,7 +62,7 @@ def test_the_last_call_is_replayed_and_older_calls_are_discarded(tmp_path: Path,
                                                                  way: str) -> None:
     ar, activity = uuid.uuid4(), uuid.uuid4()
     face, sent = _face(tmp_path, monkeypatch, way)
-    assert _answers(face, sent, _connect(ar, activity))
+    assert _answers(face, sent, connect(ar, activity, 0))
     (written,) = _answers(face, sent, _write(ar, 1, activity))
     assert _answers(face, sent, _write(ar, 1, activity)) == [written]  # retransmitted: the same reply
     assert face.stats.bmp_requests == 1 and face.stats.replayed == 1  # ... and not applied twice
@@ -113,7 +91,7 @@ def test_the_sequence_number_wraps(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     call is older while the half above is newer."""
     ar, activity = uuid.uuid4(), uuid.uuid4()
     face, sent = _face(tmp_path, monkeypatch, way)
-    assert _answers(face, sent, _connect(ar, activity, 0xFFFFFFF0))
+    assert _answers(face, sent, connect(ar, activity, 0xFFFFFFF0))
     assert len(_answers(face, sent, _write(ar, 0xFFFFFFFF, activity))) == 1
     assert len(_answers(face, sent, _read(ar, 0, activity))) == 1
     assert _answers(face, sent, _write(ar, 0xFFFFFFFE, activity)) == []
@@ -127,7 +105,7 @@ def test_a_first_call_of_any_sequence_number_is_new(tmp_path: Path, monkeypatch:
                                                     way: str) -> None:
     ar = uuid.uuid4()
     face, sent = _face(tmp_path, monkeypatch, way)
-    assert _answers(face, sent, _connect(ar, uuid.uuid4()))
+    assert _answers(face, sent, connect(ar, uuid.uuid4(), 0))
     for first in (0, 1, 0x7FFFFFFF, 0x80000000, 0xFFFFFFFF):
         activity = uuid.uuid4()
         assert len(_answers(face, sent, _write(ar, first, activity))) == 1
@@ -140,7 +118,7 @@ def test_the_activities_kept_are_bounded_and_start_over(tmp_path: Path, monkeypa
     monkeypatch.setattr(face_profinet, "ACTIVITIES_KEPT", 4)
     ar = uuid.uuid4()
     face, sent = _face(tmp_path, monkeypatch, "one pass")
-    assert _answers(face, sent, _connect(ar, uuid.uuid4()))
+    assert _answers(face, sent, connect(ar, uuid.uuid4(), 0))
     activities = [uuid.uuid4() for _ in range(10)]
     for round_ in range(3):
         for n, activity in enumerate(activities):
@@ -160,7 +138,7 @@ def test_out_of_order_calls_get_the_same_frames_every_way(tmp_path: Path, monkey
     rng = random.Random(2929)
     ars = [uuid.uuid4() for _ in range(3)]
     activities = [uuid.uuid4() for _ in range(3)]
-    requests = [_connect(ar, activity) for ar, activity in zip(ars[:2], activities)]  # the third AR: stale
+    requests = [connect(ar, activity, 0) for ar, activity in zip(ars[:2], activities)]  # the third AR: stale
     sequences = [rng.randrange(1 << 32) for _ in activities]
     for _ in range(400):
         client = rng.randrange(3)
@@ -203,7 +181,7 @@ def test_a_kept_receive_buffer_answers_as_the_datagrams_bytes(tmp_path: Path, mo
     datagram is answered as the general path answers its own bytes."""
     rng = random.Random(8200)
     ar, activity = uuid.uuid4(), uuid.uuid4()
-    requests = [_connect(ar, activity)]
+    requests = [connect(ar, activity, 0)]
     for sequence in range(1, 300):
         request = _write(ar, sequence, activity) if sequence % 2 else _read(ar, sequence, activity)
         kind = rng.random()

@@ -14,25 +14,9 @@ import pytest
 from akdctl.protocol import dcerpc, pnio
 from akdctl.sim import face_profinet
 from akdctl.sim.drive import SimDrive
-
-READ_930 = bytes.fromhex("01 01 00 01 10 01 03 A2 00 00")
-
-
-class _Capture:
-    def __init__(self, sent: list[bytes]) -> None:
-        self.sent = sent
-
-    def sendto(self, data: bytes, peer: object) -> int:
-        self.sent.append(data)
-        return len(data)
-
-
-def _call(opnum: int, blocks: bytes, sequence: int, activity: uuid.UUID, *, little: bool = False,
-          object_node: int = 1, hint: int = 0xFFFF) -> bytes:
-    head = dcerpc.RpcHeader(ptype=dcerpc.PT_REQUEST, object_uuid=pnio.object_uuid(0x100, object_node),
-                            interface_uuid=pnio.DEVICE_INTERFACE, activity_uuid=activity, sequence=sequence,
-                            opnum=opnum, interface_hint=hint, drep=dcerpc.DREP_LITTLE if little else dcerpc.DREP_BIG)
-    return dcerpc.encode_packet(head, pnio.encode_request_args(blocks, little=little))
+from tests.pn_calls import READ_930, CaptureSocket
+from tests.pn_calls import call as _call
+from tests.pn_calls import connect as _connect
 
 
 def _frames(requests: list[bytes], directory: Path, monkeypatch: pytest.MonkeyPatch, short_way: bool) -> list[bytes]:
@@ -43,19 +27,13 @@ def _frames(requests: list[bytes], directory: Path, monkeypatch: pytest.MonkeyPa
         face._short_way = short_way
         face.boot_time = 4321
         sent: list[bytes] = []
-        face._sock = _Capture(sent)  # type: ignore[assignment]
+        face._sock = CaptureSocket(sent)  # type: ignore[assignment]
         for request in requests:
             sent.append(b"--")
             face._datagram(request, ("127.0.0.1", 1))
         if short_way:
             assert face._calls  # the memo was used
     return sent
-
-
-def _connect(ar: uuid.UUID, activity: uuid.UUID) -> bytes:
-    block = pnio.ARBlockReq(pnio.AR_TYPE_IOSAR, ar, 1, b"\x02\0\0\0\0\x01", pnio.object_uuid(0, 0, 0),
-                            pnio.DEVICE_ACCESS_PROPERTIES, 100, b"test").encode()
-    return _call(pnio.OP_CONNECT, block, 1, activity)
 
 
 def test_shapes_sharing_the_memo_key_answer_as_the_general_path(tmp_path: Path,
@@ -120,7 +98,7 @@ def test_a_new_boot_time_reaches_the_replies_of_shapes_already_kept(tmp_path: Pa
     face = face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0)
     face.boot_time = 1111
     sent: list[bytes] = []
-    face._sock = _Capture(sent)  # type: ignore[assignment]
+    face._sock = CaptureSocket(sent)  # type: ignore[assignment]
     face._datagram(_connect(ar, activity), ("127.0.0.1", 1))
     for sequence in range(2, 12, 2):
         if sequence == 6:

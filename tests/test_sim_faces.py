@@ -17,6 +17,7 @@ from akdctl.cli import sim as cli_sim
 from akdctl.sim import face_can, face_ethercat_udp, face_profinet
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.face import Face
+from tests.pn_calls import CaptureSocket
 
 
 def test_every_face_declares_options_as_data_and_serve_accepts_exactly_them() -> None:
@@ -387,7 +388,7 @@ def test_profinet_replies_are_the_bytes_the_codecs_write(tmp_path: Path, little:
 
     face = face_profinet.ProfinetFace(SimDrive("default", tmp_path), "127.0.0.1", 0)
     sent: list[bytes] = []
-    face._sock = _Capture(sent)  # type: ignore[assignment]  # every reply goes through the socket's sendto
+    face._sock = CaptureSocket(sent)  # type: ignore[assignment]  # every reply goes through the socket's sendto
     ar, activity, address = uuid.uuid4(), uuid.uuid4(), pnio.RecordAddress()
     seq = iter(range(1, 100))
 
@@ -533,7 +534,7 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
             face._general = counted  # type: ignore[method-assign]
             face.boot_time = 1234
             sent: list[bytes] = []
-            face._sock = _Capture(sent)  # type: ignore[assignment]
+            face._sock = CaptureSocket(sent)  # type: ignore[assignment]
             for request in requests:
                 sent.append(b"--")
                 face._datagram(request, ("127.0.0.1", 1))
@@ -547,13 +548,3 @@ def test_profinet_plain_record_calls_are_answered_as_the_general_path_answers(tm
     assert one_pass > 20 and generals.count(True) > 20  # both ways were taken
 
 
-class _Capture:
-    """A stand-in for the PROFINET face's socket: what it sends is appended to ``sent`` (the face's one-pass
-    replies call ``sendto`` directly, the general path through ``_raw_send``)."""
-
-    def __init__(self, sent: list[bytes]) -> None:
-        self.sent = sent
-
-    def sendto(self, data: bytes, peer: object) -> int:
-        self.sent.append(data)
-        return len(data)
