@@ -14,7 +14,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -221,13 +223,7 @@ def test_a_datagram_that_is_not_bytes_is_answered_alike(tmp_path: Path) -> None:
 def test_the_face_serves_on_after_bad_datagrams_and_stops(tmp_path: Path) -> None:
     """Over a real socket: the one frame that serves the datagrams that follow skips what it drops and answers the
     next request; stop() wakes it."""
-    drive = SimDrive("gw", tmp_path)
-    drive.serve_faces()
-    face = EthercatUdpFace("127.0.0.1", 0, GatewayHandler({1001: drive}))
-    face.start()
-    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    client.settimeout(5.0)
-    try:
+    with _served_gateway(tmp_path) as (face, client):
         for bad in (b"\x01", _upload(0x1018, 1, 1, station=1002), _upload(0x1018, 1, 1)[:-1]):
             client.sendto(bad, (face.host, face.port))
         reference = ReferenceGateway({1001: factory_drive(tmp_path)})
@@ -235,10 +231,24 @@ def test_the_face_serves_on_after_bad_datagrams_and_stops(tmp_path: Path) -> Non
             request = _upload(0x1018, 1, counter)
             client.sendto(request, (face.host, face.port))
             assert client.recvfrom(2048)[0] == reference.handle(request, PEER)[0]
+    assert not face._threads and face.error is None
+
+
+@contextlib.contextmanager
+def _served_gateway(tmp_path: Path) -> Iterator[tuple[EthercatUdpFace, socket.socket]]:
+    """Station 1001 served by a started ETG.8200 face on loopback, and a UDP client socket (5 s timeout) for it;
+    both closed at the end."""
+    drive = SimDrive("gw", tmp_path)
+    drive.serve_faces()
+    face = EthercatUdpFace("127.0.0.1", 0, GatewayHandler({1001: drive}))
+    face.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.settimeout(5.0)
+    try:
+        yield face, client
     finally:
         client.close()
         face.stop()
-    assert not face._threads and face.error is None
 
 
 
@@ -249,20 +259,11 @@ def test_the_largest_gateway_frame_is_answered_whole(tmp_path: Path) -> None:
                        1001, 1)
     request = mbx.wrap_gateway(mailbox)
     assert len(request) == mbx.MAX_GATEWAY_DATAGRAM
-    drive = SimDrive("gw", tmp_path)
-    drive.serve_faces()
-    face = EthercatUdpFace("127.0.0.1", 0, GatewayHandler({1001: drive}))
-    face.start()
-    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    client.settimeout(5.0)
-    try:
+    with _served_gateway(tmp_path) as (face, client):
         expected = ReferenceGateway({1001: factory_drive(tmp_path)}).handle(request, PEER)
         assert expected, "the reference gateway answers the frame"
         client.sendto(request, (face.host, face.port))
         assert client.recvfrom(4096)[0] == expected[0]
-    finally:
-        client.close()
-        face.stop()
 
 def factory_drive(tmp_path: Path) -> SimDrive:
     directory = tmp_path / "reference"
