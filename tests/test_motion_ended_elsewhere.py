@@ -49,15 +49,8 @@ def _moving() -> bool:
 @pytest.mark.parametrize("other", ["stop", "disable"])
 def test_a_stop_or_disable_from_a_second_process_ends_the_move_at_once(profile: str, home: str, other: str) -> None:
     target = f"sim?drive={profile}"
-    assert run("sim", "speed", "--realtime").code == 0
-    assert run("-T", target, "-y", "home", "--mode", home).code == 0
-    proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
+    proc, first = _move_under_way(target, home)
     try:
-        wait_until(_moving, "the move to start")
-        # ... and the move's first poll done (its first progress line): that poll keeps the control word the move
-        # left, which the second command then changes. Without this wait a loaded host once ran the whole `stop`
-        # before the move's first poll, so the move took the stopped control word for its own.
-        first = _first_line(proc, timeout=20.0)
         assert run("-T", target, other).code == 0
         stopped = time.monotonic()
         result = finish(proc, timeout=30)
@@ -69,6 +62,23 @@ def test_a_stop_or_disable_from_a_second_process_ends_the_move_at_once(profile: 
     assert result.code == 1, err
     assert "ended by something else" in err and "did not finish within" not in err
     assert "akdctl stop" in err or "disabled" in err
+
+
+def _move_under_way(target: str, home: str) -> tuple[subprocess.Popen[str], str]:
+    """A `move 10` at 60 rpm (~10 s) in real time on a homed axis, started in the background, once it moves and has
+    made its first poll (its first progress line, returned): that poll keeps the control word the move left, which
+    the second command then changes. Without that wait a loaded host once ran the whole `stop` before the move's
+    first poll, so the move took the stopped control word for its own."""
+    assert run("sim", "speed", "--realtime").code == 0
+    assert run("-T", target, "-y", "home", "--mode", home).code == 0
+    proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
+    try:
+        wait_until(_moving, "the move to start")
+        return proc, _first_line(proc, timeout=20.0)
+    except BaseException:
+        proc.kill()
+        proc.wait(10)
+        raise
 
 
 def _first_line(proc: subprocess.Popen[str], timeout: float) -> str:
@@ -92,12 +102,8 @@ def test_a_move_that_polls_only_after_the_whole_stop_still_says_it_was_ended_els
     reached" somewhere else (CiA 402 once left the very control word an absolute move leaves, 0x002F). The move is
     held with SIGSTOP across the stop, so the case is made, not waited for."""
     target = f"sim?drive={profile}"
-    assert run("sim", "speed", "--realtime").code == 0
-    assert run("-T", target, "-y", "home", "--mode", home).code == 0
-    proc = popen("-T", target, "-y", "move", "10", "--velocity", "60")
+    proc, first = _move_under_way(target, home)
     try:
-        wait_until(_moving, "the move to start")
-        first = _first_line(proc, timeout=20.0)
         _pause_outside_the_drive_lock(proc)
         try:
             assert run("-T", target, "stop").code == 0
