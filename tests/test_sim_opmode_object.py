@@ -105,3 +105,13 @@ def test_home_mode_outside_the_pnu_range_is_refused_by_object() -> None:
         model.object_write(0x50CB, 0, struct.pack("<I", 21))
     assert refused.value.code == ABORT_VALUE_RANGE
     assert model.pnu_read_raw(1001, 0, 1)[1][0] == 0
+
+
+@pytest.mark.slow  # the real CLI in subprocesses
+def test_the_cli_names_the_refusal_of_an_operating_mode_outside_0_to_2() -> None:
+    refused = run_akdctl("sdo", "write", "0x35B4", "7")
+    assert refused.code == 1, refused
+    assert "0x06090030" in refused.stderr and "Value range of parameter exceeded" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+    mode = run_akdctl("--json", "param", "get", "DRV.OPMODE")
+    assert json.loads(mode.stdout)["parameters"][0]["value"] == 1  # nothing changed
