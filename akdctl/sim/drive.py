@@ -38,6 +38,18 @@ Why it is cheap (a network face answers thousands of requests a second):
   not queued behind one hand-over each. The watcher also drops the lock after a
   moment without requests (a locker that does not ask still gets it) and when
   the lock file was removed.
+* A *read* that changed the state (a poll of a moving axis: the clock moved the axis, the read fed the watchdog)
+  is not saved as a new state file: its request and the wall time it was answered at are appended to a *journal*
+  in the lock file, behind the token (one ``pwrite`` of a few hundred bytes, no temporary file, fsync or rename
+  -- those cost 1-6 ms of disk latency each, on every poll of a motion). A process that reloads reads the state
+  file and replays the journal: the same advance of the clock to each entry's wall time and the same request
+  through the same PROFIdrive server, so it holds the very model the poller held (bit for bit: the same operations
+  on the same numbers; tests/test_sim_journal.py). Writes, SDO requests and every change outside a PROFIdrive read
+  still save the state file at once (so the command that ends a motion leaves no journal behind: its last write
+  takes the polls' entries in), as does a read that finds the journal holding JOURNAL_MAX entries (a journal stays
+  short to replay). The state file stays a complete, fsynced state; the journal is what the polls added since (a
+  machine crash may lose it: the drive is then as it was at the last save, its axis where that state's motion
+  takes it).
 """
 
 from __future__ import annotations
@@ -48,6 +60,7 @@ import fcntl
 import math
 import os
 import stat
+import struct
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -80,6 +93,15 @@ TURN_POLL_S = 0.001
 #: After handing the lock over, a served drive takes it per request (as every other process does) for this long
 #: before it keeps it again: while others want the drive, keeping it would make each of them wait for a hand-over.
 HOLD_BACKOFF_S = 0.25
+#: At most this many state-changing reads wait in the lock file's journal before the state file is written again
+#: (the module doc): a process that reloads replays them all, each costing about what its request cost.
+JOURNAL_MAX = 16
+#: A longer request is saved, not journalled (a PROFIdrive request block is at most 240 bytes).
+JOURNAL_REQUEST_MAX = 1024
+_JOURNAL_SIZE = struct.Struct("<I")  # the lock file after the token: bytes of journal that follow
+_ENTRY = struct.Struct("<dH")  # one journal entry: the wall time its transaction read, then its request's length
+_HEAD_BYTES = TOKEN_BYTES + _JOURNAL_SIZE.size
+MAX_JOURNAL_BYTES = JOURNAL_MAX * (_ENTRY.size + JOURNAL_REQUEST_MAX)
 
 
 class SimStateError(UsageError):
@@ -96,13 +118,15 @@ def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    __slots__ = ("model", "meta", "token", "mark")
+    __slots__ = ("model", "meta", "token", "mark", "journal", "entries")
 
     def __init__(self, model: DriveModel, meta: dict[str, Any], token: bytes, mark: tuple[int, Any]) -> None:
         self.model = model
         self.meta = meta
         self.token = token
-        self.mark = mark  # the mark of what the state file holds
+        self.mark = mark  # the mark of what the state file and its journal hold
+        self.journal = b""  # the lock file's journal behind the token (the module doc), ``entries`` entries
+        self.entries = 0
 
 
 class SimDrive:
@@ -439,7 +463,8 @@ class SimDrive:
         state = model.to_state()
         state["sim"] = meta
         # encoded whole, then written at once: json.dump to the text file writes each of its hundreds of pieces
-        # through the file object, ~5x the CPU of dumps for the same bytes (a moving axis saves at every request)
+        # through the file object, ~5x the CPU of dumps for the same bytes (a moving axis saves at every request
+        # that is not a journalled read)
         text = json.dumps(state, separators=(",", ":"), allow_nan=False)
         try:
             with atomic_open(self.path, prefix=f".sim-{self.name}.") as fh:
@@ -447,24 +472,93 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot save simulator state", self.path, exc) from None
 
-    def _new_token(self, lock_fd: int) -> bytes:
+    def _new_token(self, lock_fd: int, journal: bytes = b"") -> bytes:
         """Tell other processes to reload; written *before* the state file is replaced (a crash between costs
-        only a reload)."""
+        only a reload), with the journal that follows the state file (none after a save)."""
         token = os.urandom(TOKEN_BYTES // 2).hex().encode()
         try:
-            os.pwrite(lock_fd, token, 0)
+            os.pwrite(lock_fd, token + _JOURNAL_SIZE.pack(len(journal)) + journal, 0)
         except OSError as exc:
             raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
         return token
+
+    def _journal(self, held: _Held, lock_fd: int, request: bytes) -> bool:
+        """Under the lock, for a PROFIdrive request that changed the state: append it to the journal instead of
+        saving (the module doc); False when it must be saved (not a read, too long, the journal full)."""
+        if held.entries >= JOURNAL_MAX or len(request) > JOURNAL_REQUEST_MAX:
+            return False
+        from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
+
+        try:
+            if decode_header(request)[1] != REQ_READ:
+                return False
+        except BmpError:
+            return False
+        journal = held.journal + _ENTRY.pack(held.meta["wall"], len(request)) + request
+        held.token = self._new_token(lock_fd, journal)
+        held.journal = journal
+        held.entries += 1
+        return True
+
+    def _replay(self, held: _Held, lock_fd: int, size: int) -> None:
+        """Under the lock, a model just loaded: the journal's reads, each at its wall time, as they were answered
+        (the clock advanced exactly as :meth:`_begin` advanced it, the request through the PROFIdrive server)."""
+        if size > MAX_JOURNAL_BYTES:
+            raise self._corrupt(f"the lock file's journal holds {size} bytes, more than {MAX_JOURNAL_BYTES}")
+        try:
+            journal = os.pread(lock_fd, size, _HEAD_BYTES)
+        except OSError as exc:
+            raise self._os_error("cannot read the simulator's lock file", self.lock_path, exc) from None
+        server = self._replay_server()
+        model, meta = held.model, held.meta
+        model.time_scale = meta["time_scale"]
+        offset = entries = 0
+        try:
+            while offset < len(journal):
+                wall, length = _ENTRY.unpack_from(journal, offset)
+                offset += _ENTRY.size
+                request = journal[offset:offset + length]
+                offset += length
+                if len(request) != length or not math.isfinite(wall):
+                    raise ValueError("an entry is cut short")
+                model.advance(max(0.0, wall - meta["wall"]) * model.time_scale)
+                meta["wall"] = wall
+                server.access = model
+                try:
+                    server.handle(request)
+                finally:
+                    server.access = _OUTSIDE
+                entries += 1
+            if len(journal) != size or entries > JOURNAL_MAX:
+                raise ValueError(f"{len(journal)} bytes in {entries} entries where {size} bytes were announced")
+        except Exception as exc:  # noqa: BLE001 - a journal the model cannot replay is a damaged state
+            raise self._corrupt(f"the lock file's journal cannot be replayed: {exc or type(exc).__name__}") from None
+        held.journal, held.entries, held.mark = journal, entries, _mark(model, meta)
+
+    def _replay_server(self) -> Any:
+        """The PROFIdrive server :meth:`handle_bmp` answers with (built here first if it was not yet)."""
+        if self._pnu_answer is None:
+            from akdctl.sim.pnu_server import PnuServer
+
+            self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
+            self._pnu_answer = self._pnu_server.handle
+        return self._pnu_server
 
     def _begin(self, lock_fd: int, advance: bool) -> _Held:
         """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
         held, self._held = self._held, None  # dropped unless _commit puts it back (a failed body reloads)
         # A kept lock: nobody else can have saved since our last transaction, the token need not be read.
-        token = held.token if held is not None and self._trusted else os.pread(lock_fd, TOKEN_BYTES, 0)
+        if held is not None and self._trusted:
+            token, journal = held.token, 0
+        else:
+            head = os.pread(lock_fd, _HEAD_BYTES, 0)
+            token = head[:TOKEN_BYTES]
+            journal = _JOURNAL_SIZE.unpack_from(head, TOKEN_BYTES)[0] if len(head) == _HEAD_BYTES else 0
         fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
         if fresh:
             held = self._load(token)
+            if journal:
+                self._replay(held, lock_fd, journal)
         assert held is not None
         model, meta = held.model, held.meta
         now = time.time()
@@ -480,14 +574,19 @@ class SimDrive:
         self.meta = meta
         return held
 
-    def _commit(self, held: _Held, lock_fd: int) -> None:
-        """Under the lock, after a body that did not raise: save if the mark moved, keep the model."""
+    def _commit(self, held: _Held, lock_fd: int, bmp_request: bytes | None = None) -> None:
+        """Under the lock, after a body that did not raise: save if the mark moved, keep the model.
+
+        ``bmp_request``: the body answered this PROFIdrive request; a read is journalled instead of saved while
+        the journal has room and the time scale did not change (the module doc)."""
         if held.model.damage is not None:  # a lazy component's state was damaged (a server may have refused only)
             raise self._corrupt(f"damaged simulator state: {held.model.damage}")
         mark = _mark(held.model, held.meta)
         if mark != held.mark:
-            held.token = self._new_token(lock_fd)
-            self._save(held.model, held.meta)
+            if bmp_request is None or mark[1] != held.mark[1] or not self._journal(held, lock_fd, bmp_request):
+                held.token = self._new_token(lock_fd)
+                self._save(held.model, held.meta)
+                held.journal, held.entries = b"", 0
             held.mark = mark
         self._held = held
         self._trusted = self._holding
@@ -622,7 +721,7 @@ class SimDrive:
                 raise self._corrupt(str(exc)) from None
             finally:
                 server.access = _OUTSIDE
-            self._commit(held, lock_fd)
+            self._commit(held, lock_fd, request if server is self._pnu_server else None)
             return result
         finally:
             if self._holding:

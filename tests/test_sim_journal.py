@@ -1,0 +1,195 @@
+"""The lock file's journal (``akdctl/sim/drive.py``): a read that changed the state is journalled, not saved.
+
+The contract: every other process sees exactly the drive it saw when each such read saved the state file -- the
+same answers, the same model (bit for bit: clock, position, homing flags, the watchdog, faults) -- mid-motion,
+after another process read or wrote, and after the polls stopped long enough for the watchdog. Each scenario runs
+twice on a fake wall clock, once with the journal and once with ``JOURNAL_MAX = 0`` (every changed read saved, as
+before the journal), and the two runs must agree on everything an observer process sees.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from akdctl.catalog import pnus
+from akdctl.protocol import bmp
+from akdctl.sim import drive as sim_drive
+from akdctl.sim.drive import SimDrive, SimStateError
+
+BASE = 0x0406  # STW1: control by PLC, no coast stop, no quick stop
+OPERATE = BASE | 0x0009  # ON + enable operation
+START_HOMING = 1 << 11
+ZSW1_HOME_POSITION_SET = 1 << 11
+
+
+def _change(pnu: int, value: int) -> bytes:
+    return bmp.encode_request(bmp.ParameterRequest(1, bmp.REQ_CHANGE, 0, (bmp.ParameterAddress(pnu),),
+                                                   (bmp.ParameterValue.of(pnus.lookup(pnu).wire_format, value),)))
+
+
+def _read(*numbers: int) -> bytes:
+    return bmp.encode_request(bmp.ParameterRequest(1, bmp.REQ_READ, 0,
+                                                   tuple(bmp.ParameterAddress(p) for p in numbers)))
+
+
+POLL = _read(2, 1, 930, 6, 52, 1002, 28)  # what the PROFIdrive axis reads per status poll
+START = [_change(930, 2), _change(1, BASE), _change(1, OPERATE), _change(1001, 1), _change(1, OPERATE),
+         _change(1, OPERATE | START_HOMING)]
+
+
+def _zsw1(answer: bytes) -> int:
+    first = bmp.decode_response(answer).results[0]
+    assert isinstance(first, bmp.ParameterValue)
+    return int(first.values[0])
+
+
+class _Run:
+    """One scenario's run on a fake wall clock in ``directory``; ``seen`` is what observer processes saw."""
+
+    def __init__(self, directory: Path, journal_max: int, monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch.setattr(sim_drive, "JOURNAL_MAX", journal_max)
+        self.now = 1_700_000_000.0
+        monkeypatch.setattr(sim_drive, "time", SimpleNamespace(time=lambda: self.now, monotonic=time.monotonic,
+                                                               sleep=time.sleep))
+        self.saves = 0
+        save = SimDrive._save
+
+        def counted(drive: SimDrive, model: Any, meta: dict[str, Any]) -> None:
+            self.saves += 1
+            save(drive, model, meta)
+
+        monkeypatch.setattr(SimDrive, "_save", counted)
+        self.directory = directory
+        self.seen: list[Any] = []
+        self.poller = SimDrive("default", directory)
+
+    def request(self, drive: SimDrive, request: bytes, wall_s: float) -> bytes:
+        self.now += wall_s
+        return drive.handle_bmp(request)
+
+    def observe(self, what: str) -> None:
+        """Another process opens the drive now and looks without advancing: the whole model and its wall time."""
+        other = SimDrive("default", self.directory)
+        with other.transaction(advance=False) as model:
+            self.seen.append((what, json.dumps(model.to_state(), sort_keys=True), other.meta["wall"]))
+        other.close()
+
+    def other_request(self, what: str, request: bytes, wall_s: float) -> None:
+        """Another process (``akdctl status``, ``pnu set``) sends one request now."""
+        other = SimDrive("default", self.directory)
+        self.seen.append((what, self.request(other, request, wall_s).hex()))
+        other.close()
+
+
+def _homing_with_observers(run: _Run) -> None:
+    run.poller.set_time_scale(100.0)  # the homing ends after about 20 of the polls
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    for i in range(40):
+        answer = run.request(run.poller, POLL, 0.0013)
+        run.seen.append(("poll", answer.hex()))
+        run.observe(f"after poll {i}")
+        if i % 9 == 4:
+            run.other_request(f"another process reads after poll {i}", POLL, 0.0004)
+        if i == 22:
+            run.other_request("another process writes", _change(1005, 300), 0.0002)
+    run.request(run.poller, _change(1, OPERATE), 0.0005)  # the end of the homing: bit 11 dropped (a write)
+    run.observe("after the homing's end")
+
+
+def test_observers_see_what_they_saw_when_every_poll_saved(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    journal = _Run(tmp_path / "journal", sim_drive.JOURNAL_MAX, monkeypatch)
+    _homing_with_observers(journal)
+    journal_saves = journal.saves  # (the next run's counter wraps this one's)
+    saving = _Run(tmp_path / "saving", 0, monkeypatch)
+    _homing_with_observers(saving)
+    assert journal.seen == saving.seen
+    # the scenario means something: the axis moved between polls, the homing finished within it ...
+    polls = [bytes.fromhex(seen[1]) for seen in journal.seen if seen[0] == "poll"]
+    states = [seen[1] for seen in journal.seen if seen[0].startswith("after poll")]
+    assert len(set(states)) > 30
+    assert not _zsw1(polls[0]) & ZSW1_HOME_POSITION_SET and _zsw1(polls[-1]) & ZSW1_HOME_POSITION_SET
+    # ... and the journal carried the polls of the moving axis instead of a save each
+    assert journal_saves < saving.saves - 20
+
+
+def test_a_watchdog_trip_after_journalled_polls_is_seen_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The polls stop mid-motion: an observer a wall second and a half later sees the same watchdog stop, warning and
+    position whether the polls were journalled or saved."""
+
+    def scenario(run: _Run) -> None:
+        run.poller.set_time_scale(10.0)  # a long homing: the watchdog's 1 s of wall time ends it
+        for request in START:
+            run.request(run.poller, request, 0.001)
+        for _ in range(5):
+            run.seen.append(("poll", run.request(run.poller, POLL, 0.05).hex()))
+        run.now += 1.5
+        run.other_request("another process reads", POLL, 0.0)
+        run.observe("after the watchdog")
+
+    journal = _Run(tmp_path / "journal", sim_drive.JOURNAL_MAX, monkeypatch)
+    scenario(journal)
+    saving = _Run(tmp_path / "saving", 0, monkeypatch)
+    scenario(saving)
+    assert journal.seen == saving.seen
+    assert '"watchdog_tripped": true' in journal.seen[-1][1]
+
+
+def test_the_journal_is_bounded_and_leaves_no_entry_after_a_write(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+    run.poller.set_time_scale(10.0)
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    saves = run.saves
+    lock = tmp_path / "sim-default.lock"
+    for i in range(1, 2 * sim_drive.JOURNAL_MAX + 4):
+        run.request(run.poller, POLL, 0.01)  # a homing at 10x runs longer than these reads
+        size = int.from_bytes(lock.read_bytes()[32:36], "little")
+        if i % (sim_drive.JOURNAL_MAX + 1):
+            assert 0 < size <= sim_drive.MAX_JOURNAL_BYTES, i
+        else:
+            assert size == 0, i  # this read found the journal full: saved, the journal emptied
+    assert run.saves - saves == 2
+    run.request(run.poller, _change(1, OPERATE), 0.001)
+    assert int.from_bytes(lock.read_bytes()[32:36], "little") == 0  # a write saves: the file holds it all
+
+
+def test_reads_at_rest_journal_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+    run.request(run.poller, _change(930, 2), 0.001)
+    token = (tmp_path / "sim-default.lock").read_bytes()
+    for _ in range(20):
+        run.request(run.poller, POLL, 0.01)
+    assert (tmp_path / "sim-default.lock").read_bytes() == token
+
+
+def test_a_damaged_journal_is_a_one_line_corrupt_state_and_reset_recovers(tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+    run.poller.set_time_scale(10.0)
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    run.request(run.poller, POLL, 0.01)
+    lock = tmp_path / "sim-default.lock"
+    fd = os.open(lock, os.O_RDWR)
+    try:
+        size = int.from_bytes(os.pread(fd, 4, 32), "little")
+        os.pwrite(fd, b"\xff" * 4, 36 + size - 4)  # the request's last bytes: a block the server cannot parse
+        os.pwrite(fd, (size + 3).to_bytes(4, "little"), 32)  # and an entry cut short
+    finally:
+        os.close(fd)
+    other = SimDrive("default", tmp_path)
+    with pytest.raises(SimStateError) as caught:
+        other.handle_bmp(POLL)
+    assert "corrupt" in str(caught.value) and "journal" in str(caught.value) and "\n" not in str(caught.value)
+    other.reset()
+    assert not _zsw1(other.handle_bmp(POLL)) & ZSW1_HOME_POSITION_SET
+    other.close()
