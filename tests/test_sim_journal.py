@@ -142,24 +142,45 @@ def test_a_watchdog_trip_after_journalled_polls_is_seen_alike(tmp_path: Path, mo
     assert '"watchdog_tripped": true' in journal.seen[-1][1]
 
 
-def test_the_journal_is_bounded_and_leaves_no_entry_after_a_write(tmp_path: Path,
-                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def _journal_bytes(directory: Path) -> int:
+    return int.from_bytes((directory / "sim-default.lock").read_bytes()[32:36], "little")
+
+
+def test_writes_at_rest_save_and_the_write_that_starts_a_motion_is_journalled(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+    run.poller.set_time_scale(10.0)
+    for request in START[:-1]:  # mode, enable, homing mode: the drive stays at rest
+        saves = run.saves
+        run.request(run.poller, request, 0.001)
+        assert run.saves == saves + 1 and _journal_bytes(tmp_path) == 0
+    saves = run.saves
+    run.request(run.poller, START[-1], 0.001)  # homing starts: the axis moves
+    assert run.saves == saves and _journal_bytes(tmp_path) == sim_drive._ENTRY.size + len(START[-1])
+
+
+def test_the_journal_is_bounded_and_leaves_no_entry_after_a_write_at_rest(tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
     run.poller.set_time_scale(10.0)
     for request in START:
         run.request(run.poller, request, 0.001)
-    saves = run.saves
-    lock = tmp_path / "sim-default.lock"
-    for i in range(1, 2 * sim_drive.JOURNAL_MAX + 4):
+    saves, entries = run.saves, 1  # the homing's start
+    for i in range(2 * sim_drive.JOURNAL_MAX + 3):
         run.request(run.poller, POLL, 0.01)  # a homing at 10x runs longer than these reads
-        size = int.from_bytes(lock.read_bytes()[32:36], "little")
-        if i % (sim_drive.JOURNAL_MAX + 1):
-            assert 0 < size <= sim_drive.MAX_JOURNAL_BYTES, i
+        if entries == sim_drive.JOURNAL_MAX:
+            entries = 0  # this read found the journal full: saved, the journal emptied
+            saves += 1
+            assert _journal_bytes(tmp_path) == 0, i
         else:
-            assert size == 0, i  # this read found the journal full: saved, the journal emptied
-    assert run.saves - saves == 2
-    run.request(run.poller, _change(1, OPERATE), 0.001)
-    assert int.from_bytes(lock.read_bytes()[32:36], "little") == 0  # a write saves: the file holds it all
+            entries += 1
+            assert 0 < _journal_bytes(tmp_path) <= sim_drive.MAX_JOURNAL_BYTES, i
+        assert run.saves == saves, i
+    assert saves == run.saves >= 2
+    run.now += 10.0  # the homing ends (the watchdog, if nothing else)
+    run.request(run.poller, POLL, 0.0)
+    run.request(run.poller, _change(1, OPERATE), 0.001)  # a write that leaves the drive at rest saves
+    assert _journal_bytes(tmp_path) == 0 and run.saves == saves + 1
 
 
 def test_reads_at_rest_journal_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -38,18 +38,19 @@ Why it is cheap (a network face answers thousands of requests a second):
   not queued behind one hand-over each. The watcher also drops the lock after a
   moment without requests (a locker that does not ask still gets it) and when
   the lock file was removed.
-* A *read* that changed the state (a poll of a moving axis: the clock moved the axis, the read fed the watchdog)
-  is not saved as a new state file: its request and the wall time it was answered at are appended to a *journal*
+* A PROFIdrive request that changed the state while the axis moves -- a poll (the clock moved the axis, the read
+  fed the watchdog), the write that starts or redirects a motion -- is not saved as a new state file: its request
+  and the wall time it was answered at are appended to a *journal*
   in the lock file, behind the token (one ``pwrite`` of a few hundred bytes, no temporary file, fsync or rename
   -- those cost 1-6 ms of disk latency each, on every poll of a motion). A process that reloads reads the state
   file and replays the journal: the same advance of the clock to each entry's wall time and the same request
   through the same PROFIdrive server, so it holds the very model the poller held (bit for bit: the same operations
-  on the same numbers; tests/test_sim_journal.py). Writes, SDO requests and every change outside a PROFIdrive read
-  still save the state file at once (so the command that ends a motion leaves no journal behind: its last write
-  takes the polls' entries in), as does a read that finds the journal holding JOURNAL_MAX entries (a journal stays
-  short to replay). The state file stays a complete, fsynced state; the journal is what the polls added since (a
-  machine crash may lose it: the drive is then as it was at the last save, its axis where that state's motion
-  takes it).
+  on the same numbers; tests/test_sim_journal.py), whichever requests were journalled. A write that leaves the
+  drive at rest saves the state file at once (a parameter set, the write that ends a homing: the command that ends
+  a motion leaves no journal behind), as do SDO requests, every change outside a PROFIdrive request and a request
+  that finds the journal holding JOURNAL_MAX entries (a journal stays short to replay). The state file stays a
+  complete, fsynced state; the journal is what was answered since (a machine crash may lose it: the drive is then
+  as it was at the last save).
 """
 
 from __future__ import annotations
@@ -484,15 +485,18 @@ class SimDrive:
 
     def _journal(self, held: _Held, lock_fd: int, request: bytes) -> bool:
         """Under the lock, for a PROFIdrive request that changed the state: append it to the journal instead of
-        saving (the module doc); False when it must be saved (not a read, too long, the journal full)."""
+        saving (the module doc); False when it must be saved (a write that leaves the drive at rest, too long, the
+        journal full). Which requests are journalled decides only when the state file is written, never what a
+        process that loads it sees: the replay makes both the same."""
         if held.entries >= JOURNAL_MAX or len(request) > JOURNAL_REQUEST_MAX:
             return False
         from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
 
         try:
-            if decode_header(request)[1] != REQ_READ:
-                return False
+            read = decode_header(request)[1] == REQ_READ
         except BmpError:
+            return False
+        if not read and held.model.motion.still():
             return False
         journal = held.journal + _ENTRY.pack(held.meta["wall"], len(request)) + request
         held.token = self._new_token(lock_fd, journal)
