@@ -38,19 +38,18 @@ Why it is cheap (a network face answers thousands of requests a second):
   not queued behind one hand-over each. The watcher also drops the lock after a
   moment without requests (a locker that does not ask still gets it) and when
   the lock file was removed.
-* A PROFIdrive request that changed the state while the axis moves -- a poll (the clock moved the axis, the read
-  fed the watchdog), the write that starts or redirects a motion -- is not saved as a new state file: its request
-  and the wall time it was answered at are appended to a *journal*
-  in the lock file, behind the token (one ``pwrite`` of a few hundred bytes, no temporary file, fsync or rename
-  -- those cost 1-6 ms of disk latency each, on every poll of a motion). A process that reloads reads the state
-  file and replays the journal: the same advance of the clock to each entry's wall time and the same request
-  through the same PROFIdrive server, so it holds the very model the poller held (bit for bit: the same operations
-  on the same numbers; tests/test_sim_journal.py), whichever requests were journalled. A write that leaves the
-  drive at rest saves the state file at once (a parameter set, the write that ends a homing: the command that ends
-  a motion leaves no journal behind), as do SDO requests, every change outside a PROFIdrive request and a request
-  that finds the journal holding JOURNAL_MAX entries (a journal stays short to replay). The state file stays a
-  complete, fsynced state; the journal is what was answered since (a machine crash may lose it: the drive is then
-  as it was at the last save).
+* While a command runs a motion, its changes are not saved as a new state file (temporary file, fsync, rename:
+  1-6 ms of disk latency each, on every poll) but written into the lock file behind the token as the *pending
+  state*: the same JSON a save writes, in one ``pwrite`` with its length and CRC-32, in the page cache only. A
+  process that loads takes the pending state when there is one, else the state file, so it sees exactly what a
+  save would have shown it (tests/test_sim_pending.py). Which PROFIdrive requests go there: every read that changed
+  the state (a poll of a moving axis: the clock moved it, the read fed the watchdog), every write that leaves the
+  axis moving (the start of a homing or move) and every write of a process whose own pending state the lock file
+  holds (the write that ends the motion it polled: no save between the drive's end of a motion and the command's
+  return). Everything else saves the state file at once and empties the pending state: a write at rest from any
+  other process (the next command's first write), SDO requests, changes outside a PROFIdrive request, and the
+  PENDING_MAX-th pending write in a row (a machine crash loses at most the pending state: the drive is then as it
+  was at the last save).
 """
 
 from __future__ import annotations
@@ -94,15 +93,11 @@ TURN_POLL_S = 0.001
 #: After handing the lock over, a served drive takes it per request (as every other process does) for this long
 #: before it keeps it again: while others want the drive, keeping it would make each of them wait for a hand-over.
 HOLD_BACKOFF_S = 0.25
-#: At most this many state-changing reads wait in the lock file's journal before the state file is written again
-#: (the module doc): a process that reloads replays them all, each costing about what its request cost.
-JOURNAL_MAX = 16
-#: A longer request is saved, not journalled (a PROFIdrive request block is at most 240 bytes).
-JOURNAL_REQUEST_MAX = 1024
-_JOURNAL_SIZE = struct.Struct("<I")  # the lock file after the token: bytes of journal that follow
-_ENTRY = struct.Struct("<dH")  # one journal entry: the wall time its transaction read, then its request's length
-_HEAD_BYTES = TOKEN_BYTES + _JOURNAL_SIZE.size
-MAX_JOURNAL_BYTES = JOURNAL_MAX * (_ENTRY.size + JOURNAL_REQUEST_MAX)
+#: At most this many changes in a row go to the lock file's pending state before the state file is written again
+#: (the module doc): a long motion on a real-time drive (20 polls a second) still saves every few seconds.
+PENDING_MAX = 64
+_PENDING = struct.Struct("<II")  # the lock file after the token: bytes of pending state that follow, their CRC-32
+_HEAD_BYTES = TOKEN_BYTES + _PENDING.size
 
 
 class SimStateError(UsageError):
@@ -119,15 +114,14 @@ def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    __slots__ = ("model", "meta", "token", "mark", "journal", "entries")
+    __slots__ = ("model", "meta", "token", "mark", "pending")
 
     def __init__(self, model: DriveModel, meta: dict[str, Any], token: bytes, mark: tuple[int, Any]) -> None:
         self.model = model
         self.meta = meta
         self.token = token
-        self.mark = mark  # the mark of what the state file and its journal hold
-        self.journal = b""  # the lock file's journal behind the token (the module doc), ``entries`` entries
-        self.entries = 0
+        self.mark = mark  # the mark of what the state file (or the pending state) holds
+        self.pending = 0  # changes in a row this object wrote as the lock file's pending state (the module doc)
 
 
 class SimDrive:
@@ -157,6 +151,7 @@ class SimDrive:
         self._watcher: threading.Thread | None = None
         self._keep_from = 0.0  # monotonic time from which a lock taken is kept again (HOLD_BACKOFF_S)
         self._tmp_prefix = f".sim-{name}."  # atomic_open's temporaries: PREFIX + 8 of [a-z0-9_] + ".tmp"
+        self._pending_bytes = 0  # what the lock file's head announced when _begin read it (for _load)
 
     def serve_faces(self) -> None:
         """This object answers network faces from now on (``sim serve``): a face waits FACE_LOCK_TIMEOUT for the
@@ -431,9 +426,10 @@ class SimDrive:
             raise self._corrupt("not UTF-8 text") from None
 
     def _load(self, token: bytes) -> _Held:
-        """The model and meta data the state file holds (factory state when there is none)."""
+        """The model and meta data the lock file's pending state holds, else the state file (factory state when
+        there is none)."""
         self._clean_temporaries()
-        text = self._read_text()
+        text = self._pending_text() if self._pending_bytes else self._read_text()
         if text is None:
             model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
@@ -459,110 +455,80 @@ class SimDrive:
             raise self._corrupt(str(exc) or type(exc).__name__) from None
 
     def _save(self, model: DriveModel, meta: dict[str, Any]) -> None:
-        import json
-
-        state = model.to_state()
-        state["sim"] = meta
-        # encoded whole, then written at once: json.dump to the text file writes each of its hundreds of pieces
-        # through the file object, ~5x the CPU of dumps for the same bytes (a moving axis saves at every request
-        # that is not a journalled read)
-        text = json.dumps(state, separators=(",", ":"), allow_nan=False)
+        text = _state_text(model, meta)
         try:
             with atomic_open(self.path, prefix=f".sim-{self.name}.") as fh:
                 fh.write(text)
         except OSError as exc:
             raise self._os_error("cannot save simulator state", self.path, exc) from None
 
-    def _new_token(self, lock_fd: int, journal: bytes = b"") -> bytes:
+    def _new_token(self, lock_fd: int, pending: bytes = b"") -> bytes:
         """Tell other processes to reload; written *before* the state file is replaced (a crash between costs
-        only a reload), with the journal that follows the state file (none after a save)."""
+        only a reload), with the pending state that stands for the state file (none: the file holds the state)."""
+        import zlib
+
         token = os.urandom(TOKEN_BYTES // 2).hex().encode()
         try:
-            os.pwrite(lock_fd, token + _JOURNAL_SIZE.pack(len(journal)) + journal, 0)
+            os.pwrite(lock_fd, token + _PENDING.pack(len(pending), zlib.crc32(pending)) + pending, 0)
         except OSError as exc:
             raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
         return token
 
-    def _journal(self, held: _Held, lock_fd: int, request: bytes) -> bool:
-        """Under the lock, for a PROFIdrive request that changed the state: append it to the journal instead of
-        saving (the module doc); False when it must be saved (a write that leaves the drive at rest, too long, the
-        journal full). Which requests are journalled decides only when the state file is written, never what a
-        process that loads it sees: the replay makes both the same."""
-        if held.entries >= JOURNAL_MAX or len(request) > JOURNAL_REQUEST_MAX:
+    def _pend(self, held: _Held, lock_fd: int, request: bytes) -> bool:
+        """Under the lock, for a PROFIdrive request that changed the state: write the state as the lock file's
+        pending state instead of saving it (the module doc); False when it must be saved. Which requests pend
+        decides only when the state file is written, never what a process that loads sees: the same JSON either
+        way."""
+        if held.pending >= PENDING_MAX:
             return False
-        from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
+        if not held.pending:  # nothing of ours pends: only a read or a write that leaves the axis moving
+            from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
 
-        try:
-            read = decode_header(request)[1] == REQ_READ
-        except BmpError:
+            try:
+                read = decode_header(request)[1] == REQ_READ
+            except BmpError:
+                return False
+            if not read and held.model.motion.still():
+                return False
+        pending = _state_text(held.model, held.meta).encode("utf-8")
+        if len(pending) > MAX_STATE_BYTES:
             return False
-        if not read and held.model.motion.still():
-            return False
-        journal = held.journal + _ENTRY.pack(held.meta["wall"], len(request)) + request
-        held.token = self._new_token(lock_fd, journal)
-        held.journal = journal
-        held.entries += 1
+        held.token = self._new_token(lock_fd, pending)
+        held.pending += 1
         return True
 
-    def _replay(self, held: _Held, lock_fd: int, size: int) -> None:
-        """Under the lock, a model just loaded: the journal's reads, each at its wall time, as they were answered
-        (the clock advanced exactly as :meth:`_begin` advanced it, the request through the PROFIdrive server)."""
-        if size > MAX_JOURNAL_BYTES:
-            raise self._corrupt(f"the lock file's journal holds {size} bytes, more than {MAX_JOURNAL_BYTES}")
+    def _pending_text(self) -> str:
+        """Under the lock: the lock file's pending state (``_pending_bytes`` announced by its head), checked."""
+        import zlib
+
+        size = self._pending_bytes
+        if size > MAX_STATE_BYTES:
+            raise self._corrupt(f"the lock file announces a pending state of {size} bytes, more than a state holds")
         try:
-            journal = os.pread(lock_fd, size, _HEAD_BYTES)
+            head = os.pread(self._lock_fd, _HEAD_BYTES + size, 0)
         except OSError as exc:
             raise self._os_error("cannot read the simulator's lock file", self.lock_path, exc) from None
-        server = self._replay_server()
-        model, meta = held.model, held.meta
-        model.time_scale = meta["time_scale"]
-        offset = entries = 0
+        data = head[_HEAD_BYTES:]
+        if len(data) != size or zlib.crc32(data) != _PENDING.unpack_from(head, TOKEN_BYTES)[1]:
+            raise self._corrupt("the pending state in its lock file is cut short or damaged")
         try:
-            while offset < len(journal):
-                wall, length = _ENTRY.unpack_from(journal, offset)
-                offset += _ENTRY.size
-                request = journal[offset:offset + length]
-                offset += length
-                if len(request) != length or not math.isfinite(wall):
-                    raise ValueError("an entry is cut short")
-                model.advance(max(0.0, wall - meta["wall"]) * model.time_scale)
-                meta["wall"] = wall
-                server.access = model
-                try:
-                    server.handle(request)
-                finally:
-                    server.access = _OUTSIDE
-                entries += 1
-            if len(journal) != size or entries > JOURNAL_MAX:
-                raise ValueError(f"{len(journal)} bytes in {entries} entries where {size} bytes were announced")
-        except Exception as exc:  # noqa: BLE001 - a journal the model cannot replay is a damaged state
-            raise self._corrupt(f"the lock file's journal cannot be replayed: {exc or type(exc).__name__}") from None
-        held.journal, held.entries, held.mark = journal, entries, _mark(model, meta)
-
-    def _replay_server(self) -> Any:
-        """The PROFIdrive server :meth:`handle_bmp` answers with (built here first if it was not yet)."""
-        if self._pnu_answer is None:
-            from akdctl.sim.pnu_server import PnuServer
-
-            self._pnu_server = PnuServer(_OUTSIDE, raw_reads=True)
-            self._pnu_answer = self._pnu_server.handle
-        return self._pnu_server
+            return data.decode("utf-8")
+        except UnicodeDecodeError:
+            raise self._corrupt("the pending state in its lock file is not UTF-8 text") from None
 
     def _begin(self, lock_fd: int, advance: bool) -> _Held:
         """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
         held, self._held = self._held, None  # dropped unless _commit puts it back (a failed body reloads)
         # A kept lock: nobody else can have saved since our last transaction, the token need not be read.
         if held is not None and self._trusted:
-            token, journal = held.token, 0
+            token = held.token
         else:
             head = os.pread(lock_fd, _HEAD_BYTES, 0)
             token = head[:TOKEN_BYTES]
-            journal = _JOURNAL_SIZE.unpack_from(head, TOKEN_BYTES)[0] if len(head) == _HEAD_BYTES else 0
+            self._pending_bytes = _PENDING.unpack_from(head, TOKEN_BYTES)[0] if len(head) == _HEAD_BYTES else 0
         fresh = held is None or held.token != token  # an empty token: nobody saved since the lock file began
         if fresh:
             held = self._load(token)
-            if journal:
-                self._replay(held, lock_fd, journal)
         assert held is not None
         model, meta = held.model, held.meta
         now = time.time()
@@ -581,16 +547,16 @@ class SimDrive:
     def _commit(self, held: _Held, lock_fd: int, bmp_request: bytes | None = None) -> None:
         """Under the lock, after a body that did not raise: save if the mark moved, keep the model.
 
-        ``bmp_request``: the body answered this PROFIdrive request; a read is journalled instead of saved while
-        the journal has room and the time scale did not change (the module doc)."""
+        ``bmp_request``: the body answered this PROFIdrive request, which may go to the lock file's pending state
+        instead (the module doc; not when the time scale changed)."""
         if held.model.damage is not None:  # a lazy component's state was damaged (a server may have refused only)
             raise self._corrupt(f"damaged simulator state: {held.model.damage}")
         mark = _mark(held.model, held.meta)
         if mark != held.mark:
-            if bmp_request is None or mark[1] != held.mark[1] or not self._journal(held, lock_fd, bmp_request):
+            if bmp_request is None or mark[1] != held.mark[1] or not self._pend(held, lock_fd, bmp_request):
                 held.token = self._new_token(lock_fd)
                 self._save(held.model, held.meta)
-                held.journal, held.entries = b"", 0
+                held.pending = 0
             held.mark = mark
         self._held = held
         self._trusted = self._holding
@@ -762,6 +728,17 @@ def serial_for(name: str) -> int:
     if name == "default":
         return identity.SERIAL
     return 0x80000000 | (zlib.crc32(name.encode("utf-8")) & 0x7FFFFFFF)
+
+
+def _state_text(model: DriveModel, meta: dict[str, Any]) -> str:
+    """The state file's text: the model's state with the store's meta data under "sim"."""
+    import json
+
+    state = model.to_state()
+    state["sim"] = meta
+    # encoded whole, then written at once: json.dump to the text file writes each of its hundreds of pieces
+    # through the file object, ~5x the CPU of dumps for the same bytes
+    return json.dumps(state, separators=(",", ":"), allow_nan=False)
 
 
 def factory_model(name: str) -> DriveModel:

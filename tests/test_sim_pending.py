@@ -1,10 +1,10 @@
-"""The lock file's journal (``akdctl/sim/drive.py``): a read that changed the state is journalled, not saved.
+"""The lock file's pending state (``akdctl/sim/drive.py``): a motion's changes are not saved as a state file each.
 
-The contract: every other process sees exactly the drive it saw when each such read saved the state file -- the
-same answers, the same model (bit for bit: clock, position, homing flags, the watchdog, faults) -- mid-motion,
-after another process read or wrote, and after the polls stopped long enough for the watchdog. Each scenario runs
-twice on a fake wall clock, once with the journal and once with ``JOURNAL_MAX = 0`` (every changed read saved, as
-before the journal), and the two runs must agree on everything an observer process sees.
+The contract: every other process sees exactly the drive it saw when each change saved the state file -- the same
+answers, the same model (bit for bit: clock, position, homing flags, the watchdog, faults) -- mid-motion, after
+another process read or wrote, after the polls stopped long enough for the watchdog, and after the command ended
+the motion. Each scenario runs twice on a fake wall clock, once as the store runs and once with ``PENDING_MAX = 0``
+(every change saved, as before the pending state), and the two runs must agree on everything an observer sees.
 """
 
 from __future__ import annotations
@@ -53,8 +53,8 @@ def _zsw1(answer: bytes) -> int:
 class _Run:
     """One scenario's run on a fake wall clock in ``directory``; ``seen`` is what observer processes saw."""
 
-    def __init__(self, directory: Path, journal_max: int, monkeypatch: pytest.MonkeyPatch) -> None:
-        monkeypatch.setattr(sim_drive, "JOURNAL_MAX", journal_max)
+    def __init__(self, directory: Path, pending_max: int, monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch.setattr(sim_drive, "PENDING_MAX", pending_max)
         self.now = 1_700_000_000.0
         monkeypatch.setattr(sim_drive, "time", SimpleNamespace(time=lambda: self.now, monotonic=time.monotonic,
                                                                sleep=time.sleep))
@@ -105,7 +105,7 @@ def _homing_with_observers(run: _Run) -> None:
 
 
 def test_observers_see_what_they_saw_when_every_poll_saved(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    journal = _Run(tmp_path / "journal", sim_drive.JOURNAL_MAX, monkeypatch)
+    journal = _Run(tmp_path / "journal", sim_drive.PENDING_MAX, monkeypatch)
     _homing_with_observers(journal)
     journal_saves = journal.saves  # (the next run's counter wraps this one's)
     saving = _Run(tmp_path / "saving", 0, monkeypatch)
@@ -116,13 +116,13 @@ def test_observers_see_what_they_saw_when_every_poll_saved(tmp_path: Path, monke
     states = [seen[1] for seen in journal.seen if seen[0].startswith("after poll")]
     assert len(set(states)) > 30
     assert not _zsw1(polls[0]) & ZSW1_HOME_POSITION_SET and _zsw1(polls[-1]) & ZSW1_HOME_POSITION_SET
-    # ... and the journal carried the polls of the moving axis instead of a save each
+    # ... and the lock file carried the moving axis's changes instead of a save each
     assert journal_saves < saving.saves - 20
 
 
-def test_a_watchdog_trip_after_journalled_polls_is_seen_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_watchdog_trip_after_pending_polls_is_seen_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The polls stop mid-motion: an observer a wall second and a half later sees the same watchdog stop, warning and
-    position whether the polls were journalled or saved."""
+    position whether the polls pended or saved."""
 
     def scenario(run: _Run) -> None:
         run.poller.set_time_scale(10.0)  # a long homing: the watchdog's 1 s of wall time ends it
@@ -134,7 +134,7 @@ def test_a_watchdog_trip_after_journalled_polls_is_seen_alike(tmp_path: Path, mo
         run.other_request("another process reads", POLL, 0.0)
         run.observe("after the watchdog")
 
-    journal = _Run(tmp_path / "journal", sim_drive.JOURNAL_MAX, monkeypatch)
+    journal = _Run(tmp_path / "journal", sim_drive.PENDING_MAX, monkeypatch)
     scenario(journal)
     saving = _Run(tmp_path / "saving", 0, monkeypatch)
     scenario(saving)
@@ -142,49 +142,69 @@ def test_a_watchdog_trip_after_journalled_polls_is_seen_alike(tmp_path: Path, mo
     assert '"watchdog_tripped": true' in journal.seen[-1][1]
 
 
-def _journal_bytes(directory: Path) -> int:
+def _pending_bytes(directory: Path) -> int:
     return int.from_bytes((directory / "sim-default.lock").read_bytes()[32:36], "little")
 
 
-def test_writes_at_rest_save_and_the_write_that_starts_a_motion_is_journalled(tmp_path: Path,
+def test_writes_at_rest_save_and_the_write_that_starts_a_motion_pends(tmp_path: Path,
                                                                               monkeypatch: pytest.MonkeyPatch) -> None:
-    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
     run.poller.set_time_scale(10.0)
     for request in START[:-1]:  # mode, enable, homing mode: the drive stays at rest
         saves = run.saves
         run.request(run.poller, request, 0.001)
-        assert run.saves == saves + 1 and _journal_bytes(tmp_path) == 0
+        assert run.saves == saves + 1 and _pending_bytes(tmp_path) == 0
     saves = run.saves
     run.request(run.poller, START[-1], 0.001)  # homing starts: the axis moves
-    assert run.saves == saves and _journal_bytes(tmp_path) == sim_drive._ENTRY.size + len(START[-1])
+    assert run.saves == saves and _pending_bytes(tmp_path) > 0
+    lock = (tmp_path / "sim-default.lock").read_bytes()
+    pending = json.loads(lock[40:40 + _pending_bytes(tmp_path)])
+    with run.poller.transaction(advance=False) as model:
+        assert pending == json.loads(json.dumps({**model.to_state(), "sim": run.poller.meta}))
 
 
-def test_the_journal_is_bounded_and_leaves_no_entry_after_a_write_at_rest(tmp_path: Path,
-                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+def test_pending_changes_are_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, 4, monkeypatch)
     run.poller.set_time_scale(10.0)
     for request in START:
         run.request(run.poller, request, 0.001)
-    saves, entries = run.saves, 1  # the homing's start
-    for i in range(2 * sim_drive.JOURNAL_MAX + 3):
+    saves, pending = run.saves, 1  # the homing's start pends
+    for i in range(11):
         run.request(run.poller, POLL, 0.01)  # a homing at 10x runs longer than these reads
-        if entries == sim_drive.JOURNAL_MAX:
-            entries = 0  # this read found the journal full: saved, the journal emptied
-            saves += 1
-            assert _journal_bytes(tmp_path) == 0, i
+        if pending == 4:
+            pending, saves = 0, saves + 1  # the fifth change in a row is saved, the pending state emptied
+            assert _pending_bytes(tmp_path) == 0, i
         else:
-            entries += 1
-            assert 0 < _journal_bytes(tmp_path) <= sim_drive.MAX_JOURNAL_BYTES, i
+            pending += 1
+            assert _pending_bytes(tmp_path) > 0, i
         assert run.saves == saves, i
-    assert saves == run.saves >= 2
-    run.now += 10.0  # the homing ends (the watchdog, if nothing else)
-    run.request(run.poller, POLL, 0.0)
-    run.request(run.poller, _change(1, OPERATE), 0.001)  # a write that leaves the drive at rest saves
-    assert _journal_bytes(tmp_path) == 0 and run.saves == saves + 1
+    assert saves - 2 == run.saves - 2 >= 0 and run.saves >= 2
 
 
-def test_reads_at_rest_journal_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+def test_the_end_of_a_motion_pends_and_the_next_commands_first_write_saves(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
+    run.poller.set_time_scale(100.0)
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    while not _zsw1(run.request(run.poller, POLL, 0.0013)) & ZSW1_HOME_POSITION_SET:
+        pass
+    saves = run.saves
+    run.request(run.poller, _change(1, OPERATE), 0.0005)  # this command ends its homing: no save on its way out
+    assert run.saves == saves and _pending_bytes(tmp_path) > 0
+    run.poller.close()
+    run.observe("the next command loads")
+    loaded = json.loads(run.seen[-1][1])["components"]["motion"]
+    assert loaded["homed"] and loaded["homing_done"] and loaded["stw1"] == OPERATE  # the ended homing, our last write
+    nxt = SimDrive("default", tmp_path)
+    run.request(nxt, _change(1001, 3), 0.001)  # the next command's first write, at rest: saved, pending emptied
+    assert run.saves == saves + 1 and _pending_bytes(tmp_path) == 0
+    with SimDrive("default", tmp_path).transaction(advance=False) as model:
+        assert model.stored_pnu(1001) == [3]
+
+
+def test_reads_at_rest_pend_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
     run.request(run.poller, _change(930, 2), 0.001)
     token = (tmp_path / "sim-default.lock").read_bytes()
     for _ in range(20):
@@ -192,25 +212,22 @@ def test_reads_at_rest_journal_nothing(tmp_path: Path, monkeypatch: pytest.Monke
     assert (tmp_path / "sim-default.lock").read_bytes() == token
 
 
-def test_a_damaged_journal_is_a_one_line_corrupt_state_and_reset_recovers(tmp_path: Path,
-                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    run = _Run(tmp_path, sim_drive.JOURNAL_MAX, monkeypatch)
+def test_a_damaged_pending_state_is_a_one_line_corrupt_state_and_reset_recovers(tmp_path: Path,
+                                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
     run.poller.set_time_scale(10.0)
     for request in START:
         run.request(run.poller, request, 0.001)
     run.request(run.poller, POLL, 0.01)
-    lock = tmp_path / "sim-default.lock"
-    fd = os.open(lock, os.O_RDWR)
+    fd = os.open(tmp_path / "sim-default.lock", os.O_RDWR)
     try:
-        size = int.from_bytes(os.pread(fd, 4, 32), "little")
-        os.pwrite(fd, b"\xff" * 4, 36 + size - 4)  # the request's last bytes: a block the server cannot parse
-        os.pwrite(fd, (size + 3).to_bytes(4, "little"), 32)  # and an entry cut short
+        os.pwrite(fd, b"]", 40 + _pending_bytes(tmp_path) - 1)  # its last byte ("}") changed: the CRC fails
     finally:
         os.close(fd)
     other = SimDrive("default", tmp_path)
     with pytest.raises(SimStateError) as caught:
         other.handle_bmp(POLL)
-    assert "corrupt" in str(caught.value) and "journal" in str(caught.value) and "\n" not in str(caught.value)
+    assert "corrupt" in str(caught.value) and "lock file" in str(caught.value) and "\n" not in str(caught.value)
     other.reset()
     assert not _zsw1(other.handle_bmp(POLL)) & ZSW1_HOME_POSITION_SET
     other.close()
