@@ -231,3 +231,27 @@ def test_a_damaged_pending_state_is_a_one_line_corrupt_state_and_reset_recovers(
     other.reset()
     assert not _zsw1(other.handle_bmp(POLL)) & ZSW1_HOME_POSITION_SET
     other.close()
+
+
+def test_a_save_cut_short_leaves_the_pending_state_to_load(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A process dies between the new token and the new state file: the next one loads the pending state (the newest
+    complete state), not the older state file."""
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
+    run.poller.set_time_scale(10.0)
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    run.request(run.poller, POLL, 0.01)
+    run.observe("before")
+    file_state = (tmp_path / "sim-default.json").read_text()
+
+    def killed(drive: SimDrive, model: Any, meta: dict[str, Any]) -> None:
+        raise RuntimeError("killed while saving")
+
+    monkeypatch.setattr(SimDrive, "_save", killed)
+    other = SimDrive("default", tmp_path)
+    with pytest.raises(RuntimeError), other.transaction() as model:  # a change outside a PROFIdrive request saves
+        model.set_stored_pnu(1005, [300])
+    other.close()
+    assert (tmp_path / "sim-default.json").read_text() == file_state and _pending_bytes(tmp_path) > 0
+    run.observe("after")
+    assert run.seen[-1][1:] == run.seen[0][1:]

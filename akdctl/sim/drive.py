@@ -151,7 +151,7 @@ class SimDrive:
         self._watcher: threading.Thread | None = None
         self._keep_from = 0.0  # monotonic time from which a lock taken is kept again (HOLD_BACKOFF_S)
         self._tmp_prefix = f".sim-{name}."  # atomic_open's temporaries: PREFIX + 8 of [a-z0-9_] + ".tmp"
-        self._pending_bytes = 0  # what the lock file's head announced when _begin read it (for _load)
+        self._pending_bytes = 0  # the pending state's size in the lock file, as last read or written under the lock
 
     def serve_faces(self) -> None:
         """This object answers network faces from now on (``sim serve``): a face waits FACE_LOCK_TIMEOUT for the
@@ -462,17 +462,32 @@ class SimDrive:
         except OSError as exc:
             raise self._os_error("cannot save simulator state", self.path, exc) from None
 
-    def _new_token(self, lock_fd: int, pending: bytes = b"") -> bytes:
+    def _new_token(self, lock_fd: int, pending: bytes = b"", *, keep: bool = False) -> bytes:
         """Tell other processes to reload; written *before* the state file is replaced (a crash between costs
-        only a reload), with the pending state that stands for the state file (none: the file holds the state)."""
+        only a reload), with the pending state that stands for the state file (none: the file holds the state).
+        ``keep``: the token only, the pending state left as it is (:meth:`_commit` drops it once the file holds
+        the newer state, so a crash in between leaves the pending state, not an older file, to load)."""
         import zlib
 
         token = os.urandom(TOKEN_BYTES // 2).hex().encode()
+        data = token if keep else token + _PENDING.pack(len(pending), zlib.crc32(pending)) + pending
         try:
-            os.pwrite(lock_fd, token + _PENDING.pack(len(pending), zlib.crc32(pending)) + pending, 0)
+            os.pwrite(lock_fd, data, 0)
         except OSError as exc:
             raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
+        if not keep:
+            self._pending_bytes = len(pending)
         return token
+
+    def _drop_pending(self, lock_fd: int) -> None:
+        """The state file now holds the newest state: the lock file announces no pending state any more."""
+        import zlib
+
+        try:
+            os.pwrite(lock_fd, _PENDING.pack(0, zlib.crc32(b"")), TOKEN_BYTES)
+        except OSError as exc:
+            raise self._os_error("cannot write the simulator's lock file", self.lock_path, exc) from None
+        self._pending_bytes = 0
 
     def _pend(self, held: _Held, lock_fd: int, request: bytes) -> bool:
         """Under the lock, for a PROFIdrive request that changed the state: write the state as the lock file's
@@ -554,8 +569,11 @@ class SimDrive:
         mark = _mark(held.model, held.meta)
         if mark != held.mark:
             if bmp_request is None or mark[1] != held.mark[1] or not self._pend(held, lock_fd, bmp_request):
-                held.token = self._new_token(lock_fd)
+                pending = self._pending_bytes
+                held.token = self._new_token(lock_fd, keep=bool(pending))
                 self._save(held.model, held.meta)
+                if pending:
+                    self._drop_pending(lock_fd)
                 held.pending = 0
             held.mark = mark
         self._held = held
