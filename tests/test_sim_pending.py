@@ -255,3 +255,19 @@ def test_a_save_cut_short_leaves_the_pending_state_to_load(tmp_path: Path, monke
     assert (tmp_path / "sim-default.json").read_text() == file_state and _pending_bytes(tmp_path) > 0
     run.observe("after")
     assert run.seen[-1][1:] == run.seen[0][1:]
+
+
+def test_only_the_write_right_after_the_polls_pends_at_rest(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A process that polled a motion (a recipe: a move, then parameter writes) pends the write that ends it; its
+    next write at rest saves."""
+    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
+    run.poller.set_time_scale(100.0)
+    for request in START:
+        run.request(run.poller, request, 0.001)
+    while not _zsw1(run.request(run.poller, POLL, 0.0013)) & ZSW1_HOME_POSITION_SET:
+        pass
+    saves = run.saves
+    run.request(run.poller, _change(1, OPERATE), 0.0005)
+    assert run.saves == saves and _pending_bytes(tmp_path) > 0
+    run.request(run.poller, _change(1005, 300), 0.0005)
+    assert run.saves == saves + 1 and _pending_bytes(tmp_path) == 0

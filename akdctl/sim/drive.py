@@ -44,9 +44,9 @@ Why it is cheap (a network face answers thousands of requests a second):
   process that loads takes the pending state when there is one, else the state file, so it sees exactly what a
   save would have shown it (tests/test_sim_pending.py). Which PROFIdrive requests go there: every read that changed
   the state (a poll of a moving axis: the clock moved it, the read fed the watchdog), every write that leaves the
-  axis moving (the start of a homing or move) and every write of a process whose own pending state the lock file
-  holds (the write that ends the motion it polled: no save between the drive's end of a motion and the command's
-  return). Everything else saves the state file at once and empties the pending state: a write at rest from any
+  axis moving (the start of a homing or move) and a write that directly follows such a read of the same process
+  while its pending state is still the lock file's (the write that ends the motion it polled: no save between the
+  drive's end of a motion and the command's return; the write after that saves). Everything else saves the state file at once and empties the pending state: a write at rest from any
   other process (the next command's first write), SDO requests, changes outside a PROFIdrive request, and the
   PENDING_MAX-th pending write in a row (a machine crash loses at most the pending state: the drive is then as it
   was at the last save).
@@ -114,7 +114,7 @@ def _mark(model: DriveModel, meta: dict[str, Any]) -> tuple[int, Any]:
 class _Held:
     """The model of the last transaction, valid while the lock file's token is ``token``."""
 
-    __slots__ = ("model", "meta", "token", "mark", "pending")
+    __slots__ = ("model", "meta", "token", "mark", "pending", "after_read")
 
     def __init__(self, model: DriveModel, meta: dict[str, Any], token: bytes, mark: tuple[int, Any]) -> None:
         self.model = model
@@ -122,6 +122,7 @@ class _Held:
         self.token = token
         self.mark = mark  # the mark of what the state file (or the pending state) holds
         self.pending = 0  # changes in a row this object wrote as the lock file's pending state (the module doc)
+        self.after_read = False  # the last of them was a read's
 
 
 class SimDrive:
@@ -496,20 +497,20 @@ class SimDrive:
         way."""
         if held.pending >= PENDING_MAX:
             return False
-        if not held.pending:  # nothing of ours pends: only a read or a write that leaves the axis moving
-            from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
+        from akdctl.protocol.bmp import REQ_READ, BmpError, decode_header
 
-            try:
-                read = decode_header(request)[1] == REQ_READ
-            except BmpError:
-                return False
-            if not read and held.model.motion.still():
-                return False
+        try:
+            read = decode_header(request)[1] == REQ_READ
+        except BmpError:
+            return False
+        if not read and not held.after_read and held.model.motion.still():
+            return False  # a write at rest that does not end our own polling: the state file holds it at once
         pending = _state_text(held.model, held.meta).encode("utf-8")
         if len(pending) > MAX_STATE_BYTES:
             return False
         held.token = self._new_token(lock_fd, pending)
         held.pending += 1
+        held.after_read = read
         return True
 
     def _pending_text(self) -> str:
@@ -574,7 +575,7 @@ class SimDrive:
                 self._save(held.model, held.meta)
                 if pending:
                     self._drop_pending(lock_fd)
-                held.pending = 0
+                held.pending, held.after_read = 0, False
             held.mark = mark
         self._held = held
         self._trusted = self._holding
