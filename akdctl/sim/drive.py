@@ -46,10 +46,10 @@ Why it is cheap (a network face answers thousands of requests a second):
   the state (a poll of a moving axis: the clock moved it, the read fed the watchdog), every write that leaves the
   axis moving (the start of a homing or move) and a write that directly follows such a read of the same process
   while its pending state is still the lock file's (the write that ends the motion it polled: no save between the
-  drive's end of a motion and the command's return; the write after that saves). Everything else saves the state file at once and empties the pending state: a write at rest from any
-  other process (the next command's first write), SDO requests, changes outside a PROFIdrive request, and the
-  PENDING_MAX-th pending write in a row (a machine crash loses at most the pending state: the drive is then as it
-  was at the last save).
+  drive's end of a motion and the command's return; the write after that saves). Everything else saves the state
+  file at once and empties the pending state: a write at rest from any other process (the next command's first
+  write), SDO requests, changes outside a PROFIdrive request, and the PENDING_MAX-th pending write in a row (a
+  machine crash loses at most the pending state: the drive is then as it was at the last save).
 """
 
 from __future__ import annotations
