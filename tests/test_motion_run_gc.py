@@ -62,9 +62,9 @@ def _finish_after(polls: int, outcome: bool | None = True) -> Any:
 
 
 def test_the_polls_run_frozen_and_the_collector_is_handed_back(unfrozen: None) -> None:
-    kept = [object() for _ in range(100)]  # tracked by the collector before the run  # noqa: F841
     axis = _Axis()
-    MotionRun(axis, lambda: False).run(lambda: None, _finish_after(3), deadline_s=5.0, what="homing")  # type: ignore[arg-type]
+    run = MotionRun(axis, lambda: False)  # type: ignore[arg-type]
+    run.run(lambda: None, _finish_after(3), deadline_s=5.0, what="homing")
     assert len(axis.frozen_seen) == 3 and min(axis.frozen_seen) > 0
     assert gc.get_freeze_count() == 0
 
@@ -74,11 +74,12 @@ def test_the_collector_is_handed_back_when_the_motion_ends_badly(unfrozen: None,
     axis = _Axis()
     finished: Any = _finish_after(2, False)
     if how == "error":
-        def finished(status: AxisStatus) -> bool | None:  # noqa: F811 - this case's own rule
+        def finished(status: AxisStatus) -> bool | None:
             raise DriveError("lost the drive")
     interrupted = (lambda: len(axis.frozen_seen) >= 2) if how == "interrupted" else (lambda: False)
-    with pytest.raises(Exception) as caught:  # noqa: PT011 - each case raises its own akdctl error
-        MotionRun(axis, interrupted).run(lambda: None, finished, deadline_s=5.0, what="homing")  # type: ignore[arg-type]
+    with pytest.raises(Exception) as caught:
+        MotionRun(axis, interrupted).run(lambda: None, finished, deadline_s=5.0,  # type: ignore[arg-type]
+                                         what="homing")
     assert type(caught.value).__name__ in ("DriveError", "Interrupted")
     assert axis.stops == 1  # the stop-on-exit safety still ran
     assert gc.get_freeze_count() == 0
@@ -88,6 +89,7 @@ def test_a_host_that_froze_objects_keeps_them_frozen(unfrozen: None) -> None:
     gc.freeze()
     before = gc.get_freeze_count()
     axis = _Axis()
-    MotionRun(axis, lambda: False).run(lambda: None, _finish_after(1), deadline_s=5.0, what="homing")  # type: ignore[arg-type]
+    run = MotionRun(axis, lambda: False)  # type: ignore[arg-type]
+    run.run(lambda: None, _finish_after(1), deadline_s=5.0, what="homing")
     assert gc.get_freeze_count() >= before
     gc.unfreeze()

@@ -212,8 +212,8 @@ def test_reads_at_rest_pend_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     assert (tmp_path / "sim-default.lock").read_bytes() == token
 
 
-def test_a_damaged_pending_state_is_a_one_line_corrupt_state_and_reset_recovers(tmp_path: Path,
-                                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_damaged_pending_state_is_a_one_line_corrupt_state_and_reset_recovers(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
     run.poller.set_time_scale(10.0)
     for request in START:
