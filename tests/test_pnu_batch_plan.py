@@ -72,7 +72,7 @@ def test_getters_read_what_pnu_read_raw_reads_for_every_address() -> None:
 
 def test_a_getter_reads_the_value_stored_after_it_was_taken() -> None:
     model = DriveModel()
-    fmt, get = model.pnu_value_getter(1006, 0, 1)  # Jog Acc: a stored value, its default until written
+    _fmt, get = model.pnu_value_getter(1006, 0, 1)  # Jog Acc: a stored value, its default until written
     assert list(get()) == [1000]
     model.set_stored_pnu(1006, [1234])
     assert list(get()) == [1234] == model.pnu_read_raw(1006, 0, 1)[1]
