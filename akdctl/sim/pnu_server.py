@@ -245,10 +245,10 @@ class PnuServer:
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = request
-        if type(data) is not bytes:  # the usual bytes: not a call to copy them
+        if data.__class__ is not bytes:  # the usual bytes: not a call to copy them (nor one to ask their type)
             data = bytes(data)
         plan = self._plans.get(data[1:])
-        if plan is not None and data[0]:
+        if plan is not None and (reference := data[0]):
             try:
                 quick = plan[11]
                 if quick is not None:
@@ -263,7 +263,7 @@ class PnuServer:
                             return self._read_planned(data, plan[0], plan[1], plan[2], exc)
                         if value is not None:
                             try:
-                                return pack(data[0], fixed, value)  # type: ignore[no-any-return]
+                                return pack(reference, fixed, value)  # type: ignore[no-any-return]
                             except struct.error:
                                 pass  # _raw_block says so
                         return self._read_computed(data, plan, values, value)
