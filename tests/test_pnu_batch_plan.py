@@ -216,3 +216,27 @@ def test_a_planned_batch_the_model_fails_is_refused_as_the_general_path_refuses_
         errors.append(repr(server.last_exception))
     assert replies[0] == replies[1] and errors[0] == errors[1]
     assert (replies[0][1] == bmp.RESP_READ_OK) == (failure == "fine")
+
+
+def test_a_served_drive_answers_a_planned_batch_with_what_another_process_saved(isolated_env: object) -> None:
+    """``sim serve``'s drive (lock kept between requests) plans the batch once; a write saved by another process
+    makes it load a new model, and the next batch read answers from that model, not from the plan's."""
+    from akdctl.sim.drive import SimDrive
+
+    served, cli = SimDrive("default"), SimDrive("default")
+    served.serve_faces()
+    request = _read_request(4, [(0x10, 1, 930, 0), (0x10, 1, 1006, 0), (0x10, 1, 1002, 0)])
+    try:
+        for _ in range(3):
+            assert _values_of(served.handle_bmp(request)) == [1, 1000, 16]
+        planned = served._pnu_server._batches[request[1:]]
+        cli.handle_bmp(_write_request(1006, 2500))
+        cli.handle_bmp(_write_request(930, 2))
+        assert _values_of(served.handle_bmp(request)) == [2, 2500, 16]
+        assert served._pnu_server._batches[request[1:]].model is not planned.model  # taken again for the new model
+        served.handle_bmp(_write_request(1002, 20))  # a write through the served drive itself
+        assert _values_of(served.handle_bmp(request)) == [2, 2500, 20]
+        assert _values_of(cli.handle_bmp(request)) == [2, 2500, 20]
+    finally:
+        served.close()
+        cli.close()
