@@ -105,19 +105,19 @@ def _homing_with_observers(run: _Run) -> None:
 
 
 def test_observers_see_what_they_saw_when_every_poll_saved(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    journal = _Run(tmp_path / "journal", sim_drive.PENDING_MAX, monkeypatch)
-    _homing_with_observers(journal)
-    journal_saves = journal.saves  # (the next run's counter wraps this one's)
+    pending = _Run(tmp_path / "pending", sim_drive.PENDING_MAX, monkeypatch)
+    _homing_with_observers(pending)
+    pending_saves = pending.saves  # (the next run's counter wraps this one's)
     saving = _Run(tmp_path / "saving", 0, monkeypatch)
     _homing_with_observers(saving)
-    assert journal.seen == saving.seen
+    assert pending.seen == saving.seen
     # the scenario means something: the axis moved between polls, the homing finished within it ...
-    polls = [bytes.fromhex(seen[1]) for seen in journal.seen if seen[0] == "poll"]
-    states = [seen[1] for seen in journal.seen if seen[0].startswith("after poll")]
+    polls = [bytes.fromhex(seen[1]) for seen in pending.seen if seen[0] == "poll"]
+    states = [seen[1] for seen in pending.seen if seen[0].startswith("after poll")]
     assert len(set(states)) > 30
     assert not _zsw1(polls[0]) & ZSW1_HOME_POSITION_SET and _zsw1(polls[-1]) & ZSW1_HOME_POSITION_SET
     # ... and the lock file carried the moving axis's changes instead of a save each
-    assert journal_saves < saving.saves - 20
+    assert pending_saves < saving.saves - 20
 
 
 def test_a_watchdog_trip_after_pending_polls_is_seen_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -134,12 +134,12 @@ def test_a_watchdog_trip_after_pending_polls_is_seen_alike(tmp_path: Path, monke
         run.other_request("another process reads", POLL, 0.0)
         run.observe("after the watchdog")
 
-    journal = _Run(tmp_path / "journal", sim_drive.PENDING_MAX, monkeypatch)
-    scenario(journal)
+    pending = _Run(tmp_path / "pending", sim_drive.PENDING_MAX, monkeypatch)
+    scenario(pending)
     saving = _Run(tmp_path / "saving", 0, monkeypatch)
     scenario(saving)
-    assert journal.seen == saving.seen
-    assert '"watchdog_tripped": true' in journal.seen[-1][1]
+    assert pending.seen == saving.seen
+    assert '"watchdog_tripped": true' in pending.seen[-1][1]
 
 
 def _pending_bytes(directory: Path) -> int:
