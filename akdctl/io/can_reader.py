@@ -101,10 +101,8 @@ class BusReader(can.Notifier):
         """The next item of ``replies`` (filled by a listener), reading the bus in this thread while it waits if the
         receive thread is not reading at this moment; :class:`queue.Empty` after ``timeout`` seconds. A read error
         is raised (after python-can's handling, see :meth:`_failed`)."""
-        try:
+        if not replies.empty():
             return replies.get_nowait()
-        except queue.Empty:
-            pass
         turn = self._turn
         if self._dead or not turn.acquire(blocking=False):
             return self._handed_over(replies, timeout)
@@ -124,10 +122,8 @@ class BusReader(can.Notifier):
                 except Exception as exc:
                     self._failed(exc)
                     raise
-                try:
+                if not replies.empty():
                     return replies.get_nowait()
-                except queue.Empty:
-                    pass
         finally:
             self._last = time.monotonic()
             turn.release()
