@@ -7,11 +7,12 @@ reads the bus itself while it waits sleeps and wakes once. :class:`BusReader` is
 role moves between its thread and callers of :meth:`BusReader.wait`:
 
 * whoever holds the **turn** (a lock) reads, and every frame it reads goes to the notifier's listeners exactly as
-  the thread would hand it on (canopen's network, the tracer, akdctl's SDO reply queue), under the notifier's lock;
-  a caller's answer reaches it through its listener like any other frame, so there is one path from the bus to
-  every consumer;
-* a caller that finds the thread reading waits for its answer the general way (the thread hands it over) and asks
-  the thread to stand aside once that read returns; the next call then reads itself;
+  the thread would hand it on (canopen's network, the tracer, akdctl's SDO reply queue), under the notifier's lock
+  and before the turn is given up; a caller's answer reaches it through its listener like any other frame, so
+  there is one path from the bus to every consumer;
+* a caller that finds the thread reading asks it to stand aside and waits for the turn: the thread's read ends with
+  the next frame (the answer, handed on before the turn is free) or after its cycle, and the caller goes on from
+  there;
 * the thread, standing aside, looks every :data:`HANDBACK_S` whether a caller is still at work: once none has been
   in a call for that long it reads again, so frames that come between calls (heartbeats, emergencies) wait at most
   that long in the bus's queue and are never lost; :meth:`BusReader.hand_back` gives the bus back at once (for
@@ -46,11 +47,10 @@ class BusReader(can.Notifier):
     """A ``can.Notifier`` for one bus whose reading a waiting caller may take over (see the module docstring)."""
 
     def __init__(self, bus: can.BusABC, listeners: "Iterable[MessageRecipient]", timeout: float = 1.0) -> None:
-        self._turn = threading.Lock()  # held by whoever calls bus.recv
+        self._turn = threading.Lock()  # held by whoever calls bus.recv and hands the frame on
         self._aside = threading.Condition()  # the thread waits here while callers read
         self._wanted = False  # a caller asked the thread to stand aside
-        self._handed = 0  # callers waiting for the thread to hand an answer over (it must read meanwhile)
-        self._last = 0.0  # monotonic time a caller's read ended
+        self._last = 0.0  # monotonic time a caller's wait ended
         self._dead = False  # an unhandled read error stopped the reading
         super().__init__(bus, listeners, timeout)
 
@@ -58,28 +58,27 @@ class BusReader(can.Notifier):
     def _rx_thread(self, bus: can.BusABC) -> None:
         turn, aside = self._turn, self._aside
         while not self._stopped and not self._dead:
-            with aside:  # checked and waited under the lock a caller's request to read for it notifies
-                parked = self._wanted and not self._handed
-                if parked:
-                    aside.wait(HANDBACK_S)
-            if parked:
+            if self._wanted:
+                with aside:
+                    if self._wanted:
+                        aside.wait(HANDBACK_S)
                 self._resume_if_idle()
                 continue
             try:
                 with turn:
-                    if self._wanted and not self._handed:
+                    if self._wanted:
                         continue  # a caller read while this thread waited for the turn
                     msg = bus.recv(self.timeout)
-                if msg is not None:
-                    with self._lock:
-                        self._on_message_received(msg)
+                    if msg is not None:
+                        with self._lock:
+                            self._on_message_received(msg)
             except Exception as exc:  # noqa: BLE001 - python-can's Notifier rule, see _failed
                 if not self._failed(exc):
                     raise
 
     def _resume_if_idle(self) -> None:
-        """Read again once no caller has read for :data:`HANDBACK_S` (none is in a call: the turn is free)."""
-        if not self._wanted or self._handed or not self._turn.acquire(blocking=False):
+        """Read again once no caller has waited for :data:`HANDBACK_S` (none is waiting now: the turn is free)."""
+        if not self._wanted or not self._turn.acquire(blocking=False):
             return
         try:
             if time.monotonic() - self._last >= HANDBACK_S:
@@ -98,21 +97,23 @@ class BusReader(can.Notifier):
 
     # -- callers -------------------------------------------------------------------------------------------------
     def wait(self, replies: "queue.SimpleQueue[T]", timeout: float) -> T:
-        """The next item of ``replies`` (filled by a listener), reading the bus in this thread while it waits if the
-        receive thread is not reading at this moment; :class:`queue.Empty` after ``timeout`` seconds. A read error
-        is raised (after python-can's handling, see :meth:`_failed`)."""
+        """The next item of ``replies`` (filled by a listener), reading the bus in this thread while it waits;
+        :class:`queue.Empty` after ``timeout`` seconds. A read error is raised (after python-can's handling, see
+        :meth:`_failed`)."""
         if not replies.empty():
             return replies.get_nowait()
+        self._wanted = True  # before taking the turn: the thread stands aside after its current read
         turn = self._turn
-        if self._dead or not turn.acquire(blocking=False):
-            return self._handed_over(replies, timeout)
+        deadline = time.monotonic() + timeout
+        if not turn.acquire(blocking=False) and not turn.acquire(timeout=timeout if timeout > 0.0 else 0.0):
+            raise queue.Empty
         try:
-            self._wanted = True
             recv, lock, deliver = self._bus_list[0].recv, self._lock, self._on_message_received
-            deadline = time.monotonic() + timeout
             while True:
+                if not replies.empty():
+                    return replies.get_nowait()
                 left = deadline - time.monotonic()
-                if left <= 0.0:
+                if left <= 0.0 or self._dead:
                     raise queue.Empty
                 try:
                     msg = recv(left)
@@ -122,24 +123,9 @@ class BusReader(can.Notifier):
                 except Exception as exc:
                     self._failed(exc)
                     raise
-                if not replies.empty():
-                    return replies.get_nowait()
         finally:
             self._last = time.monotonic()
             turn.release()
-
-    def _handed_over(self, replies: "queue.SimpleQueue[T]", timeout: float) -> T:
-        """The receive thread is reading: it reads this answer too (and stands aside afterwards, so the next call
-        reads itself)."""
-        with self._aside:
-            self._handed += 1
-            self._wanted = True
-            self._aside.notify_all()
-        try:
-            return replies.get(timeout=timeout)
-        finally:
-            with self._aside:
-                self._handed -= 1
 
     def hand_back(self) -> None:
         """Let the receive thread read again now (before a wait that relies on it)."""
