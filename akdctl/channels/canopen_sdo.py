@@ -6,8 +6,10 @@ the transfer, translates the library's exceptions into akdctl's errors and
 collects emergencies. One exception, for the request a poll makes again and
 again: a normal upload is framed by akdctl's own SDO codec and takes its reply
 straight from the node's SDO response COB-ID (``_on_reply`` into a C queue),
-without canopen's stream and queue objects per request; downloads and block
-transfers stay canopen's. The library's errors become akdctl's:
+without canopen's stream and queue objects per request, and waits for it in the
+transport's :class:`~akdctl.io.can_reader.BusReader`, which reads the bus in the
+caller's thread meanwhile (no hand-over between threads per answer); downloads and
+block transfers stay canopen's, with the receive thread reading for them. The library's errors become akdctl's:
 
 * ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` through
   :func:`~akdctl.channels.base.sdo_aborted`, worded by the catalogue and, for codes
