@@ -412,6 +412,7 @@ class CanopenTransport(Transport):
         from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
         sdo = self._remote_node(node_id).sdo
+        self._hand_back()  # canopen's own uploads: its receive thread reads for them
         tries, sdo.MAX_RETRIES = sdo.MAX_RETRIES, 1
         info = NodeInfo(node_id)
 
