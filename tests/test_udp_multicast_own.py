@@ -151,3 +151,18 @@ def test_real_sockets_in_a_namespace() -> None:
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert result == {"plain": 0x603, "own": False, "ours": [0x583, "431810016a000000", True], "looped": True}
+
+
+@pytest.mark.root
+@pytest.mark.slow
+def test_trace_shows_each_request_once_over_udp_multicast() -> None:
+    """The CLI's ``--trace`` over a served drive: the request goes out once and is not read back as received."""
+    from tests.harness import SimServer, run_akdctl
+
+    with LoopbackNetns("akdo") as netns, SimServer("--can", "udp_multicast:239.74.163.78:4", netns=netns.name):
+        code, out, err = run_akdctl("-T", "can://udp_multicast/239.74.163.78/4", "--trace", "sdo", "read", "0x1018:1",
+                                    netns=netns.name)
+    assert code == 0, err
+    frames = [line.split("(")[-1] for line in err.splitlines() if line.startswith("trace")]
+    assert frames == ["id 0x604 SDO rx node 4)", "id 0x584 SDO tx node 4)"]
+    assert "106 (Kollmorgen)" in out
