@@ -258,3 +258,29 @@ def test_wait_takes_an_answer_already_queued_without_reading() -> None:
     finally:
         reader.stop(1.0)
         bus.shutdown()
+
+
+def test_a_read_error_in_the_thread_ends_it_quietly_and_the_next_call_names_it(
+        channel_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    hooks: list[object] = []
+    monkeypatch.setattr(threading, "excepthook", hooks.append)
+    transport = _transport(channel_name)
+    try:
+        assert transport.bus is not None and transport.sdo_client is not None
+        reader = transport.sdo_client.reader
+        channel = _channel(transport, fast=True)
+        channel.upload(0x1018, 1)
+
+        def broken(timeout: float | None = None) -> None:
+            raise can.CanOperationError("adapter unplugged")
+
+        monkeypatch.setattr(transport.bus, "recv", broken)
+        reader.hand_back()  # the thread reads now, and fails
+        wait_until(lambda: reader._dead, "the receive thread to stop on the read error", timeout=5.0, poll=0.01)
+        with pytest.raises(CommError) as caught:
+            channel.upload(0x1018, 1)
+        assert "adapter unplugged" in caught.value.message and "\n" not in caught.value.message
+        channel.detach()
+    finally:
+        transport.close()
+    assert hooks == []  # no traceback from the thread

@@ -19,8 +19,9 @@ role moves between its thread and callers of :meth:`BusReader.wait`:
   waits that rely on the thread: canopen's own transfers, a heartbeat wait).
 
 The notifier's other rules stay python-can's: a read error or a listener's exception goes to the listeners'
-``on_error`` and, unhandled, stops the reading (``Network.check`` raises it on the next send) -- in the caller it is
-raised to the caller as well.
+``on_error`` and, unhandled, stops the reading (``Network.check`` raises it on the next send, a caller waiting in
+:meth:`BusReader.wait` gets it at once). One difference: the thread then ends quietly, where python-can's re-raises
+and Python prints a traceback on stderr under akdctl's one-line error.
 """
 
 from __future__ import annotations
@@ -74,7 +75,7 @@ class BusReader(can.Notifier):
                             self._on_message_received(msg)
             except Exception as exc:  # noqa: BLE001 - python-can's Notifier rule, see _failed
                 if not self._failed(exc):
-                    raise
+                    return  # recorded for Network.check; no traceback from a thread (python-can's would print one)
 
     def _resume_if_idle(self) -> None:
         """Read again once no caller has waited for :data:`HANDBACK_S` (none is waiting now: the turn is free)."""
@@ -112,8 +113,10 @@ class BusReader(can.Notifier):
             while True:
                 if not replies.empty():
                     return replies.get_nowait()
+                if self._dead and self.exception is not None:
+                    raise self.exception  # the reading stopped on this error (the caller words it)
                 left = deadline - time.monotonic()
-                if left <= 0.0 or self._dead:
+                if left <= 0.0:
                     raise queue.Empty
                 try:
                     msg = recv(left)
