@@ -161,6 +161,17 @@ class ProcessCpu:
             return None
         return total / 1e9
 
+    def user_system(self) -> tuple[float, float] | None:
+        """User and kernel CPU seconds so far, from /proc/PID/stat (clock ticks: coarse, for splits over many
+        blocks, never a row's judged figure)."""
+        try:
+            with open(f"/proc/{self.pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            tick = os.sysconf("SC_CLK_TCK")
+            return int(fields[11]) / tick, int(fields[12]) / tick
+        except (OSError, ValueError, IndexError):
+            return None
+
     def seconds(self) -> float | None:
         if self.source == "schedstat":
             return self._schedstat()

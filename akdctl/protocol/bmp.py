@@ -1106,3 +1106,37 @@ def one_read_response_packer(fmt: int, axis: int) -> tuple[Any, bytes] | None:
         return None
     value = layout.format[len(">BBBBBB"):]  # the element (and a pad byte), as raw_block_layout writes it
     return struct.Struct(">B5s" + value).pack, bytes((RESP_READ_OK, axis, 1, fmt, 1))
+
+
+# ---------------------------------------------------------------------------- the server's batch read, whole
+def raw_batch_response_layout(blocks: "Sequence[tuple[int, int]]", axis: int) -> "tuple[Any, list[Any]] | None":
+    """A positive read response of ``len(blocks)`` parameters, each ``(format, count)`` unsigned Byte/Word/DWord
+    elements, as one pack: ``(pack, arguments)`` where ``arguments`` holds every field but the reference (argument
+    0) and the values, and the values of block ``i`` go to ``arguments[at:at + count]`` for the ``at`` of
+    :func:`raw_batch_value_positions`; ``pack(*arguments)`` then writes what :func:`pack_read_response` joins from
+    the :func:`raw_block_layout` blocks (and raises the same ``struct.error`` for a value out of range). None when a
+    block is of another format, or a block or the whole does not fit a response (the general path refuses those).
+    Why: a poll's batch (the simulator's PNU server, issue 29) packs once, not once per parameter."""
+    codes = [">BBBB"]
+    arguments: list[Any] = [0, RESP_READ_OK, axis, len(blocks)]
+    for fmt, count in blocks:
+        block = raw_block_layout(fmt, count)
+        if block is None or block.size > MAX_BLOCK - HEADER_SIZE:
+            return None
+        codes.append(block.format[1:])
+        arguments += (fmt, count)
+        arguments += [0] * count
+    layout = struct.Struct("".join(codes))
+    if layout.size > MAX_BLOCK:
+        return None
+    return layout.pack, arguments
+
+
+def raw_batch_value_positions(blocks: "Sequence[tuple[int, int]]") -> list[int]:
+    """Where each block's values start among the arguments :func:`raw_batch_response_layout` gives."""
+    positions = []
+    at = 4
+    for _fmt, count in blocks:
+        positions.append(at + 2)
+        at += 2 + count
+    return positions

@@ -29,7 +29,7 @@ them and a resting axis is not built by the clock.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import pnus as pnu_catalog
@@ -386,6 +386,46 @@ class DriveModel:
         shape = (info, info.wire_format, (1 << info.bits) - 1, binding.read if binding else None, info.is_array)
         self._pnu_shapes[pnu] = shape
         return shape
+
+    def pnu_value_getter(self, pnu: int, subindex: int, count: int) -> tuple[int, Callable[[], Sequence[int]]]:
+        """``(wire format, get)`` of a read of ``count`` elements from ``subindex``: ``get()`` returns the values
+        :meth:`pnu_read_raw` returns for it -- read from the stored values or the component's reader at each call,
+        so never a stale one -- and raises what it raises while reading; what pnu_read_raw refuses before it reads
+        (an unknown PNU, a subindex or count out of range: the catalogue's rule, fixed) is raised here, now.
+
+        Why: a poll repeats the same batch of addresses; the PNU server takes each address's getter once per
+        request shape instead of looking up catalogue entry, binding, range and mask on every read (issue 29).
+        A getter holds while :attr:`pnu_bindings_version` stays (:meth:`bind_pnu` moves it) -- the server checks;
+        tests/test_pnu_batch_plan.py holds it to pnu_read_raw."""
+        shape = self._pnu_shapes.get(pnu)
+        if shape is None:
+            shape = self._pnu_shape(pnu)
+        info, wire_format, mask, read, array = shape
+        if subindex or count != 1 or array:
+            self._check_range(info, subindex, count)
+        end = subindex + count
+
+        if read is not None:
+            def computed() -> Sequence[int]:
+                values = read(subindex, count)
+                if len(values) == 1:
+                    return [values[0] & mask]
+                return [v & mask for v in values]
+
+            return wire_format, computed
+        defaults = tuple([v & mask for v in info.default_values()[subindex:end]])
+        model = self
+
+        def stored() -> Sequence[int]:
+            values = model.pnu_values.get(pnu)
+            if values is None:  # never written: the catalogue's default (stored_pnu's rule)
+                return defaults
+            values = values[subindex:end]
+            if len(values) == 1:
+                return [values[0] & mask]
+            return [v & mask for v in values]
+
+        return wire_format, stored
 
     def pnu_write_raw(self, pnu: int, subindex: int, fmt: int, raw_values: list[int]) -> None:
         """Change elements from ``subindex`` with unsigned wire values in format ``fmt``."""

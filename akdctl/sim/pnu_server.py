@@ -109,6 +109,8 @@ from akdctl.protocol.bmp import (
     pack_read_response,
     raw_block_layout,
     one_read_response_packer,
+    raw_batch_response_layout,
+    raw_batch_value_positions,
     raw_read_response_layout,
     to_signed,
     to_unsigned,
@@ -191,6 +193,28 @@ def header_refusal(request: bytes) -> int | None:
 
 _ONE_READ_SIZE = HEADER_SIZE + ADDRESS_SIZE  # a read request of one parameter
 _PLANS = 256  # one-parameter read plans a server keeps (request shapes; a poll has a few)
+_BATCHES = 64  # batch read plans a server keeps (request shapes of two or more parameters)
+
+
+class _BatchPlan:
+    """A read request of several parameters resolved once (:meth:`PnuServer._plan_batch`), by its bytes after the
+    reference: for each parameter, what answers it -- the model's getter of its values (``DriveModel.
+    pnu_value_getter``), the refusal the catalogue gives it (an unknown PNU, a subindex out of range: fixed), or
+    the general path (descriptions, texts, malformed addresses) -- and, when every one is a getter whose values
+    fit, the whole positive response as one pack. The values are read at every request; the plan holds while the
+    server's model is ``model`` and its bindings' version is ``version``."""
+
+    __slots__ = ("model", "version", "steps", "reads", "pack", "arguments")
+
+    def __init__(self, model: Any, version: int, steps: list[tuple[Any, bytes | None, int, tuple[int, int, int, int]]],
+                 layout: tuple[Any, list[Any]] | None, positions: list[int]) -> None:
+        self.model = model
+        self.version = version
+        #: per parameter: (getter or None, fixed block or None, format, (attribute, count, PNU, subindex))
+        self.steps = steps
+        #: the one-pack way (every step a getter): per parameter (getter, first argument, end argument)
+        self.reads = [(get, at, at + address[1]) for (get, _b, _f, address), at in zip(steps, positions)]
+        self.pack, self.arguments = layout if layout is not None else (None, [])
 
 
 class PnuServer:
@@ -213,16 +237,18 @@ class PnuServer:
         # one tuple when there is a pack (handle's quick way: one unpack, not eight lookups in the list), else None.
         # The value is read each time.
         self._plans: dict[bytes, list[Any]] = {}
+        # The reads of several parameters seen, by the request's bytes after the reference (_BatchPlan, _plan_batch)
+        self._batches: dict[bytes, _BatchPlan] = {}
 
     # -- entry point -----------------------------------------------------------------------------------------
 
     def handle(self, request: bytes) -> bytes:
         """Response bytes for ``request``; raises only :class:`RecordRefused` (module docstring)."""
         data = request
-        if type(data) is not bytes:  # the usual bytes: not a call to copy them
+        if data.__class__ is not bytes:  # the usual bytes: not a call to copy them (nor one to ask their type)
             data = bytes(data)
         plan = self._plans.get(data[1:])
-        if plan is not None and data[0]:
+        if plan is not None and (reference := data[0]):
             try:
                 quick = plan[11]
                 if quick is not None:
@@ -237,7 +263,7 @@ class PnuServer:
                             return self._read_planned(data, plan[0], plan[1], plan[2], exc)
                         if value is not None:
                             try:
-                                return pack(data[0], fixed, value)  # type: ignore[no-any-return]
+                                return pack(reference, fixed, value)  # type: ignore[no-any-return]
                             except struct.error:
                                 pass  # _raw_block says so
                         return self._read_computed(data, plan, values, value)
@@ -256,6 +282,18 @@ class PnuServer:
             except Exception as exc:  # noqa: BLE001 - as below
                 self.last_exception = exc
                 return self._refuse(data, ERR_OPERATING_STATE)
+        if self._batches and data[0]:
+            batch = self._batches.get(data[1:])
+            if batch is not None:  # a read of several parameters seen before: its checks passed on the same bytes
+                try:
+                    if batch.model is self.access and batch.model.pnu_bindings_version == batch.version:
+                        return self._read_batch(data, batch)
+                    return self._read_all(data, data[3])  # planned again for the model now served
+                except _WholeRequest as refusal:
+                    return self._refuse(data, refusal.error)
+                except Exception as exc:  # noqa: BLE001 - as below
+                    self.last_exception = exc
+                    return self._refuse(data, ERR_OPERATING_STATE)
         code1 = header_refusal(data)
         if code1 is not None:
             what = "length" if code1 == EC1_WRITE_LENGTH else "header"
@@ -356,6 +394,14 @@ class PnuServer:
         checked alone already; packing once costs less than building, validating and encoding result objects.
         The blocks are those ``encode_value_block`` / ``encode_response`` write (tests/test_pnu_server.py).
         """
+        if self.raw_reads and n > 1:
+            plan = self._plan_batch(data, n)
+            if plan is not None:
+                return self._read_batch(data, plan)
+        return self._read_each(data, n)
+
+    def _read_each(self, data: bytes, n: int) -> bytes:
+        """:meth:`_read_all` parameter by parameter, unplanned (the general path a batch plan stands for)."""
         raw: Callable[[int, int, int], tuple[int, list[int]]] | None = (
             self.access.pnu_read_raw if self.raw_reads else None)  # type: ignore[attr-defined]
         blocks = []
@@ -365,6 +411,89 @@ class PnuServer:
                     and subindex <= MAX_SUBINDEX:
                 block = self._read_raw(raw, pnu, subindex, count)
             else:
+                block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
+            negative = negative or block[0] == Format.ERROR
+            blocks.append(block)
+        out = pack_read_response(data, blocks, negative)
+        if len(out) > MAX_BLOCK:
+            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
+        return out
+
+    def _plan_batch(self, data: bytes, n: int) -> _BatchPlan | None:
+        """The plan of a checked read request of ``n`` parameters (:class:`_BatchPlan`), remembered by its bytes after
+        the reference; None (and nothing remembered) when the model fails otherwise than with a refusal while it is
+        taken (a damaged component: :meth:`_read_each` answers, as it always did)."""
+        from akdctl.sim.memo import remember
+
+        access = self.access
+        for _attempt in range(3):  # a first access may build a lazy component, which binds PNUs: take it again
+            version = access.pnu_bindings_version  # type: ignore[attr-defined]
+            steps: list[tuple[Any, bytes | None, int, tuple[int, int, int, int]]] = []
+            for address in iter_read_addresses(data, n):
+                attribute, count, pnu, subindex = address
+                if not (attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu and subindex <= MAX_SUBINDEX):
+                    steps.append((None, None, 0, address))  # the general path (_read_one) answers it
+                    continue
+                try:
+                    fmt, get = access.pnu_value_getter(pnu, subindex, count)  # type: ignore[attr-defined]
+                except PnuAccessError as exc:  # the catalogue's refusal of this address
+                    steps.append((None, pack_failure_block(exc.error, exc.additional), 0, address))
+                    continue
+                except Exception:  # noqa: BLE001 - not a fixed refusal: nothing to plan
+                    return None
+                steps.append((get, None, fmt, address))
+            if access.pnu_bindings_version == version:  # type: ignore[attr-defined]
+                break
+        else:
+            return None
+        shapes = [(fmt, address[1]) for _get, _block, fmt, address in steps]
+        every = all(get is not None for get, _block, _fmt, _address in steps)
+        layout = raw_batch_response_layout(shapes, data[2]) if every else None
+        plan = _BatchPlan(access, version, steps, layout, raw_batch_value_positions(shapes))
+        return remember(self._batches, data[1:], plan, _BATCHES)
+
+    def _read_batch(self, data: bytes, plan: _BatchPlan) -> bytes:
+        """The response to a planned read of several parameters: each value read now, packed at once when every
+        parameter answers its values and they fit; else block by block as :meth:`_read_each` answers."""
+        got: list[Any] = []
+        pack = plan.pack
+        if pack is not None:
+            arguments = plan.arguments.copy()
+            append = got.append
+            for get, at, end in plan.reads:
+                try:
+                    values = get()
+                except Exception as exc:  # noqa: BLE001 - refused block by block, as _read_raw refuses it
+                    append(exc)
+                    break
+                append(values)
+                if len(values) != end - at:
+                    break
+                arguments[at:end] = values
+            else:
+                arguments[0] = data[0]
+                try:
+                    return pack(*arguments)  # type: ignore[no-any-return]
+                except struct.error:
+                    pass  # a value that does not fit: _raw_block says so for its parameter
+        blocks = []
+        negative = False
+        done = len(got)
+        for i, (get, block, fmt, address) in enumerate(plan.steps):
+            if get is not None:
+                if i < done:
+                    outcome = got[i]
+                else:
+                    try:
+                        outcome = get()
+                    except Exception as exc:  # noqa: BLE001 - as _read_raw
+                        outcome = exc
+                if isinstance(outcome, Exception):
+                    block = self._raw_failure(outcome)
+                else:
+                    block = self._raw_block(address[2], address[1], fmt, outcome)
+            elif block is None:
+                attribute, count, pnu, subindex = address
                 block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
             negative = negative or block[0] == Format.ERROR
             blocks.append(block)
