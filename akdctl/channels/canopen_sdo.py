@@ -266,7 +266,7 @@ class CanopenObjectChannel(ObjectChannel):
             for left in range(max(1, tries), 0, -1):
                 self._send(request, index, subindex)
                 try:
-                    reply = wait(replies, max(0.0, deadline.share(left)))
+                    reply = wait(replies, deadline.share(left))  # never below 0
                 except queue.Empty:
                     continue
                 except Exception as exc:  # reading the bus in this thread failed (python-can's error)

@@ -106,8 +106,11 @@ class BusReader(can.Notifier):
         self._wanted = True  # before taking the turn: the thread stands aside after its current read
         turn = self._turn
         deadline = time.monotonic() + timeout
-        if not turn.acquire(blocking=False) and not turn.acquire(timeout=timeout if timeout > 0.0 else 0.0):
-            raise queue.Empty
+        left = timeout
+        if not turn.acquire(blocking=False):
+            if not turn.acquire(timeout=timeout if timeout > 0.0 else 0.0):
+                raise queue.Empty
+            left = deadline - time.monotonic()  # waited for the thread's read, which may have brought the answer
         try:
             recv, lock, deliver = self._bus_list[0].recv, self._lock, self._on_message_received
             while True:
@@ -115,7 +118,6 @@ class BusReader(can.Notifier):
                     return replies.get_nowait()
                 if self._dead and self.exception is not None:
                     raise self.exception  # the reading stopped on this error (the caller words it)
-                left = deadline - time.monotonic()
                 if left <= 0.0:
                     raise queue.Empty
                 try:
@@ -126,6 +128,9 @@ class BusReader(can.Notifier):
                 except Exception as exc:
                     self._failed(exc)
                     raise
+                if not replies.empty():
+                    return replies.get_nowait()
+                left = deadline - time.monotonic()
         finally:
             self._last = time.monotonic()
             turn.release()

@@ -25,6 +25,7 @@ from can.interfaces.udp_multicast.utils import pack_message, unpack_message
 
 #: Sent datagrams remembered at most while they wait to come back; more means they do not come back (forget them).
 PENDING_MAX = 64
+_CAN_FD = can.CanProtocol.CAN_FD
 
 
 class OwnFramesDropped(UdpMulticastBus):  # type: ignore[misc]
@@ -36,7 +37,7 @@ class OwnFramesDropped(UdpMulticastBus):  # type: ignore[misc]
         self._looped = _loops_back(self._multicast)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        if self._can_protocol is not can.CanProtocol.CAN_FD and msg.is_fd:
+        if self._can_protocol is not _CAN_FD and msg.is_fd:
             raise can.CanOperationError("cannot send FD message over bus with CAN FD disabled")
         data = pack_message(msg)
         if self._looped:
@@ -73,7 +74,7 @@ class OwnFramesDropped(UdpMulticastBus):  # type: ignore[misc]
             message = unpack_message(data, replace={"timestamp": timestamp}, check=True)
         except Exception as exception:
             raise can.CanOperationError("could not unpack received message") from exception
-        if self._can_protocol is not can.CanProtocol.CAN_FD and message.is_fd:
+        if self._can_protocol is not _CAN_FD and message.is_fd:
             return None, False
         return message, False
 
