@@ -279,7 +279,7 @@ class Connection:
             from akdctl.channels.canopen_sdo import CanopenObjectChannel
 
             return CanopenObjectChannel(client.node, budget=self.options.budget, block=client.block,
-                                        where=client.where)
+                                        where=client.where, reader=client.reader)
         if isinstance(client, SoemSdoClient):
             from akdctl.channels.soem_sdo import SoemObjectChannel
 

@@ -263,14 +263,19 @@ class MessageLink(ABC):
 
 
 class CanopenSdoClient(Record):
-    """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives."""
+    """A ``canopen.RemoteNode`` whose SDO client the CANopen adapter channel drives.
 
-    __slots__ = ("node", "where", "block")
+    ``reader``: the bus's :class:`akdctl.io.can_reader.BusReader` when the transport reads the bus with one (the
+    channel then waits for its answers through it, reading the bus itself); None: answers come from the library's
+    receive thread."""
 
-    def __init__(self, node: Any, where: str, block: bool = False) -> None:
+    __slots__ = ("node", "where", "block", "reader")
+
+    def __init__(self, node: Any, where: str, block: bool = False, reader: Any = None) -> None:
         self.node = node
         self.where = where
         self.block = block
+        self.reader = reader
 
 
 class SoemSdoClient(Record):

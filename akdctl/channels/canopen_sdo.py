@@ -6,8 +6,10 @@ the transfer, translates the library's exceptions into akdctl's errors and
 collects emergencies. One exception, for the request a poll makes again and
 again: a normal upload is framed by akdctl's own SDO codec and takes its reply
 straight from the node's SDO response COB-ID (``_on_reply`` into a C queue),
-without canopen's stream and queue objects per request; downloads and block
-transfers stay canopen's. The library's errors become akdctl's:
+without canopen's stream and queue objects per request, and waits for it in the
+transport's :class:`~akdctl.io.can_reader.BusReader`, which reads the bus in the
+caller's thread meanwhile (no hand-over between threads per answer); downloads and
+block transfers stay canopen's, with the receive thread reading for them. The library's errors become akdctl's:
 
 * ``canopen.SdoAbortedError`` -> :class:`~akdctl.errors.SdoAborted` through
   :func:`~akdctl.channels.base.sdo_aborted`, worded by the catalogue and, for codes
@@ -27,7 +29,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from akdctl.channels.base import MAX_UPLOAD, ObjectChannel, confirm_write, sdo_aborted, sdo_what
 from akdctl.errors import AkdError, CommError, MalformedReply, NoAnswer
@@ -38,6 +40,10 @@ from akdctl.protocol.nmt import state_name
 
 if TYPE_CHECKING:
     import canopen
+
+    from akdctl.io.can_reader import BusReader
+
+T = TypeVar("T")
 
 
 class CanopenObjectChannel(ObjectChannel):
@@ -64,8 +70,13 @@ class CanopenObjectChannel(ObjectChannel):
         block: bool = False,
         where: str = "",
         max_upload: int = MAX_UPLOAD,
+        reader: "BusReader | None" = None,
     ) -> None:
         self.node = node
+        # Where a normal upload waits for its answer: with the transport's BusReader, reading the bus in this thread
+        # (one wake-up per answer instead of three); else the receive thread hands the answer over.
+        self._reader = reader
+        self._wait = reader.wait if reader is not None else _handed_over
         self.sdo = node.sdo
         self.budget = budget if budget is not None else Budget(timeout, retries)
         self.block = block
@@ -112,6 +123,7 @@ class CanopenObjectChannel(ObjectChannel):
 
     def wait_emergencies(self, timeout: float) -> list[Emergency]:
         """Wait up to ``timeout`` s for at least one emergency, then drain the queue."""
+        self._hand_back()
         deadline = time.monotonic() + timeout
         with self._emcy_cond:
             while not self._emcy:
@@ -184,9 +196,15 @@ class CanopenObjectChannel(ObjectChannel):
                 confirm_write(exc.message, data, None if attempts < 1 or deadline.expired() else read_back,
                               {"index": index, "subindex": subindex})
 
+    def _hand_back(self) -> None:
+        """Before a wait that relies on the receive thread (canopen's own transfers, emergencies): it reads now."""
+        if self._reader is not None:
+            self._reader.hand_back()
+
     def _pace(self, deadline: Deadline, tries: int, share: int | None = None) -> None:
         """canopen's per-response timeout and repeats for its next call (block transfers, downloads): a share of
-        what is left."""
+        what is left. The receive thread reads for canopen's client."""
+        self._hand_back()
         self.sdo.MAX_RETRIES = max(1, tries)
         self.sdo.RESPONSE_TIMEOUT = max(0.001, deadline.share(share or tries))
 
@@ -240,7 +258,7 @@ class CanopenObjectChannel(ObjectChannel):
         the upload response (``segment`` False) or upload segment response (``segment`` True) decoded. Replies
         that do not fit are skipped until the deadline; an abort raises :class:`~akdctl.errors.SdoAborted`; after
         the last silent try the transfer is aborted (as canopen's client does) and :class:`NoAnswer` raised."""
-        replies = self._replies
+        replies, wait = self._replies, self._wait
         while not replies.empty():  # answers that came after their own request's deadline
             replies.get_nowait()
         self._taking = True
@@ -248,9 +266,11 @@ class CanopenObjectChannel(ObjectChannel):
             for left in range(max(1, tries), 0, -1):
                 self._send(request, index, subindex)
                 try:
-                    reply = replies.get(timeout=max(0.0, deadline.share(left)))
+                    reply = wait(replies, deadline.share(left))  # never below 0
                 except queue.Empty:
                     continue
+                except Exception as exc:  # reading the bus in this thread failed (python-can's error)
+                    raise self._read_failed(exc, index, subindex) from None
                 while True:
                     if not segment:
                         value = coe.expedited_upload_value(reply, index, subindex)
@@ -263,9 +283,11 @@ class CanopenObjectChannel(ObjectChannel):
                         raise MalformedReply(f"{self.where} sent only replies that do not fit the request "
                                              f"(last: {reply.hex(' ')})")
                     try:
-                        reply = replies.get(timeout=deadline.remaining())
+                        reply = wait(replies, deadline.remaining())
                     except queue.Empty:
                         raise self._silent(index, subindex, deadline) from None
+                    except Exception as exc:
+                        raise self._read_failed(exc, index, subindex) from None
         finally:
             self._taking = False
         self._abort(coe.ABORT_TIMEOUT, index, subindex)
@@ -291,6 +313,11 @@ class CanopenObjectChannel(ObjectChannel):
     def _silent(self, index: int, subindex: int, deadline: Deadline) -> NoAnswer:
         return NoAnswer(f"no answer from {self.where} to SDO {sdo_what('upload', index, subindex)} within "
                         f"{deadline.describe()}{self._nmt_hint()}")
+
+    def _read_failed(self, exc: Exception, index: int, subindex: int) -> Exception:
+        """The akdctl error for a failure to read the bus while waiting for an answer; anything else unchanged."""
+        error = _bus_error(exc, sdo_what("upload", index, subindex), self.where)
+        return exc if error is None else error
 
     def _send(self, request: bytes, index: int, subindex: int) -> None:
         """One request frame on the SDO request COB-ID (canopen's ``send_request``: it repeats a send the bus
@@ -393,6 +420,11 @@ class CanopenObjectChannel(ObjectChannel):
             return ("; its heartbeat says NMT state STOPPED, in which a node answers no SDO "
                     "(akdctl can nmt preop brings it back)")
         return f"; its heartbeat says NMT state {state}"
+
+
+def _handed_over(replies: "queue.SimpleQueue[T]", timeout: float) -> T:
+    """Wait for an answer the receive thread hands over (no BusReader)."""
+    return replies.get(timeout=timeout)
 
 
 def _bus_error(exc: Exception, what: str, where: str) -> CommError | None:

@@ -83,6 +83,10 @@ def open_bus(config: BusConfig, write_timeout: Callable[[], float] | None = None
             if not config.channel:
                 raise ValueError("Must specify a serial port.")
             return _slcan_class(write_timeout)(channel=config.channel, **kwargs)  # type: ignore[no-any-return]
+        if config.interface == "udp_multicast":  # python-can's, without its own frames looped back
+            from akdctl.io.udp_multicast_own import OwnFramesDropped
+
+            return OwnFramesDropped(**kwargs) if config.channel is None else OwnFramesDropped(config.channel, **kwargs)
         if config.use_config:
             return can.Bus(channel=config.channel, config_context=config.context, **kwargs)
         return can.Bus(interface=config.interface, channel=config.channel, ignore_config=True, **kwargs)

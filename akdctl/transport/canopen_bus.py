@@ -67,6 +67,7 @@ if TYPE_CHECKING:
     import can
     import canopen
 
+    from akdctl.io.can_reader import BusReader
     from akdctl.transport.target import Target
     from akdctl.transport.trace import Tracer
 
@@ -158,14 +159,18 @@ def frame_note(can_id: int) -> str:
     return f"id 0x{can_id:03X} {name} node {node}".rstrip() if name else f"id 0x{can_id:03X}"
 
 
-def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "canopen.Network":
-    """A canopen Network that reports every frame it sends or receives to the tracer.
+def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "tuple[canopen.Network, BusReader]":
+    """A canopen Network that reports every frame it sends or receives to the tracer, connected: the
+    :class:`~akdctl.io.can_reader.BusReader` that reads its bus (and lets a caller waiting for an answer read for it)
+    is running and returned with it.
 
     With tracing off (``tracer.active`` false) a frame costs one attribute test each way: no note, no meta dict,
     no copy of the data (tests/test_trace_off.py counts them).
     """
     import can
     import canopen
+
+    from akdctl.io.can_reader import BusReader
 
     frames: dict[tuple[int, bytes, bool], can.Message] = {}
 
@@ -203,7 +208,10 @@ def _make_network(bus: "can.BusABC", tracer: "Tracer") -> "canopen.Network":
     network = TracingNetwork(bus)
     network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S  # how long a close waits for the receive thread
     network.listeners.append(TraceListener())
-    return network
+    # canopen's ``connect`` for a bus given to the constructor only starts python-can's Notifier on it; a BusReader is
+    # that Notifier, and a caller waiting for an answer may read for it
+    network.notifier = reader = BusReader(bus, network.listeners, NOTIFIER_CYCLE_S)
+    return network, reader
 
 
 @dataclass
@@ -251,6 +259,7 @@ class CanopenTransport(Transport):
         self.node: "canopen.RemoteNode | None" = None
         self._watches: dict[int, _StateWatch] = {}
         self._nmt_sent_at: float | None = None
+        self._reader: "BusReader | None" = None
 
     # -- life cycle -------------------------------------------------------------------------------------------
     def open(self) -> None:
@@ -266,10 +275,10 @@ class CanopenTransport(Transport):
             sys.stderr.write(f"akdctl: opened CAN interface {self.config.describe()} in "
                              f"{(time.monotonic() - started) * 1000:.0f} ms{extra}\n")
         try:
-            self.network = _make_network(self.bus, self.options.tracer)
-            self.network.connect()
+            self.network, self._reader = _make_network(self.bus, self.options.tracer)
             self.node = self._remote_node(self.node_id)
-            self.sdo_client = CanopenSdoClient(self.node, self.where(self.node_id), block=self.config.block)
+            self.sdo_client = CanopenSdoClient(self.node, self.where(self.node_id), block=self.config.block,
+                                               reader=self._reader)
         except AkdError:
             self.close()
             raise
@@ -284,6 +293,7 @@ class CanopenTransport(Transport):
         self.network = None
         self.bus = None
         self.sdo_client = None
+        self._reader = None
         close_bus(network, bus)
 
     @property
@@ -311,6 +321,12 @@ class CanopenTransport(Transport):
         node.sdo.MAX_RETRIES = max(1, self.options.retries + 1)
         network.add_node(node)
         return node
+
+    def _hand_back(self) -> None:
+        """Before a wait for frames that only the receive thread hands on (heartbeats, scan answers): it reads now,
+        not after an SDO caller's hand-back time."""
+        if self._reader is not None:
+            self._reader.hand_back()
 
     def _send(self, can_id: int, data: bytes, remote: bool = False) -> None:
         import can
@@ -354,6 +370,7 @@ class CanopenTransport(Transport):
         """
         node_id = self.node_id if node is None else node
         watch = self._watch(node_id)
+        self._hand_back()
         wait = self.options.timeout if timeout is None else timeout
         now = time.monotonic()
         since = (self._nmt_sent_at if self._nmt_sent_at is not None else now) if fresh else now - wait
@@ -377,6 +394,7 @@ class CanopenTransport(Transport):
         """
         network = self._need_network()
         listen = self.options.timeout if wait is None else wait
+        self._hand_back()
         network.scanner.reset()
         for node_id in nodes:
             self._send(0x600 + node_id, b"\x40\x00\x10\x00\x00\x00\x00\x00")
@@ -394,6 +412,7 @@ class CanopenTransport(Transport):
         from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
         sdo = self._remote_node(node_id).sdo
+        self._hand_back()  # canopen's own uploads: its receive thread reads for them
         tries, sdo.MAX_RETRIES = sdo.MAX_RETRIES, 1
         info = NodeInfo(node_id)
 
