@@ -12,7 +12,7 @@ peer is the smallest correct client written here: one socket with TCP_NODELAY an
 from __future__ import annotations
 
 from benchlib import Result, Settings
-from row_tcp_peers import compare
+from row_tcp_peers import compare, on_server_cpu
 
 COMMAND = "DRV.OPMODE"
 
@@ -62,7 +62,8 @@ def ascii_vs_socket(s: Settings) -> Result:
     from servers import sim_server
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "ascii")}
-    with sim_server("--name", "asciipeer", "--akd", "127.0.0.1:0", "--akd-clients", "2", env=env) as server:
+    face = ("--name", "asciipeer", "--akd", "127.0.0.1:0", "--akd-clients", "2")
+    with on_server_cpu(sim_server(*face, env=env)) as server:
         match = re.match(r"akd ascii tcp ([\d.]+):(\d+)", server.ready[0])
         if match is None:
             raise RuntimeError(f"unexpected ready line {server.ready[0]!r}")

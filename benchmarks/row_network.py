@@ -41,13 +41,20 @@ def sim_cpu(s: Settings) -> Result:
         sdo_download(conn, 0x2032, 0, b"x" * BIG_STATE_BYTES)  # DRV.CUSTOMIDENTIFIER: the sim stores any length
     with sim_server(*_faces("small"), faces=2, env=env) as small, sim_server(*_faces("big"), faces=2, env=env) as big, \
             connection(_ecat(small)) as es, connection(_ecat(big)) as eb, \
-            connection(_pn(small)) as ps, connection(_pn(big)) as pb:
+            connection(_pn(small)) as ps, connection(_pn(big)) as pb, udp_echo() as echo:
         up_s, up_b, rd_s, rd_b = sdo_upload(es), sdo_upload(eb), pnu_read(ps, [930]), pnu_read(pb, [930])
+        bare = EchoClient(echo.port, PNIO_RECORD_BYTES)
+
+        def two_round_trips() -> None:  # a PNU read's datagrams, echoed: the floor of any server in Python
+            bare()
+            bare()
+
         n = s.block
         split = _Split()
         run = interleave(lambda: run_block(up_s, n, small.cpu), lambda: run_block(up_b, n, big.cpu),
                          lambda: split.block(rd_s, n // 2, small.cpu), lambda: split.block(rd_b, n // 2, big.cpu),
-                         rounds=s.rounds)
+                         lambda: run_block(two_round_trips, n // 2, echo.cpu), rounds=s.rounds)
+        bare.close()
     key = lambda x: x.server_us  # noqa: E731
     sdo_small, sdo_big, pnu_small, pnu_big = (run.median(k, key) for k in range(4))
     figures = {"sdo_small_us": sdo_small, "sdo_big_us": sdo_big, "pnu_small_us": pnu_small, "pnu_big_us": pnu_big}
@@ -58,7 +65,8 @@ def sim_cpu(s: Settings) -> Result:
         [f"server CPU per request, factory state / with a {BIG_STATE_BYTES // 1024} KB string stored "
          f"(ratio SDO {fmt_ratio(run.ratio(1, 0, key))}, PNU {fmt_ratio(run.ratio(3, 2, key))})",
          "a PNU read over PROFINET is one request of two RPCs (write record, read record): both counted; "
-         f"of the server's CPU in them, {split.text()}",
+         f"of the server's CPU in them, {split.text()}; a bare Python UDP echo server (recvfrom + sendto) spends "
+         f"{fmt_us(run.median(4, key))} on the same two round trips, measured beside them",
          f"CPU from /proc ({small.cpu.source}); medians of {s.rounds} interleaved rounds"], figures)
 
 

@@ -225,23 +225,9 @@ def test_a_call_while_the_thread_reads_takes_the_answer_it_hands_over(channel_na
     assert any(name != threading.current_thread().name for name in seen.readers)  # some answers were handed over
 
 
-def test_a_read_error_in_the_caller_is_one_comm_error(channel_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    transport = _transport(channel_name)
-    try:
-        assert transport.bus is not None
-        channel = _channel(transport, fast=True)
-        channel.upload(0x1018, 1)
-
-        def broken(timeout: float | None = None) -> None:
-            raise can.CanOperationError("adapter unplugged")
-
-        monkeypatch.setattr(transport.bus, "recv", broken)
-        with pytest.raises(CommError) as caught:
-            channel.upload(0x1018, 1)
-        assert "adapter unplugged" in caught.value.message and "\n" not in caught.value.message
-        channel.detach()
-    finally:
-        transport.close()
+def _unplugged(timeout: float | None = None) -> None:
+    """A bus's ``recv`` once its adapter is gone."""
+    raise can.CanOperationError("adapter unplugged")
 
 
 def test_wait_takes_an_answer_already_queued_without_reading() -> None:
@@ -260,8 +246,11 @@ def test_wait_takes_an_answer_already_queued_without_reading() -> None:
         bus.shutdown()
 
 
-def test_a_read_error_in_the_thread_ends_it_quietly_and_the_next_call_names_it(
-        channel_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("reading", ["caller", "thread"])
+def test_a_read_error_is_one_comm_error_wherever_the_bus_was_read(
+        reading: str, channel_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A read that fails in the caller waiting for its answer, or in the receive thread (which then ends quietly:
+    no traceback), makes the next upload one CommError that names it."""
     hooks: list[object] = []
     monkeypatch.setattr(threading, "excepthook", hooks.append)
     transport = _transport(channel_name)
@@ -271,12 +260,10 @@ def test_a_read_error_in_the_thread_ends_it_quietly_and_the_next_call_names_it(
         channel = _channel(transport, fast=True)
         channel.upload(0x1018, 1)
 
-        def broken(timeout: float | None = None) -> None:
-            raise can.CanOperationError("adapter unplugged")
-
-        monkeypatch.setattr(transport.bus, "recv", broken)
-        reader.hand_back()  # the thread reads now, and fails
-        wait_until(lambda: reader._dead, "the receive thread to stop on the read error", timeout=5.0, poll=0.01)
+        monkeypatch.setattr(transport.bus, "recv", _unplugged)
+        if reading == "thread":
+            reader.hand_back()  # the thread reads now, and fails
+            wait_until(lambda: reader._dead, "the receive thread to stop on the read error", timeout=5.0, poll=0.01)
         with pytest.raises(CommError) as caught:
             channel.upload(0x1018, 1)
         assert "adapter unplugged" in caught.value.message and "\n" not in caught.value.message

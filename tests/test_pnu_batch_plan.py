@@ -19,6 +19,7 @@ from akdctl.protocol import bmp
 from akdctl.sim.errors import PnuAccessError
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer, RecordRefused
+from tests.pnu_failures import failing_reader
 
 
 class _ObjectsOnly:
@@ -190,14 +191,7 @@ def test_a_planned_batch_the_model_fails_is_refused_as_the_general_path_refuses_
     """A parameter whose model answer fails (an access error, a bug, a wrong number of values, a format the raw way
     cannot pack, a value that does not fit) gets the refusal the unplanned read gives it; the others their values."""
 
-    def reader(sub: int, count: int) -> list[int]:
-        if failure == "refused":
-            raise PnuAccessError(0x14, 7)
-        if failure == "bug":
-            raise RuntimeError("model bug")
-        if failure == "wrong count":
-            return [1, 2]
-        return [1 << 40] if failure == "too big" else [3]
+    reader = failing_reader(failure)
 
     request = _read_request(5, [(0x10, 1, 1006, 0), (0x10, 1, 930, 0), (0x10, 1, 2, 0)])
     replies, errors = [], []

@@ -25,6 +25,7 @@ from akdctl.protocol.bmp import (
     encode_request,
 )
 from akdctl.sim.pnu_server import PnuAccessError, PnuServer, RecordRefused, convert_value, header_refusal
+from tests.pnu_failures import failing_reader
 
 
 class FakeAccess:
@@ -404,18 +405,9 @@ def test_planned_reads_answer_what_the_general_path_answers(seed: int) -> None:
 def test_a_planned_read_the_model_fails_is_refused_as_the_general_path_refuses_it(failure: str) -> None:
     """Once planned, a read whose model answer fails (an access error, a bug, a wrong number of values, a format
     the raw way cannot pack, a value that does not fit) gets the refusal the general path gives."""
-    from akdctl.sim.errors import PnuAccessError
     from akdctl.sim.model import DriveModel
 
-    def reader(sub: int, count: int) -> list[int]:
-        if failure == "refused":
-            raise PnuAccessError(0x14, 7)
-        if failure == "bug":
-            raise RuntimeError("model bug")
-        if failure == "wrong count":
-            return [1, 2]
-        return [1 << 40] if failure == "too big" else [3]
-
+    reader = failing_reader(failure)
     request = bytes.fromhex("05 01 00 01 10 01 03 A2 00 00")  # PNU 930
     replies, errors = [], []
     for planned in (True, False):  # the plan's way, and the raw way it stands for (_read_single)
