@@ -49,7 +49,8 @@ Why it is cheap (a network face answers thousands of requests a second):
   drive's end of a motion and the command's return; the write after that saves). Everything else saves the state
   file at once and empties the pending state: a write at rest from any other process (the next command's first
   write), SDO requests, changes outside a PROFIdrive request, and the PENDING_MAX-th pending write in a row (a
-  machine crash loses at most the pending state: the drive is then as it was at the last save).
+  machine crash loses at most the pending state: one cut short or damaged is passed over, the drive is then as it
+  was at the last save).
 """
 
 from __future__ import annotations
@@ -430,7 +431,9 @@ class SimDrive:
         """The model and meta data the lock file's pending state holds, else the state file (factory state when
         there is none)."""
         self._clean_temporaries()
-        text = self._pending_text() if self._pending_bytes else self._read_text()
+        text = self._pending_text() if self._pending_bytes else None
+        if text is None:
+            text = self._read_text()
         if text is None:
             model, meta = factory_model(self.name), {"wall": time.time(), "time_scale": DEFAULT_TIME_SCALE}
             return _Held(model, meta, token, _mark(model, meta))
@@ -513,24 +516,27 @@ class SimDrive:
         held.after_read = read
         return True
 
-    def _pending_text(self) -> str:
-        """Under the lock: the lock file's pending state (``_pending_bytes`` announced by its head), checked."""
+    def _pending_text(self) -> str | None:
+        """Under the lock: the lock file's pending state (``_pending_bytes`` announced by its head), checked; None
+        when it is cut short or damaged -- what a machine crash leaves of a pending state the page cache had not
+        written yet (no fsync: the module doc) -- and the state file, the last save, is then the drive, as the
+        module doc promises for a crash."""
         import zlib
 
         size = self._pending_bytes
         if size > MAX_STATE_BYTES:
-            raise self._corrupt(f"the lock file announces a pending state of {size} bytes, more than a state holds")
+            return None
         try:
             head = os.pread(self._lock_fd, _HEAD_BYTES + size, 0)
         except OSError as exc:
             raise self._os_error("cannot read the simulator's lock file", self.lock_path, exc) from None
         data = head[_HEAD_BYTES:]
         if len(data) != size or zlib.crc32(data) != _PENDING.unpack_from(head, TOKEN_BYTES)[1]:
-            raise self._corrupt("the pending state in its lock file is cut short or damaged")
+            return None
         try:
             return data.decode("utf-8")
         except UnicodeDecodeError:
-            raise self._corrupt("the pending state in its lock file is not UTF-8 text") from None
+            return None
 
     def _begin(self, lock_fd: int, advance: bool) -> _Held:
         """Under the lock: the model up to date (reloaded when another process saved) and its clock advanced."""
