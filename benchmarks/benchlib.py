@@ -17,13 +17,17 @@ so another work package measures its own tree with this runner. Subprocesses get
 
 from __future__ import annotations
 
+import contextlib
 import os
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
+
+T = TypeVar("T")
 
 HERE = Path(__file__).resolve().parent
 
@@ -353,6 +357,27 @@ def allowed_cpus() -> list[int]:
         return sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         return []
+
+
+def comparison_cpu() -> OnCpu:
+    """Where every process of a peer comparison starts (the clients and the server they share): one CPU, the last
+    this process may use (no change where affinity cannot be read). Why one for all: an op is a ping-pong through
+    one server, each CPU here has speed phases of its own, and the CPU the scheduler gave each client and each
+    client's server thread was luck that held for a whole row (ascii, the same code: 1.62x in one run, 0.95x in
+    another; canopen 1.09x and 1.28x). On one CPU, every process meets the same phase and a round trip costs the two
+    sides' CPU: the same server work for both clients."""
+    cpus = allowed_cpus()
+    return OnCpu(cpus[-1] if cpus else None)
+
+
+@contextlib.contextmanager
+def started_on_comparison_cpu(server: contextlib.AbstractContextManager[T]) -> Iterator[T]:
+    """``server`` (a row's ``sim_server(...)``) started inside :func:`comparison_cpu`; only the start is pinned
+    (the server process keeps the mask, this process gets its own back at once)."""
+    with contextlib.ExitStack() as stack:
+        with comparison_cpu():
+            entered = stack.enter_context(server)
+        yield entered
 
 
 class OnCpu:

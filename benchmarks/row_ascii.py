@@ -11,8 +11,8 @@ peer is the smallest correct client written here: one socket with TCP_NODELAY an
 
 from __future__ import annotations
 
-from benchlib import Result, Settings
-from row_tcp_peers import compare, on_server_cpu
+from benchlib import Result, Settings, started_on_comparison_cpu
+from row_tcp_peers import compare
 
 COMMAND = "DRV.OPMODE"
 
@@ -63,7 +63,7 @@ def ascii_vs_socket(s: Settings) -> Result:
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "ascii")}
     face = ("--name", "asciipeer", "--akd", "127.0.0.1:0", "--akd-clients", "2")
-    with on_server_cpu(sim_server(*face, env=env)) as server:
+    with started_on_comparison_cpu(sim_server(*face, env=env)) as server:
         match = re.match(r"akd ascii tcp ([\d.]+):(\d+)", server.ready[0])
         if match is None:
             raise RuntimeError(f"unexpected ready line {server.ready[0]!r}")

@@ -11,8 +11,8 @@ read_holding_registers(20, count=2)``, the library most Python Modbus code uses;
 
 from __future__ import annotations
 
-from benchlib import Result, Settings
-from row_tcp_peers import compare, on_server_cpu
+from benchlib import Result, Settings, started_on_comparison_cpu
+from row_tcp_peers import compare
 
 #: AOUT.MODE: n = 11 [V] -> holding register 2(n-1) = 20, two registers.
 REGISTER, COUNT = 20, 2
@@ -67,7 +67,7 @@ def modbus_vs_pymodbus(s: Settings) -> Result:
     except ImportError:
         yardsticks = ()
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "modbus")}
-    with on_server_cpu(sim_server("--name", "mbpeer", "--modbus", "127.0.0.1:0", env=env)) as server:
+    with started_on_comparison_cpu(sim_server("--name", "mbpeer", "--modbus", "127.0.0.1:0", env=env)) as server:
         match = re.match(r"modbus tcp ([\d.]+):(\d+)", server.ready[0])
         if match is None:
             raise RuntimeError(f"unexpected ready line {server.ready[0]!r}")

@@ -25,9 +25,11 @@ from benchlib import (
     akdctl_env,
     akdctl_root,
     cannot_run,
+    comparison_cpu,
     fmt_ratio,
     fmt_us,
     interleave,
+    started_on_comparison_cpu,
 )
 
 GROUP = "239.74.163.9"
@@ -123,14 +125,15 @@ def canopen_vs_python_canopen(s: Settings) -> Result:
     from tests.netns import LoopbackNetns
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "can")}
-    with LoopbackNetns("akdb") as netns, \
-            sim_server("--name", "canpeer", "--can", f"udp_multicast:{GROUP}:{NODE}", env=env, netns=netns.name):
-        ours = Worker("akdctl-can", f"can://udp_multicast/{GROUP}/{NODE}", netns.name)
-        try:
-            peer = Worker("python-canopen", f"{GROUP}/{NODE}", netns.name)
-        except BaseException:
-            ours.stop()
-            raise
+    with LoopbackNetns("akdb") as netns, started_on_comparison_cpu(
+            sim_server("--name", "canpeer", "--can", f"udp_multicast:{GROUP}:{NODE}", env=env, netns=netns.name)):
+        with comparison_cpu():  # every process of the comparison on one CPU (benchlib.comparison_cpu says why)
+            ours = Worker("akdctl-can", f"can://udp_multicast/{GROUP}/{NODE}", netns.name)
+            try:
+                peer = Worker("python-canopen", f"{GROUP}/{NODE}", netns.name)
+            except BaseException:
+                ours.stop()
+                raise
         return _compare(ours, peer, s, max(20, s.block // 4), 1.1, "python-canopen")
 
 
@@ -144,15 +147,17 @@ def cip_vs_pycomm3(s: Settings) -> Result:
     from servers import sim_server
 
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "cip")}
-    with sim_server("--name", "cippeer", "--ethernetip", "127.0.0.1:0", "--eip-io-port", "0", env=env) as server:
+    with started_on_comparison_cpu(
+            sim_server("--name", "cippeer", "--ethernetip", "127.0.0.1:0", "--eip-io-port", "0", env=env)) as server:
         match = re.match(r"ethernetip ([\d.]+):(\d+) ", server.ready[0])
         if match is None:
             raise RuntimeError(f"unexpected ready line {server.ready[0]!r}")
         host, port = match.groups()
-        ours = Worker("akdctl-cip", f"eip://{host}:{port}")
-        try:
-            peer = Worker("pycomm3", f"{host}:{port}")
-        except BaseException:
-            ours.stop()
-            raise
+        with comparison_cpu():
+            ours = Worker("akdctl-cip", f"eip://{host}:{port}")
+            try:
+                peer = Worker("pycomm3", f"{host}:{port}")
+            except BaseException:
+                ours.stop()
+                raise
         return _compare(ours, peer, s, max(50, s.block // 2), 1.2, "pycomm3")

@@ -34,9 +34,11 @@ from benchlib import (
     akdctl_env,
     akdctl_root,
     cannot_run,
+    comparison_cpu,
     fmt_ratio,
     fmt_us,
     interleave,
+    started_on_comparison_cpu,
 )
 
 #: Runs of interleaved blocks, each with fresh workers.
@@ -156,17 +158,21 @@ def raw_vs_pysoem(s: Settings) -> Result:
     env = {"AKDCTL_STATE_DIR": str(s.tmp / "raw")}
     # RUNS runs in about the time one run of s.rounds took: fewer rounds of shorter blocks per run.
     rounds, n = max(3, s.rounds // 2), max(50, s.block * 3 // 4)
-    with VethPair() as wire_a, VethPair() as wire_b, \
-            sim_server("--name", "rawA", "--ethercat-raw", wire_a.if_b, env=env, netns=wire_a.b), \
-            sim_server("--name", "rawB", "--ethercat-raw", wire_b.if_b, env=env, netns=wire_b.b):
+    # every process of the comparison on one CPU: benchlib.comparison_cpu says why
+    with VethPair() as wire_a, VethPair() as wire_b, started_on_comparison_cpu(
+            sim_server("--name", "rawA", "--ethercat-raw", wire_a.if_b, env=env, netns=wire_a.b)), \
+            started_on_comparison_cpu(
+                sim_server("--name", "rawB", "--ethercat-raw", wire_b.if_b, env=env, netns=wire_b.b)):
         wires = (wire_a, wire_b)
 
         def ours(k: int) -> BlockWorker:
             wire = wires[k % 2]
-            return start_worker("ours", wire.if_a, wire.a)
+            with comparison_cpu():
+                return start_worker("ours", wire.if_a, wire.a)
 
         def peer(k: int) -> BlockWorker:
             wire = wires[(k + 1) % 2]
-            return start_worker("pysoem", wire.if_a, wire.a)
+            with comparison_cpu():
+                return start_worker("pysoem", wire.if_a, wire.a)
 
         return compare(ours, peer, RUNS, rounds, n)

@@ -10,14 +10,8 @@ one :class:`row_peers.Worker` and :func:`benchlib.interleave` already implement.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import AbstractContextManager, ExitStack, contextmanager
-from typing import TypeVar
-
-from benchlib import OnCpu, Result, Settings, allowed_cpus, fmt_ratio, fmt_us, interleave
+from benchlib import Result, Settings, comparison_cpu, fmt_ratio, fmt_us, interleave
 from row_peers import Worker
-
-T = TypeVar("T")
 
 # The block loop every script ends with (``op`` is the one operation; it raises on a wrong answer).
 BLOCK_LOOP = r"""
@@ -40,17 +34,6 @@ class ScriptWorker(Worker):
         super().__init__(kind, where, script=script + BLOCK_LOOP)
 
 
-@contextmanager
-def on_server_cpu(server: AbstractContextManager[T]) -> Iterator[T]:
-    """``server`` (a row's ``sim_server(...)``) started on the CPU the clients run on (:func:`compare`); only the start
-    is pinned (the server process keeps the mask, this process gets its own back at once)."""
-    cpus = allowed_cpus()
-    with ExitStack() as stack:
-        with OnCpu(cpus[-1] if cpus else None):
-            entered = stack.enter_context(server)
-        yield entered
-
-
 def compare(script: str, where: dict[str, str], s: Settings, n: int, *, peer: str, yardsticks: tuple[str, ...] = (),
             speed_goal: float = 1.0, cpu_goal: bool = False) -> Result:
     """akdctl (kind ``akdctl``) against ``peer`` and any ``yardsticks`` (names of kinds in ``script``), each in its
@@ -58,21 +41,14 @@ def compare(script: str, where: dict[str, str], s: Settings, n: int, *, peer: st
     better (and, with ``cpu_goal``, its client CPU per op no more than the peer's: the CPU ratio is shown either
     way). A worker that does not start or dies is the row's value (``<kind> crashed``), not an exception.
 
-    Every client worker runs on one CPU (:class:`benchlib.OnCpu`), and the server too (the row starts it through
-    :func:`on_server_cpu`): an op is a ping-pong through one server, and each CPU here has speed phases of its own
-    -- two clients the scheduler happened to put on different CPUs compared those phases as much as the clients.
-    The server goes with them because its thread for each client's connection otherwise went wherever the
-    scheduler put it, on that client's CPU for one client and across CPUs for the other, by luck that held for the
-    whole row (ascii, the same code: 1.62x in one run, 0.95x in another). Measured both ways pinned (ascii): server
-    across CPUs 1.01-1.04x, on the clients' CPU 1.06-1.08x; the latter is kept: every process of the comparison
-    then meets one CPU's phase, and a round trip's cost is the two sides' CPU, the same server work for both
-    clients."""
+    Every client worker starts on one CPU, and the server too (the row starts it through
+    :func:`benchlib.started_on_comparison_cpu`): :func:`benchlib.comparison_cpu` says why.
+    Measured both ways for ascii: the server pinned across CPUs gave 1.01-1.04x, on the clients' CPU 1.06-1.08x."""
     kinds = ("akdctl", peer, *yardsticks)
-    cpus = allowed_cpus()
     workers: list[ScriptWorker] = []
     try:
         try:
-            with OnCpu(cpus[-1] if cpus else None):  # every client on one CPU: see compare's docstring
+            with comparison_cpu():  # every client on one CPU: see compare's docstring
                 for kind in kinds:
                     workers.append(ScriptWorker(script, kind, where[kind]))
             run = interleave(*(lambda w=w: w.sample(n) for w in workers), rounds=s.rounds)
