@@ -181,8 +181,9 @@ def test_pending_changes_are_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyP
     assert saves - 2 == run.saves - 2 >= 0 and run.saves >= 2
 
 
-def test_the_end_of_a_motion_pends_and_the_next_commands_first_write_saves(tmp_path: Path,
-                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+def _homing_polled_and_ended(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple["_Run", int]:
+    """A command's homing at 100x, polled until done, then its write that ends it (STW1 back to operation): that
+    write pends, no save on the command's way out. The run and its saves so far."""
     run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
     run.poller.set_time_scale(100.0)
     for request in START:
@@ -190,8 +191,14 @@ def test_the_end_of_a_motion_pends_and_the_next_commands_first_write_saves(tmp_p
     while not _zsw1(run.request(run.poller, POLL, 0.0013)) & ZSW1_HOME_POSITION_SET:
         pass
     saves = run.saves
-    run.request(run.poller, _change(1, OPERATE), 0.0005)  # this command ends its homing: no save on its way out
+    run.request(run.poller, _change(1, OPERATE), 0.0005)
     assert run.saves == saves and _pending_bytes(tmp_path) > 0
+    return run, saves
+
+
+def test_the_end_of_a_motion_pends_and_the_next_commands_first_write_saves(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    run, saves = _homing_polled_and_ended(tmp_path, monkeypatch)
     run.poller.close()
     run.observe("the next command loads")
     loaded = json.loads(run.seen[-1][1])["components"]["motion"]
@@ -280,14 +287,6 @@ def test_a_save_cut_short_leaves_the_pending_state_to_load(tmp_path: Path, monke
 def test_only_the_write_right_after_the_polls_pends_at_rest(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A process that polled a motion (a recipe: a move, then parameter writes) pends the write that ends it; its
     next write at rest saves."""
-    run = _Run(tmp_path, sim_drive.PENDING_MAX, monkeypatch)
-    run.poller.set_time_scale(100.0)
-    for request in START:
-        run.request(run.poller, request, 0.001)
-    while not _zsw1(run.request(run.poller, POLL, 0.0013)) & ZSW1_HOME_POSITION_SET:
-        pass
-    saves = run.saves
-    run.request(run.poller, _change(1, OPERATE), 0.0005)
-    assert run.saves == saves and _pending_bytes(tmp_path) > 0
+    run, saves = _homing_polled_and_ended(tmp_path, monkeypatch)
     run.request(run.poller, _change(1005, 300), 0.0005)
     assert run.saves == saves + 1 and _pending_bytes(tmp_path) == 0
