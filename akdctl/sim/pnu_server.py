@@ -191,6 +191,13 @@ def header_refusal(request: bytes) -> int | None:
     return None
 
 
+def raw_value_address(attribute: int, count: int, pnu: int, subindex: int) -> bool:
+    """Whether the model's raw access answers this read address (a value of 1..MAX_ELEMENTS elements of a PNU
+    other than 0, within the subindex range); every other address takes the general path (:meth:`PnuServer.
+    _read_one`), which refuses or describes it. The one rule for the unplanned, single, planned and batch reads."""
+    return attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu != 0 and subindex <= MAX_SUBINDEX
+
+
 _ONE_READ_SIZE = HEADER_SIZE + ADDRESS_SIZE  # a read request of one parameter
 _PLANS = 256  # one-parameter read plans a server keeps (request shapes; a poll has a few)
 _BATCHES = 64  # batch read plans a server keeps (request shapes of two or more parameters)
@@ -405,19 +412,12 @@ class PnuServer:
         raw: Callable[[int, int, int], tuple[int, list[int]]] | None = (
             self.access.pnu_read_raw if self.raw_reads else None)  # type: ignore[attr-defined]
         blocks = []
-        negative = False
         for attribute, count, pnu, subindex in iter_read_addresses(data, n):
-            if raw is not None and attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu \
-                    and subindex <= MAX_SUBINDEX:
-                block = self._read_raw(raw, pnu, subindex, count)
+            if raw is not None and raw_value_address(attribute, count, pnu, subindex):
+                blocks.append(self._read_raw(raw, pnu, subindex, count))
             else:
-                block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
-            negative = negative or block[0] == Format.ERROR
-            blocks.append(block)
-        out = pack_read_response(data, blocks, negative)
-        if len(out) > MAX_BLOCK:
-            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
-        return out
+                blocks.append(self._general_block(attribute, count, pnu, subindex))
+        return _response(data, blocks)
 
     def _plan_batch(self, data: bytes, n: int) -> _BatchPlan | None:
         """The plan of a checked read request of ``n`` parameters (:class:`_BatchPlan`), remembered by its bytes after
@@ -431,7 +431,7 @@ class PnuServer:
             steps: list[tuple[Any, bytes | None, int, tuple[int, int, int, int]]] = []
             for address in iter_read_addresses(data, n):
                 attribute, count, pnu, subindex = address
-                if not (attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu and subindex <= MAX_SUBINDEX):
+                if not raw_value_address(attribute, count, pnu, subindex):
                     steps.append((None, None, 0, address))  # the general path (_read_one) answers it
                     continue
                 try:
@@ -477,7 +477,6 @@ class PnuServer:
                 except struct.error:
                     pass  # a value that does not fit: _raw_block says so for its parameter
         blocks = []
-        negative = False
         done = len(got)
         for i, (get, block, fmt, address) in enumerate(plan.steps):
             if get is not None:
@@ -493,32 +492,23 @@ class PnuServer:
                 else:
                     block = self._raw_block(address[2], address[1], fmt, outcome)
             elif block is None:
-                attribute, count, pnu, subindex = address
-                block = self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
-            negative = negative or block[0] == Format.ERROR
+                block = self._general_block(*address)
             blocks.append(block)
-        out = pack_read_response(data, blocks, negative)
-        if len(out) > MAX_BLOCK:
-            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
-        return out
+        return _response(data, blocks)
 
     def _read_single(self, data: bytes) -> bytes:
         """:meth:`_read_all` of a one-parameter read, its raw path without the loop."""
         attribute, count, pnu, subindex = first_read_address(data)
-        if not (self.raw_reads and attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu
-                and subindex <= MAX_SUBINDEX):
+        if not (self.raw_reads and raw_value_address(attribute, count, pnu, subindex)):
             return self._read_all(data, 1)
-        block = self._read_raw(self.access.pnu_read_raw, pnu, subindex, count)  # type: ignore[attr-defined]
-        out = pack_read_response(data, [block], block[0] == Format.ERROR)
-        if len(out) > MAX_BLOCK:
-            raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
-        return out
+        raw = self.access.pnu_read_raw  # type: ignore[attr-defined]
+        return _response(data, [self._read_raw(raw, pnu, subindex, count)])
 
     def _plan(self, data: bytes) -> None:
         """Remember a one-parameter read of a value (the request checked by :meth:`handle`) whose address
         :meth:`_read_single` takes the raw way: its next requests go to :meth:`_read_planned` at once."""
         attribute, count, pnu, subindex = first_read_address(data)
-        if attribute == ATTR_VALUE and 1 <= count <= MAX_ELEMENTS and pnu and subindex <= MAX_SUBINDEX:
+        if raw_value_address(attribute, count, pnu, subindex):
             plans = self._plans
             if len(plans) >= _PLANS:
                 plans.clear()  # a client walking every address: start over rather than grow
@@ -553,13 +543,17 @@ class PnuServer:
         """The response to a planned read (:meth:`handle` packs the usual one itself) from what the model's raw
         access returned or raised: as :meth:`_read_single` answers it, refusals included."""
         block = self._raw_failure(read) if isinstance(read, Exception) else self._raw_block(pnu, count, *read)
-        return pack_read_response(data, [block], block[0] == Format.ERROR)
+        return _response(data, [block])
 
     def _raw_failure(self, exc: Exception) -> bytes:
         if isinstance(exc, PnuAccessError):
             return pack_failure_block(exc.error, exc.additional)
         self.last_exception = exc  # a model bug refuses this parameter only
         return pack_failure_block(ERR_OPERATING_STATE)
+
+    def _general_block(self, attribute: int, count: int, pnu: int, subindex: int) -> bytes:
+        """The block the general path answers an address with (a description, a text, a refusal)."""
+        return self._block(self._read_one(ParameterAddress(pnu, subindex, count, attribute)))
 
     def _read_raw(self, raw: Callable[[int, int, int], tuple[int, list[int]]], pnu: int, subindex: int,
                   count: int) -> bytes:
@@ -686,3 +680,12 @@ class PnuServer:
             self.last_exception = exc
             return ParameterFailure(ERR_OPERATING_STATE)
         return None
+
+
+def _response(data: bytes, blocks: list[bytes]) -> bytes:
+    """The read response of ``blocks`` (negative when one is an error block); a whole request refused when it
+    would not fit a record (every read path's last step)."""
+    out = pack_read_response(data, blocks, any(block[0] == Format.ERROR for block in blocks))
+    if len(out) > MAX_BLOCK:
+        raise _WholeRequest(ERR_RESPONSE_TOO_LONG)
+    return out
