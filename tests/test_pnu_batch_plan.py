@@ -19,7 +19,7 @@ from akdctl.protocol import bmp
 from akdctl.sim.errors import PnuAccessError
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer, RecordRefused
-from tests.pnu_failures import failing_reader
+from tests.pnu_model import failing_reader
 
 
 class _ObjectsOnly:

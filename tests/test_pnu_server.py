@@ -25,7 +25,7 @@ from akdctl.protocol.bmp import (
     encode_request,
 )
 from akdctl.sim.pnu_server import PnuAccessError, PnuServer, RecordRefused, convert_value, header_refusal
-from tests.pnu_failures import failing_reader
+from tests.pnu_model import failing_reader
 
 
 class FakeAccess:

@@ -11,15 +11,15 @@ import pytest
 from akdctl.catalog import objects as object_catalog
 from akdctl.profiles import statusword as sw
 from akdctl.profiles import units
-from akdctl.protocol import bmp, coe
+from akdctl.protocol import coe
 from akdctl.protocol import mailbox as mbx
 from akdctl.protocol.coe import CoeService
 from akdctl.sim import model as model_module
 from akdctl.sim.drive import factory_model
 from akdctl.sim.errors import SdoAccessError
 from akdctl.sim.model import DriveModel
-from akdctl.sim.pnu_server import PnuServer
 from akdctl.sim.sdo_server import SdoServer
+from tests.pnu_model import pnu_write
 
 
 def _model() -> DriveModel:
@@ -164,14 +164,6 @@ def test_another_model_handed_to_the_server_is_read() -> None:
     assert _answer(server, first, request) != _answer(server, second, request)
 
 
-def _pnu_write(model: DriveModel, pnu: int, value: int) -> None:
-    info = model.pnu_info(pnu)
-    request = bmp.ParameterRequest(1, bmp.REQ_CHANGE, 0, (bmp.ParameterAddress(pnu, 0, 1),),
-                                   (bmp.ParameterValue(info.wire_format, (value & ((1 << info.bits) - 1),)),))
-    response = bmp.decode_response(PnuServer(model, raw_reads=True).handle(bmp.encode_request(request)), request)
-    assert not response.negative, response
-
-
 def test_uploads_while_the_axis_moves_see_time_pass() -> None:
     model = _model()
     server = SdoServer(model, drive_model=True)
@@ -180,9 +172,9 @@ def test_uploads_while_the_axis_moves_see_time_pass() -> None:
         _answer(server, model, position)
         _answer(server, model, identity)
     for word in sw.S7_ENABLE_SEQUENCE:
-        _pnu_write(model, 1, word)
-    _pnu_write(model, 1004, units.rpm_to_x(600, 15))
-    _pnu_write(model, 1, 0x040F | sw.STW1_JOG1)  # jog: the axis moves
+        pnu_write(model, 1, word)
+    pnu_write(model, 1004, units.rpm_to_x(600, 15))
+    pnu_write(model, 1, 0x040F | sw.STW1_JOG1)  # jog: the axis moves
     seen = []
     for _ in range(4):
         model.advance(0.2)

@@ -13,14 +13,7 @@ from akdctl.profiles import units
 from akdctl.protocol import bmp
 from akdctl.sim.model import DriveModel
 from akdctl.sim.pnu_server import PnuServer
-
-
-def _write(model: DriveModel, pnu: int, value: int) -> None:
-    info = model.pnu_info(pnu)
-    request = bmp.ParameterRequest(1, bmp.REQ_CHANGE, 0, (bmp.ParameterAddress(pnu, 0, 1),),
-                                   (bmp.ParameterValue(info.wire_format, (value & ((1 << info.bits) - 1),)),))
-    response = bmp.decode_response(PnuServer(model, raw_reads=True).handle(bmp.encode_request(request)), request)
-    assert not response.negative, response
+from tests.pnu_model import pnu_write
 
 
 def _read(model: DriveModel, pnu: int) -> int:
@@ -31,9 +24,9 @@ def _read(model: DriveModel, pnu: int) -> int:
 
 def _jog(model: DriveModel, rpm: float) -> None:
     for word in sw.S7_ENABLE_SEQUENCE:
-        _write(model, 1, word)
-    _write(model, 1004, units.rpm_to_x(rpm, 15))
-    _write(model, 1, 0x040F | sw.STW1_JOG1)
+        pnu_write(model, 1, word)
+    pnu_write(model, 1004, units.rpm_to_x(rpm, 15))
+    pnu_write(model, 1, 0x040F | sw.STW1_JOG1)
 
 
 def test_a_resting_drive_moves_only_its_clock() -> None:
@@ -65,7 +58,7 @@ def test_a_fault_raised_at_rest_gets_its_reaction_at_the_next_advance() -> None:
     model = DriveModel()
     _jog(model, 300)
     model.advance(1.0)
-    _write(model, 1, 0x040F)  # jog off: the axis ramps to rest
+    pnu_write(model, 1, 0x040F)  # jog off: the axis ramps to rest
     model.advance(5.0)
     model.advance(0.1)
     assert model._still_at == model.revision and model.motion.standstill
@@ -88,11 +81,11 @@ def test_the_o1_way_ends_where_stepping_every_time_ends() -> None:
             if action < 0.05:
                 _jog(model, rpm)
             elif action < 0.1:
-                _write(model, 1, 0x040F)
+                pnu_write(model, 1, 0x040F)
             elif action < 0.12:
                 model.faults.raise_fault("F501")
             elif action < 0.15:
-                _write(model, 1, 0x04F6)  # acknowledge edge
+                pnu_write(model, 1, 0x04F6)  # acknowledge edge
             elif action < 0.3:
                 _read(model, 28)
             elif action < 0.35:
