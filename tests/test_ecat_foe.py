@@ -237,22 +237,39 @@ def test_progress_on_a_terminal_shows_bytes_and_eta(monkeypatch: pytest.MonkeyPa
     import os
     import pty
     import sys
+    import threading
 
     from akdctl.cli.ecat_foe import TransferProgress
 
     master, slave = pty.openpty()
     tty = os.fdopen(slave, "w", buffering=1)
+    received: list[bytes] = []
+
+    def drain() -> None:
+        # Everything the terminal received, read while it is written (a full pty buffer would block the bar) and
+        # until the last writer closes it (EIO): one read may return only the first of rich's writes.
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                return
+            if not data:
+                return
+            received.append(data)
+
+    reader = threading.Thread(target=drain, daemon=True)
+    reader.start()
     monkeypatch.setattr(sys, "stderr", tty)
     monkeypatch.setenv("COLUMNS", "120")
     with TransferProgress("FoE write fw.bin", 300_000, quiet=False) as progress:
         assert progress.terminal
         for done in range(0, 300_001, 30_000):
             progress(done, 300_000)
-    tty.flush()
-    os.set_blocking(master, False)
-    shown = os.read(master, 65536).decode("utf-8", "replace")
     tty.close()
+    reader.join(timeout=10)
     os.close(master)
+    assert not reader.is_alive(), "the terminal reader did not see the terminal close"
+    shown = b"".join(received).decode("utf-8", "replace")
     assert "FoE write fw.bin" in shown and "kB" in shown
     piped = io.StringIO()
     monkeypatch.setattr(sys, "stderr", piped)
