@@ -12,7 +12,7 @@ import importlib
 import click
 from click.testing import CliRunner
 
-from akdctl.cli.main import COMMANDS, SHORT_HELP, LazyGroup, cli
+from akdctl.cli.main import COMMANDS, SHORT_HELP, LazyGroup, alias_help, alias_of, cli
 from akdctl.cli.parsing import short_help
 
 
@@ -26,9 +26,21 @@ def test_the_listing_is_the_table_and_its_help_is_the_docstrings() -> None:
     ctx = click.Context(cli, info_name="akdctl")
     assert cli.list_commands(ctx) == list(COMMANDS)
     assert set(SHORT_HELP) == set(COMMANDS)
-    stale = {name: (SHORT_HELP[name], short_help(cli.get_command(ctx, name)))  # type: ignore[arg-type]
-             for name in COMMANDS if SHORT_HELP[name] != short_help(cli.get_command(ctx, name))}  # type: ignore[arg-type]
+    expected = {name: short_help(cli.get_command(ctx, name)) if alias_of(name) is None  # type: ignore[arg-type]
+                else alias_help(alias_of(name)) for name in COMMANDS}  # type: ignore[arg-type]
+    stale = {name: (SHORT_HELP[name], text) for name, text in expected.items() if SHORT_HELP[name] != text}
     assert not stale, f"run tools/gen_docs.py: {stale}"
+
+
+def test_an_alias_is_listed_as_one_and_runs_its_command() -> None:
+    assert alias_of("params") == "param" and alias_of("param") is None
+    listing = CliRunner().invoke(cli, ["--help"]).output
+    assert "params      Another name for 'param'." in listing
+    assert listing.count("restore AKD parameters by name") == 1  # the help once, under its first name
+    help_of = {name: CliRunner().invoke(cli, [name, "--help"], prog_name="akdctl").output for name in ("param", "params")}
+    usage = {name: text.split("\n", 1) for name, text in help_of.items()}
+    assert usage["params"][0] == "Usage: akdctl params [OPTIONS] COMMAND [ARGS]..."
+    assert usage["param"][1] == usage["params"][1]  # the same command: the same help below the usage line
 
 
 def test_a_missing_command_module_is_an_error_not_a_hidden_command() -> None:

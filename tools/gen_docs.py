@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from akdctl import __version__  # noqa: E402
-from akdctl.cli.main import cli  # noqa: E402
+from akdctl.cli.main import alias_help, alias_of, cli  # noqa: E402
 
 PROG = "akdctl"
 
@@ -203,7 +203,9 @@ def man_page(node: Node) -> str:
     if node.children:
         lines.append(".SH COMMANDS")
         for child in node.children:
-            lines += [".TP", f"\\fB{child.path[-1]}\\fR", _roff(short_help(child.command)),
+            first = alias_of(child.path[0]) if len(child.path) == 1 else None  # the root's listing: as --help has it
+            text = short_help(child.command) if first is None else alias_help(first)
+            lines += [".TP", f"\\fB{child.path[-1]}\\fR", _roff(text),
                       f"See \\fB{child.name.replace(' ', '-')}\\fR(1)."]
     if command.epilog:
         lines += [".SH NOTES", _roff(command.epilog)]
@@ -235,7 +237,9 @@ def short_help_table() -> dict[str, str]:
     for name in COMMANDS:
         command = cli.get_command(ctx, name)
         assert command is not None, name
-        rows.append(f"    {json.dumps(name)}:\n        {json.dumps(short_help(command), ensure_ascii=False)},\n")
+        first = alias_of(name)
+        text = short_help(command) if first is None else alias_help(first)
+        rows.append(f"    {json.dumps(name)}:\n        {json.dumps(text, ensure_ascii=False)},\n")
     rel = "akdctl/cli/main.py"
     text = (ROOT / rel).read_text()
     begin = text.index("SHORT_HELP: dict[str, str] = {\n") + len("SHORT_HELP: dict[str, str] = {\n")
