@@ -126,6 +126,7 @@ def test_parameter_file_round_trip_and_leniency() -> None:
     (("param", "set", "MT.V=100"), 2, "--raw"),
     (("cmd", "DRV.INFO"), 2, "akd://"),
     (("param", "list", "NOPE.*"), 2, "no AKD parameter"),
+    (("param", "set", "VL.KP", "5"), 2, "write it as VL.KP=5"),  # the AKD terminal's spelling, answered with ours
 ])
 def test_bad_input_ends_in_one_line(akd_inproc, argv: tuple[str, ...], code: int, words: str) -> None:
     rc, out, err = akd_inproc(*argv)

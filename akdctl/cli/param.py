@@ -101,10 +101,12 @@ def get(names: tuple[str, ...], raw: bool, live: bool) -> None:
 
 def _assignments(texts: tuple[str, ...]) -> list[tuple[str, str]]:
     out = []
-    for text in texts:
+    for at, text in enumerate(texts):
         name, sep, value = text.partition("=")
         if not sep or not name.strip():
-            raise UsageError(f"expected NAME=VALUE, got {text!r}")
+            following = texts[at + 1] if at + 1 < len(texts) else ""
+            hint = f" (write it as {text}={following})" if sep == "" and following and "=" not in following else ""
+            raise UsageError(f"expected NAME=VALUE, got {text!r}{hint}")
         out.append((name.strip(), value.strip()))
     return out
 
