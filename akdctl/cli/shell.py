@@ -339,7 +339,7 @@ def shell() -> None:
     """Type akdctl commands at a prompt over one open connection (history, Tab completion).
 
     Every line is an akdctl command line without 'akdctl' (e.g. 'status',
-    'pnu get 930', '-y jog --rpm 60 --for 2'): the same options, consent prompts and
+    'pnu get 930', '-y jog 60 --for 2s'): the same options, consent prompts and
     errors as the CLI. The target, timeout and trace are the shell's (given before
     'shell'); -y is given per line. Ctrl-C stops a running motion and returns to the
     prompt; a lost link is reported and opened again by the next command; 'exit' or
