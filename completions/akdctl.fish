@@ -24,7 +24,7 @@ complete -c akdctl -n '__fish_use_subcommand' -a shell -d 'Type akdctl commands 
 complete -c akdctl -n '__fish_use_subcommand' -a info -d 'Identify the drive: vendor, model, firmware, serial, profile; then...'
 complete -c akdctl -n '__fish_use_subcommand' -a discover -d 'Find drives on every transport given: one table of transport, targe...'
 complete -c akdctl -n '__fish_use_subcommand' -a targets -d 'List the transports, their target syntax and whether their dependen...'
-complete -c akdctl -n '__fish_use_subcommand' -a pn -d 'PROFINET: discover (DCP), name, address and blink devices.'
+complete -c akdctl -n '__fish_use_subcommand' -a pn -d 'PROFINET: scan for devices (DCP), name, address and blink them.'
 complete -c akdctl -n '__fish_use_subcommand' -a ecat -d 'EtherCAT: scan slaves, read or change the AL state, read the SII (t...'
 complete -c akdctl -n '__fish_use_subcommand' -a can -d 'CANopen network management (needs a can://INTERFACE/CHANNEL/NODE ta...'
 complete -c akdctl -n '__fish_use_subcommand' -a cip -d 'Read and write CIP attributes (EtherNet/IP explicit messaging, eip:...'

@@ -134,6 +134,8 @@ BAD_INPUTS = [
     (["-T", "ecat-udp://gw/notanumber", "sdo", "read", "0x1000"], EXIT_USAGE, "STATION"),
     (["-T", "foo://bar", "pnu", "get", "930"], EXIT_USAGE, "known schemes: akd, can, ecat"),
     (["-T", "sim?drive=bogus", "pnu", "get", "930"], EXIT_USAGE, "drive=profidrive"),
+    (["-T", "sim://a/b", "pnu", "get", "930"], EXIT_USAGE, "expected sim://NAME"),  # not drive 'a' unsaid
+    (["-T", "sim://a.b", "pnu", "get", "930"], EXIT_USAGE, "letters, digits, - and _"),
     (["--profile", "nope", "pnu", "get", "930"], EXIT_USAGE, "no profile 'nope'"),
     (["--config", "/nonexistent/akd.toml", "pnu", "get", "930"], EXIT_USAGE, "does not exist"),
     (["pnu", "frobnicate"], EXIT_USAGE, "No such command"),

@@ -123,7 +123,7 @@ SHORT_HELP: dict[str, str] = {
     "targets":
         "List the transports, their target syntax and whether their dependencies are present.",
     "pn":
-        "PROFINET: discover (DCP), name, address and blink devices.",
+        "PROFINET: scan for devices (DCP), name, address and blink them.",
     "ecat":
         "EtherCAT: scan slaves, read or change the AL state, read the SII (target ecat://IFNAME[/POSITION]).",
     "can":

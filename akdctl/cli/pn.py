@@ -29,7 +29,7 @@ def _hex(value: int | None) -> str:
 
 @click.group()
 def pn() -> None:
-    """PROFINET: discover (DCP), name, address and blink devices.
+    """PROFINET: scan for devices (DCP), name, address and blink them.
 
     \b
     Examples:

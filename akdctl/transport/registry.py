@@ -59,6 +59,8 @@ def _check_sim(target: Target) -> None:
     name = target.host or "default"
     if not name.replace("-", "").replace("_", "").isalnum():
         raise UsageError(f"malformed target {target.raw!r}: simulator name {name!r} may use letters, digits, - and _")
+    if target.path_parts:  # sim://a/b is not the drive 'a': a typo is said, never served from another drive
+        raise UsageError(f"malformed target {target.raw!r}: expected sim://NAME (no path after the name)")
 
 
 def _is_int(text: str) -> bool:
