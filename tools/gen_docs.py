@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from akdctl import __version__  # noqa: E402
-from akdctl.cli.main import alias_help, alias_of, cli  # noqa: E402
+from akdctl.cli.main import cli, listed_help  # noqa: E402
 
 PROG = "akdctl"
 
@@ -203,8 +203,9 @@ def man_page(node: Node) -> str:
     if node.children:
         lines.append(".SH COMMANDS")
         for child in node.children:
-            first = alias_of(child.path[0]) if len(child.path) == 1 else None  # the root's listing: as --help has it
-            text = short_help(child.command) if first is None else alias_help(first)
+            text = short_help(child.command)
+            if len(child.path) == 1:  # the root's listing: as --help has it (an alias said to be one)
+                text = listed_help(child.path[0], text)
             lines += [".TP", f"\\fB{child.path[-1]}\\fR", _roff(text),
                       f"See \\fB{child.name.replace(' ', '-')}\\fR(1)."]
     if command.epilog:
@@ -237,8 +238,7 @@ def short_help_table() -> dict[str, str]:
     for name in COMMANDS:
         command = cli.get_command(ctx, name)
         assert command is not None, name
-        first = alias_of(name)
-        text = short_help(command) if first is None else alias_help(first)
+        text = listed_help(name, short_help(command))
         rows.append(f"    {json.dumps(name)}:\n        {json.dumps(text, ensure_ascii=False)},\n")
     rel = "akdctl/cli/main.py"
     text = (ROOT / rel).read_text()
