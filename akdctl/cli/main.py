@@ -295,7 +295,7 @@ def _message_lines(message: str) -> list[str]:
     return lines
 
 
-def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = False, hint: list[str] = ()) -> None:
+def _print_error(app: AppContext | None, exc: AkdError, *, json_wanted: bool = False, hint: tuple[str, ...] | list[str] = ()) -> None:
     """The one error style: ``akdctl: error: <message> [target T]`` (plus click's usage hint for usage errors),
     and with ``--json`` the error document on stdout unless the command already printed its result."""
     from akdctl.cli.output import emit_json, inert
