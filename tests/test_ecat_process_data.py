@@ -220,6 +220,21 @@ def test_an_output_that_is_not_mapped_is_refused(conn: Connection) -> None:
     assert plan.needing_consent
 
 
+def test_an_output_no_class_gates_still_needs_consent(conn: Connection) -> None:
+    """Any value given with --out is written every cycle in OP: the plan asks consent for it even where the
+    object's class does not gate it (0x60FE:1, the physical outputs); the CLI only asks what the plan says
+    (cli/consent.consent_plan)."""
+    sdo = conn.objects()   # RxPDO 0x1600 = the physical outputs, which no write class gates
+    for index, sub, value in ((0x1C12, 0, 0), (0x1600, 0, 0), (0x1600, 1, 0x60FE0120), (0x1600, 0, 1),
+                              (0x1C12, 1, 0x1600), (0x1C12, 0, 1)):
+        sdo.download(index, sub, value.to_bytes(1 if sub == 0 else 2 if index == 0x1C12 else 4, "little"))
+    fields = [(entry.index, entry.subindex) for entry, *_ in watch.plan(conn, {}).data["rx"].fields]
+    assert fields == [(0x60FE, 1)] and not watch.plan(conn, {}).needing_consent
+    for address in fields:
+        plan = watch.plan(conn, {address: 1})
+        assert len(plan.needing_consent) == 1 and f"0x{address[0]:04X}:" in plan.needing_consent[0].address
+
+
 def test_lrd_and_lwr_count_1_and_2(conn: Connection, wire: Wire) -> None:
     """Separate LRD/LWR datagrams (masters that do not use LRW): WKC +1 for the read, +2 for the write in OP."""
     from akdctl.transport.ethercat_raw import LOGICAL_BASE

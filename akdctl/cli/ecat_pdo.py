@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.cli.ecat_common import dry_run_plan, parse_int
+from akdctl.cli.ecat_common import ask_plan, dry_run_plan, parse_int
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
@@ -60,11 +60,7 @@ def pdo_watch(duration: float, period: float, outs: tuple[str, ...], dry_run: bo
     plan = op.plan(app.connection, outputs)
     if dry_run:
         return dry_run_plan(plan)
-    if outputs:
-        from akdctl.cli.consent import require_consent
-
-        require_consent(app, "write these RxPDO values every cycle in OP: "
-                        + ", ".join(f"0x{i:04X}:{s:02X}={v}" for (i, s), v in outputs.items()))
+    ask_plan(plan)  # every output given with --out needs consent (drive/ecat_pdo_watch.plan)
     with _LiveView(app.json) as view:
         result = op.execute(app.connection, plan, duration, period, view.show)
     doc = Doc("process data (last cycle)", app.target.display)

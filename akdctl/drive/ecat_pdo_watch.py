@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog.texts import al_status_line
-from akdctl.drive.gate import classify_object
+from akdctl.drive.gate import Gated, classify_object
 from akdctl.drive.operation import PlannedWrite, WritePlan
 from akdctl.errors import CommError, DriveError, UsageError
 
@@ -112,7 +112,13 @@ def layouts(conn: "Connection") -> tuple[dict[str, Any], Layout, Layout]:
     return mapping, Layout(mapping["rx"].pdos), Layout(mapping["tx"].pdos)
 
 
+#: Why an output given with ``--out`` needs consent even where its object's class does not gate it: the slave acts
+#: on it every cycle in OP, not once.
+EVERY_CYCLE = "written to the slave every cycle while it is in OP"
+
+
 def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
+    """The watch as a plan: every RxPDO entry written each cycle (0 unless given), a given one needing consent."""
     if not conn.has_process_data:
         raise UsageError(f"'ecat pdo watch' needs akdctl as the EtherCAT master (target ecat://IFNAME[/POS]); "
                          f"{conn.target.display} cannot take the slave to OP")
@@ -125,8 +131,11 @@ def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:
     writes = []
     for entry, _bit, name, _signed in rx.fields:
         value = outputs.get((entry.index, entry.subindex), 0)
-        gated = classify_object(entry.index, entry.subindex, name) if (entry.index, entry.subindex) in outputs else None
-        writes.append(PlannedWrite(f"RxPDO 0x{entry.index:04X}:{entry.subindex:02X} ({name})", value, str(value), gated))
+        label = f"RxPDO 0x{entry.index:04X}:{entry.subindex:02X} ({name})"
+        gated = None
+        if (entry.index, entry.subindex) in outputs:  # any value given is written every cycle: consent, like motion
+            gated = classify_object(entry.index, entry.subindex, name) or Gated(label, EVERY_CYCLE)
+        writes.append(PlannedWrite(label, value, str(value), gated))
     return WritePlan("ecat pdo watch", conn.target.display, writes,
                      preconditions=[f"RxPDO {mapping['rx'].assigned and ', '.join(f'0x{n:04X}' for n in mapping['rx'].assigned)} "
                                     f"{rx.bytes} bytes, TxPDO {', '.join(f'0x{n:04X}' for n in mapping['tx'].assigned)} "
