@@ -415,7 +415,8 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
         if row.name in seen:
             raise UsageError(f"{row.name} is given twice")
         seen.add(row.name)
-        value = check_value(row, text, raw, notes if only_changes else None)
+        range_notes: list[str] = []   # kept only for a value that is written (a restore leaves equal ones alone)
+        value = check_value(row, text, raw, range_notes if only_changes else None)
         if not reachable(row, how):
             if skip_unreachable:
                 notes.append(f"{row.name} skipped: not reachable over {ROUTE_WORDS[how]}")
@@ -424,6 +425,7 @@ def plan(conn: "Connection", request: Sequence[tuple[str, str]], *, raw: bool = 
         wire = wire_value(row, value, how, raw)
         if only_changes and same_value(row.kind, read(conn, row, how).value, value):
             continue
+        notes += range_notes
         address = row.name if how == "ascii" else f"{row.name} ({_address(row, how)})"
         writes.append(PlannedWrite(address, wire, format_value(row.kind, value, "" if raw else row.unit),
                                    classify(row)))
