@@ -193,3 +193,45 @@ def test_no_module_getattr() -> None:
              if any(isinstance(node, ast.FunctionDef) and node.name == "__getattr__"
                     for node in _parse(path).body)]
     assert found == []
+
+
+# ---------------------------------------------------------------------------- a plan's consent and dry run, in one place
+#: A CLI module other than cli/consent.py that may render a plan's lines itself, and why.
+OWN_DRY_RUN = {"akdctl.cli.scope": "a recording plan's dry run carries its source and motion (scope._render_plan)"}
+
+
+def plans_rendered_outside_consent(root: Path = ROOT) -> list[str]:
+    """CLI code that asks a write plan's consent itself (``consent_needed``) or prints its dry run itself
+    (``plan.lines()``). Each command once did its own: a plan's notes (RAM only until saved, an inferred scale,
+    what --force let past) were shown as warnings by two commands, joined into one line by one and dropped by the
+    rest; cli/consent.consent_plan and render_dry_run are now the one way."""
+    found = []
+    for path in sorted((root / "cli").glob("*.py")):
+        module, _ = _package(path, root)
+        if path.name == "consent.py":
+            continue
+        for node in ast.walk(_parse(path)):
+            if not isinstance(node, ast.Call):
+                continue
+            name = node.func.id if isinstance(node.func, ast.Name) else \
+                node.func.attr if isinstance(node.func, ast.Attribute) else ""
+            if name == "consent_needed" or (name == "lines" and not node.args and module not in OWN_DRY_RUN):
+                found.append(f"{module}:{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def test_plans_are_asked_and_dry_run_in_cli_consent() -> None:
+    assert plans_rendered_outside_consent() == []
+
+
+def test_the_plan_rendering_check_can_fail(tmp_path: Path) -> None:
+    root = tmp_path / "akdctl"
+    (root / "cli").mkdir(parents=True)
+    (root / "cli" / "probe.py").write_text(
+        "from akdctl.drive.operation import consent_needed\n"
+        "def f(app, plan):\n"
+        "    print('\\n'.join(plan.lines()))\n"
+        "    consent_needed(plan, print, given=app.yes)\n", encoding="utf-8")
+    (root / "cli" / "consent.py").write_text("def g(plan):\n    return plan.lines()\n", encoding="utf-8")
+    found = plans_rendered_outside_consent(root)
+    assert sorted(f.split(": ", 1)[1] for f in found) == ["consent_needed(plan, print, given=app.yes)", "plan.lines()"]

@@ -162,6 +162,26 @@ def test_params_is_an_alias_and_backup_is_in_param(akd_inproc, tmp_path: Path) -
     assert rc == 0, err
 
 
+def test_a_plans_notes_are_shown_and_only_for_what_it_writes(akd_inproc, tmp_path: Path) -> None:
+    """param set's notes (RAM only until saved, the inferred CoE scale) reach the user on stderr, one line each,
+    as every writing command's do (cli/consent.consent_plan). A restore notes the factory MOTOR.INERTIA (0.1 at the
+    inferred scale, below the published range) only if it writes it, and says when there is nothing to write."""
+    rc, out, err = akd_inproc("-y", "param", "set", "VL.KP=0.5")
+    assert rc == 0 and "VL.KP" in out, err
+    assert err.splitlines() == [
+        "akdctl: note: VL.KP: CoE scale x1000 is inferred [I] (the read-back uses the same scale, so it cannot "
+        "confirm it; compare with akd://HOST on a real drive)",
+        "akdctl: note: RAM only until 'akdctl param save' (DRV.NVSAVE)"]
+    dump = tmp_path / "axis.akd"
+    assert akd_inproc("param", "dump", str(dump))[0] == 0
+    assert "\nMOTOR.INERTIA 0.100\n" in dump.read_text()
+    rc, out, err = akd_inproc("-y", "param", "restore", str(dump))
+    assert rc == 0 and "nothing to write" in out and err == "", err
+    dump.write_text(dump.read_text().replace("\nVL.KP 0.500\n", "\nVL.KP 0.750\n"), encoding="utf-8")
+    rc, out, err = akd_inproc("-y", "param", "restore", str(dump))
+    assert rc == 0 and "0.75" in out and "MOTOR.INERTIA" not in err and "RAM only" in err, err
+
+
 def test_live_discovery_is_cached_per_firmware_and_overrides(akd_inproc, tmp_path: Path,
                                                              monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))

@@ -26,16 +26,13 @@ def cmd(words: tuple[str, ...], dry_run: bool) -> None:
       akdctl -T akd://192.168.0.10 cmd DRV.INFO
       akdctl -T akd://192.168.0.10 -y cmd "DRV.OPMODE 2"
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import names as ops
 
     app = get_app()
     plan = ops.plan_line(app.connection, " ".join(words))
     if dry_run:
-        app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-        return
-    if not plan.data["safe"]:
-        from akdctl.cli.param import _consent
-
-        _consent(app, plan)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)  # a known-safe read has no gated write: nothing is asked
     reply = ops.execute_line(app.connection, plan)
     app.emit({"target": app.target.display, "line": plan.data["line"], "reply": reply}, reply or "(no reply)")

@@ -66,23 +66,33 @@ def gate_write(app: "AppContext", gated: list[Any]) -> None:
 
 def consent_plan(app: "AppContext", plan: Any) -> None:
     """The consent a write plan asks for (:attr:`akdctl.drive.operation.WritePlan.consent_text`), decided by the
-    plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``)."""
+    plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``).
+
+    The plan's notes come first, one ``akdctl: note:`` line each on stderr: what the user should know before it
+    runs (RAM only until saved, an inferred scale, what ``--force`` let past, a power cycle needed), shown the same
+    way by every writing command, whether or not it needs consent."""
     from akdctl.drive.operation import consent_needed
 
+    if plan.notes:
+        from akdctl.cli.output import message
+
+        for note in plan.notes:
+            message(f"akdctl: note: {note}")
     if plan.gated and app.yes:
         own_axis(app)
     consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
 
 
-def render_dry_run(app: "AppContext", plan: Any) -> None:
-    """``--dry-run``: the plan in words (or its JSON with ``--json``); nothing is written."""
+def render_dry_run(app: "AppContext", plan: Any, **extra: Any) -> None:
+    """``--dry-run``: the plan in words (or its JSON with ``--json``, ``extra`` keys beside it); nothing is
+    written. Every writing command's dry run is rendered here."""
     from akdctl.cli.output import Doc
 
     lines = plan.lines()
     doc = Doc(f"{lines[0]} (dry run, nothing written)", "")
     for line in lines[1:]:
         doc.line(line)
-    app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, doc)
+    app.emit({"target": app.target.display, **extra, "dry_run": True, "plan": plan.to_json()}, doc)
 
 
 def own_axis(app: "AppContext") -> None:

@@ -367,11 +367,7 @@ def alias(alias: str | None, via: str, dry_run: bool) -> None:
     plan = op.plan(app.connection, parse_int(alias, "alias"), via)
     if dry_run:
         return dry_run_plan(plan)
-    ask_plan(plan)
-    from akdctl.cli.output import message
-
-    if via == "sii":
-        message("the AKD saves all its RAM parameters (DRV.NVSAVE) when SII word 4 is written")
+    ask_plan(plan)  # shows the plan's notes: the power cycle, and DRV.NVSAVE on an SII word 4 write
     result = op.execute(app.connection, plan)
     doc = _alias_doc(f"station alias set to {result['alias']} ({via})", result["after"])
     doc.line("power-cycle the drive: the master sees the new alias in register 0x0012 after that"

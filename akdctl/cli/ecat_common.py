@@ -37,15 +37,15 @@ def write_user_file(path: str, data: bytes) -> None:
 
 
 def ask_plan(plan: Any) -> None:
-    from akdctl.cli.consent import require_consent
-    from akdctl.drive.operation import consent_needed
+    from akdctl.cli.consent import consent_plan
 
-    app = get_app()
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
+    consent_plan(get_app(), plan)
 
 
 def dry_run_plan(plan: Any) -> None:
-    get_app().emit({"dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
+    from akdctl.cli.consent import render_dry_run
+
+    render_dry_run(get_app(), plan)
 
 
 def parse_int(text: str, what: str) -> int:

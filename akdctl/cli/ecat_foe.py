@@ -71,18 +71,16 @@ class TransferProgress:
 def firmware_run(operation: str, file: str, name: str | None, password: int, dry_run: bool,
                   restart_timeout: float) -> None:
     """``ecat foe write`` and ``firmware update``: parse, plan, consent, execute, render."""
-    from akdctl.cli.consent import require_consent
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import firmware
-    from akdctl.drive.operation import consent_needed
 
     app = get_app()
     data = read_user_file(file, firmware.MAX_FIRMWARE_BYTES)
     request = firmware.FirmwareRequest(file, data, name, password, restart_timeout)
     plan = firmware.plan(app.connection, request, operation)
     if dry_run:
-        app.emit({"dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-        return
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
     with TransferProgress(f"FoE write {request.name}", len(data), quiet=app.json) as progress:
         result = firmware.execute(app.connection, plan, progress)
     doc = Doc(f"{operation}: {request.name}", app.target.display)

@@ -227,7 +227,7 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
       akdctl -T eip://192.168.0.20 -y eip io move 10000 --velocity 2000
       akdctl -T eip://192.168.0.20 -y eip io jog 500 --for 2s
     """
-    from akdctl.cli.consent import require_consent
+    from akdctl.cli.consent import render_dry_run, require_consent
     from akdctl.cli.parsing import parse_duration
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import eip_io
@@ -237,10 +237,8 @@ def io(kind: str, value: int, velocity: int | None, accel: int, decel: int, rela
                                None if hold is None else parse_duration(hold, "--for"), rpi, io_port, local_port)
     accepted = eip_io.plan(app.connection, request)
     if dry_run:
-        app.emit({"target": app.target.display, "dry_run": True, "plan": accepted.to_json()},
-                 "\n".join(accepted.lines()))
-        return
-    require_consent(app, accepted.consent_text)
+        return render_dry_run(app, accepted)
+    require_consent(app, accepted.consent_text)  # motion: always asked (drive/eip_io.IoPlan)
     # SIGINT/SIGTERM/SIGHUP only set a flag the waits check: the axis is stopped and watched to standstill
     # before the connection closes (drive/eip_io.execute).
     with stop_signals() as stop:

@@ -32,15 +32,6 @@ def param() -> None:
     """
 
 
-def _consent(app: Any, plan: Any) -> None:
-    from akdctl.cli.consent import own_axis, require_consent
-    from akdctl.drive.operation import consent_needed
-
-    if plan.gated and app.yes:
-        own_axis(app)
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
-
-
 def _live(conn: Any, how: str) -> dict[str, Any]:
     from akdctl.drive.name_discovery import discover
 
@@ -125,15 +116,15 @@ def set_(assignments: tuple[str, ...], raw: bool, dry_run: bool, live: bool) -> 
       akdctl -y param set VL.KP=0.5 VL.KI=120
       akdctl param set DRV.OPMODE=2 --dry-run
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import names as ops
 
     app = get_app()
     found = _live(app.connection, ops.route(app.connection)) if live else None
     plan = ops.plan(app.connection, _assignments(assignments), raw=raw, live=found)
     if dry_run:
-        app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-        return
-    _consent(app, plan)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
     done = ops.execute(app.connection, plan)
     app.emit({"target": app.target.display, "written": done, "notes": plan.notes},
              lambda: Doc("AKD parameters written", app.target.display).table(
@@ -227,8 +218,9 @@ def save(dry_run: bool) -> None:
     app = get_app()
     plan = ops.plan_save(app.connection)
     if dry_run:
-        app.emit({"target": app.target.display, "dry_run": True, "plan": plan.to_json()}, "\n".join(plan.lines()))
-        return
+        from akdctl.cli.consent import render_dry_run
+
+        return render_dry_run(app, plan)
     result = ops.execute_save(app.connection, plan)
     app.emit({"target": app.target.display, **result}, f"saved to non-volatile memory on {app.target.display}")
 
@@ -310,6 +302,7 @@ def restore(ctx: click.Context, file: str, dry_run: bool, save: bool, force: boo
 
         ctx.invoke(backups.restore, file=file, dry_run=dry_run, force=force, save=save)
         return
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import names as ops
     from akdctl.drive.param_file import parse
 
@@ -318,17 +311,20 @@ def restore(ctx: click.Context, file: str, dry_run: bool, save: bool, force: boo
     plan = ops.plan(app.connection, [(name, value) for _, name, value in entries], operation="param restore",
                     only_changes=True, skip_unreachable=True)
     if dry_run:
-        app.emit({"target": app.target.display, "file": file, "dry_run": True, "plan": plan.to_json()},
-                 "\n".join(plan.lines()))
-        return
-    _consent(app, plan)
+        return render_dry_run(app, plan, file=file)
+    consent_plan(app, plan)
     done = ops.execute(app.connection, plan) if plan.writes else []
     if save and done:
         ops.execute_save(app.connection, ops.plan_save(app.connection))
-    app.emit({"target": app.target.display, "file": file, "written": done, "notes": plan.notes, "saved": save and bool(done)},
-             lambda: Doc("parameters restored", app.target.display).table(
-                 ["name", "value"], [[d["name"], d["value"]] for d in done]).line(
-                 "; ".join(plan.notes) if plan.notes else ""))
+
+    def human() -> Doc:
+        doc = Doc("parameters restored", app.target.display)
+        if not done:
+            return doc.line(f"nothing to write: every value reachable here already equals {file}'s")
+        return doc.table(["name", "value"], [[d["name"], d["value"]] for d in done])
+
+    app.emit({"target": app.target.display, "file": file, "written": done, "notes": plan.notes,
+              "saved": save and bool(done)}, human)
 
 
 @param.command("diff")

@@ -7,7 +7,7 @@ from typing import Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.cli.output import Doc, message
+from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
 
@@ -192,8 +192,6 @@ def map_(rx: tuple[str, ...], tx: tuple[str, ...], define: tuple[str, ...], file
 
         app.emit(data, planned)
         return
-    for note in plan.notes:
-        message(f"akdctl: warning: {note}")
     consent_plan(app, plan)
     result = dp.execute(app.connection, plan)
     after = result["mapping"]

@@ -103,19 +103,14 @@ def set_(number: int, position: float, velocity: float, accel: float, decel: flo
     Examples:
       akdctl task set 5 --position 2.5 --velocity 300 --accel 2000 --yes
     """
-    from akdctl.cli.consent import own_axis, require_consent
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import tasks
-    from akdctl.drive.operation import consent_needed
 
     app = get_app()
     accepted = tasks.plan_set(app.connection, tasks.TaskRequest(number, position, velocity, accel, decel, relative))
     if dry_run:
-        app.emit({"target": app.target.display, "dry_run": True, "plan": accepted.to_json()},
-                 "\n".join(accepted.lines()))
-        return
-    if accepted.gated and app.yes:
-        own_axis(app)  # a gated write owns the axis like a motion, also with --yes (cli/consent.gate_write)
-    consent_needed(accepted, lambda text: require_consent(app, text), given=app.yes)
+        return render_dry_run(app, accepted)
+    consent_plan(app, accepted)
     stored = tasks.execute_set(app.connection, accepted)
     app.emit({"target": app.target.display, **stored.to_json()},
              lambda: Doc(f"motion task {number} stored", app.target.display).table(_COLUMNS, [_row(stored)]))

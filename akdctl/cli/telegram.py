@@ -7,7 +7,7 @@ from typing import Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.cli.output import Doc, message
+from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
 
@@ -64,8 +64,6 @@ def _run(app: Any, request: Any, dry_run: bool, title: str) -> None:
     if dry_run:
         render_dry_run(app, plan)
         return
-    for note in plan.notes:
-        message(f"akdctl: warning: {note}")
     consent_plan(app, plan)
     state = dt.execute(app.connection, plan)
     data = {"target": app.target.display, **state.to_json()}
