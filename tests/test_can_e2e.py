@@ -80,12 +80,13 @@ COMMANDS: list[tuple[list[str], int, str]] = [
     (["sdo", "write", "0x1018:1", "u32", "1"], 2, ""),  # the catalogue already says read-only
     (["can", "scan", "--nodes", "1-4", "--wait", "0.5"], 0, "AKD"),
     (["can", "nmt", "preop"], 0, "PRE-OPERATIONAL"),
-    (["can", "nmt", "start"], 0, "OPERATIONAL"),
+    (["can", "nmt", "start"], 4, ""),  # OPERATIONAL acts on a master's RPDOs: consent (drive/nmt.py)
+    (["-y", "can", "nmt", "start"], 0, "OPERATIONAL"),
     (["can", "nmt", "stop"], 0, "STOPPED"),
     (["--timeout", "0.3", "sdo", "read", "0x1018:1"], 3, ""),  # no SDO while STOPPED
     (["can", "nmt", "reset"], 0, "PRE-OPERATIONAL"),
     (["can", "nmt", "reset-comm", str(NODE)], 0, "PRE-OPERATIONAL"),
-    (["can", "nmt", "start", "all"], 0, "not confirmed"),
+    (["-y", "can", "nmt", "start", "all"], 0, "not confirmed"),
 ]
 
 

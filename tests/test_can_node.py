@@ -7,6 +7,7 @@ important paths across processes.
 
 from __future__ import annotations
 
+import json
 import struct
 import threading
 import uuid
@@ -16,12 +17,12 @@ import canopen
 import pytest
 
 from akdctl.connection import Connection
-from akdctl.errors import MalformedReply, NoAnswer, SdoAborted
+from akdctl.errors import MalformedReply, NoAnswer, SdoAborted, UsageError
 from akdctl.protocol.emcy import Emergency
 from akdctl.sim.drive import SimDrive
 from akdctl.sim.face_can import CanFace, parse_spec
 from akdctl.transport.base import LinkOptions
-from akdctl.transport.canopen_bus import CanopenTransport
+from akdctl.transport.canopen_bus import NMT_COMMANDS, CanopenTransport
 from akdctl.transport.registry import parse_target
 from akdctl.transport.trace import Tracer
 from tests.harness import wait_until
@@ -298,3 +299,34 @@ def test_a_segmented_upload_with_a_wrong_toggle_bit_is_aborted(link: CanopenTran
     finally:
         objects._send = real  # type: ignore[method-assign]
     assert sent[-1][0] == 0x80 and int.from_bytes(sent[-1][4:], "little") == 0x05030000  # aborted: toggle bit
+
+
+# ------------------------------------------------------------------ NMT as a write plan (drive/nmt.py)
+def test_nmt_start_is_gated_the_others_are_not(face: CanFace, link: Connection) -> None:
+    """NMT start makes the node act on the RPDOs a master sends (CiA 301: PDOs only in OPERATIONAL): consent;
+    stop, preop and the resets only take process data away."""
+    from akdctl.drive import nmt
+
+    for command in nmt.EXPECTED_STATE:
+        plan = nmt.plan(link, nmt.NmtRequest(command))
+        assert [w.raw for w in plan.writes] == [bytes((NMT_COMMANDS[command], NODE))]
+        assert bool(plan.needing_consent) == (command == "start"), command
+    every = nmt.plan(link, nmt.NmtRequest("reset", 0))
+    assert not every.verify and any("no node's new state is confirmed" in n for n in every.notes)
+    with pytest.raises(UsageError, match="NODE 128 is outside"):
+        nmt.plan(link, nmt.NmtRequest("stop", 128))
+    assert link.transport().nmt_state(fresh=True) == "PRE-OPERATIONAL"  # planning sent nothing
+
+
+def test_cli_nmt_start_asks_consent_and_dry_run_sends_nothing(face: CanFace, channel: str, akd_inproc) -> None:
+    target = f"can://virtual/{channel}/{NODE}"
+    code, out, err = akd_inproc("-T", target, "can", "nmt", "start", "--dry-run")
+    assert code == 0 and "needs consent" in out and "RPDOs" in out, err
+    code, out, err = akd_inproc("-T", target, "can", "nmt", "start")
+    assert code == 4 and "refusing to write NMT start (node" in err and out == "", err
+    code, out, err = akd_inproc("-T", target, "--json", "can", "nmt", "preop")  # never gated
+    assert code == 0 and json.loads(out)["nmt_state"] == "PRE-OPERATIONAL", err
+    code, out, err = akd_inproc("-T", target, "-y", "--json", "can", "nmt", "start")
+    assert code == 0 and json.loads(out)["nmt_state"] == "OPERATIONAL", err
+    code, out, err = akd_inproc("-T", target, "can", "nmt", "stop", "300")
+    assert code == 2 and "NODE 300 is outside" in err

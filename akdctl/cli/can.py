@@ -13,32 +13,17 @@ import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
-from akdctl.errors import CheckFailed, UsageError
+from akdctl.drive.nmt import EXPECTED_STATE
+from akdctl.errors import UsageError
 
 if TYPE_CHECKING:
     from akdctl.transport.canopen_bus import CanopenTransport
 
-#: The state each NMT command leads to (CiA 301 figure 48); resets end in PRE-OPERATIONAL after boot-up.
-EXPECTED_STATE = {
-    "start": "OPERATIONAL",
-    "stop": "STOPPED",
-    "preop": "PRE-OPERATIONAL",
-    "reset": "PRE-OPERATIONAL",
-    "reset-comm": "PRE-OPERATIONAL",
-}
-
 
 def _can_transport() -> "CanopenTransport":
-    from akdctl.transport.canopen_bus import CanopenTransport
+    from akdctl.drive.nmt import bus
 
-    app = get_app()
-    target = app.target
-    if target.scheme != "can":
-        raise UsageError(f"'akdctl can' commands need a can://INTERFACE/CHANNEL/NODE target; the target is {target.display}")
-    transport = app.transport()
-    if not isinstance(transport, CanopenTransport):
-        raise UsageError(f"target {target.display} is not a CANopen transport")
-    return transport
+    return bus(get_app().connection)
 
 
 def parse_nodes(text: str) -> list[int]:
@@ -112,18 +97,24 @@ def scan(nodes_text: str, wait: float | None) -> None:
 @click.argument("command", type=click.Choice(sorted(EXPECTED_STATE)))
 @click.argument("node", required=False, metavar="[NODE|all]")
 @click.option("--no-wait", is_flag=True, help="Do not wait for the node to confirm its new state.")
-def nmt(command: str, node: str | None, no_wait: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the NMT frame, consent, notes); send nothing.")
+def nmt(command: str, node: str | None, no_wait: bool, dry_run: bool) -> None:
     """Send an NMT command (start, stop, preop, reset, reset-comm) to NODE (default: the target's node).
 
     NODE 'all' (or 0) addresses every node; then no state is confirmed.
     The new state is confirmed from the heartbeat or by node guarding (exit 3 if
-    the node stays silent, 5 if it reports another state).
+    the node stays silent, 5 if it reports another state). 'start' needs consent
+    (-y): in OPERATIONAL the node acts on the RPDOs a master sends.
 
     \b
     Examples:
       akdctl -T can://socketcan/can0/1 can nmt preop
+      akdctl -T can://socketcan/can0/1 -y can nmt start
       akdctl -T can://pcan/PCAN_USBBUS1/1 can nmt reset all
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import nmt as op
+
     app = get_app()
     if node is None:
         node_id = None
@@ -134,20 +125,15 @@ def nmt(command: str, node: str | None, no_wait: bool) -> None:
             node_id = int(node, 0)
         except ValueError:
             raise UsageError(f"NODE {node!r} is not a node id (1..127) or 'all'") from None
-        if not 0 <= node_id <= 127:
-            raise UsageError(f"NODE {node_id} is outside 1..127 (0 or 'all' = every node)")
-    transport = _can_transport()
-    target_node = transport.node_id if node_id is None else node_id
-    transport.nmt(command, target_node)
-    state = None
-    expected = EXPECTED_STATE[command]
-    if target_node != 0 and not no_wait:
-        state = transport.nmt_state(target_node, fresh=True, expect=expected)
-    data = {"target": app.target.display, "node": target_node or "all", "command": command, "nmt_state": state}
-    app.emit(data, Doc(f"NMT {command} sent to {'all nodes' if target_node == 0 else f'node {target_node}'}",
-                       app.target.display).kv("NMT state", state or "(not confirmed)"))
-    if state is not None and state != expected:
-        raise CheckFailed(f"node {target_node} reports {state} after NMT {command} (expected {expected})")
+    plan = op.plan(app.connection, op.NmtRequest(command, node_id, wait=not no_wait))
+    if dry_run:
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
+    result = op.execute(app.connection, plan)
+    who = "all nodes" if result["node"] == "all" else f"node {result['node']}"
+    app.emit(result, Doc(f"NMT {command} sent to {who}", app.target.display)
+             .kv("NMT state", result["nmt_state"] or "(not confirmed)"))
+    op.check(result)
 
 
 from akdctl.cli.can_monitor import monitor as _monitor  # noqa: E402 - registered last: `can monitor`
