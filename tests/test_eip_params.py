@@ -4,6 +4,8 @@ from the cited table."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from akdctl.catalog import eip_parameters
@@ -70,5 +72,11 @@ def test_commands_are_a_one_byte_write_and_not_a_value() -> None:
     channel = FakeChannel({9: (0xC6, 1, b"\x00")})
     with pytest.raises(UsageError, match="is a command"):
         eip_params.write(channel, eip_params.resolve("AIN.ZERO"), "1")
-    eip_params.run_command(channel, eip_params.resolve("AIN.ZERO"))
+    conn = SimpleNamespace(cip=lambda: channel, target=SimpleNamespace(display="fake"))
+    plan = eip_params.plan_command(conn, eip_params.resolve("AIN.ZERO"))
+    assert channel.calls == [] and plan.operation == "eip param run" and not plan.needing_consent
+    eip_params.execute(conn, plan)
     assert channel.calls == [("set", 9, 1, b"\x01")]
+    assert eip_params.plan_command(conn, eip_params.resolve("HOME.MOVE")).needing_consent  # starts homing
+    with pytest.raises(UsageError, match="not a command parameter"):
+        eip_params.plan_command(conn, eip_params.resolve("AOUT.MODE"))

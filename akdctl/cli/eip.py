@@ -109,15 +109,6 @@ def _channel(app: Any) -> Any:
     return attributes(app)
 
 
-def _gate_parameter(app: Any, ref: Any) -> None:
-    """Consent before a Parameter-object write that can power or move the axis (the one write gate)."""
-    from akdctl.cli.consent import gate_write
-    from akdctl.drive.gate import classify_cip
-    from akdctl.protocol import cip
-
-    gate_write(app, [classify_cip(cip.PARAMETER, ref.instance, 1, ref.name or "")])
-
-
 @param.command("get")
 @click.argument("name", metavar="NAME|INSTANCE")
 def param_get(name: str) -> None:
@@ -172,21 +163,28 @@ def param_set(name: str, value: str, dry_run: bool) -> None:
 
 @param.command("run")
 @click.argument("name", metavar="NAME|INSTANCE")
-def param_run(name: str) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the write, whether it needs consent); write nothing.")
+def param_run(name: str, dry_run: bool) -> None:
     """Run a command parameter (a 1-byte write of attribute 1), e.g. HOME.MOVE.
 
     \b
     Examples:
       akdctl -T eip://192.168.0.20 -y eip param run HOME.MOVE
+      akdctl -T eip://192.168.0.20 eip param run HOME.MOVE --dry-run
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import eip_params
 
     ref = eip_params.resolve(name)
     app = get_app()
-    channel = _channel(app)
-    _gate_parameter(app, ref)
-    result = eip_params.run_command(channel, ref)
-    app.emit({"target": app.target.display, **result}, f"{ref.name or ref.instance}: command executed")
+    _channel(app)  # a target without CIP is refused before anything else
+    plan = eip_params.plan_command(app.connection, ref)
+    if dry_run:
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
+    eip_params.execute(app.connection, plan)
+    app.emit({"target": app.target.display, "instance": ref.instance, "name": ref.name, "executed": True},
+             f"{ref.name or ref.instance}: command executed")
 
 
 IO_KINDS = ("position", "torque", "move", "jog", "velocity")   # drive/eip_io.IO_TYPES, listed without its import

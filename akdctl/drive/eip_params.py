@@ -110,13 +110,6 @@ def write(channel: Any, ref: ParameterRef, text: str) -> dict[str, Any]:
     return {"instance": ref.instance, "name": ref.name, "written": data.hex(), "value": value, "length": size}
 
 
-def run_command(channel: "CipAttributes", ref: ParameterRef) -> dict[str, Any]:
-    if ref.kind not in ("command", "?"):
-        raise UsageError(f"{ref.name} is not a command parameter")
-    channel.set(cip.PARAMETER, ref.instance, 1, b"\x01")
-    return {"instance": ref.instance, "name": ref.name, "executed": True}
-
-
 # ---------------------------------------------------------------------------- the operation (plan -> execute)
 class AttributeWrite:
     """One Set_Attribute_Single: ``cip set`` (``dtype`` and ``value`` as the user typed them) or ``eip param set``
@@ -168,6 +161,23 @@ def plan(conn: Any, request: AttributeWrite) -> Any:
                      data={"request": request, "bytes": data, "value": value, "length": size})
 
 
+def plan_command(conn: Any, ref: ParameterRef) -> Any:
+    """``eip param run``: a command parameter runs on a 1-byte write of 1 to its attribute 1, planned like any
+    write: the gate's verdict by name (HOME.MOVE starts homing: consent), ``--dry-run``, then :func:`execute`."""
+    if ref.kind not in ("command", "?"):
+        raise UsageError(f"{ref.name} is not a command parameter")
+    from akdctl.drive.gate import classify_cip
+    from akdctl.drive.operation import PlannedWrite, WritePlan, read_enabled
+
+    conn.cip()  # a target without CIP is refused before anything else
+    request = AttributeWrite(cip.PARAMETER, ref.instance, 1, dtype="u8", value=1, data=b"\x01", ref=ref)
+    label = f"0x{cip.PARAMETER:02X}/{ref.instance}/1"
+    writes = [PlannedWrite(f"parameter {ref.name or ref.instance} ({label})", request.data, "1 (run the command)",
+                           classify_cip(cip.PARAMETER, ref.instance, 1, ref.name or ""))]
+    return WritePlan("eip param run", conn.target.display, writes, enabled=read_enabled(conn, writes),
+                     data={"request": request, "bytes": request.data, "value": 1, "length": 1})
+
+
 def execute(conn: Any, plan: Any) -> dict[str, Any]:
     """Send the one Set_Attribute_Single of the plan."""
     request: AttributeWrite = plan.data["request"]
@@ -178,4 +188,4 @@ def execute(conn: Any, plan: Any) -> dict[str, Any]:
 
 
 __all__ = ["AttributeWrite", "ParameterRef", "attribute_request", "describe", "encode_parameter", "execute",
-           "parameter_request", "plan", "read", "resolve", "run_command", "write"]
+           "parameter_request", "plan", "plan_command", "read", "resolve", "write"]
