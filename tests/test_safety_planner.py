@@ -15,6 +15,7 @@ from akdctl.drive import gate
 from akdctl.drive.axis.cia402 import Cia402Axis
 from akdctl.drive.axis.profidrive import ProfidriveAxis
 from akdctl.drive.motion_plan import REL_TOL, MotionRequest, check_request, quantise
+from akdctl.drive.operation import PlannedWrite, WritePlan
 from akdctl.errors import Interrupted, SafetyRefusal, UsageError
 
 MDI = ProfidriveAxis.motion_scales("position")
@@ -98,7 +99,9 @@ def test_gate_table() -> None:
     assert gate.classify_object(0x1600, 1).when_enabled  # type: ignore[union-attr]
     assert not gate.classify_object(0x607A, 0).when_enabled  # type: ignore[union-attr]
     mode = gate.classify_pnu(930)
-    assert gate.needing_consent([mode], False) == [] and gate.needing_consent([mode], None) == [mode]
+    plan = lambda enabled: WritePlan("pnu set", "sim", [PlannedWrite("PNU 930", 2, "2", mode)], enabled=enabled)  # noqa: E731
+    assert plan(False).needing_consent == [] and plan(None).needing_consent == [mode]  # unknown counts as enabled
+    assert gate.needing_consent([mode], False) == [] and gate.needing_consent([mode, None], None) == [mode]
 
 
 def test_stop_signals_exit_code_and_restore() -> None:

@@ -53,17 +53,6 @@ def ask(text: str, yes: bool) -> None:
         raise SafetyRefusal(f"not confirmed: {text}; nothing was written")
 
 
-def gate_write(app: "AppContext", gated: list[Any]) -> None:
-    """The write gate for raw write commands: consent when the addresses can power or move the axis
-    (:func:`akdctl.drive.gate.check_write`); ``--yes`` counts as given without reading the drive.
-    A write touching a gated address owns the axis like a motion (also with ``--yes``)."""
-    from akdctl.drive import gate
-
-    if any(g is not None for g in gated) and app.yes:
-        own_axis(app)
-    gate.check_write(app.connection, gated, lambda action: require_consent(app, action), given=app.yes)
-
-
 def consent_plan(app: "AppContext", plan: Any) -> None:
     """The consent a write plan asks for (:attr:`akdctl.drive.operation.WritePlan.consent_text`), decided by the
     plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``).

@@ -1,7 +1,7 @@
 """``akdctl task list|show|set|start``: the AKD's stored motion tasks (program mode, PROFINET manual 5.10.1).
 
 Thin: the table is :mod:`akdctl.drive.tasks` (CoE objects MT.NUM/MT.LOAD/MT.SET, docs/fidelity.md F11), the
-writes pass the one write gate (:func:`akdctl.cli.consent.gate_write`), and ``task start`` is a motion that runs
+``task set`` is a write plan asked and run like every other (:func:`akdctl.cli.consent.consent_plan`), and ``task start`` is a motion that runs
 the one planner, consent and stop-signal path of ``move`` (:func:`akdctl.cli.motion._plan_and_run`).
 """
 

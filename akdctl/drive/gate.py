@@ -2,9 +2,9 @@
 
 Why a gate: ``pnu set 1=0x047F`` or ``sdo write 0x6040:0 15`` reach the state
 machine without the motion commands' consent. Every raw write path (``pnu set``,
-``sdo write``, recipe ``set`` steps) classifies its addresses here; the caller asks
-for consent (:func:`akdctl.cli.consent.require_consent`) when :func:`needing_consent`
-returns anything. README "Safety model" lists the same addresses.
+``sdo write``, recipe ``set`` steps) classifies its addresses here, into the
+:class:`~akdctl.drive.operation.WritePlan` it builds; the plan's ``needing_consent`` decides what the CLI
+(:func:`akdctl.cli.consent.consent_plan`) or the recipe asks. README "Safety model" lists the same addresses.
 
 The gate knows no list of addresses: it asks the catalogue for the *write class* of the row an address
 names (catalog/objects.py ``write_class``, ``name_write_class``): every CoE object, PNU and CIP Parameter
@@ -170,7 +170,8 @@ def classify_cip(class_id: int, instance: int, attribute: int, name: str = "") -
 
 
 def needing_consent(gated: Sequence[Gated | None], enabled: bool | None) -> list[Gated]:
-    """The gated addresses that need consent now; ``enabled`` None (unknown) counts as enabled."""
+    """The gated addresses that need consent now; ``enabled`` None (unknown) counts as enabled. The one rule:
+    a write plan (:attr:`akdctl.drive.operation.WritePlan.needing_consent`) and a recipe's steps ask it."""
     return [g for g in gated if g is not None and (not g.when_enabled or enabled is not False)]
 
 
@@ -185,25 +186,6 @@ def drive_enabled(conn: "Connection") -> bool | None:
         return bool(conn.axis().read_status().enabled)
     except AkdError:
         return None
-
-
-def consent_action(needing: list[Gated]) -> str:
-    """The consent prompt's words for a gated write."""
-    return "write " + "; ".join(g.text() for g in needing)
-
-
-def check_write(conn: "Connection", gated: list[Gated | None], consent: Any, given: bool = False) -> None:
-    """Ask ``consent(action)`` when a write touches gated addresses (the drive's state read only if it matters).
-
-    ``given``: consent was already given (``--yes``), so nothing needs to be read or asked.
-    """
-    present = [g for g in gated if g is not None]
-    if not present or given:
-        return
-    enabled = drive_enabled(conn) if any(g.when_enabled for g in present) else None
-    needing = needing_consent(present, enabled)
-    if needing:
-        consent(consent_action(needing))
 
 
 #: The port a scheme uses when the target names none (README "Targets"): spelled out or not, one axis.

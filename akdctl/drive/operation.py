@@ -95,8 +95,10 @@ class WritePlan:
     def needing_consent(self) -> list["Gated"]:
         """The gated writes that need consent now (a write gated only while enabled counts unless the plan
         read the drive as disabled)."""
-        return [w.gated for w in self.writes
-                if w.gated is not None and (not w.gated.when_enabled or self.enabled is not False)]
+        from akdctl.drive.gate import needing_consent
+
+        gated = [w.gated for w in self.writes if w.gated is not None]
+        return needing_consent(gated, self.enabled) if gated else []  # no gated write: the drive is never read
 
     @property
     def gated(self) -> bool:
