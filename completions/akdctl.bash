@@ -211,7 +211,7 @@ _akdctl() {
         "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "can") COMPREPLY=($(compgen -W "monitor nmt scan --help" -- "$cur")) ;;
         "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --heartbeats --help --nodes" -- "$cur")) ;;
-        "can nmt") COMPREPLY=($(compgen -W "--help --no-wait" -- "$cur")) ;;
+        "can nmt") COMPREPLY=($(compgen -W "--dry-run --help --no-wait" -- "$cur")) ;;
         "can scan") COMPREPLY=($(compgen -W "--help --nodes --wait" -- "$cur")) ;;
         "cip") COMPREPLY=($(compgen -W "get set --help" -- "$cur")) ;;
         "cip get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
@@ -220,7 +220,7 @@ _akdctl() {
         "eip io") COMPREPLY=($(compgen -W "--accel --decel --dry-run --for --help --local-port --port --relative --rpi --velocity" -- "$cur")) ;;
         "eip param") COMPREPLY=($(compgen -W "get run set --help" -- "$cur")) ;;
         "eip param get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "eip param run") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "eip param run") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "eip param set") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "eip scan") COMPREPLY=($(compgen -W "--help --iface --port --wait" -- "$cur")) ;;
         "sim") COMPREPLY=($(compgen -W "fault clear speed set reset serve show --help" -- "$cur")) ;;
