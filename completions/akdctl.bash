@@ -123,17 +123,17 @@ _akdctl() {
     case "$path" in
         "") COMPREPLY=($(compgen -W "status enable disable stop jog home move task pnu sdo pdo telegram fault support scope param params cmd commission diagnose shell info discover targets pn ecat can cip eip sim firmware --config --debug --help --inventory --json --parallel --pcap --profile --reference --retries --select --stop-on-error --target --timeout --trace --verbose --version --yes -T -v -y" -- "$cur")) ;;
         "status") COMPREPLY=($(compgen -W "--count --for --help --interval --watch" -- "$cur")) ;;
-        "enable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "enable") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "disable") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "stop") COMPREPLY=($(compgen -W "--help --quick" -- "$cur")) ;;
-        "jog") COMPREPLY=($(compgen -W "--accel --distance --for --help --units" -- "$cur")) ;;
-        "home") COMPREPLY=($(compgen -W "--help --max-time --mode --timeout" -- "$cur")) ;;
-        "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --help --no-wait --relative --units --velocity" -- "$cur")) ;;
+        "jog") COMPREPLY=($(compgen -W "--accel --distance --dry-run --for --help --units" -- "$cur")) ;;
+        "home") COMPREPLY=($(compgen -W "--dry-run --help --max-time --mode --timeout" -- "$cur")) ;;
+        "move") COMPREPLY=($(compgen -W "--absolute --accel --decel --dry-run --help --no-wait --relative --units --velocity" -- "$cur")) ;;
         "task") COMPREPLY=($(compgen -W "list set show start --help" -- "$cur")) ;;
         "task list") COMPREPLY=($(compgen -W "--all --count --help" -- "$cur")) ;;
         "task set") COMPREPLY=($(compgen -W "--absolute --accel --decel --dry-run --help --position --relative --velocity" -- "$cur")) ;;
         "task show") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
-        "task start") COMPREPLY=($(compgen -W "--help --json --max-time --timeout --yes -y" -- "$cur")) ;;
+        "task start") COMPREPLY=($(compgen -W "--dry-run --help --json --max-time --timeout --yes -y" -- "$cur")) ;;
         "pnu") COMPREPLY=($(compgen -W "describe get list set --help" -- "$cur")) ;;
         "pnu describe") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "pnu get") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;

@@ -62,14 +62,19 @@ def consent_plan(app: "AppContext", plan: Any) -> None:
     way by every writing command, whether or not it needs consent."""
     from akdctl.drive.operation import consent_needed
 
+    show_notes(plan)
+    if plan.gated and app.yes:
+        own_axis(app)
+    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
+
+
+def show_notes(plan: Any) -> None:
+    """A plan's notes (a write plan's or a motion's), one ``akdctl: note:`` line each on stderr, before it runs."""
     if plan.notes:
         from akdctl.cli.output import message
 
         for note in plan.notes:
             message(f"akdctl: note: {note}")
-    if plan.gated and app.yes:
-        own_axis(app)
-    consent_needed(plan, lambda text: require_consent(app, text), given=app.yes)
 
 
 def render_dry_run(app: "AppContext", plan: Any, **extra: Any) -> None:

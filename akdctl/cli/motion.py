@@ -85,10 +85,11 @@ def _duration(text: str) -> float:
 
 
 def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | None = None,
-                  wait: bool = True) -> None:
+                  wait: bool = True, dry_run: bool = False) -> None:
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
-    consent, then execute under the stop signals; prints the final state."""
-    from akdctl.cli.consent import own_axis, require_consent
+    consent, then execute under the stop signals; prints the final state. ``dry_run``: the plan in words, then
+    stop (nothing asked, owned or written)."""
+    from akdctl.cli.consent import own_axis, render_dry_run, require_consent, show_notes
     from akdctl.cli.progress import MotionProgress
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
@@ -96,12 +97,15 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
 
     conn = app.connection
     motion_plan.check_request(conn, request, axis_class(conn))  # no drive needed: bad input exits 2 first
+    if dry_run:
+        return render_dry_run(app, motion_plan.plan(conn, conn.axis(), request))
     if app.yes:
         # Consent is given: own the axis before the plan reads it, so the preparation may share the plan's
         # status read (Axis.recent_status) - no other command can have moved the axis in between.
         own_axis(app)
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
+    show_notes(plan)
     require_consent(app, f"{plan.what} (mode: {plan.mode_text})")
     if not app.yes:
         axis.forget_status()  # the owner lock came with the answer: the preparation reads the drive again
@@ -176,7 +180,8 @@ def _watch_doc(app: Any, status: Any, stamp: str) -> Doc:
 
 
 @click.command()
-def enable() -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the motion as executed, mode, travel); move nothing.")
+def enable(dry_run: bool) -> None:
     """Bring the drive to operation enabled (S4 / operation enabled); no motion is commanded.
 
     \b
@@ -186,7 +191,7 @@ def enable() -> None:
     """
     from akdctl.drive.motion_plan import MotionRequest
 
-    _plan_and_run(get_app(), MotionRequest("enable"), "drive enabled")
+    _plan_and_run(get_app(), MotionRequest("enable"), "drive enabled", dry_run=dry_run)
 
 
 @click.command()
@@ -223,7 +228,9 @@ def stop(quick: bool) -> None:
 @click.option("--distance", type=float, help="Jog this far (in --units), a finite move; sign gives the direction.")
 @click.option("--accel", type=float, help=f"rpm/s (default {DEFAULT_ACC_RPM_S:g}, capped by the profile).")
 @click.option("--units", "unit", type=click.Choice(UNITS), help="Units of --distance (default: rev, or user).")
-def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the motion as executed, mode, travel); move nothing.")
+def jog(velocity: float, duration: str | None, distance: float | None, accel: float | None, unit: str | None,
+        dry_run: bool) -> None:
     """Jog at VELOCITY rpm for a bounded time (--for) or distance (--distance).
 
     \b
@@ -237,13 +244,14 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
         raise UsageError("jog needs exactly one of --for DURATION or --distance D, so the motion is bounded")
     if distance is not None:
         request = MotionRequest("jog", velocity=abs(velocity), distance=distance, accel=accel, unit=unit)
-        _plan_and_run(get_app(), request, "jog finished", {"distance": distance})
+        _plan_and_run(get_app(), request, "jog finished", {"distance": distance}, dry_run=dry_run)
         return
     from akdctl.cli.parsing import parse_duration
 
     seconds = parse_duration(duration, "jog --for") if duration is not None else None
     request = MotionRequest("jog", velocity=velocity, duration_s=seconds, accel=accel)
-    _plan_and_run(get_app(), request, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds})
+    _plan_and_run(get_app(), request, "jog finished", {"velocity_rpm": velocity, "duration_s": seconds},
+                  dry_run=dry_run)
 
 
 @click.command()
@@ -252,7 +260,8 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
               help="How long the whole homing may take before the axis is stopped (default 60 s; 30, 30s, 2m). "
                    "'home --timeout' is this option too; the wait for each request is the global "
                    "'akdctl --timeout' before the command.")
-def home(home_mode: int | None, home_timeout: float) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the motion as executed, mode, travel); move nothing.")
+def home(home_mode: int | None, home_timeout: float, dry_run: bool) -> None:
     """Run the drive's homing procedure and wait until the home position is set.
 
     \b
@@ -263,7 +272,7 @@ def home(home_mode: int | None, home_timeout: float) -> None:
     from akdctl.drive.motion_plan import MotionRequest
 
     _plan_and_run(get_app(), MotionRequest("home", home_mode=home_mode, timeout_s=home_timeout), "homing finished",
-                  {"homed": True})
+                  {"homed": True}, dry_run=dry_run)
 
 
 @click.command()
@@ -276,8 +285,9 @@ def home(home_mode: int | None, home_timeout: float) -> None:
 @click.option("--no-wait", is_flag=True,
               help="Return once the drive accepted the move; the simulator's watchdog then stops it within about "
                    "1 s unless something keeps polling (a real AKD finishes the task).")
+@click.option("--dry-run", is_flag=True, help="Show the plan (the motion as executed, mode, travel); move nothing.")
 def move(target: float, relative: bool, velocity: float | None, accel: float | None, decel: float | None,
-         unit: str | None, no_wait: bool) -> None:
+         unit: str | None, no_wait: bool, dry_run: bool) -> None:
     """Move to TARGET and wait for target reached (a finite, acknowledged point-to-point move).
 
     \b
@@ -291,4 +301,5 @@ def move(target: float, relative: bool, velocity: float | None, accel: float | N
     request = MotionRequest("move", target=target, relative=relative, velocity=velocity, accel=accel, decel=decel,
                             unit=unit)
     title = "move started (not waiting)" if no_wait else "target reached"
-    _plan_and_run(get_app(), request, title, {"position_target": target, "units": unit}, wait=not no_wait)
+    _plan_and_run(get_app(), request, title, {"position_target": target, "units": unit}, wait=not no_wait,
+                  dry_run=dry_run)

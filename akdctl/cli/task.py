@@ -123,7 +123,8 @@ def set_(number: int, position: float, velocity: float, accel: float, decel: flo
                    "'task start --timeout' is this option too; the per-request wait is the global 'akdctl --timeout'.")
 @click.option("--json", "json_output", is_flag=True, help="Machine-readable JSON on stdout.")
 @click.option("-y", "--yes", "yes_flag", is_flag=True, help="Consent to motion without a prompt.")
-def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: bool) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the stored task as it will run); move nothing.")
+def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: bool, dry_run: bool) -> None:
     """Start stored task NUMBER and wait for target reached (the consent and stop path of 'move').
 
     \b
@@ -137,4 +138,4 @@ def start(number: int, task_timeout: float | None, json_output: bool, yes_flag: 
     app.json = app.json or json_output
     app.yes = app.yes or yes_flag
     _plan_and_run(app, MotionRequest("task", task=number, timeout_s=task_timeout), "task finished",
-                  {"task": number})
+                  {"task": number}, dry_run=dry_run)

@@ -117,7 +117,7 @@ class MotionPlan(Record):
 
     __slots__ = ("request", "profile", "mode_kind", "unit", "velocity", "accel", "decel", "target_raw", "move_rev",
                  "start_rev", "end_rev", "duration_s", "deadline_s", "needs_homed", "homed", "mode_text", "notes",
-                 "limits", "after_consent", "task_text")
+                 "limits", "after_consent", "task_text", "target")
     __hash__ = None  # type: ignore[assignment]
 
     def __init__(self, request: MotionRequest, profile: str, mode_kind: str, unit: str = "rev",
@@ -147,6 +147,7 @@ class MotionPlan(Record):
         self.limits: dict[str, Any] = {} if limits is None else limits
         self.after_consent = after_consent
         self.task_text = ""  # kind "task": the stored task in words (target, speed), read while planning
+        self.target = ""  # the target's display name (plan() sets it): the dry run names it
 
     def __repr__(self) -> str:
         shown = (n for n in self.__slots__ if n not in ("after_consent", "task_text"))
@@ -175,9 +176,29 @@ class MotionPlan(Record):
         return (f"move {how} {r.target:g} {self.unit} at {v:.6g} rpm "
                 f"(accel {a:.6g}, decel {self.decel.executed:.6g} rpm/s)")
 
+    def lines(self) -> list[str]:
+        """The plan in words, one line each (``--dry-run``): the motion as the drive will execute it."""
+        out = [f"{self.request.kind} on {self.target}: {self.what}", f"  mode: {self.mode_text}"]
+        for q in (self.velocity, self.accel, self.decel):
+            if q is not None:
+                out.append(f"  {q.what}: {q.executed:.6g} {q.unit} as executed, {q.field_name} = {q.raw} "
+                           f"(requested {q.requested:g})")
+        if self.end_rev is not None:
+            start = "?" if self.start_rev is None else f"{self.start_rev:.4f}"
+            out.append(f"  travel: from {start} to {self.end_rev:.4f} rev")
+        if self.needs_homed:
+            out.append("  homed: " + ("yes" if self.homed else "read after consent, in the motion's mode"
+                                      if self.homed is None else "no"))
+        if self.after_consent is not None:
+            out.append("  checked after consent, before anything moves: the stored task as the drive holds it")
+        out += [f"  note: {text}" for text in self.notes]
+        return out
+
     def to_json(self) -> dict[str, Any]:
         data: dict[str, Any] = {"kind": self.request.kind, "profile": self.profile, "mode": self.mode_text,
                                 "what": self.what}
+        if self.notes:
+            data["notes"] = list(self.notes)
         for name in ("velocity", "accel", "decel"):
             q = getattr(self, name)
             if q is not None:
@@ -425,6 +446,7 @@ def check_request(conn: "Connection", request: MotionRequest, axis_cls: Any,
 def plan(conn: "Connection", axis: "Axis", request: MotionRequest) -> MotionPlan:
     """:func:`check_request`, then the drive's state (module docstring); nothing is written."""
     accepted = check_request(conn, request, type(axis), axis.drive_motion_scales)
+    accepted.target = conn.target.display
     r = request
     status = axis.read_status()
     axis.refuse_if_fault(status)
