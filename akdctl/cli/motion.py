@@ -17,6 +17,7 @@ Velocities are rpm, accelerations rpm/s; positions take ``--units``.
 from __future__ import annotations
 
 import contextlib
+import functools
 import time
 from typing import Any
 
@@ -155,7 +156,7 @@ def status(watch: bool, interval: float, count: int | None, duration: float | No
             status, now = axis.read_status(), time.localtime()
             view.show({"time": time.strftime("%Y-%m-%dT%H:%M:%S", now), "target": app.target.display,
                        "status": status.to_json()},
-                      lambda s=status, t=time.strftime("%H:%M:%S", now): _watch_doc(app, s, t))
+                      functools.partial(_watch_doc, app, status, time.strftime("%H:%M:%S", now)))
             shown += 1
             if count is not None and shown >= count:
                 break
