@@ -153,7 +153,7 @@ _akdctl() {
         "telegram show") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault") COMPREPLY=($(compgen -W "ack clear-history dump explain list --help" -- "$cur")) ;;
         "fault ack") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
-        "fault clear-history") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "fault clear-history") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "fault dump") COMPREPLY=($(compgen -W "--format --help" -- "$cur")) ;;
         "fault explain") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
         "fault list") COMPREPLY=($(compgen -W "--help --kind" -- "$cur")) ;;

@@ -129,6 +129,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from fault' -a dump -d 'Read the f
 complete -c akdctl -n '__fish_seen_subcommand_from fault' -a explain -d 'Explain a fault or warning: F501, n503, 501 or an emergency code su...'
 complete -c akdctl -n '__fish_seen_subcommand_from fault' -a list -d 'The AKD fault/warning catalogue, optionally filtered by kind and by...'
 complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from ack' -l dry-run -d 'Print the faults that would be acknowledged and the write; write nothi'
+complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from clear-history' -l dry-run -d 'Show the plan (the write); write nothing.'
 complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from dump' -l format -d 'table (terminal), markdown (paste into a ticket) or json (same as --js'
 complete -c akdctl -n '__fish_seen_subcommand_from fault && __fish_seen_subcommand_from list' -l kind -d 'Only faults (F), warnings (n), or \'none\' (EMCY 0x0000: error reset, no'
 complete -c akdctl -n '__fish_seen_subcommand_from support' -a bundle -d 'Collect identity, fault dump, status, parameters, mapping and the s...'

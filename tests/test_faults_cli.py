@@ -100,9 +100,12 @@ def test_coe_path_on_the_sim_with_emergencies_and_clear_history(akd_inproc: Any)
 
     code, out, err = akd_inproc("--json", "-T", "sim?drive=cia402", "fault", "ack")
     assert code == 0, err
+    code, out, err = akd_inproc("--json", "-T", "sim?drive=cia402", "fault", "clear-history", "--dry-run")
+    assert code == 0 and _json(out)["plan"]["writes"][0]["address"].startswith("0x1003:0"), err
+    assert len(_json(akd_inproc("--json", "-T", "sim?drive=cia402", "fault", "dump")[1])["canopen"]["error_history"]) == 2
     code, out, err = akd_inproc("--json", "-T", "sim?drive=cia402", "fault", "clear-history")
     assert code == 0, err
-    assert _json(out)["entries_left"] == 0
+    assert _json(out)["entries_left"] == 0 and "only 0x1003 is written" in err
     co = _json(akd_inproc("--json", "-T", "sim?drive=cia402", "fault", "dump")[1])["canopen"]
     assert co["error_history"] == [] and [e["code"] for e in co["fault_history"]] == ["F234"]
 

@@ -215,7 +215,8 @@ def ack(dry_run: bool) -> None:
 
 
 @fault.command("clear-history")
-def clear_history() -> None:
+@click.option("--dry-run", is_flag=True, help="Show the plan (the write); write nothing.")
+def clear_history(dry_run: bool) -> None:
     """Clear the CiA 301 error history (0x1003:0 = 0) where the drive allows it.
 
     PROFIdrive offers no way to clear PNU 947; the command says so (exit 2).
@@ -224,10 +225,15 @@ def clear_history() -> None:
     Examples:
       akdctl -T ecat-udp://10.0.0.5/1001 fault clear-history
     """
-    from akdctl.drive.faults import clear_history as do_clear
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import faults
 
     app = get_app()
-    result = do_clear(app.connection)
+    plan = faults.plan_clear_history(app.connection)
+    if dry_run:
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)  # never gated: shows the plan's note
+    result = faults.clear_history(app.connection, plan)
     app.emit(result, Doc("fault history", app.target.display).line(
         f"error history 0x1003 cleared ({result['entries_left']} entries left)"))
 

@@ -411,14 +411,25 @@ def acknowledge(conn: "Connection") -> dict[str, Any]:
     return result
 
 
-def clear_history(conn: "Connection") -> dict[str, Any]:
-    """Clear the CiA 301 error history (0x1003:0 = 0); PROFIdrive offers no way to clear PNU 947."""
+def plan_clear_history(conn: "Connection") -> "WritePlan":
+    """``fault clear-history`` as a plan: 0x1003:0 = 0 (CiA 301: writing 0 to sub-index 0 empties the predefined
+    error field); never gated, it powers nothing. PROFIdrive offers no way to clear PNU 947: refused (exit 2)."""
+    from akdctl.drive.operation import PlannedWrite, WritePlan
+
     if not conn.has_objects or conn.drive_profile == "profidrive":
         raise UsageError(
             f"target {conn.target.display}: the PROFIdrive fault buffer (PNU 947) cannot be cleared over the "
             "parameter channel; acknowledged situations drop out after 8 new ones"
         )
-    conn.objects().download(0x1003, 0, b"\x00")
+    return WritePlan("fault clear-history", conn.target.display,
+                     [PlannedWrite("0x1003:0 (error history, number of errors)", b"\x00", "0 (clear)")],
+                     notes=["only 0x1003 is written; the AKD's fault history (0x2012/0x2013) is not touched"],
+                     enabled=None, verify=True)
+
+
+def clear_history(conn: "Connection", plan: "WritePlan") -> dict[str, Any]:
+    """Run :func:`plan_clear_history`'s write, then read how many entries are left."""
+    conn.objects().download(0x1003, 0, plan.writes[0].raw)
     remaining = _upload_int(conn.objects(), 0x1003, 0)
     return {"target": conn.target.display, "cleared": "0x1003", "entries_left": remaining}
 
