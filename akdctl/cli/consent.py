@@ -79,14 +79,14 @@ def show_notes(plan: Any) -> None:
 
 def render_dry_run(app: "AppContext", plan: Any, **extra: Any) -> None:
     """``--dry-run``: the plan in words (or its JSON with ``--json``, ``extra`` keys beside it); nothing is
-    written. Every writing command's dry run is rendered here."""
+    written. Every writing command's dry run is rendered here; a plan's first line names its target."""
     from akdctl.cli.output import Doc
 
     lines = plan.lines()
     doc = Doc(f"{lines[0]} (dry run, nothing written)", "")
     for line in lines[1:]:
         doc.line(line)
-    app.emit({"target": app.target.display, **extra, "dry_run": True, "plan": plan.to_json()}, doc)
+    app.emit({"target": plan.target, **extra, "dry_run": True, "plan": plan.to_json()}, doc)
 
 
 def own_axis(app: "AppContext") -> None:

@@ -137,7 +137,7 @@ class IoPlan:
 
     def lines(self) -> list[str]:
         r = self.request
-        out = [f"I/O {r.kind} command type 0x{IO_TYPES[r.kind]:02X}, value {r.value}"
+        out = [f"eip io on {self.target}: I/O {r.kind} command type 0x{IO_TYPES[r.kind]:02X}, value {r.value}"
                + (f", for {self.hold_s:g} s" if self.hold_s is not None else ""),
                f"connection: RPI {r.rpi_ms:g} ms, timeout multiplier x{4 << self.multiplier}: a dead tool leaves "
                f"the axis running at most {self.connection_timeout_s:g} s"]
