@@ -192,8 +192,8 @@ _akdctl() {
         "pn") COMPREPLY=($(compgen -W "blink scan set-ip set-name --help" -- "$cur")) ;;
         "pn blink") COMPREPLY=($(compgen -W "--help --iface -i" -- "$cur")) ;;
         "pn scan") COMPREPLY=($(compgen -W "--help --iface --wait -i" -- "$cur")) ;;
-        "pn set-ip") COMPREPLY=($(compgen -W "--gateway --help --iface --netmask --temporary -i" -- "$cur")) ;;
-        "pn set-name") COMPREPLY=($(compgen -W "--help --iface --temporary -i" -- "$cur")) ;;
+        "pn set-ip") COMPREPLY=($(compgen -W "--dry-run --gateway --help --iface --netmask --temporary -i" -- "$cur")) ;;
+        "pn set-name") COMPREPLY=($(compgen -W "--dry-run --help --iface --temporary -i" -- "$cur")) ;;
         "ecat") COMPREPLY=($(compgen -W "alias foe pdo reg scan sii state --help" -- "$cur")) ;;
         "ecat alias") COMPREPLY=($(compgen -W "--dry-run --help --via" -- "$cur")) ;;
         "ecat foe") COMPREPLY=($(compgen -W "read write --help" -- "$cur")) ;;

@@ -166,10 +166,16 @@ def test_dcp_between_namespaces() -> None:
         assert devices[0]["name"] == "akd-axis1" and devices[0]["vendor_id"] == "0x0100"
         assert devices[0]["role"] == "IO device"
         assert cli("pn", "blink", "--iface", cli_if, "akd-axis1").returncode == 0
+        dry = cli("--json", "pn", "set-name", "--iface", cli_if, "akd-axis1", "akd-axis2", "--dry-run")
+        assert dry.returncode == 0, dry.stderr
+        write = json.loads(dry.stdout)["plan"]["writes"][0]
+        assert write["address"] == f"{devices[0]['mac']} station name" and "now 'akd-axis1'" in write["value"]
+        assert json.loads(cli("--json", "pn", "scan", "--iface", cli_if).stdout)["devices"][0]["name"] == "akd-axis1"
         renamed = cli("pn", "set-name", "--iface", cli_if, "akd-axis1", "akd-axis2", "--temporary")
         assert renamed.returncode == 0, renamed.stderr
         assert cli("pn", "set-ip", "--iface", cli_if, "akd-axis2", "10.77.0.1").returncode == 0
         assert cli("pn", "set-name", "--iface", cli_if, "akd-axis2", "Bad_Name").returncode == 2
+        assert "temporary: the device forgets it" in renamed.stderr
         missing = cli("pn", "blink", "--iface", cli_if, "no-such-drive")
         assert missing.returncode == 3 and "no PROFINET device" in missing.stderr
         # a target by station name, resolved through DCP, then PNIO RPC over UDP across the veth pair

@@ -6,11 +6,12 @@ drives are on. DEVICE is a MAC address (``00:1b:..``) or a station name.
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from akdctl.cli.context import get_app
 from akdctl.cli.output import Doc
-from akdctl.errors import UsageError
 
 IFACE = click.option("--iface", "-i", required=True, metavar="IFNAME",
                      help="Network interface the PROFINET devices are on (e.g. eth0).")
@@ -63,29 +64,43 @@ def scan(iface: str, wait: float | None) -> None:
     app.emit({"interface": iface, "devices": [s.to_json() for s in stations]}, doc)
 
 
+DRY_RUN = click.option("--dry-run", is_flag=True,
+                       help="Find the device and show what it holds and would hold; send no Set.")
+
+
+def _set(iface: str, plan_of: Any, render: Any, dry_run: bool) -> None:
+    """plan -> consent (notes) -> execute -> render: the one path of both DCP Set commands (drive/dcp_settings)."""
+    from akdctl.cli.consent import consent_plan, render_dry_run
+    from akdctl.drive import dcp_settings
+
+    app = get_app()
+    plan = plan_of(lambda: _client(iface))
+    if dry_run:
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
+    result = dcp_settings.execute(lambda: _client(iface), plan)
+    app.emit(result, render(result))
+
+
 @pn.command("set-name")
 @IFACE
 @click.argument("device")
 @click.argument("name")
 @click.option("--temporary", is_flag=True, help="Keep the name only until the device restarts.")
-def set_name(iface: str, device: str, name: str, temporary: bool) -> None:
+@DRY_RUN
+def set_name(iface: str, device: str, name: str, temporary: bool, dry_run: bool) -> None:
     """Give DEVICE (MAC or current station name) the station name NAME.
 
     \b
     Examples:
       akdctl pn set-name --iface eth1 00:23:1b:00:00:01 akd-axis1
+      akdctl pn set-name --iface eth1 akd-axis1 akd-axis2 --dry-run
     """
-    from akdctl.protocol import dcp
-    from akdctl.transport.dcp import find_station
+    from akdctl.drive import dcp_settings
 
-    if not dcp.valid_station_name(name):
-        raise UsageError(f"{name!r} is not a valid PROFINET station name (lower-case letters, digits and '-', "
-                         "dot-separated labels of at most 63 characters)")
-    with _client(iface) as client:
-        station = find_station(client, device)
-        client.set_name(dcp.mac_bytes(station.mac), name, permanent=not temporary)
-    get_app().emit({"mac": station.mac, "name": name, "permanent": not temporary},
-                   f"{station.mac}: station name set to {name!r}" + (" (temporary)" if temporary else ""))
+    _set(iface, lambda open_client: dcp_settings.plan_name(open_client, device, name, permanent=not temporary),
+         lambda r: f"{r['mac']}: station name set to {r['name']!r}" + ("" if r["permanent"] else " (temporary)"),
+         dry_run)
 
 
 @pn.command("set-ip")
@@ -95,30 +110,20 @@ def set_name(iface: str, device: str, name: str, temporary: bool) -> None:
 @click.option("--netmask", default="255.255.255.0", show_default=True)
 @click.option("--gateway", default="0.0.0.0", show_default=True)
 @click.option("--temporary", is_flag=True, help="Keep the address only until the device restarts.")
-def set_ip(iface: str, device: str, ip: str, netmask: str, gateway: str, temporary: bool) -> None:
+@DRY_RUN
+def set_ip(iface: str, device: str, ip: str, netmask: str, gateway: str, temporary: bool, dry_run: bool) -> None:
     """Give DEVICE (MAC or station name) the IPv4 address IP.
 
     \b
     Examples:
       akdctl pn set-ip --iface eth1 akd-axis1 192.168.0.10 --netmask 255.255.255.0
     """
-    import ipaddress
+    from akdctl.drive import dcp_settings
 
-    from akdctl.protocol import dcp
-    from akdctl.transport.dcp import find_station
-
-    try:
-        for value in (ip, netmask, gateway):
-            ipaddress.IPv4Address(value)
-    except ValueError as exc:
-        raise UsageError(f"bad IPv4 setting: {exc}") from None
-    with _client(iface) as client:
-        station = find_station(client, device)
-        client.set_ip(dcp.mac_bytes(station.mac), ip, netmask, gateway, permanent=not temporary)
-    get_app().emit({"mac": station.mac, "ip": ip, "netmask": netmask, "gateway": gateway,
-                    "permanent": not temporary},
-                   f"{station.mac} ({station.name or 'no name'}): IP set to {ip}/{netmask} via {gateway}"
-                   + (" (temporary)" if temporary else ""))
+    _set(iface, lambda open_client: dcp_settings.plan_ip(open_client, device, ip, netmask, gateway,
+                                                         permanent=not temporary),
+         lambda r: f"{r['mac']}: IP set to {r['ip']}/{r['netmask']} via {r['gateway']}"
+         + ("" if r["permanent"] else " (temporary)"), dry_run)
 
 
 @pn.command("blink")
