@@ -33,11 +33,16 @@ def pair() -> Iterator[VethPair]:
 
 
 @pytest.fixture(scope="module")
-def slave(pair: VethPair) -> Iterator[SimServer]:
-    with slave_server(pair) as server:
-        mapped = cli(pair, "-y", "pdo", "map", "--define", "0x1A00=0x606C:0/32,0x6041:0/16", "--tx", "0x1A00")
-        assert mapped.returncode == 0, mapped.stderr
-        yield server
+def slave(pair: VethPair, tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimServer]:
+    # A module fixture is set up before the test's own isolated state dir (conftest.isolated_env): without one of
+    # its own, the server and this pdo map used the user's default state dir, where the owner lock keyed by the
+    # drive's serial (every simulated slave has the same) met the other xdist worker's module fixture (exit 4).
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("AKDCTL_STATE_DIR", str(tmp_path_factory.mktemp("scope-pdo-state")))
+        with slave_server(pair) as server:
+            mapped = cli(pair, "-y", "pdo", "map", "--define", "0x1A00=0x606C:0/32,0x6041:0/16", "--tx", "0x1A00")
+            assert mapped.returncode == 0, mapped.stderr
+            yield server
 
 
 def _rows(path: Path) -> tuple[list[str], list[list[float]]]:
