@@ -208,7 +208,7 @@ _akdctl() {
         "ecat sii") COMPREPLY=($(compgen -W "read write --help --raw" -- "$cur")) ;;
         "ecat sii read") COMPREPLY=($(compgen -W "--format --help --output -o" -- "$cur")) ;;
         "ecat sii write") COMPREPLY=($(compgen -W "--dry-run --fix-crc --force --format --help" -- "$cur")) ;;
-        "ecat state") COMPREPLY=($(compgen -W "--help" -- "$cur")) ;;
+        "ecat state") COMPREPLY=($(compgen -W "--dry-run --help" -- "$cur")) ;;
         "can") COMPREPLY=($(compgen -W "monitor nmt scan --help" -- "$cur")) ;;
         "can monitor") COMPREPLY=($(compgen -W "--for --heartbeat-timeout --heartbeats --help --nodes" -- "$cur")) ;;
         "can nmt") COMPREPLY=($(compgen -W "--dry-run --help --no-wait" -- "$cur")) ;;

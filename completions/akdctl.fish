@@ -291,6 +291,7 @@ complete -c akdctl -n '__fish_seen_subcommand_from ecat && __fish_seen_subcomman
 complete -c akdctl -n '__fish_seen_subcommand_from ecat && __fish_seen_subcommand_from sii && __fish_seen_subcommand_from write' -l fix-crc -d 'Set word 7\'s CRC from words 0-6 instead of refusing a wrong one.'
 complete -c akdctl -n '__fish_seen_subcommand_from ecat && __fish_seen_subcommand_from sii && __fish_seen_subcommand_from write' -l force -d 'Write an image made for another vendor/product.'
 complete -c akdctl -n '__fish_seen_subcommand_from ecat && __fish_seen_subcommand_from sii && __fish_seen_subcommand_from write' -l dry-run -d 'Show the words that would change; write nothing.'
+complete -c akdctl -n '__fish_seen_subcommand_from ecat && __fish_seen_subcommand_from state' -l dry-run -d 'Show the AL Control requests STATE takes from here; request none.'
 complete -c akdctl -n '__fish_seen_subcommand_from can' -a monitor -d 'Show emergencies (as AKD faults), heartbeats and their timeouts, NM...'
 complete -c akdctl -n '__fish_seen_subcommand_from can' -a nmt -d 'Send an NMT command (start, stop, preop, reset, reset-comm) to NODE...'
 complete -c akdctl -n '__fish_seen_subcommand_from can' -a scan -d 'List the nodes that answer: identity (0x1018), device type, name an...'

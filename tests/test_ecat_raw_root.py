@@ -112,8 +112,11 @@ COMMANDS = [
     (["sdo", "read", "0x5FFF:0", "u8"], 1, None),
     (["--json", "ecat", "sii"], 0, "AKD-P00606-NBCC-E000"),
     (["ecat", "sii", "--raw"], 0, "0000: 09 00 00 08"),
+    (["--json", "ecat", "state", "op", "--dry-run"], 0, "AL Control (0x0120)"),   # PRE-OP -> SAFE-OP -> OP
+    (["ecat", "state"], 0, "PREOP"),                                             # ... and nothing requested
     (["ecat", "state", "op"], 0, "OP"),
     (["ecat", "state", "init"], 0, "INIT"),
+    (["ecat", "state", "op", "--dry-run"], 0, "via INIT, SM0/SM1 from the SII"),
 ]
 
 
@@ -123,6 +126,8 @@ def test_our_master_through_the_cli(pair: VethPair, slave: SimServer) -> None:
         assert result.returncode == code, (argv, result.stdout, result.stderr)
         if text is not None:
             assert text in result.stdout, (argv, result.stdout)
+        if argv[:2] == ["--json", "ecat"] and "--dry-run" in argv:   # the stepping rule: one request per step up
+            assert [w["value"] for w in json.loads(result.stdout)["plan"]["writes"]] == ["SAFEOP", "OP"]
     result = cli(pair, "sdo", "read", "0x1018:1", position=3)
     assert result.returncode == 2 and "no slave at position 3" in result.stderr
 

@@ -105,7 +105,8 @@ def _hex(value: int | None) -> str:
 @ecat.command("state")
 @click.argument("state", required=False,
                 type=click.Choice(["INIT", "PREOP", "BOOT", "SAFEOP", "OP"], case_sensitive=False))
-def state(state: str | None) -> None:
+@click.option("--dry-run", is_flag=True, help="Show the AL Control requests STATE takes from here; request none.")
+def state(state: str | None, dry_run: bool) -> None:
     """Show the slave's AL state, or request STATE (stepping through PRE-OP and SAFE-OP).
 
     BOOT is entered from INIT with the SII's bootstrap mailbox (only FoE works there); leaving BOOT restarts the
@@ -123,26 +124,19 @@ def state(state: str | None) -> None:
     transport = _bus()
     master, slave = transport.master, transport.slave
     assert master is not None and slave is not None
-    if state is not None:
-        wanted = ec.parse_al_state(state)
-        current = slave.al_status & 0x0F
-        if current == ec.AlState.BOOT and wanted != ec.AlState.BOOT:
-            transport.leave_boot(50.0)  # BOOT goes to INIT only, and the drive restarts
-            slave = transport.slave
-            assert slave is not None
-            current = ec.AlState.INIT
-        if wanted == ec.AlState.BOOT:
-            if current != ec.AlState.BOOT:
-                transport.enter_boot()
-        elif wanted == ec.AlState.INIT or wanted < current:
-            master.request_state(slave.station, wanted)
-        else:
-            if current == ec.AlState.INIT or slave.al_status & ec.AL_ERROR_FLAG:
-                transport.open_mailbox()  # INIT -> PRE-OP with SM0/SM1 from the SII
-            for step in (ec.AlState.SAFEOP, ec.AlState.OP):
-                if step <= wanted and master.al_status(slave.station)[0] & 0x0F < step:
-                    master.request_state(slave.station, step)
-    status, code = master.al_status(slave.station)
+    if state is None:
+        status, code = master.al_status(slave.station)
+    else:
+        from akdctl.cli.consent import consent_plan, render_dry_run
+        from akdctl.drive import ecat_state
+
+        plan = ecat_state.plan(transport, app.target.display, state)
+        if dry_run:
+            return render_dry_run(app, plan)
+        consent_plan(app, plan)   # never gated: shows the plan's notes (BOOT, the restart on leaving it)
+        status, code = ecat_state.execute(transport, plan)
+        slave = transport.slave
+        assert slave is not None
     from akdctl.catalog.texts import al_status_line, al_status_text
 
     text = al_status_line(status, code)
