@@ -53,3 +53,42 @@ def test_a_missing_command_module_is_an_error_not_a_hidden_command() -> None:
     assert "ghost" in listing.output  # listed from the table: the slip is not hidden
     result = CliRunner().invoke(root, ["ghost"])
     assert isinstance(result.exception, ModuleNotFoundError)
+
+
+#: The commands without ``--dry-run``, and why none is needed: each only reads, only takes power or motion away
+#: (never delayed by a plan), or works on the simulator rather than a drive. A writing command born without a dry
+#: run fails the test below until it has one (plan -> consent -> execute, cli/consent.render_dry_run).
+NO_DRY_RUN = {
+    "reads": {"status", "task list", "task show", "pnu describe", "pnu get", "pnu list", "sdo list", "sdo read",
+              "pdo presets", "pdo show", "telegram show", "fault dump", "fault explain", "fault list",
+              "support bundle", "support diff", "support show", "param backup", "param diff", "param dump",
+              "param get", "param help", "param list", "diagnose", "info", "discover", "targets", "pn scan",
+              "ecat foe read", "ecat reg read", "ecat scan", "ecat sii read", "can monitor", "can scan", "cip get",
+              "eip param get", "eip scan"},
+    "takes power or motion away": {"disable", "stop"},
+    "asks the device to show itself (DCP blink: a LED)": {"pn blink"},
+    "runs other commands, each with its own": {"shell"},
+    "the simulator, not a drive": {"sim fault", "sim clear", "sim speed", "sim set", "sim reset", "sim serve",
+                                   "sim show"},
+}
+
+
+def _leaves(command: click.Command, path: tuple[str, ...] = ()) -> dict[str, click.Command]:
+    if not isinstance(command, click.Group):
+        return {" ".join(path): command}
+    ctx = click.Context(command)
+    found: dict[str, click.Command] = {}
+    for name in command.list_commands(ctx):
+        if not path and alias_of(name) is not None:
+            continue  # 'params' is 'param'
+        found.update(_leaves(command.get_command(ctx, name), (*path, name)))  # type: ignore[arg-type]
+    return found
+
+
+def test_every_writing_command_has_a_dry_run() -> None:
+    leaves = _leaves(cli)
+    without = {name for name, command in leaves.items()
+               if not any(isinstance(p, click.Option) and "--dry-run" in p.opts for p in command.params)}
+    allowed = set().union(*NO_DRY_RUN.values())
+    assert without == allowed, (f"no --dry-run and not listed: {sorted(without - allowed)}; "
+                                f"listed but has one or is gone: {sorted(allowed - without)}")
