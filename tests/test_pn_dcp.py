@@ -173,6 +173,10 @@ def test_dcp_between_namespaces() -> None:
         assert json.loads(cli("--json", "pn", "scan", "--iface", cli_if).stdout)["devices"][0]["name"] == "akd-axis1"
         renamed = cli("pn", "set-name", "--iface", cli_if, "akd-axis1", "akd-axis2", "--temporary")
         assert renamed.returncode == 0, renamed.stderr
+        dry_ip = cli("--json", "pn", "set-ip", "--iface", cli_if, "akd-axis2", "10.77.0.9", "--dry-run")
+        assert dry_ip.returncode == 0, dry_ip.stderr
+        write = json.loads(dry_ip.stdout)["plan"]["writes"][0]
+        assert write["raw"] == ["10.77.0.9", "255.255.255.0", "0.0.0.0"] and "(now 10.77.0.1)" in write["value"]
         assert cli("pn", "set-ip", "--iface", cli_if, "akd-axis2", "10.77.0.1").returncode == 0
         assert cli("pn", "set-name", "--iface", cli_if, "akd-axis2", "Bad_Name").returncode == 2
         assert "temporary: the device forgets it" in renamed.stderr
