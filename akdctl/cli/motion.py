@@ -238,6 +238,7 @@ def jog(velocity: float, duration: str | None, distance: float | None, accel: fl
     Examples:
       akdctl -y jog 100 --for 2s
       akdctl -y jog -50 --distance 0.25
+      akdctl jog 100 --for 2s --dry-run
     """
     from akdctl.drive.motion_plan import MotionRequest
 
@@ -296,6 +297,7 @@ def move(target: float, relative: bool, velocity: float | None, accel: float | N
       akdctl -y move 10
       akdctl -y move --relative -0.5 --velocity 60
       akdctl -y move 90 --units deg --json
+      akdctl move 10 --dry-run
     """
     from akdctl.drive.motion_plan import MotionRequest
 
