@@ -136,6 +136,7 @@ def test_bad_input_ends_in_one_line(akd_inproc, argv: tuple[str, ...], code: int
 def test_gated_write_by_name_needs_consent(akd_inproc) -> None:
     rc, out, err = akd_inproc("param", "set", "MT.P=1000")            # 0x607A: a set point, always gated
     assert rc == 4 and "consent" in err
+    assert len(err.splitlines()) == 1  # the refusal alone: the plan's notes (RAM only ...) come only if it runs
     rc, out, err = akd_inproc("--json", "param", "set", "MT.P=1000", "--dry-run")
     plan = json.loads(out)["plan"]
     assert rc == 0 and plan["needs_consent"] and plan["writes"][0]["address"].startswith("MT.P (CoE 0x607A:0)")

@@ -62,6 +62,8 @@ def consent_plan(app: "AppContext", plan: Any) -> None:
     way by every writing command, whether or not it needs consent."""
     from akdctl.drive.operation import consent_needed
 
+    if not app.yes and plan.needing_consent:  # a refusal is its one line, before any note
+        refuse_without_terminal(f"{plan.consent_text} on {app.target.display}", app.yes)
     show_notes(plan)
     if plan.gated and app.yes:
         own_axis(app)
