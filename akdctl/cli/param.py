@@ -213,14 +213,14 @@ def save(dry_run: bool) -> None:
       akdctl param save
       akdctl -T akd://192.168.0.10 param save
     """
+    from akdctl.cli.consent import consent_plan, render_dry_run
     from akdctl.drive import names as ops
 
     app = get_app()
     plan = ops.plan_save(app.connection)
     if dry_run:
-        from akdctl.cli.consent import render_dry_run
-
         return render_dry_run(app, plan)
+    consent_plan(app, plan)  # never gated: shows the plan's note
     result = ops.execute_save(app.connection, plan)
     app.emit({"target": app.target.display, **result}, f"saved to non-volatile memory on {app.target.display}")
 
