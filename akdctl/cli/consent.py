@@ -57,7 +57,8 @@ def consent_plan(app: "AppContext", plan: Any) -> None:
     """The consent a write plan asks for (:attr:`akdctl.drive.operation.WritePlan.consent_text`), decided by the
     plan alone; a plan with gated writes owns the axis like a motion (also with ``--yes``).
 
-    The plan's notes come first, one ``akdctl: note:`` line each on stderr: what the user should know before it
+    A plan that cannot be consented to (no terminal, no ``--yes``) is refused first, in its one line. Otherwise its
+    notes come before the question, one ``akdctl: note:`` line each on stderr: what the user should know before it
     runs (RAM only until saved, an inferred scale, what ``--force`` let past, a power cycle needed), shown the same
     way by every writing command, whether or not it needs consent."""
     from akdctl.drive.operation import consent_needed
