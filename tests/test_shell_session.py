@@ -147,7 +147,11 @@ def test_ctrl_c_during_a_jog_stops_the_axis_and_returns_the_prompt(cia402_shell:
 
 
 def test_ctrl_c_at_the_prompt_clears_the_line(cia402_shell: PtyShell) -> None:
+    # Ctrl-C once the line shows, as a person would. CPython's readline acts on a signal only when it interrupts
+    # its wait for input: one that lands while it is still handling the typed keys (a loaded machine, 0.3 s after
+    # typing) waits for the next key, and the test saw no prompt (its "exit" then joined the cancelled line).
     cia402_shell.type("pnu get 93")
+    cia402_shell.read_until(lambda text: "pnu get 93" in text)
     time.sleep(0.3)
     os.killpg(cia402_shell.proc.pid, signal.SIGINT)
     cia402_shell.prompt()
