@@ -16,13 +16,8 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.cli.ecat_common import (
-    ask_plan,
-    dry_run_plan,
-    parse_int,
-    read_user_file,
-    write_user_file,
-)
+from akdctl.cli.consent import consent_plan, render_dry_run
+from akdctl.cli.ecat_common import parse_int, read_user_file, write_user_file
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
@@ -253,8 +248,8 @@ def sii_write(file: str, fmt: str, fix_crc: bool, force: bool, dry_run: bool) ->
     app = get_app()
     plan = regs.plan_sii_write(app.connection, _load_sii_file(file, fmt), file, fix_crc, force)
     if dry_run:
-        return dry_run_plan(plan)
-    ask_plan(plan)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
     result = regs.execute_sii_write(app.connection, plan)
     app.emit(result, Doc("SII write", app.target.display).kv("words written", result["words_written"])
              .kv("verified", "yes").line("the slave loads words 0-7 at its next power-on"))
@@ -328,8 +323,8 @@ def reg_write(address: str, value: str, size: int | None, as_hex: bool, force: b
         data = number.to_bytes(n, "little")
     plan = regs.plan_register_write(app.connection, addr, data, force)
     if dry_run:
-        return dry_run_plan(plan)
-    ask_plan(plan)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)
     result = regs.execute_register_write(app.connection, plan)
     app.emit(result, Doc(f"register 0x{addr:04X}", app.target.display).kv("before", plan.data["before"].hex(" "))
              .kv("written", data.hex(" ")).kv("read back", bytes.fromhex(result["read_back"]).hex(" ")))
@@ -360,8 +355,8 @@ def alias(alias: str | None, via: str, dry_run: bool) -> None:
         return
     plan = op.plan(app.connection, parse_int(alias, "alias"), via)
     if dry_run:
-        return dry_run_plan(plan)
-    ask_plan(plan)  # shows the plan's notes: the power cycle, and DRV.NVSAVE on an SII word 4 write
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)  # shows the plan's notes: the power cycle, and DRV.NVSAVE on an SII word 4 write
     result = op.execute(app.connection, plan)
     doc = _alias_doc(f"station alias set to {result['alias']} ({via})", result["after"])
     doc.line("power-cycle the drive: the master sees the new alias in register 0x0012 after that"

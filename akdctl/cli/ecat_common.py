@@ -1,5 +1,5 @@
-"""What the ``ecat`` commands share: the user's files read and written bounded, numbers as typed, and a plan's
-consent or dry run (plan -> consent -> execute, :mod:`akdctl.drive.operation`).
+"""What the ``ecat`` commands share: the user's files read and written bounded, and numbers as typed (a plan's
+consent and dry run are :mod:`akdctl.cli.consent`'s, as for every command).
 
 Why a module of its own: ``ecat`` (SII, registers, alias), ``ecat foe`` and ``ecat pdo`` are split by job
 (cli/ecat.py, cli/ecat_foe.py, cli/ecat_pdo.py) and must phrase these the same way.
@@ -7,9 +7,7 @@ Why a module of its own: ``ecat`` (SII, registers, alias), ``ecat foe`` and ``ec
 
 from __future__ import annotations
 
-from typing import Any
 
-from akdctl.cli.context import get_app
 from akdctl.errors import UsageError
 
 
@@ -34,18 +32,6 @@ def write_user_file(path: str, data: bytes) -> None:
         write_user_file(Path(path), data)
     except OSError as exc:
         raise UsageError(f"{path}: cannot write it ({exc.strerror or exc})") from None
-
-
-def ask_plan(plan: Any) -> None:
-    from akdctl.cli.consent import consent_plan
-
-    consent_plan(get_app(), plan)
-
-
-def dry_run_plan(plan: Any) -> None:
-    from akdctl.cli.consent import render_dry_run
-
-    render_dry_run(get_app(), plan)
 
 
 def parse_int(text: str, what: str) -> int:

@@ -11,7 +11,8 @@ from typing import Any
 import click
 
 from akdctl.cli.context import get_app
-from akdctl.cli.ecat_common import ask_plan, dry_run_plan, parse_int
+from akdctl.cli.consent import consent_plan, render_dry_run
+from akdctl.cli.ecat_common import parse_int
 from akdctl.cli.output import Doc
 from akdctl.errors import UsageError
 
@@ -59,8 +60,8 @@ def pdo_watch(duration: float, period: float, outs: tuple[str, ...], dry_run: bo
     outputs = dict(_parse_out(text) for text in outs)
     plan = op.plan(app.connection, outputs)
     if dry_run:
-        return dry_run_plan(plan)
-    ask_plan(plan)  # every output given with --out needs consent (drive/ecat_pdo_watch.plan)
+        return render_dry_run(app, plan)
+    consent_plan(app, plan)  # every output given with --out needs consent (drive/ecat_pdo_watch.plan)
     with _LiveView(app.json) as view:
         result = op.execute(app.connection, plan, duration, period, view.show)
     doc = Doc("process data (last cycle)", app.target.display)
