@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from akdctl.catalog import objects as oc
 from akdctl.catalog.texts import al_status_line
-from akdctl.drive.gate import Gated, classify_object
+from akdctl.drive.gate import EVERY_CYCLE, Gated, classify_object
 from akdctl.drive.operation import PlannedWrite, WritePlan
 from akdctl.errors import CommError, DriveError, UsageError
 
@@ -110,11 +110,6 @@ def layouts(conn: "Connection") -> tuple[dict[str, Any], Layout, Layout]:
 
     mapping = read_mapping(conn.objects())
     return mapping, Layout(mapping["rx"].pdos), Layout(mapping["tx"].pdos)
-
-
-#: Why an output given with ``--out`` needs consent even where its object's class does not gate it: the slave acts
-#: on it every cycle in OP, not once.
-EVERY_CYCLE = "written to the slave every cycle while it is in OP"
 
 
 def plan(conn: "Connection", outputs: dict[tuple[int, int], int]) -> WritePlan:

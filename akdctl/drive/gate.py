@@ -48,6 +48,10 @@ _MODE = "the operating mode of an enabled drive changes what its set points mean
 _MAPPING = "the process-data mapping of an enabled drive changes which set points it follows"
 _MT_LOAD = "MT.LOAD replaces the profile-position set points 0x607A/0x6081/0x6083/0x6084 of an enabled drive"
 
+#: Why two writes are gated by what they do rather than by an address's class (README "Safety model").
+NMT_START = "in OPERATIONAL the node acts on the RPDOs on the bus: a master's controlword and set points"
+EVERY_CYCLE = "written to the slave every cycle while it is in OP"
+
 #: Write class (catalog/objects.py WRITE_CLASSES) -> (why it is gated, gated only while the drive is enabled).
 CLASS_REASONS: dict[str, tuple[str, bool]] = {
     "control": (_CONTROL, False),

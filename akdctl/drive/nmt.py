@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from akdctl.drive.gate import Gated
+from akdctl.drive.gate import NMT_START, Gated
 from akdctl.drive.operation import PlannedWrite, WritePlan
 from akdctl.errors import CheckFailed, UsageError
 
@@ -29,8 +29,6 @@ EXPECTED_STATE = {
     "reset": "PRE-OPERATIONAL",
     "reset-comm": "PRE-OPERATIONAL",
 }
-#: Why NMT start needs consent (module docstring).
-FOLLOWS_RPDOS = "in OPERATIONAL the node acts on the RPDOs on the bus: a master's controlword and set points"
 _RESTARTS = {"reset": "a reset node restarts its application: power stage off, parameters as last saved (DRV.NVSAVE)",
              "reset-comm": "a reset node restarts its communication: PDO and heartbeat settings as last saved"}
 
@@ -70,7 +68,7 @@ def plan(conn: "Connection", request: NmtRequest) -> WritePlan:
     node = bus(conn).node_id if request.node is None else request.node
     who = "every node" if node == 0 else f"node {node}"
     address = f"NMT {request.command} ({who})"
-    gated = Gated(address, FOLLOWS_RPDOS) if request.command == "start" else None
+    gated = Gated(address, NMT_START) if request.command == "start" else None
     code = NMT_COMMANDS[request.command]
     notes = [_RESTARTS[request.command]] if request.command in _RESTARTS else []
     confirm = request.wait and node != 0
