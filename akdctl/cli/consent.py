@@ -28,10 +28,15 @@ if TYPE_CHECKING:
 
 def require_consent(app: "AppContext", action: str) -> None:
     """Return when the user consents to ``action`` on this target; SafetyRefusal (exit 4) otherwise."""
-    text = f"{action} on {app.target.display}"
-    refuse_without_terminal(text, app.yes)
+    refuse_unaskable(app, action)
     own_axis(app)
-    ask(text, app.yes)
+    ask(f"{action} on {app.target.display}", app.yes)
+
+
+def refuse_unaskable(app: "AppContext", action: str) -> None:
+    """SafetyRefusal (exit 4) when consent to ``action`` on this target can be neither given nor asked: called
+    before a plan's notes, so such a refusal is its one line."""
+    refuse_without_terminal(f"{action} on {app.target.display}", app.yes)
 
 
 def refuse_without_terminal(text: str, yes: bool) -> None:
@@ -63,8 +68,8 @@ def consent_plan(app: "AppContext", plan: Any) -> None:
     way by every writing command, whether or not it needs consent."""
     from akdctl.drive.operation import consent_needed
 
-    if not app.yes and plan.needing_consent:  # a refusal is its one line, before any note
-        refuse_without_terminal(f"{plan.consent_text} on {app.target.display}", app.yes)
+    if not app.yes and plan.needing_consent:
+        refuse_unaskable(app, plan.consent_text)
     show_notes(plan)
     if plan.gated and app.yes:
         own_axis(app)

@@ -90,7 +90,7 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     """The one path of every command that powers or moves the axis: plan (checks, reads only),
     consent, then execute under the stop signals; prints the final state. ``dry_run``: the plan in words, then
     stop (nothing asked, owned or written)."""
-    from akdctl.cli.consent import own_axis, refuse_without_terminal, render_dry_run, require_consent, show_notes
+    from akdctl.cli.consent import own_axis, refuse_unaskable, render_dry_run, require_consent, show_notes
     from akdctl.cli.progress import MotionProgress
     from akdctl.cli.signals import stop_signals
     from akdctl.drive import motion_plan
@@ -107,7 +107,7 @@ def _plan_and_run(app: Any, request: Any, title: str, extra: dict[str, Any] | No
     axis = conn.axis()
     plan = motion_plan.plan(conn, axis, request)
     action = f"{plan.what} (mode: {plan.mode_text})"
-    refuse_without_terminal(f"{action} on {app.target.display}", app.yes)  # a refusal is its one line, before notes
+    refuse_unaskable(app, action)
     show_notes(plan)
     require_consent(app, action)
     if not app.yes:
